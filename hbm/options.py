@@ -1,0 +1,105 @@
+"""Options of the nonlinear stages (scene sections [casing], [contact], [hbm], [ti])."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class CasingOptions:
+    """Rigid ovalised casing, eq. (28) of the reference paper.
+
+    n_lobes: number of lobes n_l. width: angular width w_l of a lobe, rad.
+    clearance: operating clearance c_j, m. penetration: lobe penetration p_j, m.
+    """
+
+    n_lobes: int = 2
+    width: float = 0.15
+    clearance: float = 4e-4
+    penetration: float = 1.25e-4
+
+    def __post_init__(self):
+        if self.n_lobes < 1:
+            raise ValueError(f"n_lobes must be >= 1, got {self.n_lobes}")
+        if not 0 < self.width < 2 * math.pi:
+            raise ValueError(f"width must be in (0, 2 pi) rad, got {self.width}")
+        if self.clearance < 0:
+            raise ValueError(f"clearance must be >= 0 m, got {self.clearance}")
+
+
+@dataclass(frozen=True)
+class ContactOptions:
+    """Contact and friction laws.
+
+    epsilon: DLFT weighting factor, N/m. kappa: RL penalty stiffness, N/m.
+    gamma: RL regularisation, N. lanczos: apply the Lanczos sigma filter (RL).
+    mu: sliding Coulomb friction coefficient, -.
+    """
+
+    epsilon: float = 1e7
+    kappa: float = 1e9
+    gamma: float = 600.0
+    lanczos: bool = True
+    mu: float = 0.15
+
+    def __post_init__(self):
+        for k in ("epsilon", "kappa"):
+            if not getattr(self, k) > 0:
+                raise ValueError(f"{k} must be > 0 N/m, got {getattr(self, k)}")
+        if self.gamma < 0:
+            raise ValueError(f"gamma must be >= 0 N, got {self.gamma}")
+        if self.mu < 0:
+            raise ValueError(f"friction coefficient mu must be >= 0, got {self.mu}")
+
+
+@dataclass(frozen=True)
+class HbmOptions:
+    """Harmonic balance and continuation.
+
+    methods: contact treatments to run, among "dlft", "rl".
+    n_harmonics: N_h. n_time: N_t (samples per period in the AFT).
+    omega_start, omega_end: rotation speed range Omega, rad/s (omega = Omega).
+    """
+
+    methods: tuple[str, ...] = ("dlft", "rl")
+    n_harmonics: int = 40
+    n_time: int = 1024
+    omega_start: float = 400.0
+    omega_end: float = 2000.0
+
+    def __post_init__(self):
+        for m in self.methods:
+            if m not in ("dlft", "rl"):
+                raise ValueError(f"unknown HBM method '{m}'; known: dlft, rl")
+        if self.n_harmonics < 1:
+            raise ValueError(f"n_harmonics must be >= 1, got {self.n_harmonics}")
+        if self.n_time < 2 * self.n_harmonics + 1:
+            raise ValueError(f"n_time = {self.n_time} cannot resolve {self.n_harmonics} harmonics "
+                             f"(need n_time >= 2 n_harmonics + 1)")
+        if not 0 < self.omega_start < self.omega_end:
+            raise ValueError(f"need 0 < omega_start < omega_end, got {self.omega_start}, {self.omega_end}")
+
+
+@dataclass(frozen=True)
+class TimeIntegrationOptions:
+    """Time-integration reference.
+
+    dt: time step, s. n_revolutions: revolutions simulated per Omega.
+    n_keep: last revolutions kept for amplitude and periodicity.
+    omega_start, omega_end, n_omega: the sweep grid of Omega, rad/s.
+    """
+
+    dt: float = 1e-7
+    n_revolutions: int = 200
+    n_keep: int = 20
+    omega_start: float = 400.0
+    omega_end: float = 2000.0
+    n_omega: int = 161
+
+    def __post_init__(self):
+        if not self.dt > 0:
+            raise ValueError(f"dt must be > 0 s, got {self.dt}")
+        if not 0 < self.n_keep <= self.n_revolutions:
+            raise ValueError(f"need 0 < n_keep <= n_revolutions, got {self.n_keep}, {self.n_revolutions}")
+        if self.n_omega < 1:
+            raise ValueError(f"n_omega must be >= 1, got {self.n_omega}")

@@ -1,0 +1,186 @@
+"""HDF5 artifacts: one file per stage, written atomically, read back as typed objects.
+
+A stage result is a frozen dataclass whose fields are numpy arrays, scipy sparse
+matrices, scalars, strings or nested dataclasses. Each field may carry its SI unit in
+`dataclasses.field(metadata={"unit": "m"})`; the unit is stored as the dataset's
+`unit` attribute. Files are written to a temporary name in the same folder and renamed
+only when complete, so an interrupted run never leaves a file that looks valid.
+"""
+from __future__ import annotations
+
+import dataclasses
+import datetime
+import os
+import subprocess
+import typing
+from pathlib import Path
+
+import h5py
+import numpy as np
+import scipy.sparse as sp
+
+UNITS_SI = "{length: m, time: s, mass: kg, force: N, angle: rad, angular_speed: rad/s, frequency: Hz}"
+
+
+class ArtifactError(RuntimeError):
+    """An artifact that is missing, incomplete or unreadable."""
+
+
+def code_version() -> str:
+    """Package version plus the git commit (with '-dirty' if the tree has changes)."""
+    from importlib import metadata
+
+    try:
+        version = metadata.version("bladerub")
+    except metadata.PackageNotFoundError:
+        version = "0+unknown"
+    try:
+        here = Path(__file__).resolve().parent
+        rev = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=here,
+                             capture_output=True, text=True, timeout=5).stdout.strip()
+    except (OSError, subprocess.SubprocessError):
+        rev = ""
+    return f"{version}+{rev}" if rev else version
+
+
+def _write_value(group: h5py.Group, name: str, value, unit: str | None):
+    if value is None:
+        return
+    if dataclasses.is_dataclass(value):
+        sub = group.create_group(name)
+        sub.attrs["dataclass"] = type(value).__qualname__
+        _write_fields(sub, value)
+        return
+    if sp.issparse(value):
+        csr = sp.csr_matrix(value)
+        sub = group.create_group(name)
+        sub.attrs["sparse"] = "csr"
+        sub.attrs["shape"] = np.asarray(csr.shape, dtype=np.int64)
+        sub.create_dataset("data", data=csr.data)
+        sub.create_dataset("indices", data=csr.indices)
+        sub.create_dataset("indptr", data=csr.indptr)
+        if unit:
+            sub.attrs["unit"] = unit
+        return
+    if isinstance(value, str):
+        group.attrs[name] = value
+        return
+    if isinstance(value, dict):
+        sub = group.create_group(name)
+        sub.attrs["dict"] = 1
+        for k, v in value.items():
+            _write_value(sub, str(k), v, None)
+        return
+    arr = np.asarray(value)
+    big = arr.size > 4096
+    ds = group.create_dataset(name, data=arr, **({"compression": "gzip", "compression_opts": 1,
+                                                  "shuffle": True} if big else {}))
+    if unit:
+        ds.attrs["unit"] = unit
+
+
+def _write_fields(group: h5py.Group, obj):
+    for f in dataclasses.fields(obj):
+        _write_value(group, f.name, getattr(obj, f.name), f.metadata.get("unit"))
+
+
+def write_artifact(path: Path | str, result, *, stage: str, scene_text: str = "",
+                   inputs_hash: str = "", extra_attrs: dict | None = None) -> Path:
+    """Write a dataclass `result` to `path` atomically (temporary name, then rename).
+
+    Root attributes: stage, units, scene, inputs_hash, code_version, created.
+    An existing good file at `path` is replaced only once the new one is complete.
+    """
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    try:
+        with h5py.File(tmp, "w") as h5:
+            h5.attrs["stage"] = stage
+            h5.attrs["units"] = UNITS_SI
+            h5.attrs["scene"] = scene_text
+            h5.attrs["inputs_hash"] = inputs_hash
+            h5.attrs["code_version"] = code_version()
+            h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
+            h5.attrs["dataclass"] = type(result).__qualname__
+            for k, v in (extra_attrs or {}).items():
+                h5.attrs[k] = v
+            _write_fields(h5, result)
+        with open(tmp, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def _read_value(node, hint):
+    if isinstance(node, h5py.Group):
+        if node.attrs.get("sparse") == "csr":
+            shape = tuple(int(s) for s in node.attrs["shape"])
+            return sp.csr_matrix((node["data"][()], node["indices"][()], node["indptr"][()]), shape=shape)
+        if node.attrs.get("dict"):
+            out = {k: _read_value(node[k], None) for k in node}
+            out.update({k: (v.decode() if isinstance(v, bytes) else v)
+                        for k, v in node.attrs.items() if k != "dict"})
+            return out
+        cls = _dataclass_of(hint)
+        if cls is None:
+            raise ArtifactError(f"group {node.name} has no known type to read into")
+        return _read_fields(node, cls)
+    val = node[()]
+    if isinstance(val, np.ndarray):
+        return val
+    return val.item() if isinstance(val, np.generic) else val
+
+
+def _dataclass_of(hint):
+    if hint is None:
+        return None
+    if dataclasses.is_dataclass(hint):
+        return hint
+    for a in typing.get_args(hint):
+        if dataclasses.is_dataclass(a):
+            return a
+    return None
+
+
+def _read_fields(group: h5py.Group, cls):
+    hints = typing.get_type_hints(cls)
+    kwargs = {}
+    for f in dataclasses.fields(cls):
+        if f.name in group:
+            kwargs[f.name] = _read_value(group[f.name], hints.get(f.name))
+        elif f.name in group.attrs:
+            v = group.attrs[f.name]
+            kwargs[f.name] = v.decode() if isinstance(v, bytes) else v
+        elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
+            kwargs[f.name] = None
+    return cls(**kwargs)
+
+
+def read_artifact(path: Path | str, cls):
+    """Read a file written by `write_artifact` back into an instance of `cls`."""
+    path = Path(path)
+    if not path.is_file():
+        raise ArtifactError(f"artifact not found: {path}")
+    try:
+        with h5py.File(path, "r") as h5:
+            return _read_fields(h5, cls)
+    except OSError as exc:
+        raise ArtifactError(f"cannot read artifact {path}: {exc}") from exc
+
+
+def read_attrs(path: Path | str) -> dict:
+    """Root attributes of an artifact (empty dict if the file is missing or unreadable)."""
+    try:
+        with h5py.File(path, "r") as h5:
+            return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
+    except OSError:
+        return {}
+
+
+def is_current(path: Path | str, inputs_hash: str) -> bool:
+    """True if `path` is a complete artifact made from exactly these inputs."""
+    return Path(path).is_file() and read_attrs(path).get("inputs_hash") == inputs_hash

@@ -1,0 +1,55 @@
+"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE]`, `bladerub render ...`."""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+from pipelines.scene import SceneError, load_scene
+
+
+def _cmd_run(args) -> int:
+    from pipelines.stages import STAGES, run_scene
+
+    scene = load_scene(args.scene)
+    if args.until not in STAGES:
+        raise SceneError(f"unknown stage '{args.until}'; stages: {', '.join(STAGES)}")
+    run_scene(scene, Path(args.out), until=args.until, force=args.force)
+    return 0
+
+
+def _cmd_render(args) -> int:
+    from pipelines.stages import render_modes
+
+    scene = load_scene(args.scene)
+    for p in render_modes(scene, Path(args.out), n_modes=args.modes):
+        print(p)
+    return 0
+
+
+def main(argv: list[str] | None = None) -> int:
+    from pipelines.stages import STAGES
+
+    parser = argparse.ArgumentParser(prog="bladerub", description=__doc__)
+    sub = parser.add_subparsers(dest="command", required=True)
+    run = sub.add_parser("run", help="run a scene's stages in order, skipping those already up to date")
+    run.add_argument("scene", type=Path, help="scene file (TOML)")
+    run.add_argument("--out", type=Path, required=True, help="output folder for artifacts and figures")
+    run.add_argument("--until", default=STAGES[-1], help=f"last stage to run, one of {', '.join(STAGES)}")
+    run.add_argument("--force", action="store_true", help="recompute stages even if up to date")
+    run.set_defaults(func=_cmd_run)
+    ren = sub.add_parser("render", help="render mode shapes off-screen to PNG (needs fem.h5 in --out)")
+    ren.add_argument("scene", type=Path)
+    ren.add_argument("--out", type=Path, required=True)
+    ren.add_argument("--modes", type=int, default=None, help="number of modes (default: the scene's)")
+    ren.set_defaults(func=_cmd_render)
+    args = parser.parse_args(argv)
+    try:
+        return args.func(args)
+    except (SceneError, ValueError, FileNotFoundError) as exc:
+        print(f"bladerub: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())

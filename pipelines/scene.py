@@ -1,0 +1,166 @@
+"""Scenes: a TOML file -> one frozen, validated `Scene`.
+
+Every configurable number of the pipeline lives in a frozen dataclass owned by the
+package that uses it (`mesh.options`, `fem.material`, ...). This module is the one
+place that maps TOML sections onto those dataclasses; the dataclass defaults are the
+scene defaults. Unknown sections or keys are errors that name the key (and the
+closest known one), so a misspelt key never silently falls back to a default.
+"""
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import hashlib
+import json
+import tomllib
+import typing
+from pathlib import Path
+
+from fem.material import Material
+from fem.options import FemOptions
+from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions
+from mesh.options import BladeOptions, MeshOptions
+from rom.options import RomOptions
+from pipelines.options import RenderOptions
+
+
+class SceneError(ValueError):
+    """A scene file that cannot be used as written."""
+
+
+SECTIONS: dict[str, type] = {
+    "blade": BladeOptions,
+    "mesh": MeshOptions,
+    "material": Material,
+    "fem": FemOptions,
+    "rom": RomOptions,
+    "casing": CasingOptions,
+    "contact": ContactOptions,
+    "hbm": HbmOptions,
+    "ti": TimeIntegrationOptions,
+    "render": RenderOptions,
+}
+
+
+@dataclasses.dataclass(frozen=True)
+class Scene:
+    """A parsed scene. `path` is the TOML file; relative paths in it resolve from its folder."""
+
+    name: str
+    path: Path
+    text: str
+    blade: BladeOptions
+    mesh: MeshOptions
+    material: Material
+    fem: FemOptions
+    rom: RomOptions
+    casing: CasingOptions
+    contact: ContactOptions
+    hbm: HbmOptions
+    ti: TimeIntegrationOptions
+    render: RenderOptions
+
+    def resolve(self, p: str | Path) -> Path:
+        """A path of the scene, made absolute relative to the scene file's folder."""
+        p = Path(p).expanduser()
+        return p if p.is_absolute() else (self.path.parent / p).resolve()
+
+    def section_hash(self, *names: str) -> str:
+        """Hash of the named sections' values (defaults included): what a stage depends on."""
+        payload = {n: _jsonable(dataclasses.asdict(getattr(self, n))) for n in names}
+        return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
+
+
+def _jsonable(d):
+    if isinstance(d, dict):
+        return {k: _jsonable(v) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_jsonable(v) for v in d]
+    if isinstance(d, Path):
+        return str(d)
+    return d
+
+
+def _suggest(word: str, choices) -> str:
+    close = difflib.get_close_matches(word, list(choices), n=1)
+    return f" (did you mean '{close[0]}'?)" if close else ""
+
+
+def _coerce(cls: type, section: str, key: str, value, hint):
+    """Check a TOML value against the dataclass field's annotation; ints are accepted for floats."""
+    where = f"[{section}] {key}"
+    origin = typing.get_origin(hint)
+    if hint is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise SceneError(f"{where} must be a number, got {value!r}")
+        return float(value)
+    if hint is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise SceneError(f"{where} must be an integer, got {value!r}")
+        return value
+    if hint is bool:
+        if not isinstance(value, bool):
+            raise SceneError(f"{where} must be true or false, got {value!r}")
+        return value
+    if hint is str:
+        if not isinstance(value, str):
+            raise SceneError(f"{where} must be a string, got {value!r}")
+        return value
+    if origin is tuple:
+        if not isinstance(value, list):
+            raise SceneError(f"{where} must be a list, got {value!r}")
+        args = typing.get_args(hint)
+        item = args[0] if args else float
+        return tuple(_coerce(cls, section, key, v, item) for v in value)
+    if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
+        args = [a for a in typing.get_args(hint) if a is not type(None)]
+        for a in args:
+            try:
+                return _coerce(cls, section, key, value, a)
+            except SceneError:
+                pass
+        raise SceneError(f"{where}: {value!r} is not a valid value")
+    return value
+
+
+def _build_section(name: str, cls: type, table: dict):
+    if not isinstance(table, dict):
+        raise SceneError(f"[{name}] must be a table")
+    hints = typing.get_type_hints(cls)
+    fields = {f.name for f in dataclasses.fields(cls) if f.init}
+    kwargs = {}
+    for key, value in table.items():
+        if key not in fields:
+            raise SceneError(f"unknown key '{key}' in [{name}]{_suggest(key, fields)}; "
+                             f"known keys: {', '.join(sorted(fields))}")
+        kwargs[key] = _coerce(cls, name, key, value, hints[key])
+    try:
+        return cls(**kwargs)
+    except (ValueError, TypeError) as exc:
+        raise SceneError(f"[{name}]: {exc}") from exc
+
+
+def parse_scene(text: str, path: Path | str = Path("scene.toml")) -> Scene:
+    """Parse scene TOML text. Raises SceneError naming the offending section or key."""
+    path = Path(path).resolve()
+    try:
+        data = tomllib.loads(text)
+    except tomllib.TOMLDecodeError as exc:
+        raise SceneError(f"{path}: not valid TOML: {exc}") from exc
+    name = data.pop("name", path.stem)
+    if not isinstance(name, str):
+        raise SceneError("top-level 'name' must be a string")
+    for key in data:
+        if key not in SECTIONS:
+            raise SceneError(f"unknown section [{key}]{_suggest(key, SECTIONS)} in {path}; "
+                             f"known sections: {', '.join(SECTIONS)}")
+    parts = {sec: _build_section(sec, cls, data.get(sec, {})) for sec, cls in SECTIONS.items()}
+    return Scene(name=name, path=path, text=text, **parts)
+
+
+def load_scene(path: Path | str) -> Scene:
+    """Read and parse a scene file."""
+    path = Path(path)
+    if not path.is_file():
+        raise SceneError(f"scene file not found: {path}")
+    return parse_scene(path.read_text(), path)

@@ -1,0 +1,70 @@
+"""The reduced-order model as the nonlinear stages see it (plain numpy, no PETSc)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class RomModel:
+    """Craig-Bampton reduced model, n = 3 n_b + eta dof.
+
+    Dof order: the n_b boundary nodes first, node-major, each in its local cylindrical
+    frame (r, theta, z): [r_1, t_1, z_1, r_2, ..., z_nb], then the eta fixed-interface
+    modal coordinates. Node 0 is the leading edge (LE), node n_b - 1 the trailing edge.
+
+    K: stiffness, (n, n), N/m. M: mass, (n, n), kg. C: viscous damping, (n, n), N s/m.
+    rho: radius of each boundary node from the rotation axis (z), (n_b,), m.
+    theta: angular position of each boundary node, relative to the LE node, (n_b,), rad.
+    xyz: boundary node coordinates, (n_b, 3), m.
+    frames: local frames, (n_b, 3, 3), rows e_r, e_theta, e_z in global x, y, z.
+    node_index: mesh node index of each boundary node, (n_b,).
+    fixed_interface_frequencies: (eta,), rad/s. frequencies: ROM eigenfrequencies, (n,), rad/s.
+    full_frequencies: the full model's first eigenfrequencies, rad/s (for comparison).
+    damping_ratios: modal damping ratio of each ROM mode, (n,).
+    recovery: full-field displacement of each ROM dof, (3 n_nodes, n), m per unit of the
+        ROM dof (global x, y, z, node-major); None when not stored.
+    """
+
+    K: np.ndarray = field(metadata={"unit": "N/m"})
+    M: np.ndarray = field(metadata={"unit": "kg"})
+    C: np.ndarray = field(metadata={"unit": "N*s/m"})
+    rho: np.ndarray = field(metadata={"unit": "m"})
+    theta: np.ndarray = field(metadata={"unit": "rad"})
+    xyz: np.ndarray = field(metadata={"unit": "m"})
+    frames: np.ndarray = field(metadata={"unit": "1"})
+    node_index: np.ndarray = field(metadata={"unit": "1"})
+    fixed_interface_frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
+    frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
+    full_frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
+    damping_ratios: np.ndarray = field(metadata={"unit": "1"})
+    recovery: np.ndarray | None = field(default=None, metadata={"unit": "m"})
+
+    @property
+    def n_boundary(self) -> int:
+        return int(len(self.rho))
+
+    @property
+    def n_dof(self) -> int:
+        return int(self.K.shape[0])
+
+    @property
+    def nonlinear_dofs(self) -> np.ndarray:
+        """Indices of the 3 n_b boundary (nonlinear) dof."""
+        return np.arange(3 * self.n_boundary)
+
+
+def modal_damping(K: np.ndarray, M: np.ndarray, ratios: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Damping matrix C = M Phi diag(2 xi_k w_k) Phi^T M from modal ratios.
+
+    K, M: (n, n) symmetric, M positive definite. ratios: (n,) xi_k in ascending
+    frequency order. Returns (C, w) with w the eigenfrequencies, rad/s.
+    """
+    import scipy.linalg
+
+    w2, phi = scipy.linalg.eigh(K, M)
+    w = np.sqrt(np.clip(w2, 0.0, None))
+    mp = M @ phi  # phi is M-orthonormal
+    C = mp @ np.diag(2.0 * np.asarray(ratios) * w) @ mp.T
+    return 0.5 * (C + C.T), w

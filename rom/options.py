@@ -1,0 +1,25 @@
+"""Options of the Craig-Bampton stage (scene section [rom])."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class RomOptions:
+    """n_fixed_modes: fixed-interface modes kept (eta).
+    damping_low: modal damping ratio of the ROM's first `n_low_modes` modes (1B, 2B, 1T).
+    damping_high: modal damping ratio of all other ROM modes.
+    """
+
+    n_fixed_modes: int = 12
+    damping_low: float = 1e-3
+    damping_high: float = 5e-3
+    n_low_modes: int = 3
+
+    def __post_init__(self):
+        if self.n_fixed_modes < 0:
+            raise ValueError(f"n_fixed_modes must be >= 0, got {self.n_fixed_modes}")
+        for k in ("damping_low", "damping_high"):
+            v = getattr(self, k)
+            if not 0 <= v < 1:
+                raise ValueError(f"{k} must be a damping ratio in [0, 1), got {v}")

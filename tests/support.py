@@ -1,0 +1,36 @@
+"""Test support: small models with the layout of the real artifacts."""
+from __future__ import annotations
+
+import numpy as np
+
+from rom.model import RomModel, modal_damping
+
+
+def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0) -> RomModel:
+    """A 39-dof stand-in with the RomModel layout and rotor-67-like orders of magnitude.
+
+    Not a blade: K, M come from prescribed eigenfrequencies and random M-orthonormal
+    shapes, so tests written against it exercise the shapes and code paths only.
+    """
+    rng = np.random.default_rng(seed)
+    n = 3 * n_boundary + n_modes
+    w = np.concatenate([[1050.0, 2900.0, 4300.0], np.linspace(6500.0, 60000.0, n - 3)])  # rad/s
+    q, _ = np.linalg.qr(rng.standard_normal((n, n)))
+    m = 0.05  # kg per dof
+    M = m * (np.eye(n) + 0.1 * np.diag(rng.random(n)))
+    L = np.linalg.cholesky(M)
+    phi = np.linalg.solve(L.T, q)  # M-orthonormal
+    Mphi = M @ phi
+    K = Mphi @ np.diag(w ** 2) @ Mphi.T
+    K = 0.5 * (K + K.T)
+    ratios = np.where(np.arange(n) < 3, 1e-3, 5e-3)
+    C, wr = modal_damping(K, M, ratios)
+    theta = np.linspace(0.0, 0.35, n_boundary)
+    rho = np.full(n_boundary, 0.2427)
+    xyz = np.stack([rho * np.cos(theta), rho * np.sin(theta), np.linspace(-0.03, 0.03, n_boundary)], 1)
+    frames = np.stack([np.stack([np.cos(theta), np.sin(theta), 0 * theta], 1),
+                       np.stack([-np.sin(theta), np.cos(theta), 0 * theta], 1),
+                       np.tile([0.0, 0.0, 1.0], (n_boundary, 1))], 1)
+    return RomModel(K=K, M=M, C=C, rho=rho, theta=theta, xyz=xyz, frames=frames,
+                    node_index=np.arange(n_boundary), fixed_interface_frequencies=w[3 * n_boundary:],
+                    frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios)
