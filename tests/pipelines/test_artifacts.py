@@ -1,0 +1,117 @@
+"""HDF5 artifacts: exact round trip, provenance attributes, atomic replacement."""
+import os
+from dataclasses import dataclass, field
+
+import h5py
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+import pipelines.artifacts as art
+from rom.model import RomModel
+from support import standin_rom
+
+
+@dataclass(frozen=True)
+class Inner:
+    a: np.ndarray = field(metadata={"unit": "m"})
+    label: str = "x"
+
+
+@dataclass(frozen=True)
+class Outer:
+    K: sp.csr_matrix = field(metadata={"unit": "N/m"})
+    big: np.ndarray = field(metadata={"unit": "rad/s"})
+    inner: Inner
+    scalar: float = field(default=0.0, metadata={"unit": "m^3"})
+    optional: np.ndarray | None = None
+
+
+def _sample():
+    rng = np.random.default_rng(1)
+    K = sp.random(50, 50, density=0.1, random_state=2, format="csr")
+    return Outer(K=K, big=rng.standard_normal((300, 20)), inner=Inner(a=np.arange(6.0).reshape(2, 3), label="tip"),
+                 scalar=4.8e-5)
+
+
+def test_round_trip_is_identical_with_units_and_provenance(tmp_path):
+    obj = _sample()
+    path = art.write_artifact(tmp_path / "x.h5", obj, stage="test", scene_text="[material]\nE = 1\n",
+                              inputs_hash="abc")
+    back = art.read_artifact(path, Outer)
+    assert (back.K != obj.K).nnz == 0 and back.K.shape == obj.K.shape
+    assert np.array_equal(back.big, obj.big) and back.big.dtype == obj.big.dtype
+    assert np.array_equal(back.inner.a, obj.inner.a) and back.inner.label == "tip"
+    assert back.scalar == obj.scalar and back.optional is None
+    attrs = art.read_attrs(path)
+    for key in ("units", "scene", "inputs_hash", "code_version", "created", "stage"):
+        assert key in attrs, key
+    assert attrs["scene"].startswith("[material]") and attrs["inputs_hash"] == "abc"
+    with h5py.File(path) as h5:
+        assert h5["big"].attrs["unit"] == "rad/s"
+        assert h5["K"].attrs["unit"] == "N/m"
+        assert h5["inner/a"].attrs["unit"] == "m"
+    assert art.is_current(path, "abc") and not art.is_current(path, "abd")
+
+
+def test_rom_model_round_trip(tmp_path):
+    rom = standin_rom()
+    back = art.read_artifact(art.write_artifact(tmp_path / "rom.h5", rom, stage="rom"), RomModel)
+    for name in ("K", "M", "C", "rho", "theta", "frames", "frequencies"):
+        assert np.array_equal(getattr(back, name), getattr(rom, name)), name
+    assert back.recovery is None
+
+
+class Boom(Exception):
+    pass
+
+
+def test_interrupted_write_leaves_previous_good_file(tmp_path, monkeypatch):
+    path = tmp_path / "fem.h5"
+    art.write_artifact(path, _sample(), stage="test", inputs_hash="good")
+    before = path.read_bytes()
+
+    real = art._write_fields
+
+    def explode(group, obj):  # dies half-way through writing the datasets
+        group.create_dataset("partial", data=np.zeros(3))
+        raise Boom()
+
+    monkeypatch.setattr(art, "_write_fields", explode)
+    with pytest.raises(Boom):
+        art.write_artifact(path, _sample(), stage="test", inputs_hash="new")
+    monkeypatch.setattr(art, "_write_fields", real)
+    assert path.read_bytes() == before
+    assert art.is_current(path, "good")
+    assert [p.name for p in tmp_path.iterdir()] == ["fem.h5"], "temporary file left behind"
+
+
+def test_killed_process_leaves_no_valid_file(tmp_path):
+    """A process killed mid-write (no Python cleanup) leaves only a hidden temporary name."""
+    import subprocess
+    import sys
+    code = f"""
+import os, numpy as np, sys
+sys.path.insert(0, {str(os.getcwd())!r})
+import pipelines.artifacts as art
+real = art._write_fields
+def die(group, obj):
+    group.create_dataset('partial', data=np.zeros(10))
+    group.file.flush()
+    os._exit(9)
+art._write_fields = die
+from dataclasses import dataclass
+@dataclass(frozen=True)
+class A:
+    x: object
+art.write_artifact({str(tmp_path / 'mesh.h5')!r}, A(np.zeros(3)), stage='mesh', inputs_hash='h')
+"""
+    r = subprocess.run([sys.executable, "-c", code], cwd=os.getcwd())
+    assert r.returncode == 9
+    assert not (tmp_path / "mesh.h5").exists()
+    assert not art.is_current(tmp_path / "mesh.h5", "h")
+
+
+def test_missing_artifact_error_names_path(tmp_path):
+    with pytest.raises(art.ArtifactError, match="fem.h5"):
+        art.read_artifact(tmp_path / "fem.h5", Outer)
