@@ -1,0 +1,111 @@
+"""Small residuals R(x, omega) -> (R, dR_dx, dR_domega) with known solution sets.
+
+They test the continuation only: none of them uses the project's AFT or contact laws.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.optimize as so
+
+
+class Duffing1:
+    """One-harmonic HB of x'' + 2 zeta x' + x + gamma x^3 = F cos(Omega t), x = a cos + b sin.
+
+    Unknowns x = (a, b), parameter omega = Omega (dimensionless time). The x^3 term's first
+    harmonic is 3/4 gamma A^2 (a, b), A^2 = a^2 + b^2, so
+      R_a = (1 - w^2 + k A^2) a + 2 zeta w b - F,   R_b = (1 - w^2 + k A^2) b - 2 zeta w a,
+    with k = 3 gamma / 4, and the amplitude obeys [(1 - w^2 + k A^2)^2 + (2 zeta w)^2] A^2 = F^2.
+    """
+
+    def __init__(self, zeta: float = 0.02, gamma: float = 1.0, force: float = 0.1):
+        self.zeta, self.gamma, self.force = zeta, gamma, force
+        self.k = 0.75 * gamma
+
+    def __call__(self, x, w):
+        a, b = x
+        z, k = self.zeta, self.k
+        A2 = a * a + b * b
+        s = 1.0 - w * w + k * A2
+        R = np.array([s * a + 2 * z * w * b - self.force, s * b - 2 * z * w * a])
+        J = np.array([[s + 2 * k * a * a, 2 * z * w + 2 * k * a * b],
+                      [-2 * z * w + 2 * k * a * b, s + 2 * k * b * b]])
+        dw = np.array([-2 * w * a + 2 * z * b, -2 * w * b - 2 * z * a])
+        return R, J, dw
+
+    def relation(self, amplitude, w):
+        """Frequency-amplitude relation, zero on the exact HB branch: [..] A^2 - F^2."""
+        A2 = np.asarray(amplitude) ** 2
+        return ((1 - w ** 2 + self.k * A2) ** 2 + (2 * self.zeta * w) ** 2) * A2 - self.force ** 2
+
+    def peak(self):
+        """(A, omega) of the resonance peak of the 1-harmonic HB, exactly.
+
+        dA/dw = 0 on the relation gives 1 - w^2 + k A^2 = 2 zeta^2; substituting back,
+        u = A^2 solves 4 zeta^2 k u^2 + 4 zeta^2 (1 - zeta^2) u - F^2 = 0.
+        """
+        z, k, F = self.zeta, self.k, self.force
+        u = max(np.roots([4 * z * z * k, 4 * z * z * (1 - z * z), -F * F]).real)
+        return float(np.sqrt(u)), float(np.sqrt(1 + k * u - 2 * z * z))
+
+    def folds(self):
+        """Omegas of the two turning points (jump-down, jump-up), from the cubic in u = A^2.
+
+        At fixed w, k^2 u^3 + 2 c k u^2 + (c^2 + d^2) u - F^2 = 0 (c = 1 - w^2, d = 2 zeta w);
+        the folds are where it has a double root: its discriminant vanishes.
+        """
+        def disc(w):
+            c, d = 1 - w * w, 2 * self.zeta * w
+            a3, a2, a1, a0 = self.k ** 2, 2 * c * self.k, c * c + d * d, -self.force ** 2
+            return (18 * a3 * a2 * a1 * a0 - 4 * a2 ** 3 * a0 + a2 ** 2 * a1 ** 2 - 4 * a3 * a1 ** 3
+                    - 27 * a3 ** 2 * a0 ** 2)
+
+        _, w_peak = self.peak()
+        grid = np.linspace(1.0, 1.2 * w_peak, 4001)
+        v = disc(grid)
+        roots = [so.brentq(disc, grid[i], grid[i + 1], xtol=1e-14)
+                 for i in np.flatnonzero(np.sign(v[:-1]) != np.sign(v[1:]))]
+        return roots
+
+
+class Circle:
+    """Isola: (x1 - c)^2 + (w - wc)^2 = r^2 with x2 = x1^2 / 4 riding along (n = 2)."""
+
+    def __init__(self, c: float = 2.0, wc: float = 1.5, r: float = 0.5):
+        self.c, self.wc, self.r = c, wc, r
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        R = np.array([(x1 - self.c) ** 2 + (w - self.wc) ** 2 - self.r ** 2, x2 - 0.25 * x1 * x1])
+        J = np.array([[2 * (x1 - self.c), 0.0], [-0.5 * x1, 1.0]])
+        return R, J, np.array([2 * (w - self.wc), 0.0])
+
+
+class Wave:
+    """w = w0 + h sin(kappa (x1 - x1_0)), x2 = x2_0: an open curve that keeps coming back to w0,
+
+    at x1 = x1_0 + j pi / kappa, i.e. at a relative distance (pi / kappa) j / |x| from the
+    start; every crest and trough is a fold (dR1/dx1 = 0 there).
+    """
+
+    def __init__(self, w0=1.0, h=0.3, kappa=4.0, x1_0=0.0, x2_0=10.0):
+        self.w0, self.h, self.kappa, self.x1_0, self.x2_0 = w0, h, kappa, x1_0, x2_0
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        ph = self.kappa * (x1 - self.x1_0)
+        R = np.array([w - self.w0 - self.h * np.sin(ph), x2 - self.x2_0])
+        J = np.array([[-self.h * self.kappa * np.cos(ph), 0.0], [0.0, 1.0]])
+        return R, J, np.array([1.0, 0.0])
+
+
+class Wall:
+    """x = sqrt(w_wall - w): the branch ends at w_wall, beyond which R is NaN (no solution)."""
+
+    def __init__(self, w_wall: float = 2.0):
+        self.w_wall = w_wall
+
+    def __call__(self, x, w):
+        with np.errstate(invalid="ignore", divide="ignore"):
+            root = np.sqrt(self.w_wall - w)
+            R = np.array([x[0] - root])
+            return R, np.array([[1.0]]), np.array([0.5 / root])
