@@ -50,10 +50,10 @@ class ContinuationOptions:
     iter_shrink: ds *= shrink after one of more than this many; failure: ds *= shrink.
     max_turn_deg: a corrected point whose secant turns more than this from the predictor
       is refused (it went back along the branch or jumped to another one) and ds shrinks.
-    closed_loop_tol: d_min of eq. (27); None disables the test.
-    closed_loop_radius: the test is armed only once the branch has been farther than this
-      (scaled distance) from its start point, so that a fold next to the start cannot
-      count as a loop; None: 4 ds.
+    closed_loop_tol: d_min of eq. (27); None disables the test. The test is armed only
+      once some point x_j has been farther than d_min from the start in the same metric,
+      ||x_j - x_0|| / ||x_j|| > d_min: "back within d_min" presupposes having left, and
+      a fold next to the start (whose sheets cross omega_0 within d_min) is no loop.
     land_on_bounds: replace the point that overshoots omega_min/omega_max by a Newton
       solution at the bound (kept as it is if that solve fails).
     """
@@ -74,7 +74,6 @@ class ContinuationOptions:
     shrink: float = 0.5
     max_turn_deg: float = 90.0
     closed_loop_tol: float | None = 1e-2
-    closed_loop_radius: float | None = None
     land_on_bounds: bool = True
 
     def __post_init__(self):
@@ -304,8 +303,12 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
 
     sc = _Scaling(np.broadcast_to(np.asarray(opt.x_scale, dtype=float), (n,)), float(opt.omega_scale))
     ref_x, ref_w = points[0].x, points[0].omega
-    arm_radius = opt.closed_loop_radius if opt.closed_loop_radius is not None else 4.0 * opt.ds
-    armed = any(sc.dist(p.x, p.omega, ref_x, ref_w) > arm_radius for p in points)
+    d_min = opt.closed_loop_tol
+
+    def far(x):  # left the d_min neighbourhood of the start, metric of eq. (27)
+        return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
+
+    armed = any(far(p.x) for p in points)
     cos_max_turn = math.cos(math.radians(opt.max_turn_deg))
 
     while True:
@@ -348,12 +351,12 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             return done(STATUS_OMEGA_MAX if bound == opt.omega_max else STATUS_OMEGA_MIN)
 
         emit(x_new, w_new, True, rn, it, step, t0)
-        armed = armed or sc.dist(x_new, w_new, ref_x, ref_w) > arm_radius
+        armed = armed or far(x_new)
         crossed = (last.omega < ref_w <= w_new) or (last.omega > ref_w >= w_new)
-        if opt.closed_loop_tol is not None and armed and last.index >= 1 and crossed:  # eq. (26)-(27)
+        if armed and last.index >= 1 and crossed:  # eq. (26)-(27)
             x_int = last.x + (ref_w - last.omega) / (w_new - last.omega) * (x_new - last.x)
             d_int = float(np.linalg.norm(x_int - ref_x) / max(np.linalg.norm(x_int), 1e-300))
-            if d_int < opt.closed_loop_tol:
-                return done(STATUS_CLOSED_LOOP, f"d_int={d_int:.3e} < {opt.closed_loop_tol:.3e} "
+            if d_int < d_min:
+                return done(STATUS_CLOSED_LOOP, f"d_int={d_int:.3e} < {d_min:.3e} "
                                                 f"between points {last.index} and {last.index + 1}")
         ds = opt.next_step(step, it)

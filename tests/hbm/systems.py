@@ -109,3 +109,28 @@ class Wall:
             root = np.sqrt(self.w_wall - w)
             R = np.array([x[0] - root])
             return R, np.array([[1.0]]), np.array([0.5 / root])
+
+
+class Helix:
+    """x1 = c + r cos t, omega = wc + r sin t, x2 = x2_0 + h t: comes back to omega0 = wc
+    after each turn at the same x1 but x2 shifted by 2 pi h (no closed loop).
+
+    Written as cylinder and helicoid: (x1 - c)^2 + (w - wc)^2 = r^2 and
+    (x1 - c) sin(phi) - (w - wc) cos(phi) = 0, phi = (x2 - x2_0) / h.
+    """
+
+    def __init__(self, c=2.0, wc=1.5, r=0.5, x2_0=1.0, h=0.0223):
+        self.c, self.wc, self.r, self.x2_0, self.h = c, wc, r, x2_0, h
+
+    def start(self):
+        """(x, omega) at t = 0."""
+        return np.array([self.c + self.r, self.x2_0]), self.wc
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        u, v = x1 - self.c, w - self.wc
+        phi = (x2 - self.x2_0) / self.h
+        s, co = np.sin(phi), np.cos(phi)
+        R = np.array([u * u + v * v - self.r ** 2, u * s - v * co])
+        J = np.array([[2 * u, 0.0], [s, (u * co + v * s) / self.h]])
+        return R, J, np.array([2 * v, -co])

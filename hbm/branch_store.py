@@ -1,0 +1,236 @@
+"""Incremental HDF5 storage of a continuation branch.
+
+A run writes `NAME.partial.h5` point by point (each append is flushed, so an interrupted
+run keeps every point computed so far) and `finalize` records the stop reason, marks the
+file complete and renames it to `NAME.h5`. A file is complete only if it has the final
+name *and* `complete = 1`; `load_branch` refuses anything else unless asked for a partial.
+
+Layout (m points, n unknowns):
+  root attrs: the caller's (units, scene, code_version, inputs_hash, ...), plus
+    n_unknowns, n_points (rows fully written), complete (0/1), status, detail.
+  omega (m,) rad/s; x (m, n); converged (m,) bool; residual_norm (m,); iterations (m,);
+  step (m,) scaled arc length; time (m,) s;  extras/NAME (m, ...) caller's per-point data.
+Datasets may be longer than n_points after a crash in the middle of an append; readers
+use the first n_points rows only.
+"""
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+from typing import NamedTuple
+
+import h5py
+import numpy as np
+
+from hbm.continuation import Branch, ContinuationPoint
+
+_FIELDS = {  # name: (dtype, unit)
+    "omega": (np.float64, "rad/s"),
+    "x": (np.float64, None),
+    "converged": (np.bool_, None),
+    "residual_norm": (np.float64, None),
+    "iterations": (np.int64, None),
+    "step": (np.float64, "-"),
+    "time": (np.float64, "s"),
+}
+_RESERVED_ATTRS = {"n_unknowns", "n_points", "complete", "status", "detail"}
+
+
+class StoredBranch(NamedTuple):
+    """What `load_branch` returns.
+
+    branch: the points (Branch; status "" for a partial file). extras: name -> (m, ...)
+    arrays. attrs: root attributes. complete: finalized under its final name.
+    """
+
+    branch: Branch
+    extras: dict
+    attrs: dict
+    complete: bool
+
+
+def final_path(path: Path | str) -> Path:
+    """NAME.h5 for NAME.h5 or NAME.partial.h5."""
+    path = Path(path)
+    return path.with_name(path.name[: -len(".partial.h5")] + ".h5") if path.name.endswith(".partial.h5") else path
+
+
+def partial_path(path: Path | str) -> Path:
+    """NAME.partial.h5 for NAME.h5 or NAME.partial.h5."""
+    path = final_path(path)
+    return path.with_name(path.name[: -len(".h5")] + ".partial.h5")
+
+
+def _attr_value(v):
+    if isinstance(v, (dict, list, tuple)):
+        return json.dumps(v, default=str)
+    if v is None:
+        return ""
+    return v
+
+
+def _decode(v):
+    return v.decode() if isinstance(v, bytes) else v
+
+
+class BranchStore:
+    """Append-only writer of one branch; use `create` or `reopen`, then `append`, `finalize`.
+
+    Used as a context manager it closes the file on exit *without* finalising it, so an
+    exception leaves a partial file that `reopen` can continue.
+    """
+
+    def __init__(self, h5: h5py.File, path: Path):
+        self._h5 = h5
+        self.path = final_path(path)
+        self.n = int(h5.attrs["n_unknowns"])
+        self.n_points = int(h5.attrs["n_points"])
+        self._extras = set(h5["extras"].keys())
+
+    @classmethod
+    def create(cls, path: Path | str, n: int, *, attrs: dict | None = None) -> "BranchStore":
+        """Start `NAME.partial.h5` for a branch of n unknowns (path: NAME.h5 or NAME.partial.h5).
+
+        attrs: root attributes (units, scene, code_version, inputs_hash, metadata ...); dicts
+        and lists are stored as JSON text. An older partial file of that name is replaced;
+        a finished NAME.h5 is left alone until `finalize` replaces it.
+        """
+        bad = _RESERVED_ATTRS & set(attrs or {})
+        if bad:
+            raise ValueError(f"reserved attribute names: {sorted(bad)}")
+        part = partial_path(path)
+        part.parent.mkdir(parents=True, exist_ok=True)
+        h5 = h5py.File(part, "w")
+        try:
+            for k, v in (attrs or {}).items():
+                h5.attrs[k] = _attr_value(v)
+            h5.attrs.update({"n_unknowns": int(n), "n_points": 0, "complete": 0, "status": "", "detail": ""})
+            for name, (dtype, unit) in _FIELDS.items():
+                shape = (0, n) if name == "x" else (0,)
+                ds = h5.create_dataset(name, shape=shape, maxshape=(None,) + shape[1:], dtype=dtype,
+                                       chunks=(64,) + shape[1:])
+                if unit:
+                    ds.attrs["unit"] = unit
+            h5.create_group("extras")
+            h5.flush()
+        except Exception:
+            h5.close()
+            raise
+        return cls(h5, part)
+
+    @classmethod
+    def reopen(cls, path: Path | str, *, keep: int | None = None) -> "BranchStore":
+        """Continue appending to the partial file of an interrupted run.
+
+        keep: truncate to the first `keep` points (e.g. to drop the failed point that a
+        resumed continuation will redo); default: all fully written points.
+        """
+        part = partial_path(path)
+        if not part.is_file():
+            raise FileNotFoundError(f"no partial branch file {part}")
+        h5 = h5py.File(part, "r+")
+        try:
+            if int(h5.attrs["complete"]):
+                raise ValueError(f"{part} is marked complete")
+            m = int(h5.attrs["n_points"])
+            keep = m if keep is None else keep
+            if not 0 <= keep <= m:
+                raise ValueError(f"keep={keep} outside [0, {m}]")
+            for ds in _datasets(h5):
+                ds.resize(keep, axis=0)
+            h5.attrs["n_points"] = keep
+            h5.flush()
+        except Exception:
+            h5.close()
+            raise
+        return cls(h5, part)
+
+    def append(self, point: ContinuationPoint, extras: dict | None = None) -> None:
+        """Write one point (and its named extra scalars/arrays) and flush it to disk.
+
+        The set of extras is fixed by the first point: every later point gives the same
+        names with the same shapes.
+        """
+        extras = {k: np.asarray(v) for k, v in (extras or {}).items()}
+        x = np.asarray(point.x, dtype=float).reshape(-1)
+        if x.size != self.n:
+            raise ValueError(f"point has {x.size} unknowns, store has {self.n}")
+        if self.n_points == 0 and not self._extras:
+            g = self._h5["extras"]
+            for k, v in extras.items():
+                g.create_dataset(k, shape=(0,) + v.shape, maxshape=(None,) + v.shape, dtype=v.dtype, chunks=True)
+            self._extras = set(extras)
+        if set(extras) != self._extras:
+            raise ValueError(f"extras {sorted(extras)} differ from the store's {sorted(self._extras)}")
+        m = self.n_points
+        values = {"omega": point.omega, "x": x, "converged": point.converged, "residual_norm": point.residual_norm,
+                  "iterations": point.iterations, "step": point.step, "time": point.time}
+        for name, v in values.items():
+            ds = self._h5[name]
+            ds.resize(m + 1, axis=0)
+            ds[m] = v
+        for name, v in extras.items():
+            ds = self._h5["extras"][name]
+            if ds.shape[1:] != v.shape:
+                raise ValueError(f"extra '{name}' has shape {v.shape}, store has {ds.shape[1:]}")
+            ds.resize(m + 1, axis=0)
+            ds[m] = v
+        self._h5.attrs["n_points"] = m + 1  # last: the row counts only once all of it is written
+        self._h5.flush()
+        self.n_points = m + 1
+
+    def finalize(self, status: str, detail: str = "") -> Path:
+        """Record why the branch stopped, mark complete, rename to NAME.h5; returns that path."""
+        self._h5.attrs["status"] = status
+        self._h5.attrs["detail"] = detail
+        self._h5.attrs["complete"] = 1
+        self._h5.flush()
+        self._h5.close()
+        part = partial_path(self.path)
+        with open(part, "rb") as fh:
+            os.fsync(fh.fileno())
+        os.replace(part, self.path)
+        return self.path
+
+    def close(self) -> None:
+        """Close without finalising (the file stays NAME.partial.h5)."""
+        if self._h5.id.valid:
+            self._h5.close()
+
+    def __enter__(self):
+        return self
+
+    def __exit__(self, *exc):
+        self.close()
+
+
+def _datasets(h5: h5py.File):
+    yield from (h5[name] for name in _FIELDS)
+    yield from h5["extras"].values()
+
+
+def load_branch(path: Path | str, *, allow_partial: bool = False) -> StoredBranch:
+    """Read a branch file: NAME.h5 (complete) or, with allow_partial, NAME.partial.h5.
+
+    Given NAME.h5 that does not exist, allow_partial falls back to NAME.partial.h5.
+    Raises FileNotFoundError when there is nothing to read, and ValueError when the file
+    is not complete and allow_partial is False: a partial file is never taken as complete.
+    """
+    path = Path(path)
+    if not path.is_file() and allow_partial and partial_path(path).is_file():
+        path = partial_path(path)
+    if not path.is_file():
+        hint = " (an interrupted run left a partial file)" if partial_path(path).is_file() else ""
+        raise FileNotFoundError(f"no branch file {path}{hint}")
+    with h5py.File(path, "r") as h5:
+        attrs = {k: _decode(v) for k, v in h5.attrs.items()}
+        m = int(attrs["n_points"])
+        complete = bool(int(attrs["complete"])) and not path.name.endswith(".partial.h5")
+        if not complete and not allow_partial:
+            raise ValueError(f"{path} is not a complete branch file (interrupted run?); "
+                             f"pass allow_partial=True to read its points")
+        arrays = {name: h5[name][:m] for name in _FIELDS}
+        extras = {name: ds[:m] for name, ds in h5["extras"].items()}
+    branch = Branch(**arrays, status=attrs["status"], detail=attrs["detail"])
+    return StoredBranch(branch, extras, attrs, complete)

@@ -1,0 +1,207 @@
+"""Arc-length continuation against systems with known solution sets (tests/hbm/systems.py)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.sparse as sp
+
+from hbm.continuation import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
+                              STATUS_START_FAILED, STATUS_STEP_FLOOR, ContinuationOptions, continue_branch)
+from hbm.newton import NewtonOptions, factorize_default, newton_solve, solve_bordered
+from systems import Circle, Duffing1, Helix, Wall, Wave
+
+TOL = 1e-10  # residual tolerance of every run here
+DS_MAX = 0.05
+
+
+def opts(lo, hi, **kw):
+    kw.setdefault("ds", 0.02)
+    kw.setdefault("ds_max", DS_MAX)
+    return ContinuationOptions(lo, hi, newton=NewtonOptions(tol_residual=TOL), **kw)
+
+
+def reversals(omega):
+    s = np.sign(np.diff(omega))
+    return np.flatnonzero(s[1:] != s[:-1]) + 1  # indices of the turning points in omega
+
+
+def gaps(branch, x_scale=1.0, omega_scale=1.0):
+    """Scaled distances between consecutive points."""
+    return np.hypot(np.linalg.norm(np.diff(branch.x, axis=0) / x_scale, axis=1), np.diff(branch.omega) / omega_scale)
+
+
+# ---------------------------------------------------------------- Duffing resonance
+@pytest.fixture(scope="module")
+def duffing():
+    return Duffing1(zeta=0.02, gamma=1.0, force=0.1)
+
+
+@pytest.mark.parametrize("direction, omega0, bound, status", [(1, 0.5, 2.5, STATUS_OMEGA_MAX),
+                                                              (-1, 2.5, 0.5, STATUS_OMEGA_MIN)])
+def test_duffing_nfrc_through_both_folds(duffing, direction, omega0, bound, status):
+    b = continue_branch(duffing, np.zeros(2), omega0, opts(0.5, 2.5, direction=direction))
+    assert b.status == status and b.omega[-1] == bound  # landed exactly on the bound
+    assert b.converged.all()
+    A = np.hypot(b.x[:, 0], b.x[:, 1])
+
+    # Every point is on the exact 1-harmonic branch: |Z x| = |F + R|, so the
+    # frequency-amplitude relation |Z x|^2 - F^2 is bounded by 2 F |R| + |R|^2.
+    G = duffing.relation(A, b.omega)
+    bound_G = 2 * duffing.force * b.residual_norm + b.residual_norm ** 2
+    assert np.all(np.abs(G) <= 1.01 * bound_G + 1e-15)
+
+    # Hardening resonance: omega reverses exactly twice, at the two folds, without jumping
+    # (consecutive points lie on the arc-length sphere, <= ds_max apart).
+    turns = reversals(b.omega)
+    assert len(turns) == 2
+    assert gaps(b).max() <= DS_MAX * (1 + 1e-6)
+    f_hi, f_lo = max(duffing.folds()), min(duffing.folds())
+    w_turn = np.sort(b.omega[turns])
+    # A sampled turning point is on the curve next to the fold: never past it, and within
+    # the sag of one step, ~ omega'' (ds_max/2)^2 / 2 < 1e-3 here.
+    assert f_lo - 1e-8 <= w_turn[0] <= f_lo + 1e-3
+    assert f_hi - 1e-3 <= w_turn[1] <= f_hi + 1e-8
+    # The upper sheet is followed first when going up, the lower one first when going down.
+    assert b.omega[turns[0]] == pytest.approx(f_hi if direction > 0 else f_lo, abs=1e-3)
+
+    # Peak: exact for 1-harmonic HB (Duffing1.peak); no point exceeds it, the best point
+    # is within the sag of a ds_max step (A'' ~ 1 per unit arc length -> ~3e-4).
+    A_peak, w_peak = duffing.peak()
+    assert A.max() <= A_peak * (1 + 1e-8)
+    assert A.max() == pytest.approx(A_peak, rel=1e-3)
+    assert b.omega[np.argmax(A)] == pytest.approx(w_peak, abs=2e-3)
+
+
+def test_duffing_sparse_and_custom_factorisation_give_the_same_branch(duffing):
+    ref = continue_branch(duffing, np.zeros(2), 0.5, opts(0.5, 2.5))
+    calls = []
+
+    def sparse_residual(x, w):
+        R, J, dw = duffing(x, w)
+        return R, sp.csr_matrix(J), dw
+
+    def counting_factorize(J):
+        calls.append(1)
+        return factorize_default(J)
+
+    for kw in ({"residual": sparse_residual}, {"residual": duffing, "factorize": counting_factorize}):
+        b = continue_branch(kw.pop("residual"), np.zeros(2), 0.5, opts(0.5, 2.5), **kw)
+        assert len(b) == len(ref)
+        np.testing.assert_allclose(b.x, ref.x, rtol=0, atol=1e-9)  # same steps, LU vs SuperLU rounding
+    assert len(calls) >= ref.iterations.sum()  # the caller's solver did the solves
+
+
+# ---------------------------------------------------------------- closed loops
+@pytest.mark.parametrize("direction", [1, -1])
+def test_isola_stops_after_one_turn(direction):
+    c = Circle(c=2.0, wc=1.5, r=0.5)
+    x0 = np.array([2.5, 0.25 * 2.5 ** 2])
+    b = continue_branch(c, x0, 1.5, opts(0.0, 5.0, direction=direction, closed_loop_tol=1e-2))
+    assert b.status == STATUS_CLOSED_LOOP
+    assert b.converged.all()
+    # Went round once: through both omega extremes of the circle (two folds), back to the start,
+    # and not through the other crossing of omega0 (x1 = 1.5, d_int = 0.88).
+    assert len(reversals(b.omega)) == 2
+    assert b.omega.min() == pytest.approx(1.0, abs=2e-3) and b.omega.max() == pytest.approx(2.0, abs=2e-3)
+    # Chords add up to the curve's length in (x1, x2, omega), once round plus at most one step
+    # (chords of <= ds_max on a curve of radius >= 0.5 fall short by < ds_max^2 / 24 r^2 ~ 4e-4).
+    th = np.linspace(0, 2 * np.pi, 20001)
+    x1, dx1 = 2 + 0.5 * np.cos(th), -0.5 * np.sin(th)
+    speed = np.sqrt(dx1 ** 2 + (0.5 * x1 * dx1) ** 2 + (0.5 * np.cos(th)) ** 2)
+    loop = np.sum(0.5 * (speed[1:] + speed[:-1]) * np.diff(th))
+    assert loop * (1 - 1e-3) <= b.step.sum() <= loop + DS_MAX
+    assert np.linalg.norm(b.x[-1] - x0) <= 2 * DS_MAX
+    np.testing.assert_allclose((b.x[:, 0] - 2) ** 2 + (b.omega - 1.5) ** 2, 0.25, atol=2 * TOL)
+
+
+def test_isola_without_the_test_goes_round_again():
+    """Control: the closed-loop test, not something else, is what stopped the run above."""
+    b = continue_branch(Circle(), np.array([2.5, 1.5625]), 1.5, opts(0.0, 5.0, closed_loop_tol=None, max_points=200))
+    assert b.status == STATUS_MAX_POINTS and len(b) == 200
+    assert len(reversals(b.omega)) >= 4
+
+
+def test_curve_passing_near_its_start_is_not_a_loop():
+    # Helix: after each turn it crosses omega0 again at the start's x1 but with x2 shifted by
+    # 2 pi h = 0.14, i.e. d_int = 0.140 / 2.70 = 0.052 (0.093, 0.13 at the next turns).
+    hx = Helix(h=0.0223)
+    x0, w0 = hx.start()
+    b = continue_branch(hx, x0, w0, opts(0.0, 5.0, closed_loop_tol=0.03, max_points=250))
+    assert b.status == STATUS_MAX_POINTS
+    crossings = np.flatnonzero(np.diff(np.sign(b.omega[1:] - w0)) != 0)
+    assert len(crossings) >= 4  # came back over omega0 near x1 = 2.5 at least twice
+    np.testing.assert_allclose((b.x[:, 0] - 2) ** 2 + (b.omega - 1.5) ** 2, 0.25, atol=2 * TOL)
+    # Control, same curve with d_min = 0.06 > 0.052: the first return counts as a loop.
+    b = continue_branch(hx, x0, w0, opts(0.0, 5.0, closed_loop_tol=0.06, max_points=250))
+    assert b.status == STATUS_CLOSED_LOOP
+    assert b.x[-1, 1] == pytest.approx(1.0 + 2 * np.pi * 0.0223, abs=DS_MAX)
+    assert len(reversals(b.omega)) == 2
+
+
+def test_fold_next_to_the_start_is_not_a_loop():
+    # Start 1e-4 below a crest of Wave (|x| ~ 10): the two sheets cross omega0 ~6.5e-3 apart
+    # in x1, so the return a few small steps later has d_int ~ 6.5e-4 < d_min = 1e-2, and
+    # eq. (27) alone would call it a loop. The branch never left the d_min neighbourhood
+    # of its start, so the test is not armed.
+    w = Wave(w0=1.0, h=0.3, kappa=4.0, x2_0=10.0)
+    x0 = np.array([np.arcsin(1 - 1e-4 / 0.3) / 4, 10.0])
+    w0 = 1.3 - 1e-4
+    b = continue_branch(w, x0, w0, opts(0.0, 5.0, ds=0.005, closed_loop_tol=1e-2, max_points=40))
+    assert b.status == STATUS_MAX_POINTS
+    i = np.flatnonzero((b.omega[1:-1] - w0) * (b.omega[2:] - w0) < 0)[0] + 1  # first return over w0
+    x_int = b.x[i] + (w0 - b.omega[i]) / (b.omega[i + 1] - b.omega[i]) * (b.x[i + 1] - b.x[i])
+    assert np.linalg.norm(x_int - x0) / np.linalg.norm(x_int) < 1e-2  # the naive test would have fired
+
+
+# ---------------------------------------------------------------- failures
+def test_dead_end_ends_with_a_reason_and_no_wrong_point():
+    seen = []
+    b = continue_branch(Wall(2.0), np.array([1.0]), 1.0, opts(0.0, 5.0, ds_min=1e-4), on_point=seen.append)
+    assert b.status.startswith(STATUS_STEP_FLOOR + ": ") and "non-finite" in b.status
+    assert not b.converged[-1] and b.converged[:-1].all()
+    assert len(seen) == len(b) and not seen[-1].converged
+    ok = b.converged
+    assert np.all(b.omega[ok] <= 2.0)
+    np.testing.assert_allclose(b.x[ok, 0], np.sqrt(2.0 - b.omega[ok]), atol=TOL)
+    assert b.omega[ok][-1] > 2.0 - 1e-3  # it followed the branch up to the wall
+
+
+def test_start_point_failure_is_reported():
+    b = continue_branch(Wall(2.0), np.array([1.0]), 2.5, opts(0.0, 5.0))
+    assert b.status.startswith(STATUS_START_FAILED) and len(b) == 1 and not b.converged[0]
+
+
+def test_unconverged_newton_is_not_converged(duffing):
+    r = newton_solve(duffing, np.zeros(2), 1.4, NewtonOptions(tol_residual=1e-12, max_iter=1))
+    assert not r.converged and "no convergence" in r.reason and r.residual_norm > 1e-12
+    r = newton_solve(duffing, np.zeros(2), 1.0, NewtonOptions(tol_residual=1e-12))
+    assert r.converged
+    assert abs(duffing.relation(np.hypot(*r.x), 1.0)) <= 2 * duffing.force * 1e-12 * 1.01
+
+
+# ---------------------------------------------------------------- bordered solve
+@pytest.mark.parametrize("sparse", [False, True])
+@pytest.mark.parametrize("case", ["exact", "rotated", "near"])
+def test_bordered_solve_at_a_fold(sparse, case):
+    rng = np.random.default_rng(1)
+    n = 6
+    Q = np.eye(n) if case == "exact" else np.linalg.qr(rng.standard_normal((n, n)))[0]
+    J = Q @ np.diag([1e-14 if case == "near" else 0.0, 1, 2, 3, 4, 5.0]) @ Q.T  # singular or nearly so
+    r_w, p, R = rng.standard_normal(n), rng.standard_normal(n), rng.standard_normal(n)
+    q, P = 0.3, -0.2
+    A = np.block([[J, r_w[:, None]], [p[None, :], np.array([[q]])]])
+    ref = np.linalg.solve(A, -np.concatenate([R, [P]]))
+    dx, dw, used_full = solve_bordered(sp.csr_matrix(J) if sparse else J, r_w, p, q, R, P)
+    np.testing.assert_allclose(np.concatenate([dx, [dw]]), ref, rtol=1e-8, atol=1e-10)
+    if case == "exact":  # a zero pivot: only the full bordered matrix can do it
+        assert used_full
+
+
+def test_bordered_solve_regular_uses_block_elimination():
+    rng = np.random.default_rng(2)
+    J = np.eye(4) * 3 + 0.1 * rng.standard_normal((4, 4))
+    r_w, p, R = rng.standard_normal((3, 4))
+    dx, dw, used_full = solve_bordered(J, r_w, p, 0.5, R, 0.1)
+    A = np.block([[J, r_w[:, None]], [p[None, :], np.array([[0.5]])]])
+    np.testing.assert_allclose(A @ np.concatenate([dx, [dw]]), -np.concatenate([R, [0.1]]), atol=1e-12)
+    assert not used_full
