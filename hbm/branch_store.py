@@ -163,6 +163,10 @@ class BranchStore:
             self._extras = set(extras)
         if set(extras) != self._extras:
             raise ValueError(f"extras {sorted(extras)} differ from the store's {sorted(self._extras)}")
+        for name, v in extras.items():  # all checks before the first write
+            shape = self._h5["extras"][name].shape[1:]
+            if shape != v.shape:
+                raise ValueError(f"extra '{name}' has shape {v.shape}, store has {shape}")
         m = self.n_points
         values = {"omega": point.omega, "x": x, "converged": point.converged, "residual_norm": point.residual_norm,
                   "iterations": point.iterations, "step": point.step, "time": point.time}
@@ -172,8 +176,6 @@ class BranchStore:
             ds[m] = v
         for name, v in extras.items():
             ds = self._h5["extras"][name]
-            if ds.shape[1:] != v.shape:
-                raise ValueError(f"extra '{name}' has shape {v.shape}, store has {ds.shape[1:]}")
             ds.resize(m + 1, axis=0)
             ds[m] = v
         self._h5.attrs["n_points"] = m + 1  # last: the row counts only once all of it is written
