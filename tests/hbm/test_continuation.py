@@ -153,6 +153,21 @@ def test_fold_next_to_the_start_is_not_a_loop():
     assert np.linalg.norm(x_int - x0) / np.linalg.norm(x_int) < 1e-2  # the naive test would have fired
 
 
+def test_turn_limit_is_enforced():
+    # On the circle of radius 0.5 a step ds turns the chord by ~ds / 0.5 rad (5.7 deg at ds_max):
+    # with max_turn_deg = 2 the steps must shrink until each chord turns by <= 2 deg from the
+    # secant predictor; with a floor that forbids it, the branch ends saying why.
+    c, x0 = Circle(), np.array([2.5, 1.5625])
+    b = continue_branch(c, x0, 1.5, opts(0.0, 5.0, max_turn_deg=2.0, ds_min=1e-4, max_points=60))
+    assert b.status == STATUS_MAX_POINTS
+    d = np.column_stack([np.diff(b.x, axis=0), np.diff(b.omega)])
+    d /= np.linalg.norm(d, axis=1)[:, None]
+    turn = np.degrees(np.arccos(np.clip(np.sum(d[1:] * d[:-1], axis=1), -1, 1)))
+    assert turn.max() <= 2.0 + 1e-9 and turn.max() > 1.0  # bounded, and the bound was active
+    b = continue_branch(c, x0, 1.5, opts(0.0, 5.0, max_turn_deg=2.0, ds=0.05, ds_min=0.03))
+    assert b.status.startswith(STATUS_STEP_FLOOR) and "turned" in b.status
+
+
 # ---------------------------------------------------------------- failures
 def test_dead_end_ends_with_a_reason_and_no_wrong_point():
     seen = []
@@ -177,6 +192,10 @@ def test_unconverged_newton_is_not_converged(duffing):
     r = newton_solve(duffing, np.zeros(2), 1.0, NewtonOptions(tol_residual=1e-12))
     assert r.converged
     assert abs(duffing.relation(np.hypot(*r.x), 1.0)) <= 2 * duffing.force * 1e-12 * 1.01
+    # With a step criterion, a solution is confirmed by one (tiny) correction, not accepted as given.
+    again = newton_solve(duffing, r.x, 1.0, NewtonOptions(tol_residual=1e-12, tol_step=1e-9))
+    assert again.converged and again.iterations == 1
+    assert newton_solve(duffing, r.x, 1.0, NewtonOptions(tol_residual=1e-12)).iterations == 0
 
 
 # ---------------------------------------------------------------- bordered solve
