@@ -121,7 +121,7 @@ class ContinuationPoint(NamedTuple):
     time: float
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # arrays: compare fields explicitly, not with ==
 class Branch:
     """A computed branch, m points of n unknowns.
 
