@@ -190,7 +190,7 @@ def _camera(points: np.ndarray):
     if np.linalg.norm(look) < 1e-6:
         look = vt[1] - (vt[1] @ up) * up
     look /= np.linalg.norm(look)
-    if look @ np.array([0.0, 0.0, 1.0]) + 1e-9 * look.sum() < 0:  # deterministic side
+    if look[np.argmax(np.abs(look))] < 0:  # SVD signs are arbitrary: pick a fixed side
         look = -look
     side = np.cross(up, look)
     direction = look + 0.6 * side + 0.3 * up  # a little 3-D perspective
@@ -242,10 +242,10 @@ def render_mode_shapes(nodes, cells, modes, frequencies_hz, out_dir, *, n_modes:
                      ambient=0.35, diffuse=0.75, specular=0.15, show_edges=False,
                      scalar_bar_args=dict(title="relative displacement", color="black", vertical=True,
                                           position_x=0.86, position_y=0.15, height=0.7, width=0.05,
-                                          fmt="%.1f", n_labels=6, title_font_size=18,
+                                          fmt="%.1f", n_labels=6, title_font_size=15,
                                           label_font_size=16))
     plotter.camera_position = _camera(points)
-    plotter.camera.zoom(1.15)
+    plotter.camera.zoom(1.05)
     plotter.enable_anti_aliasing(ANTI_ALIASING)
 
     paths = []

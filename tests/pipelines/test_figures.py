@@ -1,0 +1,60 @@
+"""Each result figure is a non-blank PNG of the documented pixel size."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from pipelines import figures
+
+SIZE = (round(figures.FIGSIZE[1] * figures.DPI), round(figures.FIGSIZE[0] * figures.DPI))  # rows, cols
+
+
+def _check(path):
+    img = imread(path)[..., :3]
+    assert img.shape[:2] == SIZE
+    assert img.std() > 0.02  # lines and text, not a blank page
+    return img
+
+
+def duffing_like(omega, peak, width, height):
+    """A resonance-shaped amplitude curve, m."""
+    return height / np.sqrt(1.0 + ((omega - peak) / width) ** 2)
+
+
+@pytest.fixture
+def sweep():
+    rng = np.random.default_rng(1)
+    omega = np.linspace(420.0, 1980.0, 60)
+    amp = duffing_like(omega, 1500.0, 40.0, 2e-3) * (1 + 0.2 * rng.random(60))
+    return omega, amp, np.arange(60) % 4
+
+
+def test_nfrc_draws_lines_and_ti_markers(tmp_path, sweep):
+    omega = np.linspace(400.0, 2000.0, 400)
+    ok = np.ones(400, bool)
+    ok[200:210] = False
+    curves = {"DLFT-HBM": (omega, duffing_like(omega, 1500.0, 50.0, 2.2e-3), ok),
+              "RL-HBM": (omega, duffing_like(omega, 1510.0, 50.0, 2.1e-3), None),
+              "RL-HBM isolas": (omega[:50] + 1000.0, np.full(50, 1e-3))}
+    bare = _check(figures.plot_nfrc(curves, tmp_path / "bare.png"))
+    with_ti = _check(figures.plot_nfrc(curves, tmp_path / "nfrc.png", ti_points=sweep))
+    assert np.abs(with_ti - bare).max(axis=2).__gt__(0.2).sum() > 200  # the markers are there
+
+
+def test_ti_sweep(tmp_path, sweep):
+    _check(figures.plot_ti_sweep(*sweep, tmp_path / "sub" / "ti.png"))
+
+
+def test_time_signals(tmp_path):
+    t = np.linspace(0.0, 2 * np.pi / 1500.0, 500)
+    le = 1e3 * 1e-3 * np.cos(3000.0 * t)
+    signals = {"DLFT-HBM LE": le, "RL-HBM TE": 0.8 * le, "TI LE": (t[::5], le[::5] * 1.02)}
+    _check(figures.plot_time_signals(t, signals, tmp_path / "sig.png", "radial displacement (mm)",
+                                     casing=0.9))
+
+
+def test_frequencies(tmp_path):
+    omega = np.linspace(400.0, 2000.0, 9)
+    f = np.array([3400.0, 9800.0, 14500.0]) * (1 + 1e-8 * omega[:, None] ** 2)
+    _check(figures.plot_frequencies(omega, f, tmp_path / "campbell.png", labels=["1B", "2B", "1T"]))
