@@ -87,6 +87,10 @@ class TimeIntegrationOptions:
     dt: time step, s. n_revolutions: revolutions simulated per Omega.
     n_keep: last revolutions kept for amplitude and periodicity.
     omega_start, omega_end, n_omega: the sweep grid of Omega, rad/s.
+    samples_per_revolution: rate of the kept (downsampled) signals, per revolution.
+    periodicity_rtol: mismatch accepted between Poincare sections one period apart,
+    relative to the signal's range, -. max_order: largest subharmonic order nu = Omega / omega
+    still called periodic, -.
     """
 
     dt: float = 1e-7
@@ -95,6 +99,9 @@ class TimeIntegrationOptions:
     omega_start: float = 400.0
     omega_end: float = 2000.0
     n_omega: int = 161
+    samples_per_revolution: int = 256
+    periodicity_rtol: float = 1e-2
+    max_order: float = 10.0
 
     def __post_init__(self):
         if not self.dt > 0:
@@ -103,3 +110,9 @@ class TimeIntegrationOptions:
             raise ValueError(f"need 0 < n_keep <= n_revolutions, got {self.n_keep}, {self.n_revolutions}")
         if self.n_omega < 1:
             raise ValueError(f"n_omega must be >= 1, got {self.n_omega}")
+        if self.samples_per_revolution < 1:
+            raise ValueError(f"samples_per_revolution must be >= 1, got {self.samples_per_revolution}")
+        if not 0 < self.periodicity_rtol < 1:
+            raise ValueError(f"periodicity_rtol must be in (0, 1), got {self.periodicity_rtol}")
+        if not self.max_order >= 1:
+            raise ValueError(f"max_order must be >= 1, got {self.max_order}")

@@ -125,8 +125,10 @@ class Recording:
     (sample i is step n0 + i s). dofs: dof whose displacement is recorded, (n_x,).
     force_nodes: contact nodes whose forces are recorded, (n_f,). section_stride: steps
     between Poincare sections (sections at n0 + k section_stride up to the last step; 0: none).
-    Forces are block means of lam_n over the s steps n0 + i s - s//2 .. n0 + i s + s - 1 - s//2,
-    so that impulsive forces keep their impulse once downsampled.
+    lam_m denotes the multiplier computed at step m (it moves x_m to x_{m+1}). Force sample i
+    is the block mean of lam_m over the s steps m = n0 + i s - s//2 .. n0 + i s + s - 1 - s//2,
+    so that impulsive forces keep their impulse once downsampled (s = 1: lam at step n0 + i);
+    multipliers at the last step (m = n_steps) are never computed and read 0.
     """
 
     start: int

@@ -1,0 +1,82 @@
+"""Periodicity of a steady response from its Poincare sections (Fig. 5 of the reference paper).
+
+The casing has n_l lobes, so the forcing has period T_c = 2 pi / (n_l Omega). The response is
+sampled once per casing period (a Poincare section at t = k T_c) and its period is the
+smallest number p of casing periods after which every section repeats, within a tolerance
+relative to the signal's range. Then omega = n_l Omega / p, and the order nu = Omega / omega.
+For the paper's two lobes: p = 1 is omega = 2 Omega, p = 2 is omega = Omega, p > 2 is
+subharmonic (nu = p / 2), and no repeat up to nu = max_order is "no periodicity".
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+#: Class codes (the markers of Fig. 5).
+CASING = 0        # omega = n_l Omega, the casing's own period (2 Omega for two lobes)
+REVOLUTION = 1    # omega = Omega
+SUBHARMONIC = 2   # omega < Omega, omega = Omega / nu
+NONE = 3          # no period found with nu <= max_order (quasi-periodic, chaotic, omega < Omega / max_order)
+SUPERHARMONIC = 4 # Omega < omega < n_l Omega (possible only with n_l > 2 lobes)
+
+CLASS_NAMES = {CASING: "casing period", REVOLUTION: "omega = Omega", SUBHARMONIC: "subharmonic",
+               NONE: "no periodicity", SUPERHARMONIC: "Omega < omega < n_l Omega"}
+
+
+@dataclass(frozen=True)
+class Periodicity:
+    """Classification of one signal.
+
+    code: one of CASING, REVOLUTION, SUBHARMONIC, NONE, SUPERHARMONIC.
+    period: p, the period in casing periods (0 when NONE). order: nu = Omega / omega = p / n_l,
+    - (nan when NONE). mismatch: max |y_{k+p} - y_k| / range for the accepted p, or the
+    smallest one over all tried p when NONE, -.
+    """
+
+    code: int
+    period: int
+    order: float
+    mismatch: float
+
+
+def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, max_order: float = 10.0) -> Periodicity:
+    """Smallest period of a sequence of Poincare sections, in casing periods.
+
+    sections: samples y_k at t_k = t_0 + k T_c, (n_sec,) or (n_sec, n_channels), any unit;
+    each channel is scaled by its own range (max - min) over the samples.
+    n_lobes: n_l, casing periods per revolution. rtol: accepted mismatch relative to the
+    range, -. max_order: largest nu = Omega / omega still called subharmonic, -.
+    A period p is accepted when every section of the window repeats after p casing periods:
+    max_k max_ch |y_{k+p} - y_k| / range_ch <= rtol over k = 0 .. n_sec - 1 - p, and only
+    p <= (n_sec - 1) / 2 are tried so that each accepted period is seen at least twice.
+    A signal of zero range (constant) has period 1.
+    """
+    y = np.asarray(sections, dtype=float)
+    if y.ndim == 1:
+        y = y[:, None]
+    n_sec = y.shape[0]
+    if n_sec < 3:
+        raise ValueError(f"need at least 3 Poincare sections, got {n_sec}")
+    rng = y.max(axis=0) - y.min(axis=0)
+    scale = np.abs(y).max(axis=0)
+    keep = rng > 1e-12 * np.maximum(scale, np.finfo(float).tiny)
+    if not keep.any():
+        return Periodicity(code=CASING, period=1, order=1.0 / n_lobes, mismatch=0.0)
+    y = y[:, keep] / rng[keep]
+    p_max = min(int(np.floor(max_order * n_lobes + 1e-9)), (n_sec - 1) // 2)
+    best = np.inf
+    for p in range(1, p_max + 1):
+        mis = float(np.abs(y[p:] - y[:-p]).max())
+        best = min(best, mis)
+        if mis <= rtol:
+            return Periodicity(code=_code(p, n_lobes), period=p, order=p / n_lobes, mismatch=mis)
+    return Periodicity(code=NONE, period=0, order=float("nan"), mismatch=best)
+
+
+def _code(p: int, n_lobes: int) -> int:
+    if p == 1:
+        return CASING
+    if p == n_lobes:
+        return REVOLUTION
+    return SUBHARMONIC if p > n_lobes else SUPERHARMONIC
