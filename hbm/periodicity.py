@@ -40,11 +40,14 @@ class Periodicity:
     mismatch: float
 
 
-def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, max_order: float = 10.0) -> Periodicity:
+def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, max_order: float = 10.0,
+                    scale: np.ndarray | None = None) -> Periodicity:
     """Smallest period of a sequence of Poincare sections, in casing periods.
 
     sections: samples y_k at t_k = t_0 + k T_c, (n_sec,) or (n_sec, n_channels), any unit;
-    each channel is scaled by its own range (max - min) over the samples.
+    each channel is scaled by `scale` (n_channels,), same unit: the signal's range over the
+    whole window, which the sections alone may not see; default: the range of the sections.
+    Channels of zero scale are ignored.
     n_lobes: n_l, casing periods per revolution. rtol: accepted mismatch relative to the
     range, -. max_order: largest nu = Omega / omega still called subharmonic, -.
     A period p is accepted when every section of the window repeats after p casing periods:
@@ -58,9 +61,8 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
     n_sec = y.shape[0]
     if n_sec < 3:
         raise ValueError(f"need at least 3 Poincare sections, got {n_sec}")
-    rng = y.max(axis=0) - y.min(axis=0)
-    scale = np.abs(y).max(axis=0)
-    keep = rng > 1e-12 * np.maximum(scale, np.finfo(float).tiny)
+    rng = y.max(axis=0) - y.min(axis=0) if scale is None else np.broadcast_to(np.asarray(scale, float), y.shape[1:])
+    keep = rng > 0.0
     if not keep.any():
         return Periodicity(code=CASING, period=1, order=1.0 / n_lobes, mismatch=0.0)
     y = y[:, keep] / rng[keep]

@@ -108,7 +108,9 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
                     force_nodes=np.array([0, nb - 1]), section_stride=n_rev // n_l)
     zero = np.zeros(system.n_dof)
     m = march(system, casing, mu, omega, zero, zero, dt, options.n_revolutions * n_rev, rec)
-    per = classify_period(m.sections, n_lobes=n_l, rtol=options.periodicity_rtol, max_order=options.max_order)
+    # mismatch relative to each node's range over every step of the window
+    per = classify_period(m.sections, n_lobes=n_l, rtol=options.periodicity_rtol, max_order=options.max_order,
+                          scale=m.radial_max - m.radial_min)
     return SpeedResponse(
         omega=float(omega), amplitude=0.5 * float(m.radial_max[0] - m.radial_min[0]),
         max_abs=float(max(m.radial_max[0], -m.radial_min[0])), period_class=per.code, period=per.period,
