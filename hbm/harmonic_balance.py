@@ -227,6 +227,7 @@ class HarmonicBalanceResidual:
         # distance(tau) -> (len(tau), n_b), m: the casing of eq. (28) unless another obstacle is given
         self._distance = distance or (lambda tau: casing_distance(tau, self.theta, casing))
         self.distance = self._distance(self.basis.tau)  # (N_t, n_b), m
+        self.obstacle_scale = 1.0
         self.alpha = float(alpha if alpha is not None else 1.0 / max(casing.clearance, 1e-5))
         self.k_ref = float(np.mean(np.abs(np.diag(self.model.operator(0.0).Z0))))
         sig = self.basis.lanczos_sigma() if (method == "rl" and contact.lanczos) else np.ones(self.basis.n_coeffs)
@@ -255,6 +256,8 @@ class HarmonicBalanceResidual:
             raise ValueError("basis must keep the problem's N_h")
         nb = self.n_b
         d = self.distance if b is self.basis else self._distance(b.tau)
+        if self.obstacle_scale != 1.0:  # homotopy from a round casing (see set_obstacle_scale)
+            d = d.max(axis=0) + self.obstacle_scale * (d - d.max(axis=0))
         x3 = xr.reshape(self.n_c, nb, 3)
         disp = b.to_time(x3)  # (N_t, n_b, 3)
         vel = omega * b.to_time(b.derivative(x3))
@@ -279,6 +282,14 @@ class HarmonicBalanceResidual:
             aux["slide"] = s
         return NonlinearSamples(force=force, lam=lam, displacement=disp, velocity=vel, gap=gap,
                                 active=active, aux=aux)
+
+    def set_obstacle_scale(self, s: float) -> None:
+        """Scale the obstacle's distortion: d_s = max_t d + s (d - max_t d), s in [0, 1].
+
+        s = 0 is a round casing at the clearance (no contact for small motion), s = 1 the
+        real one: a homotopy that brings the start point into contact gently.
+        """
+        self.obstacle_scale = float(s)
 
     # -- residual --------------------------------------------------------------------------
     def __call__(self, u: np.ndarray, omega: float, jacobian: bool = True):

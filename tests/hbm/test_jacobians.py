@@ -1,0 +1,67 @@
+"""Analytical Jacobians of the HBM residual (through AFT) against central finite differences.
+
+Central differences of a smooth function err by O(h^2 f''') ~ 1e-10 relative at h = 1e-6
+on unknowns of order 1, far below the 1e-6 asked. DLFT is piecewise smooth: at a random
+point no time sample lies within the step of a switch (had one, the difference would
+differ by O(1) and the test fail loudly, not pass wrongly).
+"""
+import numpy as np
+import pytest
+
+from hbm.aft import FourierBasis
+from hbm.harmonic_balance import HarmonicForcing, build_residual
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from support import standin_rom
+
+H = 1e-6
+
+
+def _fd(res, u, om):
+    J = np.empty((res.size, res.size))
+    for i in range(res.size):
+        e = np.zeros(res.size)
+        e[i] = H
+        J[:, i] = (res(u + e, om, jacobian=False) - res(u - e, om, jacobian=False)) / (2 * H)
+    dw = (res(u, om + 1e-3, jacobian=False) - res(u, om - 1e-3, jacobian=False)) / 2e-3
+    return J, dw
+
+
+CASES = [("dlft", dict(mu=0.0)), ("dlft", dict(mu=0.15)), ("rl", dict(lanczos=True, mu=0.0)),
+         ("rl", dict(lanczos=False, mu=0.0)), ("rl", dict(lanczos=True, mu=0.15)),
+         ("rl", dict(lanczos=False, mu=0.15))]
+
+
+@pytest.mark.parametrize("method,kw", CASES)
+def test_jacobian_matches_finite_differences(method, kw):
+    rom = standin_rom()
+    f = np.zeros(rom.n_dof)
+    f[[0, 30]] = [50.0, 20.0]  # forcing on a boundary and a modal dof: dR/domega has a force part
+    res = build_residual(rom, CasingOptions(), ContactOptions(**kw), HbmOptions(n_harmonics=5, n_time=64),
+                         method=method, forcing=HarmonicForcing(f, 2))
+    om = 900.0
+    u = res.linear_solution(om) + 0.3 * np.random.default_rng(3).standard_normal(res.size)
+    smp = res.samples(res.to_coefficients(u), om)
+    assert 0.05 < smp.active.mean() < 0.95  # a mix of contact and flight
+    R, J, dw = res(u, om)
+    Jfd, dwfd = _fd(res, u, om)
+    assert np.abs(J - Jfd).max() <= 1e-6 * np.abs(J).max()
+    assert np.abs(dw - dwfd).max() <= 1e-6 * np.abs(dw).max()
+    if kw.get("mu"):  # the friction blocks are really there (and were checked above)
+        res0 = build_residual(rom, CasingOptions(), ContactOptions(**{**kw, "mu": 0.0}),
+                              HbmOptions(n_harmonics=5, n_time=64), method=method, forcing=HarmonicForcing(f, 2))
+        assert np.abs(J - res0(u, om)[1]).max() > 1e-3 * np.abs(J).max()
+
+
+def test_weighted_product_equals_dense_dft_product():
+    b = FourierBasis(7, 40)  # N_t < 4 N_h + 1: orders k + l alias, the full-FFT path
+    F = b.to_freq(np.eye(b.n_time))
+    Ft = b.to_time(np.eye(b.n_coeffs))
+    tau = b.tau
+    Ft_ref = np.column_stack([np.ones_like(tau)] + [f(k * tau) for k in range(1, 8) for f in (np.cos, np.sin)])
+    assert np.abs(Ft - Ft_ref).max() < 1e-13  # eq. (11) with c_0 = a_0 / 2 stored
+    assert np.abs(F @ Ft - np.eye(b.n_coeffs)).max() < 1e-13
+    w = np.random.default_rng(0).random((2, b.n_time))
+    for bb, ww in ((b, w), (FourierBasis(7, 64), np.random.default_rng(1).random((2, 64)))):
+        F = bb.to_freq(np.eye(bb.n_time))
+        Ft = bb.to_time(np.eye(bb.n_coeffs))
+        assert np.abs(bb.weighted_product(ww) - np.einsum("ij,bj,jk->bik", F, ww, Ft)).max() < 1e-13
