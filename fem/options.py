@@ -3,13 +3,32 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from fem.cholesky import ORDERINGS
+
 
 @dataclass(frozen=True)
 class FemOptions:
-    """n_modes: number of full-model modes computed and stored (>= 6 for the report)."""
+    """n_modes: number of full-model modes computed and stored (>= 6 for the report).
+    n_fixed_interface_modes: fixed-interface modes computed for the ROM stage from the same
+        factorisation (the ROM keeps the first rom.n_fixed_modes of them, so this must be
+        >= rom.n_fixed_modes); 0 skips the interface basis (the ROM stage then factorises
+        K itself, which doubles the dominant cost).
+    tol: eigen-solver convergence: largest relative change of a wanted eigenvalue (w^2) in
+        the last block step (Ritz values converge monotonically from above).
+    ordering: fill-reducing ordering of the sparse Cholesky (metis, scotch, pord, amd).
+    """
 
     n_modes: int = 12
+    n_fixed_interface_modes: int = 12
+    tol: float = 1e-10
+    ordering: str = "metis"
 
     def __post_init__(self):
         if self.n_modes < 1:
             raise ValueError(f"n_modes must be >= 1, got {self.n_modes}")
+        if self.n_fixed_interface_modes < 0:
+            raise ValueError(f"n_fixed_interface_modes must be >= 0, got {self.n_fixed_interface_modes}")
+        if not 0 < self.tol < 1e-2:
+            raise ValueError(f"tol must be in (0, 1e-2), got {self.tol}")
+        if self.ordering not in ORDERINGS:
+            raise ValueError(f"unknown ordering '{self.ordering}'; known: {', '.join(ORDERINGS)}")

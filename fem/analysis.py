@@ -1,0 +1,106 @@
+"""The FEM stage: BladeMesh -> assembled, clamped system, full-model modes and the
+Craig-Bampton ingredients, all from one Cholesky factorisation of K (see fem.interface)."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from fem.assembly import FemSystem, assemble_system
+from fem.material import Material
+from fem.options import FemOptions
+
+
+@dataclass(frozen=True)
+class FemResult:
+    """What fem.h5 holds.
+
+    K: (n_free, n_free) CSR stiffness, N/m. M: (n_free, n_free) CSR consistent mass, kg.
+    node_dofs: (n_nodes, 3) free-dof index of each node's x, y, z; -1 on the clamped root.
+    frequencies: (n_modes,) full-model eigenfrequencies, rad/s. frequencies_hz: same, Hz.
+    modes: (n_modes, n_nodes, 3) mass-normalised mode shapes at the mesh nodes, global
+        x, y, z, kg^-1/2 (0 on the root); for rendering and comparison.
+    residuals: (n_modes,) relative residuals of the eigenpairs.
+    boundary_node_index: (n_b,) mesh nodes of the interface basis (the contact nodes).
+    boundary_dofs: (3 n_b,) their free dof, node-major x, y, z.
+    constraint_modes: (n_free, 3 n_b) static response to unit boundary displacements
+        (global x, y, z), m/m. fixed_interface_modes: (n_free, eta_max), kg^-1/2.
+    fixed_interface_frequencies: (eta_max,), rad/s.
+    """
+
+    K: sp.csr_matrix = field(metadata={"unit": "N/m"})
+    M: sp.csr_matrix = field(metadata={"unit": "kg"})
+    node_dofs: np.ndarray = field(metadata={"unit": "1"})
+    frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
+    frequencies_hz: np.ndarray = field(metadata={"unit": "Hz"})
+    modes: np.ndarray = field(metadata={"unit": "kg^-0.5"})
+    residuals: np.ndarray = field(metadata={"unit": "1"})
+    boundary_node_index: np.ndarray = field(metadata={"unit": "1"})
+    boundary_dofs: np.ndarray = field(metadata={"unit": "1"})
+    constraint_modes: np.ndarray = field(metadata={"unit": "m/m"})
+    fixed_interface_modes: np.ndarray = field(metadata={"unit": "kg^-0.5"})
+    fixed_interface_frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
+
+    @property
+    def system(self) -> FemSystem:
+        return FemSystem(K=self.K, M=self.M, node_dofs=self.node_dofs)
+
+
+def solve_system(system: FemSystem, options: FemOptions, boundary_node_index: np.ndarray | None,
+                 timings: dict | None = None) -> FemResult:
+    """Modes and interface basis of an assembled system (one factorisation of K).
+
+    boundary_node_index: (n_b,) mesh nodes for the Craig-Bampton basis; None or empty skips it.
+    timings: if a dict, receives wall times in s of 'factorisation', 'modes', 'interface'.
+    """
+    import time
+
+    from fem.cholesky import CholeskyFactor
+    from fem.interface import boundary_dofs_of, compute_interface_basis
+    from fem.modes import compute_modes
+
+    timings = {} if timings is None else timings
+    K, M = system.K, system.M
+    want_basis = boundary_node_index is not None and len(boundary_node_index) > 0 \
+        and options.n_fixed_interface_modes >= 0
+    bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
+    t = time.perf_counter()
+    factor = CholeskyFactor(K, ordering=options.ordering)
+    timings["factorisation"] = time.perf_counter() - t
+    try:
+        t = time.perf_counter()
+        modal = compute_modes(K, M, options.n_modes, factor=factor, tol=options.tol)
+        timings["modes"] = time.perf_counter() - t
+        t = time.perf_counter()
+        if want_basis:
+            basis = compute_interface_basis(K, M, bd, options.n_fixed_interface_modes, factor,
+                                            start=modal.vectors, tol=options.tol)
+            psi, phi, wfi = basis.constraint_modes, basis.fixed_interface_modes, basis.fixed_interface_frequencies
+        else:
+            psi, phi, wfi = np.zeros((K.shape[0], 0)), np.zeros((K.shape[0], 0)), np.zeros(0)
+        timings["interface"] = time.perf_counter() - t
+    finally:
+        factor.destroy()
+    return FemResult(K=K, M=M, node_dofs=system.node_dofs, frequencies=modal.frequencies,
+                     frequencies_hz=modal.frequencies_hz, modes=system.to_nodal(modal.vectors),
+                     residuals=modal.residuals,
+                     boundary_node_index=np.asarray(boundary_node_index if want_basis else [], dtype=np.int64),
+                     boundary_dofs=bd, constraint_modes=psi, fixed_interface_modes=phi,
+                     fixed_interface_frequencies=wfi)
+
+
+def analyse_blade(mesh, material: Material, options: FemOptions = FemOptions(),
+                  timings: dict | None = None) -> FemResult:
+    """The FEM stage on a mesh.model.BladeMesh: assemble (root clamped), factorise K once,
+    compute the full-model modes and the interface basis of mesh.boundary_node_index.
+
+    timings: if a dict, receives wall times in s of 'assembly', 'factorisation', 'modes', 'interface'.
+    """
+    import time
+
+    timings = {} if timings is None else timings
+    t = time.perf_counter()
+    system = assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, material)
+    timings["assembly"] = time.perf_counter() - t
+    return solve_system(system, options, mesh.boundary_node_index, timings)

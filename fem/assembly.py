@@ -1,0 +1,154 @@
+"""Linear-elastic stiffness and consistent mass of a quadratic tetrahedral mesh, root clamped.
+
+dolfinx builds and assembles the P2 vector Lagrange system on the tet10 geometry; the
+result is handed on as scipy CSR matrices of the free (unclamped) dof, ordered node-major
+in mesh node order, so that later stages need neither dolfinx nor its dof numbering.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+import scipy.sparse as sp
+
+from fem.material import Material
+
+
+@dataclass(frozen=True)
+class FemSystem:
+    """Free-dof stiffness and mass of the clamped blade.
+
+    K: stiffness, (n_free, n_free) scipy CSR, N/m. M: consistent mass, (n_free, n_free) CSR, kg.
+    node_dofs: (n_nodes, 3) int64, free-dof index of each mesh node's x, y, z
+        displacement, -1 on clamped (root) nodes. Free dof are numbered node-major in mesh
+        node order: node_dofs[node_dofs >= 0] == arange(n_free).
+    """
+
+    K: sp.csr_matrix = field(metadata={"unit": "N/m"})
+    M: sp.csr_matrix = field(metadata={"unit": "kg"})
+    node_dofs: np.ndarray = field(metadata={"unit": "1"})
+
+    @property
+    def n_free(self) -> int:
+        return int(self.K.shape[0])
+
+    @property
+    def n_nodes(self) -> int:
+        return int(self.node_dofs.shape[0])
+
+    def to_nodal(self, u: np.ndarray) -> np.ndarray:
+        """Free-dof vectors (n_free,) or (n_free, k) -> nodal (n_nodes, 3) or (k, n_nodes, 3), m.
+
+        Clamped nodes get 0.
+        """
+        u = np.asarray(u)
+        if u.shape[0] != self.n_free:
+            raise ValueError(f"expected {self.n_free} free dof, got array of shape {u.shape}")
+        flat = u.reshape(self.n_free, -1)
+        out = np.zeros((flat.shape[1], self.n_nodes, 3), dtype=u.dtype)
+        free = self.node_dofs[:, 0] >= 0
+        out[:, free] = flat.T.reshape(flat.shape[1], -1, 3)  # free dof are node-major
+        return out[0] if u.ndim == 1 else out
+
+
+def _check_mesh(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray) -> None:
+    if nodes.ndim != 2 or nodes.shape[1] != 3:
+        raise ValueError(f"nodes must have shape (n, 3), got {nodes.shape}")
+    if cells.ndim != 2 or cells.shape[1] != 10:
+        raise ValueError(f"cells must be tet10 connectivity of shape (n_cells, 10), got {cells.shape}")
+    if len(cells) == 0:
+        raise ValueError("the mesh has no cells")
+    if root_facets is None or np.size(root_facets) == 0:
+        raise ValueError("the mesh has no root facets: the blade would be unclamped "
+                         "(singular stiffness); BladeMesh.root_facets must list the clamped root face")
+    if root_facets.ndim != 2 or root_facets.shape[1] not in (3, 6):
+        raise ValueError(f"root_facets must be tri6 connectivity of shape (n_root, 6), got {root_facets.shape}")
+    n = len(nodes)
+    for name, a in (("cells", cells), ("root_facets", root_facets)):
+        if a.min() < 0 or a.max() >= n:
+            raise ValueError(f"{name} refer to nodes outside 0..{n - 1}")
+    used = np.zeros(n, dtype=bool)
+    used[cells.ravel()] = True
+    if not used.all():
+        raise ValueError(f"{int((~used).sum())} nodes belong to no cell (their dof would be singular)")
+
+
+def _to_scipy(A) -> sp.csr_matrix:
+    """PETSc AIJ -> scipy CSR (copy), then the PETSc matrix is destroyed to free memory."""
+    indptr, indices, data = A.getValuesCSR()
+    out = sp.csr_matrix((data, indices, indptr), shape=A.getSize())
+    A.destroy()
+    return out
+
+
+def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray,
+                    material: Material) -> FemSystem:
+    """Assemble K and M of linear elasticity on a tet10 mesh with all root-facet nodes clamped.
+
+    nodes: (n, 3), m. cells: (n_cells, 10) tet10 in gmsh node ordering.
+    root_facets: (n_root, 6) tri6 (gmsh ordering) of the clamped face; every node on them
+    has its 3 dof removed. material: E (Pa), nu, rho (kg/m^3).
+    Serial (COMM_SELF): the matrices are returned whole to this process.
+    """
+    import ufl
+    from mpi4py import MPI
+    from dolfinx import fem, mesh as dmesh
+    from dolfinx.fem.petsc import assemble_matrix
+    from dolfinx.io import gmshio
+
+    nodes = np.ascontiguousarray(nodes, dtype=np.float64)
+    cells = np.asarray(cells, dtype=np.int64)
+    root_facets = np.asarray(root_facets, dtype=np.int64) if root_facets is not None else None
+    _check_mesh(nodes, cells, root_facets)
+    if not isinstance(material, Material):
+        raise TypeError(f"material must be a fem.material.Material, got {type(material).__name__}")
+
+    # gmsh tet10 (edges 01,12,20,30,32,31) -> dolfinx local ordering
+    perm = gmshio.cell_perm_array(dmesh.CellType.tetrahedron, 10)
+    domain = ufl.Mesh(ufl.VectorElement(ufl.FiniteElement("Lagrange", ufl.tetrahedron, 2,
+                                                          variant="equispaced")))
+    msh = dmesh.create_mesh(MPI.COMM_SELF, cells[:, perm], nodes, domain)
+
+    V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))
+    lmbda, mu = material.lame
+    u, v = ufl.TrialFunction(V), ufl.TestFunction(V)
+
+    def eps(w):
+        return ufl.sym(ufl.grad(w))
+
+    a_k = (2 * mu * ufl.inner(eps(u), eps(v)) + lmbda * ufl.div(u) * ufl.div(v)) * ufl.dx
+    a_m = material.rho * ufl.inner(u, v) * ufl.dx
+
+    # Mesh node -> dolfinx block dof. The P2 space and the P2 coordinate element share the
+    # local (basix) ordering, so cell-wise the geometry dofs and the space's dofs coincide.
+    nc = msh.topology.index_map(3).size_local
+    gdofs = msh.geometry.dofmap.array.reshape(nc, 10)
+    vdofs = V.dofmap.list.array.reshape(nc, 10)
+    input_index = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
+    block = np.empty(len(nodes), dtype=np.int64)
+    block[input_index[gdofs.ravel()]] = vdofs.ravel()
+
+    clamped = np.zeros(len(nodes), dtype=bool)
+    clamped[root_facets.ravel()] = True
+    node_dofs = np.full((len(nodes), 3), -1, dtype=np.int64)
+    n_free_nodes = int((~clamped).sum())
+    node_dofs[~clamped] = np.arange(3 * n_free_nodes).reshape(-1, 3)
+    # dolfinx dof (blocked, bs = 3) of each free dof, in the node-major order above
+    order = (3 * block[~clamped, None] + np.arange(3)).ravel()
+
+    mats = []
+    for a in (a_k, a_m):
+        A = assemble_matrix(fem.form(a))
+        A.assemble()
+        A = _to_scipy(A)
+        mats.append(A[order][:, order].tocsr())  # free rows/columns, node-major
+        del A
+    K, M = mats
+    K.sort_indices()
+    M.sort_indices()
+    return FemSystem(K=K, M=M, node_dofs=node_dofs)
+
+
+def assemble_blade(mesh, material: Material) -> FemSystem:
+    """`assemble_system` on a mesh.model.BladeMesh."""
+    return assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, material)
