@@ -72,9 +72,11 @@ def _write_value(group: h5py.Group, name: str, value, unit: str | None):
             _write_value(sub, str(k), v, None)
         return
     arr = np.asarray(value)
-    big = arr.size > 4096
+    # Integer arrays (connectivity, CSR indices) shrink several-fold with shuffle+gzip;
+    # floating-point fields barely compress and would only cost time.
+    squeeze = arr.size > 4096 and arr.dtype.kind in "iu"
     ds = group.create_dataset(name, data=arr, **({"compression": "gzip", "compression_opts": 1,
-                                                  "shuffle": True} if big else {}))
+                                                  "shuffle": True} if squeeze else {}))
     if unit:
         ds.attrs["unit"] = unit
 

@@ -28,6 +28,7 @@ class Stage:
     upstream: str | None
     outputs: Callable[[object], tuple[str, ...]]
     run: Callable[[object, Path, str], None]
+    extra: Callable[[object], str] = lambda scene: ""
 
 
 def _file_hash(path: Path) -> str:
@@ -37,6 +38,7 @@ def _file_hash(path: Path) -> str:
 def inputs_hash(scene, out: Path, stage: Stage) -> str:
     """Hash of exactly what `stage` depends on."""
     h = hashlib.sha256(scene.section_hash(*stage.sections).encode())
+    h.update(stage.extra(scene).encode())
     if stage.name == "mesh":
         geometry = scene.resolve(scene.blade.geometry)
         if not geometry.is_file():
@@ -65,8 +67,73 @@ def _read_mesh(out: Path):
     return art.read_artifact(out / "mesh.h5", BladeMesh)
 
 
+# --- fem ---------------------------------------------------------------------------
+def _fem_options(scene):
+    """The FEM stage also computes the ROM's fixed-interface modes from its factorisation of K."""
+    import dataclasses
+
+    n = max(scene.fem.n_fixed_interface_modes, scene.rom.n_fixed_modes)
+    return dataclasses.replace(scene.fem, n_fixed_interface_modes=n)
+
+
+def _run_fem(scene, out: Path, h: str):
+    from fem.analysis import analyse_blade
+
+    mesh = _read_mesh(out)
+    timings: dict = {}
+    result = analyse_blade(mesh, scene.material, _fem_options(scene), timings=timings)
+    art.write_artifact(out / "fem.h5", result, stage="fem", scene_text=scene.text, inputs_hash=h,
+                       extra_attrs={f"time_{k}_s": v for k, v in timings.items()})
+    print(f"  {result.K.shape[0]} free dof; " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
+    print("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
+    if scene.render.n_modes > 0:
+        _render(scene, out, mesh, result)
+
+
+def _read_fem(out: Path):
+    from fem.analysis import FemResult
+
+    return art.read_artifact(out / "fem.h5", FemResult)
+
+
+def _render(scene, out: Path, mesh, fem, n_modes=None):
+    from pipelines.render import render_mode_shapes
+
+    n = scene.render.n_modes if n_modes is None else n_modes
+    paths = render_mode_shapes(mesh.nodes, mesh.cells, fem.modes, fem.frequencies_hz, out / "figures",
+                               n_modes=n, scale=scene.render.scale, window=tuple(scene.render.window),
+                               title_prefix=f"{scene.name}: ")
+    print(f"  rendered {len(paths)} mode shapes -> {out / 'figures'}")
+    return paths
+
+
+# --- rom ---------------------------------------------------------------------------
+def _run_rom(scene, out: Path, h: str):
+    import numpy as np
+
+    from rom.craig_bampton import build_craig_bampton
+
+    rom = build_craig_bampton(_read_fem(out), _read_mesh(out), scene.rom)
+    art.write_artifact(out / "rom.h5", rom, stage="rom", scene_text=scene.text, inputs_hash=h)
+    k = min(6, len(rom.full_frequencies))
+    err = (rom.frequencies[:k] - rom.full_frequencies[:k]) / rom.full_frequencies[:k]
+    print(f"  {rom.n_dof} dof ({3 * rom.n_boundary} boundary + {rom.n_dof - 3 * rom.n_boundary} modal)")
+    print("  ROM frequencies, Hz:  " + " ".join(f"{f:.2f}" for f in rom.frequencies[:k] / (2 * np.pi)))
+    print("  error vs full model:  " + " ".join(f"{100 * e:+.3f}%" for e in err))
+
+
+def read_rom(out: Path):
+    """The ROM artifact of an output folder."""
+    from rom.model import RomModel
+
+    return art.read_artifact(out / "rom.h5", RomModel)
+
+
 REGISTRY: dict[str, Stage] = {
     "mesh": Stage("mesh", ("blade", "mesh"), None, lambda s: ("mesh.h5",), _run_mesh),
+    "fem": Stage("fem", ("material", "fem", "render"), "mesh", lambda s: ("fem.h5",), _run_fem,
+                 extra=lambda s: f"eta={s.rom.n_fixed_modes}"),
+    "rom": Stage("rom", ("rom",), "fem", lambda s: ("rom.h5",), _run_rom),
 }
 
 
@@ -95,4 +162,6 @@ def run_scene(scene, out: Path, until: str = "rom", force: bool = False) -> None
 
 
 def render_modes(scene, out: Path, n_modes=None):
-    raise NotImplementedError("rendering is being wired")
+    """Render the first mode shapes of `out/fem.h5` to PNG (off-screen)."""
+    out = Path(out)
+    return _render(scene, out, _read_mesh(out), _read_fem(out), n_modes)
