@@ -24,14 +24,15 @@ edges (gmsh then fails with "PLC Error: a segment and a facet intersect").
 from __future__ import annotations
 
 import contextlib
+import os
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
 
-from mesh.geometry import BladeGeometry, GeometryError, Section, read_geometry
+from mesh.geometry import GeometryError, Section, read_geometry
 from mesh.model import BladeMesh
-from mesh.options import KNOWN_UNITS, BladeOptions, MeshOptions
+from mesh.options import BladeOptions, MeshOptions
 from mesh import tet10
 
 GMSH_TET10 = 11
@@ -103,23 +104,15 @@ def reference_volume(sections: tuple[Section, ...]) -> float:
 
 @contextlib.contextmanager
 def _gmsh_session():
-    """Own gmsh session if none is open; otherwise a fresh model in the caller's session."""
+    """A gmsh session of our own (gmsh 4.8 cannot tell whether one is already open)."""
     import gmsh
 
-    own = not gmsh.is_initialized() if hasattr(gmsh, "is_initialized") else True
-    if own:
-        try:
-            gmsh.initialize(readConfigFiles=False)
-        except TypeError:
-            gmsh.initialize()
+    gmsh.initialize()
     try:
         gmsh.model.add("bladerub_blade")
         yield gmsh
     finally:
-        with contextlib.suppress(Exception):
-            gmsh.model.remove()
-        if own:
-            gmsh.finalize()
+        gmsh.finalize()
 
 
 def _build_solid(gmsh, sections: tuple[Section, ...]):
@@ -201,7 +194,7 @@ def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path) -
     sizing = edge_sizing(sections, options)
 
     with _gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.Terminal", int(__import__("os").environ.get("BLADERUB_GMSH_VERBOSE", "0")))
+        gmsh.option.setNumber("General.Terminal", int(os.environ.get("BLADERUB_GMSH_VERBOSE", "0"))  # 1: gmsh log to stdout)
         gmsh.option.setNumber("General.NumThreads", 2)
         # Determinism: gmsh's multi-threaded 1D/2D meshing gave different surface meshes from
         # run to run (with this size field), and HXT 3D did even on one thread; so curves
