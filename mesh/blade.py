@@ -194,7 +194,8 @@ def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path) -
     sizing = edge_sizing(sections, options)
 
     with _gmsh_session() as gmsh:
-        gmsh.option.setNumber("General.Terminal", int(os.environ.get("BLADERUB_GMSH_VERBOSE", "0"))  # 1: gmsh log to stdout)
+        # BLADERUB_GMSH_VERBOSE=1 shows gmsh's log
+        gmsh.option.setNumber("General.Terminal", int(os.environ.get("BLADERUB_GMSH_VERBOSE", "0")))
         gmsh.option.setNumber("General.NumThreads", 2)
         # Determinism: gmsh's multi-threaded 1D/2D meshing gave different surface meshes from
         # run to run (with this size field), and HXT 3D did even on one thread; so curves
