@@ -81,6 +81,25 @@ def _to_scipy(A) -> sp.csr_matrix:
     return out
 
 
+def _restrict(A: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
+    """A[order][:, order] for a square CSR A, without scipy's column fancy-indexing (which
+    builds an index matrix product; ~3x slower on 5e7 nonzeros): gather the rows, renumber
+    the column indices through the inverse map, drop the removed (clamped) columns."""
+    inv = np.full(A.shape[1], -1, dtype=np.int64)
+    inv[order] = np.arange(len(order))
+    B = A[order]
+    del A
+    cols = inv[B.indices]
+    keep = cols >= 0
+    counts = np.add.reduceat(keep, B.indptr[:-1]) if B.nnz else np.zeros(B.shape[0], dtype=np.int64)
+    counts[np.diff(B.indptr) == 0] = 0  # reduceat repeats the next value for empty rows
+    indptr = np.concatenate([[0], np.cumsum(counts)])
+    out = sp.csr_matrix((B.data[keep], cols[keep].astype(np.int32), indptr.astype(np.int32)),
+                        shape=(len(order), len(order)))
+    out.sort_indices()
+    return out
+
+
 def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray,
                     material: Material) -> FemSystem:
     """Assemble K and M of linear elasticity on a tet10 mesh with all root-facet nodes clamped.
@@ -140,12 +159,8 @@ def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarra
     for a in (a_k, a_m):
         A = assemble_matrix(fem.form(a))
         A.assemble()
-        A = _to_scipy(A)
-        mats.append(A[order][:, order].tocsr())  # free rows/columns, node-major
-        del A
+        mats.append(_restrict(_to_scipy(A), order))
     K, M = mats
-    K.sort_indices()
-    M.sort_indices()
     return FemSystem(K=K, M=M, node_dofs=node_dofs)
 
 

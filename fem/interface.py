@@ -34,6 +34,7 @@ class InterfaceBasis:
     constraint_modes: np.ndarray = field(metadata={"unit": "m/m"})
     fixed_interface_modes: np.ndarray = field(metadata={"unit": "kg^-0.5"})
     fixed_interface_frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
+    n_solves: int = 0
 
 
 def boundary_dofs_of(node_dofs: np.ndarray, nodes: np.ndarray) -> np.ndarray:
@@ -85,4 +86,5 @@ def compute_interface_basis(K: sp.spmatrix, M: sp.spmatrix, boundary_dofs: np.nd
                               fixed_interface_modes=np.zeros((n, 0)), fixed_interface_frequencies=np.zeros(0))
     r = solve_eigenproblem(K, M, n_fixed_modes, apply_inverse_ii, fixed=bd, tol=tol, start=start)
     return InterfaceBasis(boundary_dofs=bd, constraint_modes=Psi, fixed_interface_modes=r.vectors,
-                          fixed_interface_frequencies=np.sqrt(np.clip(r.eigenvalues, 0.0, None)))
+                          fixed_interface_frequencies=np.sqrt(np.clip(r.eigenvalues, 0.0, None)),
+                          n_solves=1 + r.n_solves)

@@ -33,6 +33,17 @@ class EigenResult:
     n_solves: int = 0
 
 
+def _grow(H: np.ndarray, cols: np.ndarray) -> np.ndarray:
+    """Symmetric (m, m) from the old (m - k, m - k) block and the new columns (m, k)."""
+    m, k = cols.shape
+    out = np.empty((m, m))
+    out[:m - k, :m - k] = H
+    out[:, m - k:] = cols
+    out[m - k:, :m - k] = cols[:m - k].T
+    out[m - k:, m - k:] = 0.5 * (cols[m - k:] + cols[m - k:].T)
+    return out
+
+
 def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
                        apply_inverse: Callable[[np.ndarray], np.ndarray], *,
                        fixed: np.ndarray | None = None, block_size: int | None = None,
@@ -75,20 +86,35 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
     if start is not None:
         k0 = min(start.shape[1], b)
         X0[:, :k0] = start[:, :k0]
-    V, MV = m_orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n, 0)), np.empty((n, 0)))
-    Z = np.empty((n, 0))  # A V, A = K^{-1} M (constrained)
+    W, MW = m_orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n, 0)), np.empty((n, 0)))
+    del X0
+    # Basis V, M V and A V (A = K^{-1} M, constrained) in preallocated buffers that grow
+    # rarely: appending with hstack would copy all three at each step (~1 GB each on the
+    # default blade), which set the peak memory.
+    cap = 6 * b
+    Vb, MVb, Zb = (np.empty((n, cap)) for _ in range(3))
+    m = 0
+    H, Gm = np.zeros((0, 0)), np.zeros((0, 0))
     n_solves = 1
     lam_old = np.zeros(0)
     for step in range(max_steps):
-        Znew = apply_inverse(MV[:, Z.shape[1]:])
+        k_new = W.shape[1]
+        if m + k_new > cap:
+            cap = 2 * cap
+            Vb, MVb, Zb = (np.hstack([B[:, :m], np.empty((n, cap - m))]) for B in (Vb, MVb, Zb))
+        Vb[:, m:m + k_new], MVb[:, m:m + k_new] = W, MW
+        Zb[:, m:m + k_new] = apply_inverse(MW)
         n_solves += 1
-        Z = np.hstack([Z, Znew])
+        m += k_new
+        V, MV, Z = Vb[:, :m], MVb[:, :m], Zb[:, :m]
         # Rayleigh-Ritz on the inverse operator: theta = 1 / lam. Projecting K itself would
         # lose the lowest eigenvalues to cancellation (x^T K x carries a round-off of
         # eps * lam_max / lam_1, ~1e-7 on a thin blade); V^T M K^{-1} M V does not.
-        H = MV.T @ Z
-        Gm = MV.T @ V
-        theta, Y = scipy.linalg.eigh(0.5 * (H + H.T), 0.5 * (Gm + Gm.T))
+        # Only the new columns are computed (n m b flop, not n m^2): H = V^T M K^{-1} M V is
+        # symmetric, so its new rows are the new columns transposed.
+        Hc, Gc = MV.T @ Z[:, m - k_new:], MV.T @ V[:, m - k_new:]
+        H, Gm = _grow(H, Hc), _grow(Gm, Gc)
+        theta, Y = scipy.linalg.eigh(H, Gm)
         theta, Y = theta[::-1], Y[:, ::-1]
         k = min(n_modes, len(theta))
         lam = 1.0 / theta[:k]
@@ -96,12 +122,13 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         lam_old = lam
         if k == n_modes and np.all(change < tol):
             X = V @ Y[:, :k]
-            R = restrict(K @ X - (M @ X) * lam)
-            res = np.linalg.norm(R, axis=0) / np.linalg.norm(restrict(K @ X), axis=0)
+            del Vb, MVb, Zb, V, MV, Z
+            KX = K @ X
+            R = restrict(KX - (M @ X) * lam)
+            res = np.linalg.norm(R, axis=0) / np.linalg.norm(restrict(KX), axis=0)
             return EigenResult(eigenvalues=lam, vectors=X, residuals=res, n_solves=n_solves)
         # next Krylov block: A applied to the newest block
-        W, MW = m_orthonormalise(Znew, V, MV)
-        V, MV = np.hstack([V, W]), np.hstack([MV, MW])
+        W, MW = m_orthonormalise(Zb[:, m - k_new:m].copy(), V, MV)
     raise RuntimeError(f"eigen-solver did not converge in {max_steps} block steps: "
                        f"Ritz value changes {change} (tol {tol})")
 
@@ -120,6 +147,7 @@ class ModalResult:
     frequencies_hz: np.ndarray = field(metadata={"unit": "Hz"})
     vectors: np.ndarray = field(metadata={"unit": "kg^-0.5"})
     residuals: np.ndarray = field(metadata={"unit": "1"})
+    n_solves: int = 0
 
 
 def compute_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, factor=None,
@@ -134,4 +162,5 @@ def compute_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, factor=None,
         factor = CholeskyFactor(K)
     r = solve_eigenproblem(K, M, n_modes, factor.solve, tol=tol)
     w = np.sqrt(np.clip(r.eigenvalues, 0.0, None))
-    return ModalResult(frequencies=w, frequencies_hz=w / (2 * np.pi), vectors=r.vectors, residuals=r.residuals)
+    return ModalResult(frequencies=w, frequencies_hz=w / (2 * np.pi), vectors=r.vectors, residuals=r.residuals,
+                       n_solves=r.n_solves)
