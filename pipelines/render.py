@@ -263,3 +263,45 @@ def render_mode_shapes(nodes, cells, modes, frequencies_hz, out_dir, *, n_modes:
         paths.append(path)
     plotter.close()
     return paths
+
+
+def render_artifacts(mesh_h5: Path, fem_h5: Path, out_dir: Path, *, n_modes: int = 6, scale: float = 0.08,
+                     window=(1200, 900), title_prefix: str = "", timeout: float = 600.0) -> list[Path]:
+    """Render the modes of `fem_h5` on the mesh of `mesh_h5` in a separate process.
+
+    VTK's wheels and the FEniCSx stack carry different C++ runtimes: in a process that has
+    loaded dolfinx/PETSc, VTK crashed in its scalar-bar layout (std::regex). A child process
+    that loads only h5py and pyvista avoids that and keeps a crash from taking the run down.
+    """
+    import json
+    import sys
+
+    args = json.dumps({"mesh": str(mesh_h5), "fem": str(fem_h5), "out": str(out_dir), "n_modes": n_modes,
+                       "scale": scale, "window": list(window), "title_prefix": title_prefix})
+    proc = subprocess.run([sys.executable, "-m", "pipelines.render", args], capture_output=True, text=True,
+                          timeout=timeout)
+    if proc.returncode != 0:
+        raise RenderError(f"mode-shape rendering failed (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
+    return [Path(line) for line in proc.stdout.splitlines() if line.endswith(".png")]
+
+
+def _main(argv) -> int:
+    import json
+
+    import h5py
+
+    a = json.loads(argv[0])
+    with h5py.File(a["mesh"], "r") as h5:
+        nodes, cells = h5["nodes"][()], h5["cells"][()]
+    with h5py.File(a["fem"], "r") as h5:
+        modes, freqs = h5["modes"][()], h5["frequencies_hz"][()]
+    for p in render_mode_shapes(nodes, cells, modes, freqs, Path(a["out"]), n_modes=a["n_modes"],
+                                scale=a["scale"], window=tuple(a["window"]), title_prefix=a["title_prefix"]):
+        print(p)
+    return 0
+
+
+if __name__ == "__main__":
+    import sys
+
+    sys.exit(_main(sys.argv[1:]))

@@ -87,7 +87,7 @@ def _run_fem(scene, out: Path, h: str):
     print(f"  {result.K.shape[0]} free dof; " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
     print("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
     if scene.render.n_modes > 0:
-        _render(scene, out, mesh, result)
+        _render(scene, out)
 
 
 def _read_fem(out: Path):
@@ -96,13 +96,12 @@ def _read_fem(out: Path):
     return art.read_artifact(out / "fem.h5", FemResult)
 
 
-def _render(scene, out: Path, mesh, fem, n_modes=None):
-    from pipelines.render import render_mode_shapes
+def _render(scene, out: Path, n_modes=None):
+    from pipelines.render import render_artifacts
 
     n = scene.render.n_modes if n_modes is None else n_modes
-    paths = render_mode_shapes(mesh.nodes, mesh.cells, fem.modes, fem.frequencies_hz, out / "figures",
-                               n_modes=n, scale=scene.render.scale, window=tuple(scene.render.window),
-                               title_prefix=f"{scene.name}: ")
+    paths = render_artifacts(out / "mesh.h5", out / "fem.h5", out / "figures", n_modes=n, scale=scene.render.scale,
+                             window=tuple(scene.render.window), title_prefix=f"{scene.name}: ")
     print(f"  rendered {len(paths)} mode shapes -> {out / 'figures'}")
     return paths
 
@@ -164,4 +163,4 @@ def run_scene(scene, out: Path, until: str = "rom", force: bool = False) -> None
 def render_modes(scene, out: Path, n_modes=None):
     """Render the first mode shapes of `out/fem.h5` to PNG (off-screen)."""
     out = Path(out)
-    return _render(scene, out, _read_mesh(out), _read_fem(out), n_modes)
+    return _render(scene, out, n_modes)
