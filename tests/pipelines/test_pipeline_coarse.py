@@ -1,0 +1,108 @@
+"""End to end on the coarse rotor 67 scene: mesh -> fem -> rom through the CLI.
+
+Checks what only the whole chain shows: artifacts exist with provenance, a second run
+skips up-to-date stages, a changed input recomputes only what depends on it, bad input
+stops with a clear error without touching good artifacts, and the ROM built from the
+files agrees with the full model it came from.
+"""
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from pipelines import artifacts as art
+from pipelines.cli import main
+from rom.model import RomModel
+
+ROOT = Path(__file__).resolve().parents[2]
+COARSE = ROOT / "scenes" / "rotor67_coarse.toml"
+
+
+@pytest.fixture(scope="module")
+def coarse_run(tmp_path_factory):
+    out = tmp_path_factory.mktemp("coarse")
+    scene = out / "scene.toml"
+    text = COARSE.read_text().replace("../../shared", str(ROOT.parent / "shared"))
+    scene.write_text(text.replace("n_modes = 6", "n_modes = 2"))  # two PNGs are enough here
+    assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
+    return scene, out
+
+
+def test_artifacts_have_provenance(coarse_run):
+    scene, out = coarse_run
+    for name in ("mesh.h5", "fem.h5", "rom.h5"):
+        attrs = art.read_attrs(out / name)
+        assert attrs["stage"] == name[:-3]
+        assert attrs["scene"] == scene.read_text()
+        assert len(attrs["inputs_hash"]) == 64 and attrs["code_version"] and attrs["units"].startswith("{")
+    assert not list(out.glob(".*tmp*")), "temporary files left behind"
+
+
+def test_rom_agrees_with_full_model(coarse_run):
+    _, out = coarse_run
+    rom = art.read_artifact(out / "rom.h5", RomModel)
+    assert rom.K.shape == (39, 39) and rom.n_boundary == 9
+    assert np.allclose(rom.K, rom.K.T, rtol=0, atol=1e-12 * abs(rom.K).max())
+    assert np.linalg.eigvalsh(rom.M).min() > 0 and np.linalg.eigvalsh(rom.K).min() > 0
+    w, wf = rom.frequencies[:6], rom.full_frequencies[:6]
+    # Ritz bound (the ROM is a Rayleigh-Ritz projection of the full model): never below it,
+    # beyond the eigen-solver's relative tolerance.
+    assert np.all(w >= wf * (1 - 1e-8))
+    # 1B, 2B, 1T within 0.5 % even on the coarse mesh (the default scene's six are in the README)
+    assert np.all((w[:3] - wf[:3]) / wf[:3] < 5e-3)
+    # the LE node is first, theta relative to it, rho ~ the rotor 67 tip radius (0.24-0.26 m)
+    assert rom.theta[0] == 0.0 and np.all((rom.rho > 0.2) & (rom.rho < 0.27))
+
+
+def test_mode_pngs_are_rendered(coarse_run):
+    _, out = coarse_run
+    from PIL import Image
+
+    pngs = sorted((out / "figures").glob("mode_*.png"))
+    assert [p.name for p in pngs] == ["mode_01.png", "mode_02.png"]
+    img = np.asarray(Image.open(pngs[0]).convert("L"), dtype=float)
+    assert img.shape == (900, 1200) and img.std() > 10  # not blank
+
+
+def test_second_run_skips_and_changes_recompute_downstream_only(coarse_run, capsys):
+    scene, out = coarse_run
+    stamps = {n: (out / n).stat().st_mtime_ns for n in ("mesh.h5", "fem.h5", "rom.h5")}
+    assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
+    assert "[mesh] up to date" in capsys.readouterr().out
+    assert stamps == {n: (out / n).stat().st_mtime_ns for n in stamps}
+    # a damping change touches the ROM only
+    scene2 = out / "scene2.toml"
+    scene2.write_text(scene.read_text().replace("damping_high = 5e-3", "damping_high = 6e-3"))
+    assert main(["run", str(scene2), "--out", str(out), "--until", "rom"]) == 0
+    printed = capsys.readouterr().out
+    assert "[mesh] up to date" in printed and "[fem] up to date" in printed and "[rom] done" in printed
+    rom = art.read_artifact(out / "rom.h5", RomModel)
+    assert rom.damping_ratios.max() == pytest.approx(6e-3)
+
+
+def test_bad_input_is_named_and_good_artifacts_survive(coarse_run, tmp_path, capsys):
+    scene, out = coarse_run
+    before = {n: (out / n).read_bytes() for n in ("mesh.h5", "rom.h5")}
+    bad_geometry = tmp_path / "rotor67_truncated.dat"
+    lines = (ROOT.parent / "shared/data/rotor67/rotor67geometry.dat").read_text().splitlines()
+    bad_geometry.write_text("\n".join(lines[:600]) + "\n")  # cut inside surface 9
+    bad = tmp_path / "bad.toml"
+    text = scene.read_text()
+    start = text.index("geometry = ")
+    end = text.index("\n", start)
+    bad.write_text(text[:start] + f'geometry = "{bad_geometry}"' + text[end:])
+    assert main(["run", str(bad), "--out", str(out), "--until", "rom"]) == 2
+    assert "surface(s) 10, 11, 12, 13, 14 missing" in capsys.readouterr().err
+    # a misspelt key and nu >= 0.5 are refused before anything runs
+    typo = tmp_path / "typo.toml"
+    typo.write_text(text.replace("[material]", "[material]\nyoungs = 1e9"))
+    assert main(["run", str(typo), "--out", str(out)]) == 2
+    assert "unknown key 'youngs' in [material]" in capsys.readouterr().err
+    nu = tmp_path / "nu.toml"
+    nu.write_text(text.replace("nu = 0.34", "nu = 0.5"))
+    assert main(["run", str(nu), "--out", str(out)]) == 2
+    assert "nu must lie in" in capsys.readouterr().err
+    assert before == {n: (out / n).read_bytes() for n in before}
