@@ -1,0 +1,103 @@
+"""Benchmark of the HBM NFRC: time of a whole NFRC for DLFT and RL, and speed vs error.
+
+Usage:
+  .venv/bin/python benchmarks/bench_hbm.py [--rom out/.../rom.h5] [--repeat 3]
+      [--penetration 1.25e-4] [--table] [--nh 10 20 40 60] [--nt 256 512 1024 2048]
+
+Without --rom the 39-dof stand-in of tests/support.py is used (not a blade: figures
+exercise the code paths only). Prints markdown tables: median wall time per method, and
+for the table the time of each (N_h, N_t) NFRC with the LE amplitude error against the
+finest setting (max over a common omega grid of |A - A_ref| / max A_ref, interpolated
+along omega where both branches are single-valued).
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(ROOT / "tests"))
+
+from hbm.nfrc import compute_nfrc  # noqa: E402
+from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
+
+
+def load_rom(path: str | None):
+    if path is None:
+        from support import standin_rom
+        return standin_rom()
+    import rom.model as rm
+    for name in ("load_rom", "read_rom"):
+        if hasattr(rm, name):
+            return getattr(rm, name)(path)
+    import rom as rpkg
+    for mod in ("rom.io", "rom.artifact", "rom.craig_bampton"):
+        try:
+            m = __import__(mod, fromlist=["x"])
+        except ImportError:
+            continue
+        for name in ("load_rom", "read_rom"):
+            if hasattr(m, name):
+                return getattr(m, name)(path)
+    raise SystemExit(f"no ROM reader found in {rpkg.__name__} for {path}")
+
+
+def run(rom, method, nh, nt, casing):
+    return compute_nfrc(rom, casing, ContactOptions(), HbmOptions(n_harmonics=nh, n_time=nt), method)
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rom")
+    ap.add_argument("--repeat", type=int, default=1)
+    ap.add_argument("--penetration", type=float, default=CasingOptions().penetration)
+    ap.add_argument("--table", action="store_true")
+    ap.add_argument("--nh", type=int, nargs="+", default=[10, 20, 40, 60])
+    ap.add_argument("--nt", type=int, nargs="+", default=[256, 512, 1024, 2048])
+    ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    a = ap.parse_args()
+    rom = load_rom(a.rom)
+    casing = CasingOptions(penetration=a.penetration)
+    print(f"ROM: {a.rom or 'stand-in'}; casing penetration {a.penetration:g} m\n")
+    print("| method | N_h | N_t | median wall (s) | points | omega reached (rad/s) | LU | status |")
+    print("|---|---|---|---|---|---|---|---|")
+    for m in a.methods:
+        runs = [run(rom, m, 40, 1024, casing) for _ in range(a.repeat)]
+        r = runs[-1]
+        print(f"| {m} | 40 | 1024 | {statistics.median(x.wall_time for x in runs):.1f} | {len(r.omega)} | "
+              f"{r.omega.max():.0f} | {r.n_factorizations} | {r.status[:60]} |", flush=True)
+    if not a.table:
+        return
+    for m in a.methods:
+        res = {(nh, nt): run(rom, m, nh, nt, casing) for nh in a.nh for nt in a.nt if nt >= 2 * nh + 2}
+        ref = res[(max(a.nh), max(a.nt))]
+        grid = np.linspace(ref.omega.min(), ref.omega.max(), 400)
+
+        def curve(r):
+            o = np.maximum.accumulate(r.omega)  # monotone envelope: ignores fold overhangs
+            return np.interp(grid, o, r.le_amplitude, right=np.nan)
+
+        A_ref = curve(ref)
+        print(f"\n{m}: time of the whole NFRC (s) / max relative LE amplitude error vs "
+              f"N_h={max(a.nh)}, N_t={max(a.nt)}\n")
+        print("| N_h \\ N_t | " + " | ".join(str(nt) for nt in a.nt) + " |")
+        print("|---" * (len(a.nt) + 1) + "|")
+        for nh in a.nh:
+            cells = []
+            for nt in a.nt:
+                r = res.get((nh, nt))
+                if r is None:
+                    cells.append("-")
+                    continue
+                err = np.nanmax(np.abs(curve(r) - A_ref)) / np.nanmax(A_ref)
+                cells.append(f"{r.wall_time:.1f} / {err:.1e}")
+            print(f"| {nh} | " + " | ".join(cells) + " |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
