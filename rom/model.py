@@ -68,3 +68,28 @@ def modal_damping(K: np.ndarray, M: np.ndarray, ratios: np.ndarray) -> tuple[np.
     mp = M @ phi  # phi is M-orthonormal
     C = mp @ np.diag(2.0 * np.asarray(ratios) * w) @ mp.T
     return 0.5 * (C + C.T), w
+
+
+def load_rom(path, with_recovery: bool = False) -> RomModel:
+    """Read a rom.h5 artifact (layout of RomModel, one dataset per field) with h5py only.
+
+    with_recovery: also read the (3 n_nodes, n) recovery matrix (large on fine meshes).
+    """
+    import dataclasses
+    from pathlib import Path
+
+    import h5py
+
+    path = Path(path)
+    if not path.is_file():
+        raise FileNotFoundError(f"ROM file not found: {path}")
+    kw = {}
+    with h5py.File(path, "r") as h5:
+        for f in dataclasses.fields(RomModel):
+            if f.name == "recovery" and not with_recovery:
+                continue
+            if f.name in h5:
+                kw[f.name] = h5[f.name][()]
+            elif f.default is dataclasses.MISSING:
+                raise ValueError(f"{path} is not a ROM file: dataset '{f.name}' is missing")
+    return RomModel(**kw)
