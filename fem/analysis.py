@@ -63,8 +63,7 @@ def solve_system(system: FemSystem, options: FemOptions, boundary_node_index: np
 
     timings = {} if timings is None else timings
     K, M = system.K, system.M
-    want_basis = boundary_node_index is not None and len(boundary_node_index) > 0 \
-        and options.n_fixed_interface_modes >= 0
+    want_basis = boundary_node_index is not None and len(boundary_node_index) > 0
     bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
     t = time.perf_counter()
     factor = CholeskyFactor(K, ordering=options.ordering)

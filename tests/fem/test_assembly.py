@@ -78,3 +78,19 @@ def test_mesh_without_root_facets_raises(box):
 def test_bad_cell_shape_raises(box):
     with pytest.raises(ValueError, match="tet10"):
         assemble_system(box.nodes, box.cells[:, :4], box.root_facets, Material())
+
+
+def test_bad_options_raise():
+    from fem.options import FemOptions
+
+    with pytest.raises(ValueError, match="ordering"):
+        FemOptions(ordering="nested")
+    with pytest.raises(ValueError, match="n_modes"):
+        FemOptions(n_modes=0)
+
+
+def test_boundary_node_on_root_raises(box, system):
+    from fem.interface import boundary_dofs_of
+
+    with pytest.raises(ValueError, match="clamped root"):
+        boundary_dofs_of(system.node_dofs, box.root_facets[0, :2])
