@@ -7,12 +7,15 @@ upstream artifact, the geometry file's content) is skipped.
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import time
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from hbm.sweep import SweepResult
+from hbm.validation import ValidationResult
 from pipelines import artifacts as art
 
 STAGES = ("mesh", "fem", "rom", "hbm", "ti")
@@ -25,7 +28,7 @@ class Stage:
 
     name: str
     sections: tuple[str, ...]
-    upstream: str | None
+    upstream: tuple[str, ...]
     outputs: Callable[[object], tuple[str, ...]]
     run: Callable[[object, Path, str], None]
     extra: Callable[[object], str] = lambda scene: ""
@@ -44,9 +47,8 @@ def inputs_hash(scene, out: Path, stage: Stage) -> str:
         if not geometry.is_file():
             raise FileNotFoundError(f"geometry file not found: {geometry} (from [blade] geometry in {scene.path})")
         h.update(_file_hash(geometry).encode())
-    if stage.upstream:
-        up = REGISTRY[stage.upstream]
-        for name in up.outputs(scene):
+    for upstream in stage.upstream:
+        for name in REGISTRY[upstream].outputs(scene):
             h.update(art.read_attrs(out / name).get("inputs_hash", "missing").encode())
     return h.hexdigest()
 
@@ -128,11 +130,149 @@ def read_rom(out: Path):
     return art.read_artifact(out / "rom.h5", RomModel)
 
 
+# --- hbm ---------------------------------------------------------------------------
+def _provenance(scene, h: str, stage: str) -> dict:
+    return {"stage": stage, "units": art.UNITS_SI, "scene": scene.text, "inputs_hash": h,
+            "code_version": art.code_version()}
+
+
+def _run_hbm(scene, out: Path, h: str):
+    from hbm.branch_store import BranchStore, load_branch, partial_path
+    from hbm.nfrc import compute_nfrc
+
+    rom = read_rom(out)
+    for method in scene.hbm.methods:
+        final = out / f"nfrc_{method}.h5"
+        part = partial_path(final)
+        resume = None
+        if part.is_file() and art.read_attrs(part).get("inputs_hash") == h:
+            # an interrupted run of exactly these inputs: keep its points and go on from them
+            resume = load_branch(part, allow_partial=True)
+            store = BranchStore.reopen(part)
+            print(f"  {method}: resuming from {store.n_points} points on disk")
+        else:
+            store = None
+        t0 = time.perf_counter()
+
+        def on_point(point, extras, _m=method):
+            nonlocal store
+            if store is None:
+                store = BranchStore.create(final, len(point.x), attrs={**_provenance(scene, h, "hbm"),
+                                                                       "method": _m})
+            store.append(point, extras)
+
+        try:
+            result = compute_nfrc(rom, scene.casing, scene.contact, scene.hbm, method=method,
+                                  on_point=on_point, resume=resume)
+        finally:
+            if store is not None:
+                store.close()
+        BranchStore.reopen(part).finalize(result.status)
+        ok = int(result.converged.sum())
+        print(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
+              f"status: {result.status}")
+    _plot_nfrc(scene, out)
+
+
+def _plot_nfrc(scene, out: Path):
+    from hbm.branch_store import load_branch
+    from pipelines.figures import plot_nfrc
+
+    curves = {}
+    for method in scene.hbm.methods:
+        stored = load_branch(out / f"nfrc_{method}.h5")
+        curves[f"{method.upper()}-HBM"] = (stored.branch.omega, stored.extras["le_amplitude"],
+                                           stored.branch.converged)
+    ti = None
+    if (out / "ti.h5").is_file():
+        import h5py
+
+        with h5py.File(out / "ti.h5", "r") as h5:
+            g = h5["sweep"]
+            ti = (g["omega"][()], g["amplitude"][()], g["period_class"][()])
+    if curves or ti is not None:
+        path = plot_nfrc(curves, out / "figures" / "nfrc.png", ti_points=ti,
+                         omega_range=(scene.hbm.omega_start, scene.hbm.omega_end))
+        print(f"  figure: {path}")
+
+
+# --- ti ----------------------------------------------------------------------------
+@dataclass(frozen=True)
+class TiArtifact:
+    """What ti.h5 holds: the sweep and, when an NFRC exists, the validation of its
+    highest-amplitude point by time marching from the HBM solution."""
+
+    sweep: SweepResult
+    validation: ValidationResult | None = None
+
+
+def _run_ti(scene, out: Path, h: str):
+    import numpy as np
+
+    from hbm.sweep import sweep
+    from pipelines.figures import plot_ti_sweep
+
+    rom = read_rom(out)
+    result = sweep(rom, scene.casing, scene.contact, scene.ti)
+    counts = np.bincount(result.period_class.astype(int), minlength=4)
+    print(f"  {len(result.omega)} speeds; classes 2W/W/sub/none: {counts.tolist()}; "
+          f"median {np.median(result.cpu_time):.1f} s per speed")
+    validation = _validate(scene, out, rom) if scene.hbm.methods else None
+    art.write_artifact(out / "ti.h5", TiArtifact(result, validation), stage="ti", scene_text=scene.text,
+                       inputs_hash=h)
+    plot_ti_sweep(result.omega, result.amplitude, result.period_class, out / "figures" / "ti_sweep.png")
+    if scene.hbm.methods:
+        _plot_nfrc(scene, out)
+
+
+def _validate(scene, out: Path, rom):
+    """March from the highest-amplitude converged point of the first NFRC and compare."""
+    import numpy as np
+
+    from hbm.branch_store import load_branch
+    from hbm.harmonic_balance import build_residual
+    from hbm.validation import validate_against_hbm
+    from pipelines.figures import plot_time_signals
+
+    method = scene.hbm.methods[0]
+    path = out / f"nfrc_{method}.h5"
+    if not path.is_file():
+        return None
+    stored = load_branch(path)
+    b = stored.branch
+    amp = np.where(b.converged, stored.extras["le_amplitude"], -np.inf)
+    i = int(np.argmax(amp))
+    res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
+    u, omega = b.x[i], float(b.omega[i])
+    coeffs = res.expand_harmonics(u, omega)
+    lam = res.signals(u, omega)["lam"]
+    v = validate_against_hbm(rom, scene.casing, scene.contact, coeffs, omega, forces=lam, n_periods=100,
+                             dt=scene.ti.dt)
+    print(f"  validation at Omega = {omega:.1f} rad/s ({method.upper()}-HBM peak): displacement error "
+          f"LE {100 * v.displacement_error[0]:.2f} %, TE {100 * v.displacement_error[1]:.2f} %; "
+          f"force error LE {100 * v.force_error[0]:.1f} %, TE {100 * v.force_error[1]:.1f} %")
+    t = v.tau / omega
+    plot_time_signals(t, {f"{method.upper()}-HBM LE": 1e3 * v.hbm_displacement[:, 0],
+                          "TI LE": 1e3 * v.ti_displacement[:, 0],
+                          f"{method.upper()}-HBM TE": 1e3 * v.hbm_displacement[:, 1],
+                          "TI TE": 1e3 * v.ti_displacement[:, 1]},
+                      out / "figures" / "validation_displacement.png", "radial displacement (mm)")
+    plot_time_signals(t, {f"{method.upper()}-HBM LE": v.hbm_force[:, 0], "TI LE": v.ti_force[:, 0],
+                          f"{method.upper()}-HBM TE": v.hbm_force[:, 1], "TI TE": v.ti_force[:, 1]},
+                      out / "figures" / "validation_force.png", "normal contact force (N)")
+    return v
+
+
 REGISTRY: dict[str, Stage] = {
-    "mesh": Stage("mesh", ("blade", "mesh"), None, lambda s: ("mesh.h5",), _run_mesh),
-    "fem": Stage("fem", ("material", "fem", "render"), "mesh", lambda s: ("fem.h5",), _run_fem,
+    # the geometry file enters by content (inputs_hash), not by how its path is written
+    "mesh": Stage("mesh", ("mesh",), (), lambda s: ("mesh.h5",), _run_mesh,
+                  extra=lambda s: repr(dataclasses.replace(s.blade, geometry=""))),
+    "fem": Stage("fem", ("material", "fem", "render"), ("mesh",), lambda s: ("fem.h5",), _run_fem,
                  extra=lambda s: f"eta={s.rom.n_fixed_modes}"),
-    "rom": Stage("rom", ("rom",), "fem", lambda s: ("rom.h5",), _run_rom),
+    "rom": Stage("rom", ("rom",), ("fem",), lambda s: ("rom.h5",), _run_rom),
+    "hbm": Stage("hbm", ("casing", "contact", "hbm"), ("rom",),
+                 lambda s: tuple(f"nfrc_{m}.h5" for m in s.hbm.methods), _run_hbm),
+    "ti": Stage("ti", ("casing", "contact", "ti", "hbm"), ("rom", "hbm"), lambda s: ("ti.h5",), _run_ti),
 }
 
 
