@@ -30,7 +30,8 @@ def regularised_penalty(gap: np.ndarray, kappa: float, gamma: float) -> tuple[np
     root = np.sqrt(h * h + gamma * gamma)
     if gamma > 0.0:
         # written to avoid the cancellation h + root for h << 0: lam = gamma^2 / (root - h)
-        lam = np.where(h >= 0.0, h + root, gamma * gamma / (root - h))
+        with np.errstate(divide="ignore"):  # root - h = 0 only where h >= 0 (not selected)
+            lam = np.where(h >= 0.0, h + root, gamma * gamma / (root - h))
         dlam = 0.5 * kappa * lam / root  # = kappa/2 (1 + h/root)
     else:
         lam = np.maximum(2.0 * h, 0.0)

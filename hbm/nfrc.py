@@ -1,9 +1,10 @@
 """Nonlinear frequency response curve of the rotor blade against the ovalised casing.
 
 `compute_nfrc` follows the omega = Omega branch over [omega_start, omega_end] with the
-arc-length continuation of hbm.continuation, from the contact-free solution at
-omega_start, for one contact treatment (DLFT or RL), and returns every point with the
-leading-edge (LE) radial amplitude of Fig. 6.
+arc-length continuation of hbm.continuation, from a start point at omega_start (see
+`solve_start`), for one contact treatment (DLFT or RL), and returns every point with the
+leading-edge (LE) radial amplitude of Fig. 6: half the peak-to-peak LE radial
+displacement, (max - min) / 2, the convention of the time-integration side.
 """
 from __future__ import annotations
 
@@ -25,8 +26,8 @@ class NfrcPoint:
     """One point handed to on_point.
 
     index; omega: Omega = omega, rad/s; harmonics: condensed boundary-dof harmonics,
-    (2 N_h + 1, 3 n_b), m, eq. (5) order; le_amplitude: peak-to-peak LE radial
-    displacement max - min over the period, m; le_max: max over the period of the LE
+    (2 N_h + 1, 3 n_b), m, eq. (5) order; le_amplitude: half the peak-to-peak LE radial
+    displacement (max - min) / 2 over the period, m; le_max: max over the period of the LE
     radial displacement, m; residual_norm (scaled residual, 1); iterations; step (scaled
     arc length); time, s; converged; reason ("" when converged).
     """
@@ -49,7 +50,8 @@ class NfrcResult:
     """A computed NFRC, m points.
 
     method: "dlft" or "rl". omega (m,), rad/s. harmonics (m, 2 N_h + 1, 3 n_b), m.
-    le_amplitude (m,), m: peak-to-peak LE radial displacement (the y-axis of Fig. 6).
+    le_amplitude (m,), m: half the peak-to-peak LE radial displacement, (max - min) / 2
+    (the y-axis of Fig. 6, as the time integration reports it).
     le_max (m,), m. residual_norm, iterations, step, time (s), converged (m,).
     reason (m,) str: "" for converged points, why for the last failed one.
     status: why the branch stopped (hbm.continuation STATUS_*). wall_time, s.
@@ -83,16 +85,77 @@ def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
                                closed_loop_tol=1e-3)
 
 
+def damped_newton(res, u0: np.ndarray, omega: float, opts: NewtonOptions, fac, max_iter: int = 40):
+    """Newton at fixed omega with backtracking on ||R|| (halving the step up to 8 times).
+
+    A start-up aid for far-off guesses (stiff penalty contact, u0 = contact-free solution);
+    the continuation's corrector stays plain Newton. Returns hbm.newton.NewtonResult.
+    """
+    from hbm.newton import NewtonResult, SingularJacobian
+    u = np.array(u0, dtype=float)
+    R, J, _ = res(u, omega)
+    rn = float(np.linalg.norm(R))
+    for it in range(max_iter + 1):
+        if not np.isfinite(rn):
+            return NewtonResult(u, False, rn, it, f"non-finite residual at omega={omega:.6g}")
+        if rn <= opts.tol_residual:
+            return NewtonResult(u, True, rn, it, "")
+        if it == max_iter:
+            break
+        try:
+            du = np.asarray(fac(J)(-R)).reshape(-1)
+        except SingularJacobian as exc:
+            return NewtonResult(u, False, rn, it, f"singular Jacobian at omega={omega:.6g}: {exc}")
+        t = 1.0
+        for _ in range(9):
+            Rt = res(u + t * du, omega, jacobian=False)
+            rt = float(np.linalg.norm(Rt))
+            if np.isfinite(rt) and rt < (1.0 - 1e-4 * t) * rn:
+                break
+            t *= 0.5
+        u = u + t * du
+        R, J, _ = res(u, omega)
+        rn = float(np.linalg.norm(R))
+    return NewtonResult(u, False, rn, max_iter, f"damped Newton: no convergence in {max_iter} iterations "
+                                                 f"at omega={omega:.6g} (||R||={rn:.3e})")
+
+
 def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions, fac) -> tuple[np.ndarray, str]:
-    """Start point at omega: Newton from the contact-free solution; if that fails, an
-    arc-length homotopy from a round casing (obstacle scale s = 0) to the real one (s = 1)
-    at fixed omega, which passes the folds that a plain Newton sweep in s stops at.
-    Returns (u, note); u is the best available guess (continue_branch corrects it again).
+    """Start point at omega, tried in order until one converges:
+
+    1. damped Newton from the contact-free solution;
+    2. (RL only) the DLFT solution at omega (same N_h, N_t, epsilon of the scene; DLFT
+       starts easily because its Jacobian outside contact is Z_r and inside it is
+       epsilon-regular), then a penalty homotopy kappa = epsilon -> kappa of the scene
+       by factors of sqrt(10), each a damped Newton from the previous solution: the
+       stiff kappa = 1e9 law is out of Newton's reach from far away but close to the
+       softer solutions;
+    3. an arc-length homotopy from a round casing (obstacle scale s = 0) to the real one.
+    Returns (u, note); u is the best available guess (continue_branch corrects it again
+    and records a failure with its reason if it is no solution).
     """
     u_lin = res.linear_solution(omega)
-    sol = newton_solve(res, u_lin, omega, opts.newton, factorize=fac)
+    sol = damped_newton(res, u_lin, omega, opts.newton, fac)
     if sol.converged:
-        return sol.x, "newton from the contact-free solution"
+        return sol.x, "damped Newton from the contact-free solution"
+    if res.method == "rl":
+        c = res.contact
+        dl = build_residual(res.rom, res.casing, c, res.options, method="dlft", forcing=res.model.forcing,
+                            alpha=res.alpha, friction=res.friction, distance=res._distance)
+        sd = damped_newton(dl, u_lin, omega, opts.newton, fac)
+        if sd.converged:
+            u = sd.x
+            kappas = list(np.geomspace(min(c.epsilon, c.kappa), c.kappa,
+                                        max(2, int(round(2 * np.log10(max(c.kappa / c.epsilon, 1.0)))) + 1)))
+            for k in kappas:
+                rk = build_residual(res.rom, res.casing, replace(c, kappa=float(k)), res.options, method="rl",
+                                    forcing=res.model.forcing, alpha=res.alpha, friction=res.friction, distance=res._distance)
+                sk = damped_newton(rk, u, omega, opts.newton, fac)
+                if not sk.converged:
+                    break
+                u = sk.x
+            else:
+                return u, "DLFT solution then penalty homotopy kappa = epsilon -> kappa"
 
     def homotopy(u, s, jacobian=True):
         res.set_obstacle_scale(s)
@@ -108,49 +171,86 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
         return R, J, (Rp - Rm) / (2 * h)  # dR/ds by central difference: a start-up aid only
 
     hopt = replace(opts, omega_min=0.0, omega_max=1.0, omega_scale=0.2, ds=0.05, ds_max=0.5,
-                   closed_loop_tol=None, direction=1, max_points=2000)
+                   closed_loop_tol=None, direction=1, max_points=500)
     br = continue_branch(homotopy, u_lin, 0.0, hopt, factorize=fac)
     return br.x[-1], f"obstacle homotopy: {br.status} ({len(br)} points)"
 
 
+def nfrc_extras(res: HarmonicBalanceResidual, u: np.ndarray) -> dict:
+    """Per-point NFRC data for a store, from the unknowns u (n_u,) of a point.
+
+    le_amplitude: (max - min) / 2 of the LE (node 0) radial displacement on the AFT grid, m.
+    le_max: its max, m. harmonics: condensed harmonics, (2 N_h + 1, 3 n_b), m.
+    """
+    xr = res.to_coefficients(u)
+    r = res.basis.to_time(xr[:, 0])
+    return {"le_amplitude": float(0.5 * (r.max() - r.min())), "le_max": float(r.max()), "harmonics": xr}
+
+
 def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactOptions = ContactOptions(),
                  hbm: HbmOptions = HbmOptions(), method: str = "dlft", *,
-                 on_point: Callable[[NfrcPoint], None] | None = None,
+                 on_point: Callable[[ContinuationPoint, dict], None] | None = None,
                  continuation: ContinuationOptions | None = None, forcing: HarmonicForcing | None = None,
-                 residual: HarmonicBalanceResidual | None = None) -> NfrcResult:
+                 residual: HarmonicBalanceResidual | None = None, resume=None) -> NfrcResult:
     """NFRC over Omega in [hbm.omega_start, hbm.omega_end] for one method.
 
     rom: RomModel (node 0 = LE). casing, contact, hbm: scene options. method: "dlft" | "rl".
-    on_point(NfrcPoint): called after each point (converged or the final failure).
+    on_point(point, extras): called after each new point, converged or the final failure:
+      point is the hbm.continuation.ContinuationPoint (x = the scaled unknowns u), extras
+      = nfrc_extras(...) (le_amplitude, le_max, harmonics); exactly what
+      BranchStore.append(point, extras) takes. The final failed point is handed over
+      once the branch has ended (its reason is the result's status).
     continuation: overrides default_continuation(hbm) (omega range taken from it).
-    Start: the contact-free (linear) solution at omega_start, corrected by Newton.
+    resume: a StoredBranch (load_branch(..., allow_partial=True)) or Branch of an
+      interrupted run of the same inputs: its converged points are kept and the branch goes
+      on from them (no start solve); on_point sees the new points only; the result holds
+      all of them, and equals an uninterrupted run.
+    Start (without resume): see solve_start.
     """
     res = residual or build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
     opts = continuation or default_continuation(hbm)
     fac = ReusedLu()
     rows = []
+    pending = []
+
+    def row(p: ContinuationPoint, reason: str):
+        ex = nfrc_extras(res, p.x)
+        pt = NfrcPoint(index=p.index, omega=p.omega, harmonics=ex["harmonics"], le_amplitude=ex["le_amplitude"],
+                       le_max=ex["le_max"], residual_norm=p.residual_norm, iterations=p.iterations,
+                       step=p.step, time=p.time, converged=p.converged, reason=reason)
+        return pt, np.array(p.x), ex
 
     def record(p: ContinuationPoint):
-        xr = res.to_coefficients(p.x)
-        r = res.basis.to_time(xr[:, 0])
-        reason = "" if p.converged else "failed"
-        pt = NfrcPoint(index=p.index, omega=p.omega, harmonics=xr, le_amplitude=float(r.max() - r.min()),
-                       le_max=float(r.max()), residual_norm=p.residual_norm, iterations=p.iterations,
-                       step=p.step, time=p.time, converged=p.converged, reason=reason)
-        rows.append((pt, np.array(p.x)))
-        if on_point is not None and p.converged:
-            on_point(pt)
+        pt, x, ex = row(p, "" if p.converged else "failed")
+        rows.append((pt, x))
+        if p.converged:
+            if on_point is not None:
+                on_point(p, ex)
+        else:
+            pending.append((p, ex))
 
     t0 = time.perf_counter()
-    w0 = opts.omega_min if opts.direction > 0 else opts.omega_max
-    x0, start_note = solve_start(res, w0, opts, fac)
-    branch = continue_branch(res, x0, w0, opts, on_point=record, factorize=fac)
+    if resume is not None:
+        old = getattr(resume, "branch", resume)
+        conv = np.asarray(old.converged, dtype=bool)
+        m0 = int(np.flatnonzero(conv)[-1]) + 1 if conv.any() else 0
+        for i in range(m0):
+            p = ContinuationPoint(i, float(old.omega[i]), np.asarray(old.x[i], dtype=float), True,
+                                  float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
+                                  float(old.time[i]))
+            rows.append(row(p, "")[:2])
+        branch = continue_branch(res, None, None, opts, on_point=record, factorize=fac, resume=old)
+    else:
+        w0 = opts.omega_min if opts.direction > 0 else opts.omega_max
+        x0, start_note = solve_start(res, w0, opts, fac)
+        branch = continue_branch(res, x0, w0, opts, on_point=record, factorize=fac)
     wall = time.perf_counter() - t0
     if rows and not rows[-1][0].converged:  # the final failure carries the branch status
         last, xl = rows[-1]
         rows[-1] = (replace(last, reason=branch.status), xl)
+    for p, ex in pending:
         if on_point is not None:
-            on_point(rows[-1][0])
+            on_point(p, ex)
     pts = [r[0] for r in rows]
     m = len(pts)
     return NfrcResult(
