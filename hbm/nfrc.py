@@ -57,6 +57,7 @@ class NfrcResult:
     status: why the branch stopped (hbm.continuation STATUS_*). wall_time, s.
     n_factorizations: LU factorisations of the Jacobian. unknowns: x of every point in
     the residual's scaled unknowns (m, n_u), to restart or expand (residual.expand_harmonics).
+    start: how the start point was found (solve_start's note; "resumed" for a resume).
     """
 
     method: str
@@ -74,6 +75,7 @@ class NfrcResult:
     wall_time: float
     n_factorizations: int
     unknowns: np.ndarray = field(repr=False)
+    start: str = ""
 
 
 def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
@@ -126,10 +128,10 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
     1. damped Newton from the contact-free solution;
     2. (RL only) the DLFT solution at omega (same N_h, N_t, epsilon of the scene; DLFT
        starts easily because its Jacobian outside contact is Z_r and inside it is
-       epsilon-regular), then a penalty homotopy kappa = epsilon -> kappa of the scene
-       by factors of sqrt(10), each a damped Newton from the previous solution: the
+       epsilon-regular), then a penalty homotopy kappa = epsilon -> kappa of the scene: the
        stiff kappa = 1e9 law is out of Newton's reach from far away but close to the
-       softer solutions;
+       softer solutions; an arc length in log10 kappa, as the RL solution can fold in
+       kappa (it does at Omega = 400 rad/s on the rotor 67 ROM);
     3. an arc-length homotopy from a round casing (obstacle scale s = 0) to the real one.
     Returns (u, note); u is the best available guess (continue_branch corrects it again
     and records a failure with its reason if it is no solution).
@@ -144,18 +146,28 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
                             alpha=res.alpha, friction=res.friction, distance=res._distance)
         sd = damped_newton(dl, u_lin, omega, opts.newton, fac)
         if sd.converged:
-            u = sd.x
-            kappas = list(np.geomspace(min(c.epsilon, c.kappa), c.kappa,
-                                        max(2, int(round(2 * np.log10(max(c.kappa / c.epsilon, 1.0)))) + 1)))
-            for k in kappas:
-                rk = build_residual(res.rom, res.casing, replace(c, kappa=float(k)), res.options, method="rl",
-                                    forcing=res.model.forcing, alpha=res.alpha, friction=res.friction, distance=res._distance)
-                sk = damped_newton(rk, u, omega, opts.newton, fac)
-                if not sk.converged:
-                    break
-                u = sk.x
+            rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.model.forcing,
+                                alpha=res.alpha, friction=res.friction, distance=res._distance)
+            lo, hi = np.log10(min(c.epsilon, c.kappa)), np.log10(c.kappa)
+
+            def penalty(u, q, jacobian=True):  # q = log10 kappa; dR/dq by central difference
+                rk.contact = replace(c, kappa=float(10.0 ** q))
+                R, J, _ = rk(u, omega)
+                h = 1e-5
+                rk.contact = replace(c, kappa=float(10.0 ** (q + h)))
+                Rp = rk(u, omega, jacobian=False)
+                rk.contact = replace(c, kappa=float(10.0 ** (q - h)))
+                Rm = rk(u, omega, jacobian=False)
+                return R, J, (Rp - Rm) / (2 * h)
+
+            if hi > lo:
+                kopt = replace(opts, omega_min=lo, omega_max=hi, omega_scale=0.5, ds=0.05, ds_max=0.5,
+                               closed_loop_tol=None, direction=1, max_points=300)
+                br = continue_branch(penalty, sd.x, lo, kopt, factorize=fac)
+                if br.converged[-1] and abs(br.omega[-1] - hi) < 1e-9:
+                    return br.x[-1], f"DLFT solution then kappa homotopy ({len(br)} points)"
             else:
-                return u, "DLFT solution then penalty homotopy kappa = epsilon -> kappa"
+                return sd.x, "DLFT solution"
 
     def homotopy(u, s, jacobian=True):
         res.set_obstacle_scale(s)
@@ -205,7 +217,10 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       interrupted run of the same inputs: its converged points are kept and the branch goes
       on from them (no start solve); on_point sees the new points only; the result holds
       all of them, and equals an uninterrupted run.
-    Start (without resume): see solve_start.
+    Start (without resume): see solve_start, at the end of the range that the direction
+      names; if no start converges there, at the other end with the direction reversed
+      (the RL law at kappa = 1e9 has no solution reachable from the contact-free one at
+      400 rad/s on the rotor 67 ROM, but starts at 2000 rad/s). result.start says which.
     """
     res = residual or build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
     opts = continuation or default_continuation(hbm)
@@ -230,6 +245,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
             pending.append((p, ex))
 
     t0 = time.perf_counter()
+    start_note = "resumed"
     if resume is not None:
         old = getattr(resume, "branch", resume)
         conv = np.asarray(old.converged, dtype=bool)
@@ -243,6 +259,12 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     else:
         w0 = opts.omega_min if opts.direction > 0 else opts.omega_max
         x0, start_note = solve_start(res, w0, opts, fac)
+        if not _solves(res, x0, w0, opts):  # start from the other end of the range, going back
+            w1 = opts.omega_max if opts.direction > 0 else opts.omega_min
+            x1, note1 = solve_start(res, w1, opts, fac)
+            if _solves(res, x1, w1, opts):
+                opts, w0, x0 = replace(opts, direction=-opts.direction), w1, x1
+                start_note = f"no start at the first end ({start_note}); {note1} at the other end"
         branch = continue_branch(res, x0, w0, opts, on_point=record, factorize=fac)
     wall = time.perf_counter() - t0
     if rows and not rows[-1][0].converged:  # the final failure carries the branch status
@@ -261,4 +283,11 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
         iterations=np.array([p.iterations for p in pts], dtype=int), step=np.array([p.step for p in pts]),
         time=np.array([p.time for p in pts]), converged=np.array([p.converged for p in pts], dtype=bool),
         reason=np.array([p.reason for p in pts], dtype=object), status=branch.status, wall_time=wall,
-        n_factorizations=fac.n_factorizations, unknowns=np.array([r[1] for r in rows]).reshape(m, res.size))
+        n_factorizations=fac.n_factorizations, unknowns=np.array([r[1] for r in rows]).reshape(m, res.size),
+        start=start_note)
+
+
+def _solves(res, u, omega, opts: ContinuationOptions) -> bool:
+    """Whether u is a solution at omega to the continuation's tolerance."""
+    R = res(u, omega, jacobian=False)
+    return bool(np.all(np.isfinite(R)) and np.linalg.norm(R) <= opts.newton.tol_residual)
