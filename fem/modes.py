@@ -91,10 +91,12 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
     # Basis V, M V and A V (A = K^{-1} M, constrained) in preallocated buffers that grow
     # rarely: appending with hstack would copy all three at each step (~1 GB each on the
     # default blade), which set the peak memory.
-    # np.empty pages become resident only when written, so a generous capacity costs nothing
-    # until used; 8 block steps are typical (measured on the blade), 16 leave room.
+    # Column-major, so that a block of columns is one contiguous slab: np.empty pages become
+    # resident only when written, and a generous capacity costs nothing until used (8 block
+    # steps are typical on the blade, 16 leave room). Row-major buffers would have every
+    # page touched by the first block (measured: +1.2 GB peak on the 655k-dof box).
     cap = 16 * b
-    Vb, MVb, Zb = (np.empty((n, cap)) for _ in range(3))
+    Vb, MVb, Zb = (np.empty((n, cap), order="F") for _ in range(3))
     m = 0
     H, Gm = np.zeros((0, 0)), np.zeros((0, 0))
     n_solves = 1
@@ -103,7 +105,8 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         k_new = W.shape[1]
         if m + k_new > cap:
             cap = 2 * cap
-            Vb, MVb, Zb = (np.hstack([B[:, :m], np.empty((n, cap - m))]) for B in (Vb, MVb, Zb))
+            Vb, MVb, Zb = (np.asfortranarray(np.hstack([B[:, :m], np.empty((n, cap - m))]))
+                           for B in (Vb, MVb, Zb))
         Vb[:, m:m + k_new], MVb[:, m:m + k_new] = W, MW
         Zb[:, m:m + k_new] = apply_inverse(MW)
         n_solves += 1
