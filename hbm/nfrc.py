@@ -183,7 +183,7 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
         return R, J, (Rp - Rm) / (2 * h)  # dR/ds by central difference: a start-up aid only
 
     hopt = replace(opts, omega_min=0.0, omega_max=1.0, omega_scale=0.2, ds=0.05, ds_max=0.5,
-                   closed_loop_tol=None, direction=1, max_points=500)
+                   closed_loop_tol=None, direction=1, max_points=200)
     br = continue_branch(homotopy, u_lin, 0.0, hopt, factorize=fac)
     return br.x[-1], f"obstacle homotopy: {br.status} ({len(br)} points)"
 
