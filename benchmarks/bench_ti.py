@@ -33,7 +33,7 @@ def load_rom(name):
     if name == "standin":
         from support import standin_rom
         return standin_rom(), "stand-in (tests/support.py)"
-    from rom.craig_bampton import load_rom as _load  # the ROM stage's reader
+    from rom.model import load_rom as _load  # the ROM stage's reader (h5py only)
     return _load(name), name
 
 

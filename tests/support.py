@@ -34,3 +34,10 @@ def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0) -> RomMod
     return RomModel(K=K, M=M, C=C, rho=rho, theta=theta, xyz=xyz, frames=frames,
                     node_index=np.arange(n_boundary), fixed_interface_frequencies=w[3 * n_boundary:],
                     frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios)
+
+
+# The shared data folder beside the repository (CI clones main with ../shared beside it).
+import os as _os
+from pathlib import Path as _Path
+
+SHARED = _Path(_os.environ.get("BLADERUB_SHARED", _Path(__file__).resolve().parents[2] / "shared"))

@@ -8,7 +8,7 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from conftest import SHARED
+from support import SHARED
 from mesh.blade import camber_points, mesh_blade
 from mesh.geometry import GeometryError, read_geometry
 from mesh.options import BladeOptions, MeshOptions

@@ -4,7 +4,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from conftest import SHARED
+from support import SHARED
 from mesh.blade import reference_volume
 from mesh.geometry import GeometryError, read_geometry
 
