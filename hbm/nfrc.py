@@ -222,7 +222,11 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       (the RL law at kappa = 1e9 has no solution reachable from the contact-free one at
       400 rad/s on the rotor 67 ROM, but starts at 2000 rad/s). result.start says which.
     """
-    res = residual or build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
+    if residual is None:
+        res = build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
+        res.jacobian_buffers = 2  # every user of J here is done with it before the next-but-one evaluation
+    else:
+        res = residual
     opts = continuation or default_continuation(hbm)
     fac = ReusedLu()
     rows = []
