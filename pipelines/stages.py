@@ -167,6 +167,10 @@ def _run_hbm(scene, out: Path, h: str):
         finally:
             if store is not None:
                 store.close()
+        if store is None:  # not even a start point: still record why, in a complete file
+            store = BranchStore.create(final, result.unknowns.shape[-1] if result.unknowns.ndim == 2 else 0,
+                                       attrs={**_provenance(scene, h, "hbm"), "method": method})
+            store.close()
         BranchStore.reopen(part).finalize(result.status)
         ok = int(result.converged.sum())
         print(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "

@@ -106,3 +106,59 @@ def test_bad_input_is_named_and_good_artifacts_survive(coarse_run, tmp_path, cap
     assert main(["run", str(nu), "--out", str(out)]) == 2
     assert "nu must lie in" in capsys.readouterr().err
     assert before == {n: (out / n).read_bytes() for n in before}
+
+
+def _hbm_scene(scene, out, name):
+    """The coarse scene with a short, cheap NFRC (N_h = 5, N_t = 64, Omega in [1900, 2000])."""
+    text = scene.read_text()
+    start = text.index("[hbm]")
+    end = text.index("[ti]")
+    hbm = ('[hbm]\nmethods = ["dlft"]\nn_harmonics = 5\nn_time = 64\nomega_start = 1900.0\n'
+           'omega_end = 2000.0\n\n')
+    path = out / name
+    path.write_text(text[:start] + hbm + text[end:])
+    return path
+
+
+def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, monkeypatch):
+    import shutil
+
+    from hbm import branch_store
+
+    scene, out = coarse_run
+    # two output folders sharing the ROM: one run straight through, one interrupted then resumed
+    runs = {}
+    for label in ("straight", "interrupted"):
+        d = tmp_path / label
+        d.mkdir()
+        for name in ("mesh.h5", "fem.h5", "rom.h5"):
+            (d / name).symlink_to(out / name)
+        runs[label] = _hbm_scene(scene, d, "hbm.toml")
+    assert main(["run", str(runs["straight"]), "--out", str(runs["straight"].parent), "--until", "hbm"]) == 0
+    ref = branch_store.load_branch(runs["straight"].parent / "nfrc_dlft.h5")
+    assert ref.complete and ref.attrs["status"] == "reached omega_min" and len(ref.branch) > 6
+    assert (runs["straight"].parent / "figures" / "nfrc.png").is_file()
+
+    real_append = branch_store.BranchStore.append
+
+    class Interrupt(Exception):
+        pass
+
+    def append_then_die(self, point, extras=None):
+        if self.n_points == 5:
+            raise Interrupt()
+        real_append(self, point, extras)
+
+    monkeypatch.setattr(branch_store.BranchStore, "append", append_then_die)
+    d = runs["interrupted"].parent
+    with pytest.raises(Interrupt):
+        main(["run", str(runs["interrupted"]), "--out", str(d), "--until", "hbm"])
+    assert not (d / "nfrc_dlft.h5").exists()  # never taken as a complete result ...
+    partial = branch_store.load_branch(d / "nfrc_dlft.partial.h5", allow_partial=True)
+    assert len(partial.branch) == 5  # ... but every point computed so far is on disk
+    monkeypatch.setattr(branch_store.BranchStore, "append", real_append)
+    assert main(["run", str(runs["interrupted"]), "--out", str(d), "--until", "hbm"]) == 0
+    resumed = branch_store.load_branch(d / "nfrc_dlft.h5")
+    assert resumed.complete and resumed.attrs["status"] == ref.attrs["status"]
+    np.testing.assert_allclose(resumed.branch.omega, ref.branch.omega, rtol=1e-9)
+    np.testing.assert_allclose(resumed.extras["le_amplitude"], ref.extras["le_amplitude"], rtol=1e-6)
