@@ -48,6 +48,18 @@ def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18):
     return handles
 
 
+def _amplitude_axes(ax, omega_range, unit: str, title: str | None) -> None:
+    """Axes of the amplitude-vs-speed figures (Fig. 5 and 6 of the paper)."""
+    ax.set_xlim(*omega_range)
+    ax.set_ylim(bottom=0.0)
+    ax.set_xlabel("angular speed \u03a9 (rad/s)")
+    ax.set_ylabel(f"LE radial amplitude, half peak-to-peak ({unit})")
+    ax.grid(True, lw=0.4, alpha=0.5)
+    if title:
+        ax.set_title(title)
+    ax.set_ylim(0.0, 1.12 * ax.get_ylim()[1])  # head room for the legend
+
+
 def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0),
               unit: str = "mm", title: str | None = None, fade_other_classes: bool = True) -> Path:
     """Nonlinear frequency response curves (paper Fig. 6): LE radial amplitude vs Ω.
@@ -79,14 +91,7 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     if ti_points is not None:
         o, a, c = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=fade_other_classes)
-    ax.set_xlim(*omega_range)
-    ax.set_ylim(bottom=0.0)
-    ax.set_xlabel("angular speed \u03a9 (rad/s)")
-    ax.set_ylabel(f"LE radial displacement amplitude ({unit})")
-    ax.grid(True, lw=0.4, alpha=0.5)
-    if title:
-        ax.set_title(title)
-    ax.set_ylim(0.0, 1.12 * ax.get_ylim()[1])  # head room for the legend
+    _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
     return _save(fig, out_png)
 
@@ -101,14 +106,7 @@ def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 200
     """
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
     handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22)
-    ax.set_xlim(*omega_range)
-    ax.set_ylim(bottom=0.0)
-    ax.set_xlabel("angular speed \u03a9 (rad/s)")
-    ax.set_ylabel(f"LE radial displacement amplitude ({unit})")
-    ax.grid(True, lw=0.4, alpha=0.5)
-    if title:
-        ax.set_title(title)
-    ax.set_ylim(0.0, 1.12 * ax.get_ylim()[1])  # head room for the legend
+    _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=[Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
                               label=h.get_label()[4:]) for h in handles],
               fontsize=8, loc="best", framealpha=0.9)

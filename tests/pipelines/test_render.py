@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-pytest.importorskip("pyvista")
+import pyvista  # noqa: F401  (a dependency: a missing pyvista must fail, not skip)
 from matplotlib.image import imread  # noqa: E402
 
 from pipelines import render  # noqa: E402
