@@ -56,6 +56,11 @@ class ContinuationOptions:
       a fold next to the start (whose sheets cross omega_0 within d_min) is no loop.
     land_on_bounds: replace the point that overshoots omega_min/omega_max by a Newton
       solution at the bound (kept as it is if that solve fails).
+    predictor: "secant" (eq. 23: along the chord of the last two points) or "quadratic"
+      (the parabola through the last three points, in their arc length, evaluated ds
+      beyond the last: its error is O(ds^3) instead of O(ds^2), which saves about one
+      Newton iteration per point on smooth parts; the secant still gives the direction
+      for the max_turn_deg test, and the first steps use it).
     """
 
     omega_min: float
@@ -75,6 +80,7 @@ class ContinuationOptions:
     max_turn_deg: float = 90.0
     closed_loop_tol: float | None = 1e-2
     land_on_bounds: bool = True
+    predictor: str = "secant"
 
     def __post_init__(self):
         if not self.omega_min < self.omega_max:
@@ -89,6 +95,8 @@ class ContinuationOptions:
             raise ValueError("x_scale and omega_scale must be > 0")
         if not (self.grow >= 1.0 and 0 < self.shrink < 1.0):
             raise ValueError(f"need grow >= 1 and 0 < shrink < 1, got {self.grow}, {self.shrink}")
+        if self.predictor not in ("secant", "quadratic"):
+            raise ValueError(f"predictor must be 'secant' or 'quadratic', got {self.predictor!r}")
         if not 0 < self.max_turn_deg <= 180:
             raise ValueError(f"max_turn_deg must be in (0, 180], got {self.max_turn_deg}")
 
@@ -320,9 +328,24 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             tx, tw = sc.unit(last.x - prev.x, last.omega - prev.omega)
         else:
             tx, tw = _tangent(residual, last.x, last.omega, opt.direction, sc, fac)
+        quad = None
+        if opt.predictor == "quadratic" and len(points) >= 3:
+            p2, p1 = points[-3], points[-2]
+            h1 = sc.dist(p1.x, p1.omega, p2.x, p2.omega)
+            h2 = sc.dist(last.x, last.omega, p1.x, p1.omega)
+            if h1 > 0 and h2 > 0:
+                quad = (p2, p1, h1, h2)
         t0 = time.perf_counter()
         while True:
-            xp, wp = last.x + ds * tx * sc.sx, last.omega + ds * tw * sc.sw
+            if quad is None:
+                xp, wp = last.x + ds * tx * sc.sx, last.omega + ds * tw * sc.sw
+            else:  # Lagrange weights of the parabola at arc length s = h1 + h2 + ds (p2 at 0)
+                p2, p1, h1, h2 = quad
+                s0, s1, s2, s = 0.0, h1, h1 + h2, h1 + h2 + ds
+                l0 = (s - s1) * (s - s2) / ((s0 - s1) * (s0 - s2))
+                l1 = (s - s0) * (s - s2) / ((s1 - s0) * (s1 - s2))
+                l2 = (s - s0) * (s - s1) / ((s2 - s0) * (s2 - s1))
+                xp, wp = l0 * p2.x + l1 * p1.x + l2 * last.x, l0 * p2.omega + l1 * p1.omega + l2 * last.omega
             c = _correct(residual, xp, wp, last.x, last.omega, ds, sc, opt.newton, fac)
             if c.converged:
                 d = sc.dist(c.x, c.omega, last.x, last.omega)

@@ -22,6 +22,7 @@ from hbm.aft import FourierBasis
 from hbm.casing import casing_distance
 from hbm.contact import correct_dlft, regularised_penalty
 from hbm.friction import slide_direction
+from hbm.jacobian import HbmJacobian
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 
 
@@ -109,6 +110,7 @@ class CondensedModel:
             fc = np.asarray(forcing.cos_amplitude) - 1j * fs  # complex amplitude a - i b
         self._fc = fc
         self._cache: CondensedOperator | None = None
+        self._split = None
 
     def _parts(self, A):
         return A[np.ix_(self.nl, self.nl)], A[np.ix_(self.nl, self.li)], A[np.ix_(self.li, self.nl)], A[np.ix_(self.li, self.li)]
@@ -126,17 +128,27 @@ class CondensedModel:
             return self._cache
         nl, li, b = self.nl, self.li, self.basis
         nh, nr = b.n_harmonics, len(nl)
-        Knn, Knl, Kln, Kll = self._parts(self.K)
-        Z0 = Knn - Knl @ np.linalg.solve(Kll, Kln) if len(li) else Knn.copy()
-        Z, dZ = self.complex_blocks(omega)
-        Znn, Znl, Zln, Zll = (Z[:, nl][:, :, nl], Z[:, nl][:, :, li], Z[:, li][:, :, nl], Z[:, li][:, :, li])
-        dnn, dnl, dln, dll = (dZ[:, nl][:, :, nl], dZ[:, nl][:, :, li], dZ[:, li][:, :, nl], dZ[:, li][:, :, li])
+        if self._split is None:  # the K, M, C blocks and the static condensation, once
+            self._split = [self._parts(A) for A in (self.K, self.M, self.C)]
+            Kp = self._split[0]
+            self._Z0 = Kp[0] - Kp[1] @ np.linalg.solve(Kp[3], Kp[2]) if len(li) else Kp[0].copy()
+        (Knn, Knl, Kln, Kll), (Mnn, Mnl, Mln, Mll), (Cnn, Cnl, Cln, Cll) = self._split
+        Z0 = self._Z0.copy()
+        kw = (np.arange(1, nh + 1) * omega)[:, None, None]
+        kk = np.arange(1, nh + 1)[:, None, None]
+
+        def block(K_, M_, C_):  # Z_k = K - (k w)^2 M + i k w C and dZ_k/dw
+            return K_ - kw * kw * M_ + 1j * kw * C_, -2.0 * kk * kw * M_ + 1j * kk * C_
+
+        (Znn, dnn), (Znl, dnl), (Zln, dln), (Zll, dll) = (block(Knn, Mnn, Cnn), block(Knl, Mnl, Cnl),
+                                                          block(Kln, Mln, Cln), block(Kll, Mll, Cll))
         force = np.zeros((2 * nh + 1, nr))
         dforce = np.zeros((2 * nh + 1, nr))
         if len(li):
-            A = np.linalg.solve(Zll, Zln)  # Z_ll^-1 Z_ln, (N_h, n_l, n_r)
+            Zlli = np.linalg.inv(Zll)  # n_l = 12 modal dof: one small inverse per harmonic
+            A = Zlli @ Zln  # Z_ll^-1 Z_ln, (N_h, n_l, n_r)
             Zr = Znn - Znl @ A
-            dA = np.linalg.solve(Zll, dln - dll @ A)
+            dA = Zlli @ (dln - dll @ A)
             dZr = dnn - dnl @ A - Znl @ dA
         else:
             Zr, dZr = Znn, dnn
@@ -212,7 +224,8 @@ class HarmonicBalanceResidual:
     """residual(u, omega) -> (R, dR_du, dR_domega) for DLFT- or RL-HBM on the condensed ROM.
 
     u: scaled unknowns alpha x~_r, ((2 N_h + 1) n_r,), 1 (eq. 5 order). omega = Omega, rad/s.
-    R: (n_u,), 1 (H_r alpha / k_ref). dR_du: dense (n_u, n_u). dR_domega: (n_u,), s/rad.
+    R: (n_u,), 1 (H_r alpha / k_ref). dR_du: dense (n_u, n_u), or an hbm.jacobian.HbmJacobian when
+    `structured` is set (same matrix; `J @ v`, `np.asarray(J)`, `J.factorize()`). dR_domega: (n_u,), s/rad.
     """
 
     def __init__(self, rom, casing: CasingOptions, contact: ContactOptions, hbm: HbmOptions,
@@ -246,6 +259,9 @@ class HarmonicBalanceResidual:
         self.jacobian_buffers = 0
         self._jbufs: list[np.ndarray] = []
         self._jnext = 0
+        # structured = True: dR_du comes back as an hbm.jacobian.HbmJacobian (harmonic blocks
+        # plus contact columns, solved without the dense LU); False: a dense ndarray.
+        self.structured = False
 
     # -- scaling ---------------------------------------------------------------------------
     def to_coefficients(self, u: np.ndarray) -> np.ndarray:
@@ -318,7 +334,6 @@ class HarmonicBalanceResidual:
             return R
         J = self._jacobian(xr, omega, op, smp)
         dH = op.apply(xr, derivative=True) - op.dforce + sig * self._dforce_domega(xr, omega, op, smp)
-        J *= 1.0 / self.k_ref
         return R, J, scale * dH.reshape(-1)
 
     def _dforce_domega(self, xr, omega, op, smp) -> np.ndarray:
@@ -339,81 +354,34 @@ class HarmonicBalanceResidual:
             dF[..., 2] = mu * (dlam * s.s_z + lam * (s.ds_theta_dvz * dvt + s.ds_z_dvz * dvz))
         return b.to_freq(dF.reshape(-1, self.n_r))
 
-    def _jacobian(self, xr, omega, op, smp) -> np.ndarray:
-        """Dense dH_r/dx~_r = Z_r + d f~_nl / d x~_r, (n_u, n_u), N/m."""
-        b, nb, nc, nr = self.basis, self.n_b, self.n_c, self.n_r
+    def _jacobian(self, xr, omega, op, smp):
+        """dR/du = (Z_r + d f~_nl / d x~_r) / k_ref: an HbmJacobian when self.structured, else
+        its dense (n_u, n_u) array."""
+        b = self.basis
+        dlam = smp.aux["dlam"]  # (N_t, n_b)
+        mu = self.contact.mu
+        # nodes never in contact (DLFT) carry no nonlinear force and add nothing
+        touching = np.flatnonzero(np.any(dlam != 0.0, axis=0) | np.any(smp.lam != 0.0, axis=0))
+        if self.friction:
+            s, lam = smp.aux["slide"], smp.lam[:, touching].T
+            d = dlam[:, touching].T
+            weights = np.stack([d, mu * d * s.s_theta[:, touching].T, mu * d * s.s_z[:, touching].T,
+                                mu * lam * s.ds_theta_dvtheta[:, touching].T, mu * lam * s.ds_theta_dvz[:, touching].T,
+                                mu * lam * s.ds_z_dvz[:, touching].T], axis=1)  # (n_t, 6, N_t)
+        else:
+            weights = dlam[:, touching].T[:, None, :]
+        g = (self.contact.epsilon, 1.0) if self.method == "dlft" else (1.0, 0.0)
+        J = HbmJacobian(op=op, scale=1.0 / self.k_ref, nodes=touching, weights=weights, basis=b,
+                        sigma=self.sigma, g_eps=g[0], g_z=g[1])
+        if self.structured:
+            return J
         out = None
         if self.jacobian_buffers > 0:
             if len(self._jbufs) != self.jacobian_buffers:
                 self._jbufs = [np.empty((self.size, self.size)) for _ in range(self.jacobian_buffers)]
             out = self._jbufs[self._jnext % self.jacobian_buffers]
             self._jnext += 1
-        J = op.dense(out=out)
-        J4 = J.reshape(nc, nr, nc, nr)
-        J3 = J.reshape(nc, nr, nc * nr)
-        sig = self.sigma[:, None]
-        dlam = smp.aux["dlam"]  # (N_t, n_b)
-        mu = self.contact.mu
-        # nodes never in contact (DLFT) carry no nonlinear force and add nothing
-        touching = np.flatnonzero(np.any(dlam != 0.0, axis=0) | np.any(smp.lam != 0.0, axis=0))
-        if not len(touching):
-            return J
-        D = omega * b.derivative_matrix  # coefficients of v from those of x, 1/s
-        for j in touching:
-            r, t, z = 3 * j, 3 * j + 1, 3 * j + 2
-            weights = [dlam[:, j]]
-            if self.friction:
-                s, lam = smp.aux["slide"], smp.lam[:, j]
-                weights += [mu * dlam[:, j] * s.s_theta[:, j], mu * dlam[:, j] * s.s_z[:, j],
-                            mu * lam * s.ds_theta_dvtheta[:, j], mu * lam * s.ds_theta_dvz[:, j],
-                            mu * lam * s.ds_z_dvz[:, j]]
-            T = b.weighted_product(np.stack(weights))  # (n_w, n_c, n_c)
-            T[:] *= sig[None]  # Lanczos filter on the output coefficients
-            rows = [r, t, z] if self.friction else [r]
-            Tn = T[:len(rows)]  # d f_(r,t,z) / d lam-argument
-            if self.method == "dlft":
-                # d lam_pre / d x = F~ (eps E_r - Z_r[r, :])
-                eps = self.contact.epsilon
-                for q, row in enumerate(rows):
-                    J4[:, row, :, r] += eps * Tn[q]
-                contrib = self._times_z_rows(Tn, op, r)  # (len(rows), n_c, n_u)
-                for q, row in enumerate(rows):
-                    J3[:, row, :] -= contrib[q]
-            else:
-                for q, row in enumerate(rows):
-                    J4[:, row, :, r] += Tn[q]
-            if self.friction:
-                Ttt, Ttz, Tzz = T[3] @ D, T[4] @ D, T[5] @ D
-                J4[:, t, :, t] += Ttt
-                J4[:, t, :, z] += Ttz
-                J4[:, z, :, t] += Ttz
-                J4[:, z, :, z] += Tzz
-        return J
-
-    def _times_z_rows(self, T: np.ndarray, op: CondensedOperator, row: int) -> np.ndarray:
-        """T @ _z_rows(op, row) for T (q, n_c, n_c), (q, n_c, n_c n_r), using that Z_r is
-        block diagonal per harmonic: O(q n_c^2 n_r) instead of O(q n_c^3 n_r) (at N_h = 40
-        the dense product was 0.15 s of a 0.17 s DLFT Jacobian)."""
-        nh, nc, nr = self.basis.n_harmonics, self.n_c, self.n_r
-        out = np.empty(T.shape[:2] + (nc, nr))
-        out[:, :, 0, :] = T[:, :, 0, None] * op.Z0[row]
-        Ta, Tb = T[:, :, 1::2, None], T[:, :, 2::2, None]  # (q, n_c, N_h, 1)
-        P, Q = op.P[:, row], op.Q[:, row]  # (N_h, n_r)
-        out[:, :, 1::2, :] = Ta * P - Tb * Q
-        out[:, :, 2::2, :] = Ta * Q + Tb * P
-        return out.reshape(T.shape[:2] + (nc * nr,))
-
-    def _z_rows(self, op: CondensedOperator, row: int) -> np.ndarray:
-        """Rows of the dense Z_r for one condensed dof over all harmonics, (n_c, n_c n_r)."""
-        nh, nc, nr = self.basis.n_harmonics, self.n_c, self.n_r
-        out = np.zeros((nc, nc, nr))
-        out[0, 0] = op.Z0[row]
-        k = np.arange(nh)
-        out[2 * k + 1, 2 * k + 1] = op.P[:, row]
-        out[2 * k + 1, 2 * k + 2] = op.Q[:, row]
-        out[2 * k + 2, 2 * k + 2] = op.P[:, row]
-        out[2 * k + 2, 2 * k + 1] = -op.Q[:, row]
-        return out.reshape(nc, nc * nr)
+        return J.toarray(out=out)
 
     # -- solutions -------------------------------------------------------------------------
     def linear_solution(self, omega: float) -> np.ndarray:

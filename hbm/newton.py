@@ -102,6 +102,8 @@ def _finite(*arrays) -> bool:
 def _full_bordered_solve(J, r_omega, p, q, R, P):
     """Solve [[J, r_omega], [p^T, q]] [dx; dw] = -[R; P] as one matrix (dense or sparse)."""
     rhs = -np.concatenate([R, [P]])
+    if not (sp.issparse(J) or isinstance(J, np.ndarray)) and hasattr(J, "toarray"):
+        J = J.toarray()  # a structured Jacobian (hbm.jacobian.HbmJacobian): its dense form
     if sp.issparse(J):
         A = sp.bmat([[J, sp.csc_matrix(r_omega[:, None])], [sp.csr_matrix(p[None, :]), q]], format="csc")
         try:
@@ -129,15 +131,27 @@ def solve_bordered(J, r_omega: np.ndarray, p: np.ndarray, q: float, R: np.ndarra
     q: dP/domega. R: residual (n,). P: constraint value. Returns (dx (n,), dw, used_full)
     where used_full says the full bordered matrix was needed.
 
-    Block elimination (J a = R, J b = r_omega; dw = (p.a - P) / (q - p.b); dx = -a - b dw)
-    factorises J only. It fails at an exact fold (J singular) and loses accuracy near one,
-    so its answer is checked on the bordered system (when J supports `@`), refined once
+    A `solve` that has a `bordered(r_omega, p, q, R, P) -> (dx, dw)` method (an iterative
+    solver that can take the bordered system in one run) is asked first; its answer is
+    checked like the others. Otherwise block elimination (J a = R, J b = r_omega;
+    dw = (p.a - P) / (q - p.b); dx = -a - b dw) factorises J only. It fails at an exact
+    fold (J singular) and loses accuracy near one, so its answer is checked on the
+    bordered system (when J supports `@`), refined once
     with the same factors, and replaced by the full solve when the relative error still
     exceeds refine_tol (Newton needs no more than a few exact digits in its step).
     """
     rhs_norm = max(float(np.sqrt(R @ R + P * P)), np.finfo(float).tiny)
     try:
         solve = factorize(J)
+        if hasattr(solve, "bordered"):  # the solver's own bordered solve (one Krylov run)
+            try:
+                dx, dw = solve.bordered(r_omega, p, q, R, P)
+                eR = J @ dx + r_omega * dw + R
+                eP = p @ dx + q * dw + P
+                if _finite(dx, dw) and np.sqrt(eR @ eR + eP * eP) <= refine_tol * rhs_norm:
+                    return dx, float(dw), False
+            except SingularJacobian:
+                pass  # the block elimination below
         ab = np.asarray(solve(np.column_stack([R, r_omega])))
         a, b = ab[:, 0], ab[:, 1]
         den = q - p @ b

@@ -1,0 +1,148 @@
+"""The structured HBM Jacobian (hbm/jacobian.py) against its dense form.
+
+The dense form is the one checked against finite differences in test_jacobians.py, so
+what must hold here is algebra: the FFT product J @ v equals the dense product to
+rounding, the Woodbury preconditioner is an exact inverse where it claims to be (no
+friction), and the GMRES solves meet their tolerance, with a fresh or a reused
+preconditioner, for J x = b and for the bordered system of the arc-length corrector.
+The last test runs an NFRC window both ways: the same points, to the Newton tolerance.
+"""
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hbm.harmonic_balance import HarmonicForcing, build_residual
+from hbm.jacobian_solver import HbmSolver
+from hbm.newton import solve_bordered
+from hbm.nfrc import compute_nfrc, default_continuation
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from rom.model import load_rom
+from support import standin_rom
+
+ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+
+CASES = [("dlft", 0.0), ("dlft", 0.15), ("rl", 0.0), ("rl", 0.15)]
+
+
+def _state(method, mu, seed=3, omega=900.0, nh=8, nt=128):
+    """A residual and a state with several nodes in contact part of the period."""
+    rom = standin_rom()
+    f = np.zeros(rom.n_dof)
+    f[[0, 30]] = [50.0, 20.0]
+    res = build_residual(rom, CasingOptions(), ContactOptions(mu=mu), HbmOptions(n_harmonics=nh, n_time=nt),
+                         method=method, forcing=HarmonicForcing(f, 2))
+    u = res.linear_solution(omega) + 0.3 * np.random.default_rng(seed).standard_normal(res.size)
+    return res, u, omega
+
+
+def _pair(res, u, omega):
+    res.structured = False
+    R, Jd, rw = res(u, omega)
+    res.structured = True
+    R2, Js, rw2 = res(u, omega)
+    assert np.array_equal(R, R2) and np.array_equal(rw, rw2)
+    return R, Jd, Js, rw
+
+
+@pytest.mark.parametrize("method,mu", CASES)
+def test_product_and_dense_form_agree(method, mu):
+    res, u, om = _state(method, mu)
+    R, Jd, Js, _ = _pair(res, u, om)
+    assert len(Js.nodes) >= 3  # the contact part is exercised
+    assert np.array_equal(np.asarray(Js), Jd)
+    V = np.random.default_rng(0).standard_normal((res.size, 3))
+    # FFT path against the dense matrix: rounding of two real FFTs, ~1e-15 relative
+    assert np.abs(Js @ V - Jd @ V).max() <= 1e-12 * np.abs(Jd @ V).max()
+
+
+@pytest.mark.parametrize("method", ["dlft", "rl"])
+def test_preconditioner_is_exact_without_friction(method):
+    res, u, om = _state(method, 0.0)
+    _, Jd, Js, _ = _pair(res, u, om)
+    b = np.random.default_rng(1).standard_normal(res.size)
+    x = Js.preconditioner()(b)
+    # a direct solve (Woodbury form): its error is rounding times the condition number
+    assert np.linalg.norm(Jd @ x - b) <= 1e-9 * np.linalg.norm(b)
+    stats = {}
+    Js.factorize(stats=stats)(b)
+    assert stats.get("krylov", 0) == 0  # no Krylov iteration needed
+
+
+@pytest.mark.parametrize("method,mu", CASES)
+def test_solves_meet_their_tolerance_fresh_and_reused(method, mu):
+    res, u, om = _state(method, mu)
+    _, Jd, Js, rw = _pair(res, u, om)
+    b = np.random.default_rng(2).standard_normal(res.size)
+    x_ref = np.linalg.solve(Jd, b)
+    # a preconditioner from another state and speed: GMRES has to do the work
+    res2, u2, om2 = _state(method, mu, seed=4, omega=880.0)
+    res2.structured = True
+    old = res2(u2, om2)[1].preconditioner()
+    for pre in (None, old):
+        stats = {}
+        x = Js.factorize(rtol=1e-10, stats=stats, preconditioner=pre)(b)
+        assert np.linalg.norm(Jd @ x - b) <= 1e-9 * np.linalg.norm(b)
+        assert np.linalg.norm(x - x_ref) <= 1e-6 * np.linalg.norm(x_ref)
+        assert stats.get("dense_fallback", 0) == 0
+
+
+@pytest.mark.parametrize("method,mu", CASES)
+def test_bordered_solve_matches_the_dense_one(method, mu):
+    res, u, om = _state(method, mu)
+    R, Jd, Js, rw = _pair(res, u, om)
+    rng = np.random.default_rng(5)
+    p, q, P = rng.standard_normal(res.size), 0.7, 0.3
+    A = np.block([[Jd, rw[:, None]], [p[None, :], np.array([[q]])]])
+    d_ref = np.linalg.solve(A, -np.append(R, P))
+    solver = HbmSolver(rtol=1e-10)
+    dx, dw, full = solve_bordered(Js, rw, p, q, R, P, solver)
+    assert not full
+    d = np.append(dx, dw)
+    assert np.linalg.norm(A @ d + np.append(R, P)) <= 1e-8 * np.linalg.norm(np.append(R, P))
+    assert np.linalg.norm(d - d_ref) <= 1e-6 * np.linalg.norm(d_ref)
+    assert "last_krylov" in solver.stats  # it went through the one-GMRES bordered path
+
+
+@pytest.mark.parametrize("method", ["dlft", "rl"])
+def test_nfrc_window_same_with_dense_and_structured_jacobians(method):
+    """Same continuation, two linear algebras, on the coarse rotor 67 ROM from 2000 rad/s
+    down into the contact of the 2B superharmonic: the points agree to what Newton's
+    tolerance (1e-8 on the scaled residual) and the GMRES rtol (3e-7 of each step) leave;
+    the curve agrees to the error of linear interpolation between points (1e-3)."""
+    rom = load_rom(ROM_PATH)
+    hbm = HbmOptions(n_harmonics=5, n_time=64, omega_start=1900.0, omega_end=2000.0)
+    cont = dataclasses.replace(default_continuation(hbm), max_points=40)
+    out = {}
+    for structured in (False, True):
+        res = build_residual(rom, CasingOptions(), ContactOptions(), hbm, method=method)
+        res.structured = structured
+        out[structured] = compute_nfrc(rom, hbm=hbm, method=method, residual=res, continuation=cont)
+    a, b = out[False], out[True]
+    assert len(a.omega) == len(b.omega) >= 20 and a.converged.all() and b.converged.all()
+    n_contact = sum(bool(np.any(r.samples(r.to_coefficients(x), w).active))
+                    for r in [build_residual(rom, CasingOptions(), ContactOptions(), hbm, method=method)]
+                    for x, w in zip(b.unknowns, b.omega))
+    assert n_contact >= 10  # the window is in contact, not a linear stretch
+    # Each point is where the branch crosses the sphere around the previous one; both runs
+    # put it there only to Newton's tolerance, and the difference drifts along the branch
+    # (seen: 2e-4 rad/s after 40 points). So: the same stretch of branch, and every point of
+    # one run on the other's polyline, in the continuation's scaled metric (u, omega / 100),
+    # to a small fraction of the step (the polyline's sag between points is the limit).
+    assert np.abs(a.omega - b.omega).max() < 1e-2
+    pa = np.column_stack([a.unknowns, a.omega / 100.0])
+    pb = np.column_stack([b.unknowns, b.omega / 100.0])
+    seg = np.diff(pa, axis=0)
+    t = np.clip(np.einsum("ksn,sn->ks", pb[:, None] - pa[None, :-1], seg) / np.einsum("sn,sn->s", seg, seg), 0, 1)
+    dist = np.linalg.norm(pb[:, None] - (pa[None, :-1] + t[..., None] * seg[None]), axis=2).min(axis=1)
+    step = np.linalg.norm(seg, axis=1)
+    assert dist.max() < 1e-3 * np.median(step)
+
+
+def test_structured_jacobian_is_a_frozen_record():
+    res, u, om = _state("rl", 0.15)
+    res.structured = True
+    J = res(u, om)[1]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        J.scale = 2.0
