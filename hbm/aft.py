@@ -10,6 +10,7 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+import scipy.fft as sfft  # numpy's irfft along axis 0 is ~5x slower (it copies to the last axis)
 
 
 @dataclass(frozen=True)
@@ -50,7 +51,7 @@ class FourierBasis:
         spec = np.zeros((nt // 2 + 1,) + c.shape[1:], dtype=complex)
         spec[0] = nt * c[0]
         spec[1:nh + 1] = 0.5 * nt * (c[1::2] - 1j * c[2::2])
-        return np.fft.irfft(spec, n=nt, axis=0)
+        return sfft.irfft(spec, n=nt, axis=0)
 
     def to_freq(self, signal: np.ndarray) -> np.ndarray:
         """Forward transform (matrix F of eq. 12) along axis 0.
@@ -59,7 +60,7 @@ class FourierBasis:
         """
         s = np.asarray(signal)
         nh, nt = self.n_harmonics, self.n_time
-        spec = np.fft.rfft(s, axis=0)[:nh + 1]
+        spec = sfft.rfft(s, axis=0)[:nh + 1]
         out = np.empty((2 * nh + 1,) + s.shape[1:])
         out[0] = spec[0].real / nt
         out[1::2] = 2.0 / nt * spec[1:].real
