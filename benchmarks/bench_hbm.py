@@ -70,7 +70,7 @@ def main():
     casing = CasingOptions(penetration=a.penetration)
     print(f"ROM: {a.rom or 'stand-in'}; casing penetration {a.penetration:g} m\n")
     print("| method | N_h | N_t | median wall (s) | points | omega covered (rad/s) | peak LE amp (mm) at Omega "
-          "| LU | status |")
+          "| factorisations | status |")
     print("|---|---|---|---|---|---|---|---|---|")
     for m in a.methods if a.default else ():
         runs = [run(rom, m, 40, 1024, casing) for _ in range(a.repeat)]

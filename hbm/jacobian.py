@@ -196,7 +196,7 @@ class HbmJacobian:
         return ContactPreconditioner(self)
 
     def factorize(self, rtol: float = 1e-10, max_krylov: int = 60, stats: dict | None = None,
-                  preconditioner: "ContactPreconditioner | None" = None):
+                  preconditioner: "ContactPreconditioner | None" = None, forcing: float = 0.0):
         """solve(b) for J x = b, b (n_u,) or (n_u, k).
 
         preconditioner: a ContactPreconditioner of an earlier, nearby J to reuse (it costs
@@ -205,6 +205,8 @@ class HbmJacobian:
         "preconditioners" and "dense_fallback" are incremented. If GMRES stalls with a reused
         preconditioner, this J's own is built; if it stalls with that too, the dense LU
         answers. Raises hbm.newton.SingularJacobian when Z_r or the reduced matrix is singular.
+        forcing: the bordered solve (solve.bordered) asks GMRES for min(1e-3, max(rtol,
+        forcing ||[R; P]||)) (an inexact Newton step); 0: rtol.
         """
         from hbm.jacobian_solver import gmres
         from hbm.newton import SingularJacobian
@@ -251,8 +253,9 @@ class HbmJacobian:
         def bordered(r_omega, p, q, R, P):
             """[[J, r_omega], [p^T, q]] [dx; dw] = -[R; P] by one GMRES (instead of the two
             solves of the block elimination), preconditioned by the block elimination done
-            with the preconditioner. Returns (dx, dw); raises SingularJacobian if GMRES
-            stalls (the caller then falls back to the block elimination)."""
+            with the preconditioner. Returns (dx, dw, tol), tol the relative residual asked
+            of GMRES; raises SingularJacobian if GMRES stalls (the caller then falls back to
+            the block elimination)."""
             pre = holder["pre"]
             c = pre(r_omega)
             den = q - p @ c
@@ -268,12 +271,13 @@ class HbmJacobian:
                 return np.append(self @ v[:-1] + r_omega * v[-1], p @ v[:-1] + q * v[-1])
 
             rhs = -np.append(R, P)
-            d, it, ok = gmres(mv, prec, rhs, prec(rhs), rtol, max_krylov)
+            tol = min(1e-3, max(rtol, forcing * float(np.linalg.norm(rhs)))) if forcing > 0 else rtol
+            d, it, ok = gmres(mv, prec, rhs, prec(rhs), tol, max_krylov)
             stats["krylov"] = stats.get("krylov", 0) + it
             stats["last_krylov"] = it
             if not ok or not np.all(np.isfinite(d)):
                 raise SingularJacobian(f"bordered GMRES: no convergence in {it} iterations")
-            return d[:-1], float(d[-1])
+            return d[:-1], float(d[-1]), tol
 
         solve.preconditioner = holder
         solve.bordered = bordered

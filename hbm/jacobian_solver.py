@@ -35,7 +35,11 @@ def _lu(J: np.ndarray):
 
 
 def gmres(matvec, precond, b: np.ndarray, x0: np.ndarray, rtol: float, max_iter: int):
-    """Right-preconditioned GMRES (no restart). Returns (x, iterations, converged)."""
+    """Right-preconditioned GMRES (no restart), Givens rotations on the Hessenberg matrix.
+
+    Converged when the residual ||b - A x|| (the Arnoldi estimate) <= rtol ||b||.
+    Returns (x, iterations, converged).
+    """
     bn = float(np.linalg.norm(b))
     if bn == 0.0:
         return np.zeros_like(b), 0, True
@@ -47,8 +51,15 @@ def gmres(matvec, precond, b: np.ndarray, x0: np.ndarray, rtol: float, max_iter:
     V = np.empty((max_iter + 1, n))
     Zs = np.empty((max_iter, n))
     H = np.zeros((max_iter + 1, max_iter))
+    cs, sn = np.zeros(max_iter), np.zeros(max_iter)
+    g = np.zeros(max_iter + 1)
+    g[0] = beta
     V[0] = r / beta
-    y = np.zeros(0)
+
+    def update(j):
+        y = sla.solve_triangular(H[:j, :j], g[:j], check_finite=False)
+        return x0 + y @ Zs[:j]
+
     for j in range(max_iter):
         Zs[j] = precond(V[j])
         w = matvec(Zs[j])
@@ -57,16 +68,22 @@ def gmres(matvec, precond, b: np.ndarray, x0: np.ndarray, rtol: float, max_iter:
         w -= h @ V[:j + 1]
         c = V[:j + 1] @ w
         w -= c @ V[:j + 1]
-        H[:j + 1, j] = h + c
-        H[j + 1, j] = np.linalg.norm(w)
-        e = np.zeros(j + 2)
-        e[0] = beta
-        y, *_ = np.linalg.lstsq(H[:j + 2, :j + 1], e, rcond=None)
-        res = float(np.linalg.norm(H[:j + 2, :j + 1] @ y - e))
-        if res <= rtol * bn or H[j + 1, j] == 0.0:
-            return x0 + y @ Zs[:j + 1], j + 1, True
-        V[j + 1] = w / H[j + 1, j]
-    return x0 + y @ Zs[:max_iter], max_iter, False
+        h += c
+        hn = float(np.linalg.norm(w))
+        for i in range(j):  # previous rotations on the new column
+            h[i], h[i + 1] = cs[i] * h[i] + sn[i] * h[i + 1], -sn[i] * h[i] + cs[i] * h[i + 1]
+        d = float(np.hypot(h[j], hn))
+        if d == 0.0:  # breakdown with a zero column: nothing more to gain
+            return (update(j) if j else x0), j, False
+        cs[j], sn[j] = h[j] / d, hn / d
+        h[j] = d
+        H[:j + 1, j] = h
+        g[j + 1] = -sn[j] * g[j]
+        g[j] *= cs[j]
+        if abs(g[j + 1]) <= rtol * bn or hn == 0.0:
+            return update(j + 1), j + 1, True
+        V[j + 1] = w / hn
+    return update(max_iter), max_iter, False
 
 
 @dataclass
@@ -144,11 +161,18 @@ class HbmSolver:
     ndarray goes to the ReusedLu `dense`.
     rtol: an inexact Newton step: 3e-7 keeps Newton's convergence (its own test is on
     ||R||) and passes the continuation's check of each bordered solve (1e-6) with margin.
+    forcing: the bordered (corrector) solves are inexact Newton steps with relative
+    tolerance min(1e-3, max(rtol, forcing ||R||)): loose far from the solution, rtol
+    near it (superlinear convergence is kept, fewer GMRES iterations are spent). Measured
+    on the coarse rotor 67 ROM, [1500, 2000] rad/s, N_h = 40: forcing 0 / 1e-3 / 1e-2:
+    RL 33.3 / 31.8 / 29.9 s, DLFT 14.7 / 12.8 / 13.5 s (DLFT's Newton iterations 696 / 941
+    / 1063: its semi-smooth law dislikes inexact steps; 1e-3 is the compromise).
     Counters: n_factorizations (preconditioners built plus dense LUs), n_krylov (GMRES
     iterations, both kinds).
     """
 
     rtol: float = 3e-7
+    forcing: float = 1e-3
     max_krylov: int = 60
     refactor_after: int = 12
     dense: ReusedLu = field(default_factory=ReusedLu)
@@ -172,7 +196,8 @@ class HbmSolver:
             self._pre = J.preconditioner()
             self.stats["preconditioners"] = self.stats.get("preconditioners", 0) + 1
             self._stale = False
-        inner = J.factorize(rtol=self.rtol, max_krylov=self.max_krylov, stats=self.stats, preconditioner=self._pre)
+        inner = J.factorize(rtol=self.rtol, max_krylov=self.max_krylov, stats=self.stats, preconditioner=self._pre,
+                            forcing=self.forcing)
 
         def after():
             self._pre = inner.preconditioner["pre"]  # a fresh one if the old one stalled

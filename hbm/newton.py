@@ -131,9 +131,10 @@ def solve_bordered(J, r_omega: np.ndarray, p: np.ndarray, q: float, R: np.ndarra
     q: dP/domega. R: residual (n,). P: constraint value. Returns (dx (n,), dw, used_full)
     where used_full says the full bordered matrix was needed.
 
-    A `solve` that has a `bordered(r_omega, p, q, R, P) -> (dx, dw)` method (an iterative
-    solver that can take the bordered system in one run) is asked first; its answer is
-    checked like the others. Otherwise block elimination (J a = R, J b = r_omega;
+    A `solve` that has a `bordered(r_omega, p, q, R, P) -> (dx, dw, tol)` method (an
+    iterative solver that can take the bordered system in one run, to the relative
+    residual tol it chose: an inexact Newton step) is asked first; its answer is checked
+    against max(refine_tol, 2 tol). Otherwise block elimination (J a = R, J b = r_omega;
     dw = (p.a - P) / (q - p.b); dx = -a - b dw) factorises J only. It fails at an exact
     fold (J singular) and loses accuracy near one, so its answer is checked on the
     bordered system (when J supports `@`), refined once
@@ -145,10 +146,10 @@ def solve_bordered(J, r_omega: np.ndarray, p: np.ndarray, q: float, R: np.ndarra
         solve = factorize(J)
         if hasattr(solve, "bordered"):  # the solver's own bordered solve (one Krylov run)
             try:
-                dx, dw = solve.bordered(r_omega, p, q, R, P)
+                dx, dw, tol_b = solve.bordered(r_omega, p, q, R, P)
                 eR = J @ dx + r_omega * dw + R
                 eP = p @ dx + q * dw + P
-                if _finite(dx, dw) and np.sqrt(eR @ eR + eP * eP) <= refine_tol * rhs_norm:
+                if _finite(dx, dw) and np.sqrt(eR @ eR + eP * eP) <= max(refine_tol, 2.0 * tol_b) * rhs_norm:
                     return dx, float(dw), False
             except SingularJacobian:
                 pass  # the block elimination below
