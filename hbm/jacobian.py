@@ -12,7 +12,8 @@ dH_r/dx~_r = Z_r + U G + F_v (N/m), on the unknowns x~_r ((2 N_h + 1) n_r, eq. 5
 - F_v: the friction terms through the sliding direction s(v) (theta and z rows and
   columns), mu lam ds/dv ~ mu lam / (rho Omega). Small in norm (3e-4 to 3e-3 of J,
   Frobenius, at the rotor 67 primary resonance), but NOT next to the near-singular
-  harmonic blocks of a resonance: the friction is most of their damping (||(J - F_v)^-1 F_v||_2 = 360 to 1400 there).
+  harmonic blocks of a resonance: the friction is most of their damping
+  (||(J - F_v)^-1 F_v||_2 = 360 to 1400 there).
 
 Solve (Woodbury form of the block elimination): with y = G x, x = Z^-1 (b - U y) and
 (I + G Z^-1 U) y = G Z^-1 b, an m x m dense system; Z^-1 costs one 27 x 27 inverse per
