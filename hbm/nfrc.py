@@ -239,7 +239,10 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     resume: a StoredBranch (load_branch(..., allow_partial=True)) or Branch of an
       interrupted run of the same inputs: its converged points are kept and the branch goes
       on from them (no start solve); on_point sees the new points only; the result holds
-      all of them, and equals an uninterrupted run.
+      all of them and follows the branch of an uninterrupted run (the same points where
+      the linear solves are direct; with GMRES and a reused preconditioner, which is not
+      stored, the step sequence can differ at the solver's tolerance: the same curve,
+      sampled at other arc lengths).
     Start (without resume): see solve_start, at the end of the range that the direction
       names; if no start converges there, at the other end with the direction reversed
       (the RL law at kappa = 1e9 has no solution reachable from the contact-free one at

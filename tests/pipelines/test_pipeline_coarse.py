@@ -160,5 +160,20 @@ def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, mo
     assert main(["run", str(runs["interrupted"]), "--out", str(d), "--until", "hbm"]) == 0
     resumed = branch_store.load_branch(d / "nfrc_dlft.h5")
     assert resumed.complete and resumed.attrs["status"] == ref.attrs["status"]
-    np.testing.assert_allclose(resumed.branch.omega, ref.branch.omega, rtol=1e-9)
-    np.testing.assert_allclose(resumed.extras["le_amplitude"], ref.extras["le_amplitude"], rtol=1e-6)
+    # The 5 points on disk are kept as they were; the rest follow the same branch. Not at the
+    # same arc-length positions: the GMRES solver's reused preconditioner (not stored) makes
+    # the Newton iterates, hence the step sequence, differ at the solver's tolerance. So:
+    # every resumed point on the uninterrupted run's polyline in the continuation's metric
+    # (u, omega / 100 rad/s), to the sag of its chords: at ds_max = 5 a resumed point halfway
+    # between two of the other run's sits ~0.07 step off the chord (measured); a point on
+    # another sheet would be a step or more away.
+    np.testing.assert_array_equal(resumed.branch.omega[:5], partial.branch.omega)
+    pa = np.column_stack([ref.branch.x, ref.branch.omega / 100.0])
+    pb = np.column_stack([resumed.branch.x, resumed.branch.omega / 100.0])
+    seg = np.diff(pa, axis=0)
+    t = np.clip(np.einsum("ksn,sn->ks", pb[:, None] - pa[None, :-1], seg) / np.einsum("sn,sn->s", seg, seg), 0, 1)
+    dist = np.linalg.norm(pb[:, None] - (pa[None, :-1] + t[..., None] * seg[None]), axis=2).min(axis=1)
+    step = np.median(np.linalg.norm(seg, axis=1))
+    assert abs(len(pb) - len(pa)) <= 0.1 * len(pa)
+    assert dist.max() < 0.2 * step
+    assert abs(resumed.branch.omega[-1] - ref.branch.omega[-1]) < 1e-9  # both end on the bound
