@@ -60,12 +60,14 @@ class CondensedOperator:
     def apply(self, x: np.ndarray, derivative: bool = False) -> np.ndarray:
         """Z_r x (or dZ_r/domega x) for coefficients x, (2 N_h + 1, n_r, ...) -> same shape."""
         P, Q = (self.dP, self.dQ) if derivative else (self.P, self.Q)
-        y = np.empty_like(x, dtype=float)
-        y[0] = 0.0 if derivative else np.einsum("ij,j...->i...", self.Z0, x[0])
-        a, b = x[1::2], x[2::2]
-        y[1::2] = np.einsum("kij,kj...->ki...", P, a) + np.einsum("kij,kj...->ki...", Q, b)
-        y[2::2] = np.einsum("kij,kj...->ki...", P, b) - np.einsum("kij,kj...->ki...", Q, a)
-        return y
+        X = np.asarray(x, dtype=float)
+        X3 = X.reshape(X.shape[0], X.shape[1], -1)  # batched matmul per harmonic (einsum was 2x slower)
+        Y = np.empty(X3.shape)
+        Y[0] = 0.0 if derivative else self.Z0 @ X3[0]
+        a, b = X3[1::2], X3[2::2]
+        Y[1::2] = P @ a + Q @ b
+        Y[2::2] = P @ b - Q @ a
+        return Y.reshape(X.shape)
 
     def dense(self, derivative: bool = False, out: np.ndarray | None = None) -> np.ndarray:
         """Dense matrix in the unknown ordering (eq. 5), (n_c n_r, n_c n_r); written into

@@ -34,22 +34,6 @@ import numpy as np
 import scipy.linalg as sla
 
 
-def block_apply(Z0: np.ndarray, P: np.ndarray, Q: np.ndarray, X: np.ndarray) -> np.ndarray:
-    """Apply a harmonic-block-diagonal operator (Z0 static, Z_k = P_k + i Q_k) to coefficients.
-
-    X: (2 N_h + 1, n_r) or (2 N_h + 1, n_r, m) in eq. (5) order. Returns the same shape.
-    (a_k, b_k) -> (P a + Q b, P b - Q a): Y = Z_k X in the complex form X = a - i b.
-    """
-    vec = X.ndim == 2
-    X3 = X[..., None] if vec else X
-    Y = np.empty(X3.shape)
-    Y[0] = Z0 @ X3[0]
-    a, b = X3[1::2], X3[2::2]
-    Y[1::2] = P @ a + Q @ b
-    Y[2::2] = P @ b - Q @ a
-    return Y[..., 0] if vec else Y
-
-
 def times_z_rows(T: np.ndarray, Z0: np.ndarray, P: np.ndarray, Q: np.ndarray, row: int) -> np.ndarray:
     """T @ (rows `row` of the dense Z over all harmonics), for T (q, n_c, n_c): (q, n_c, n_c n_r).
 
@@ -147,7 +131,7 @@ class HbmJacobian:
             return np.column_stack([self @ c for c in v.reshape(v.shape[0], -1).T]).reshape(v.shape)
         op, nc, nr, b = self.op, self.n_c, self.n_r, self.basis
         X = v.reshape(nc, nr)
-        Y = block_apply(op.Z0, op.P, op.Q, X)
+        Y = op.apply(X)
         if len(self.nodes):
             n3 = 3 * self.nodes
             g = self._g(X, Y)
@@ -217,11 +201,11 @@ class HbmJacobian:
         from hbm.newton import SingularJacobian
         stats = stats if stats is not None else {}
         holder = {"pre": preconditioner}
-        own = preconditioner is None
-        if own:
+        if preconditioner is None:
             holder["pre"] = self.preconditioner()
             stats["preconditioners"] = stats.get("preconditioners", 0) + 1
-        exact = own and (not self.friction or not len(self.nodes))
+        # this J's own preconditioner (built here or handed in) is its exact inverse without friction
+        exact = holder["pre"].source is self and (not self.friction or not len(self.nodes))
         dense = {}
 
         def solve_one(b):
@@ -311,7 +295,7 @@ class ContactPreconditioner:
             # Z_r near a resonance (without it GMRES needs ~100 iterations there)
             Zc = Zc.copy()
             k = np.arange(1, Zc.shape[0] + 1)
-            sk = (J.sigma[1::2] if J.sigma is not None else 1.0) * k * op.omega
+            sk = J.sigma[1::2] * k * op.omega  # Lanczos factors of the output rows
             for (wtt, wtz, wzz), j in zip(J.slide_mean, nodes):
                 t, z = 3 * j + 1, 3 * j + 2
                 Zc[:, t, t] += 1j * sk * wtt
