@@ -131,27 +131,33 @@ class CondensedModel:
         nl, li, b = self.nl, self.li, self.basis
         nh, nr = b.n_harmonics, len(nl)
         if self._split is None:  # the K, M, C blocks and the static condensation, once
+            for name, A in (("K", self.K), ("M", self.M), ("C", self.C)):
+                if not np.allclose(A, A.T, rtol=1e-10, atol=1e-12 * np.abs(A).max()):
+                    raise ValueError(f"ROM matrix {name} is not symmetric (the condensation assumes it)")
             self._split = [self._parts(A) for A in (self.K, self.M, self.C)]
             Kp = self._split[0]
             self._Z0 = Kp[0] - Kp[1] @ np.linalg.solve(Kp[3], Kp[2]) if len(li) else Kp[0].copy()
-        (Knn, Knl, Kln, Kll), (Mnn, Mnl, Mln, Mll), (Cnn, Cnl, Cln, Cll) = self._split
+        (Knn, Knl, _, Kll), (Mnn, Mnl, _, Mll), (Cnn, Cnl, _, Cll) = self._split
         Z0 = self._Z0.copy()
-        kw = (np.arange(1, nh + 1) * omega)[:, None, None]
         kk = np.arange(1, nh + 1)[:, None, None]
-
-        def block(K_, M_, C_):  # Z_k = K - (k w)^2 M + i k w C and dZ_k/dw
-            return K_ - kw * kw * M_ + 1j * kw * C_, -2.0 * kk * kw * M_ + 1j * kk * C_
-
-        (Znn, dnn), (Znl, dnl), (Zln, dln), (Zll, dll) = (block(Knn, Mnn, Cnn), block(Knl, Mnl, Cnl),
-                                                          block(Kln, Mln, Cln), block(Kll, Mll, Cll))
+        kw = kk * omega
+        kw2 = kw * kw
+        Znn = Knn - kw2 * Mnn + 1j * kw * Cnn  # Z_k = K - (k w)^2 M + i k w C, per block
+        dnn = -2.0 * kk * kw * Mnn + 1j * kk * Cnn  # dZ_k / dw
         force = np.zeros((2 * nh + 1, nr))
         dforce = np.zeros((2 * nh + 1, nr))
         if len(li):
-            Zlli = np.linalg.inv(Zll)  # n_l = 12 modal dof: one small inverse per harmonic
-            A = Zlli @ Zln  # Z_ll^-1 Z_ln, (N_h, n_l, n_r)
-            Zr = Znn - Znl @ A
-            dA = Zlli @ (dln - dll @ A)
-            dZr = dnn - dnl @ A - Znl @ dA
+            # K, M, C symmetric: Z_ln = Z_nl^T and Z_ll^-1 is symmetric, so with
+            # B = Z_nl Z_ll^-1 (n_l = 12 modal dof: one small inverse per harmonic)
+            # Z_r = Z_nn - B Z_nl^T and dZ_r = dZ_nn - E - E^T, E = (dZ_nl - B dZ_ll / 2) B^T
+            Zll = Kll - kw2 * Mll + 1j * kw * Cll
+            Znl = Knl - kw2 * Mnl + 1j * kw * Cnl
+            dll = -2.0 * kk * kw * Mll + 1j * kk * Cll
+            dnl = -2.0 * kk * kw * Mnl + 1j * kk * Cnl
+            B = Znl @ np.linalg.inv(Zll)
+            Zr = Znn - B @ Znl.transpose(0, 2, 1)
+            E = (dnl - 0.5 * (B @ dll)) @ B.transpose(0, 2, 1)
+            dZr = dnn - E - E.transpose(0, 2, 1)
         else:
             Zr, dZr = Znn, dnn
         f = self.forcing

@@ -185,7 +185,8 @@ class HbmJacobian:
         return ContactPreconditioner(self)
 
     def factorize(self, rtol: float = 1e-10, max_krylov: int = 60, stats: dict | None = None,
-                  preconditioner: "ContactPreconditioner | None" = None, forcing: float = 0.0):
+                  preconditioner: "ContactPreconditioner | None" = None, forcing: float = 0.0,
+                  atol: float = 0.0):
         """solve(b) for J x = b, b (n_u,) or (n_u, k).
 
         preconditioner: a ContactPreconditioner of an earlier, nearby J to reuse (it costs
@@ -194,8 +195,11 @@ class HbmJacobian:
         "preconditioners" and "dense_fallback" are incremented. If GMRES stalls with a reused
         preconditioner, this J's own is built; if it stalls with that too, the dense LU
         answers. Raises hbm.newton.SingularJacobian when Z_r or the reduced matrix is singular.
-        forcing: the bordered solve (solve.bordered) asks GMRES for min(1e-3, max(rtol,
-        forcing ||[R; P]||)) (an inexact Newton step); 0: rtol.
+        forcing, atol: the bordered solve (solve.bordered) asks GMRES for the relative residual
+        min(1e-3, max(rtol, forcing ||[R; P]||, atol / ||[R; P]||)) (an inexact Newton step):
+        forcing keeps Newton's convergence fast far from the solution, atol (an absolute
+        residual, the size Newton's own test can ignore) stops over-solving the last step;
+        0, 0: rtol.
         """
         from hbm.jacobian_solver import gmres
         from hbm.newton import SingularJacobian
@@ -260,7 +264,8 @@ class HbmJacobian:
                 return np.append(self @ v[:-1] + r_omega * v[-1], p @ v[:-1] + q * v[-1])
 
             rhs = -np.append(R, P)
-            tol = min(1e-3, max(rtol, forcing * float(np.linalg.norm(rhs)))) if forcing > 0 else rtol
+            rn = float(np.linalg.norm(rhs))
+            tol = min(1e-3, max(rtol, forcing * rn, atol / max(rn, 1e-300))) if (forcing > 0 or atol > 0) else rtol
             d, it, ok = gmres(mv, prec, rhs, prec(rhs), tol, max_krylov)
             stats["krylov"] = stats.get("krylov", 0) + it
             stats["last_krylov"] = it

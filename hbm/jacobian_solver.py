@@ -101,6 +101,7 @@ class ReusedLu:
     rtol: float = 1e-10
     max_krylov: int = 25
     refactor_after: int = 12
+    atol: float = 0.0
     n_factorizations: int = 0
     n_solves: int = 0
     n_krylov: int = 0
@@ -175,6 +176,7 @@ class HbmSolver:
     forcing: float = 1e-3
     max_krylov: int = 60
     refactor_after: int = 12
+    atol: float = 0.0
     dense: ReusedLu = field(default_factory=ReusedLu)
     stats: dict = field(default_factory=dict)
     _pre: object = field(default=None, repr=False)
@@ -197,7 +199,7 @@ class HbmSolver:
             self.stats["preconditioners"] = self.stats.get("preconditioners", 0) + 1
             self._stale = False
         inner = J.factorize(rtol=self.rtol, max_krylov=self.max_krylov, stats=self.stats, preconditioner=self._pre,
-                            forcing=self.forcing)
+                            forcing=self.forcing, atol=self.atol)
 
         def after():
             self._pre = inner.preconditioner["pre"]  # a fresh one if the old one stalled

@@ -257,7 +257,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     else:
         res = residual
     opts = continuation or default_continuation(hbm)
-    fac = HbmSolver()
+    fac = HbmSolver(atol=0.1 * opts.newton.tol_residual)
     rows = []
     pending = []
 

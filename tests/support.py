@@ -41,3 +41,12 @@ import os as _os
 from pathlib import Path as _Path
 
 SHARED = _Path(_os.environ.get("BLADERUB_SHARED", _Path(__file__).resolve().parents[2] / "shared"))
+
+
+def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
+    """Distance of each point to the polyline through `poly`, (k,), for points (k, d) and
+    poly (s, d) in one metric (e.g. the continuation's scaled (u, omega / 100))."""
+    seg = np.diff(poly, axis=0)
+    rel = points[:, None] - poly[None, :-1]
+    t = np.clip(np.einsum("ksn,sn->ks", rel, seg) / np.einsum("sn,sn->s", seg, seg), 0.0, 1.0)
+    return np.linalg.norm(rel - t[..., None] * seg[None], axis=2).min(axis=1)

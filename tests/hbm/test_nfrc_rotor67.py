@@ -13,6 +13,7 @@ import pytest
 from hbm.branch_store import BranchStore, load_branch, partial_path
 from hbm.nfrc import compute_nfrc, default_continuation
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from support import distance_to_polyline
 
 ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 HBM = HbmOptions(n_harmonics=5, n_time=64, omega_start=400.0, omega_end=500.0)
@@ -31,11 +32,15 @@ class Stop(Exception):
 
 def test_resume_equals_uninterrupted_run(rom, tmp_path):
     """Interrupt after k points (exception in on_point), reload the partial file, resume:
-    the points must be those of an uninterrupted run. The computation is deterministic
-    and the resumed run rebuilds the step length from the stored step and iterations, so
-    the comparison is to round-off (rtol 1e-9 on omega and x; the LU reuse statistics may
-    differ, whence not bit-identical: Newton's last iterate agrees to ~ tol_residual = 1e-8
-    in scaled units, 1e-7 absolute on x ~ 1 leaves margin)."""
+    the k stored points are kept bit for bit and the resumed run follows the branch of an
+    uninterrupted one to the end. Not at the same arc lengths to round-off: the GMRES
+    solver's reused preconditioner is not stored, and its last Newton step is solved
+    only to what Newton's test needs (an absolute 1e-9 on the scaled residual), so the
+    converged points differ at Newton's tolerance and the step sequences drift apart
+    (measured: omega within 1.1e-6 relative over the 25 points). What must hold: every
+    resumed point on the uninterrupted polyline in the continuation's metric (u, omega /
+    100) to 1e-3 of a step (measured 1.4e-4: Newton's tolerance seen through J^-1; a point
+    of another sheet or a skipped fold is a step or more away)."""
     full = compute_nfrc(rom, CasingOptions(), ContactOptions(), HBM, "dlft", continuation=CONT)
     assert full.converged[0] and len(full.omega) >= 8, full.status
     k = 5
@@ -63,13 +68,15 @@ def test_resume_equals_uninterrupted_run(rom, tmp_path):
                            on_point=writer(), resume=saved)
     final = holder.pop("store").finalize(resumed.status)
     assert resumed.status == full.status and resumed.start == "resumed"
-    assert len(resumed.omega) == len(full.omega)
-    np.testing.assert_allclose(resumed.omega, full.omega, rtol=1e-9)
-    np.testing.assert_allclose(resumed.unknowns, full.unknowns, rtol=1e-9, atol=1e-7)
-    np.testing.assert_allclose(resumed.le_amplitude, full.le_amplitude, rtol=1e-7)
+    np.testing.assert_array_equal(resumed.unknowns[:k], saved.branch.x)
+    assert abs(len(resumed.omega) - len(full.omega)) <= 1
+    pa = np.column_stack([full.unknowns, full.omega / 100.0])
+    pb = np.column_stack([resumed.unknowns, resumed.omega / 100.0])
+    step = np.median(np.linalg.norm(np.diff(pa, axis=0), axis=1))
+    assert distance_to_polyline(pb, pa).max() < 1e-3 * step
     stored = load_branch(final)
-    assert stored.complete and len(stored.branch) == len(full.omega)
-    np.testing.assert_allclose(stored.extras["le_amplitude"], full.le_amplitude, rtol=1e-7)
+    assert stored.complete and len(stored.branch) == len(resumed.omega)
+    np.testing.assert_allclose(stored.extras["le_amplitude"], resumed.le_amplitude, rtol=1e-12)
 
 
 def test_le_amplitude_is_half_peak_to_peak(rom):

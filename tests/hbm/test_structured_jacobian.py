@@ -19,7 +19,7 @@ from hbm.newton import solve_bordered
 from hbm.nfrc import compute_nfrc, default_continuation
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from rom.model import load_rom
-from support import standin_rom
+from support import distance_to_polyline, standin_rom
 
 ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 
@@ -138,11 +138,6 @@ def test_nfrc_window_same_with_dense_and_structured_jacobians(method):
     # 100), to a small fraction of a step: the chord's sag between points is the limit.
     pa = np.column_stack([a.unknowns, a.omega / 100.0])
     pb = np.column_stack([b.unknowns, b.omega / 100.0])
-
-    def distance_to_polyline(p, poly):
-        seg = np.diff(poly, axis=0)
-        t = np.clip(np.einsum("ksn,sn->ks", p[:, None] - poly[None, :-1], seg) / np.einsum("sn,sn->s", seg, seg), 0, 1)
-        return np.linalg.norm(p[:, None] - (poly[None, :-1] + t[..., None] * seg[None]), axis=2).min(axis=1)
 
     step = np.median(np.linalg.norm(np.diff(pa, axis=0), axis=1))
     n = min(len(pa), len(pb)) - 3  # the common stretch (the ends may differ by a step)

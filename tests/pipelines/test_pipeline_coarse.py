@@ -16,6 +16,7 @@ import pytest
 from pipelines import artifacts as art
 from pipelines.cli import main
 from rom.model import RomModel
+from support import distance_to_polyline
 
 ROOT = Path(__file__).resolve().parents[2]
 COARSE = ROOT / "scenes" / "rotor67_coarse.toml"
@@ -170,10 +171,8 @@ def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, mo
     np.testing.assert_array_equal(resumed.branch.omega[:5], partial.branch.omega)
     pa = np.column_stack([ref.branch.x, ref.branch.omega / 100.0])
     pb = np.column_stack([resumed.branch.x, resumed.branch.omega / 100.0])
-    seg = np.diff(pa, axis=0)
-    t = np.clip(np.einsum("ksn,sn->ks", pb[:, None] - pa[None, :-1], seg) / np.einsum("sn,sn->s", seg, seg), 0, 1)
-    dist = np.linalg.norm(pb[:, None] - (pa[None, :-1] + t[..., None] * seg[None]), axis=2).min(axis=1)
-    step = np.median(np.linalg.norm(seg, axis=1))
+    dist = distance_to_polyline(pb, pa)
+    step = np.median(np.linalg.norm(np.diff(pa, axis=0), axis=1))
     assert abs(len(pb) - len(pa)) <= 0.1 * len(pa)
     assert dist.max() < 0.2 * step
     assert abs(resumed.branch.omega[-1] - ref.branch.omega[-1]) < 1e-9  # both end on the bound
