@@ -184,9 +184,10 @@ class HbmJacobian:
         return J if dtype is None else J.astype(dtype)
 
     # -- solve ------------------------------------------------------------------------------
-    def preconditioner(self) -> "ContactPreconditioner":
-        """The direct solve of this J without its sliding fluctuations (see the module doc)."""
-        return ContactPreconditioner(self)
+    def preconditioner(self, single: bool | None = None) -> "ContactPreconditioner":
+        """The direct solve of this J without its sliding fluctuations (see the module doc);
+        single: its m x m LU in single precision (None: with friction only)."""
+        return ContactPreconditioner(self, single)
 
     def factorize(self, rtol: float = 1e-10, max_krylov: int = 60, stats: dict | None = None,
                   preconditioner: "ContactPreconditioner | None" = None, forcing: float = 0.0,
@@ -289,10 +290,11 @@ class ContactPreconditioner:
     damping). Woodbury form: with y = G x, (I + G Z'^-1 U) y = G Z'^-1 b, an m x m dense
     LU (m = n_contact (2 N_h + 1)), and x = Z'^-1 (b - U y); U acts node by node, Z'^-1
     harmonic by harmonic, so nothing of size n_u x m is formed. __call__(b): b (n_u,) -> x.
-    source: the HbmJacobian it was built from.
+    source: the HbmJacobian it was built from. single: the LU in single precision (None:
+    when J has friction, i.e. when the preconditioner is not J's exact inverse).
     """
 
-    def __init__(self, J: HbmJacobian):
+    def __init__(self, J: HbmJacobian, single: bool | None = None):
         from hbm.newton import SingularJacobian
         self.source = J
         op, nc, nr = J.op, J.n_c, J.n_r
@@ -330,10 +332,10 @@ class ContactPreconditioner:
         # carry U's column block i, so Y[k, i, o, c] = sum_q Z'^-1_k[R_o, (i, q)] X_k[i, q, c]
         # (a batch of (n_t x n_q) @ (n_q x n_c) products), X_k the complex harmonic-k rows of T.
         # With friction the preconditioner only steers GMRES (which checks the true
-        # residual in double precision), so S and its LU are single precision: half the
-        # memory traffic of the m x m triangular solves, the largest cost of a GMRES
-        # iteration. Without friction it is J's exact inverse and stays in double.
-        self.single = bool(J.friction)
+        # residual in double precision), so S and its LU are single precision by default:
+        # half the memory traffic of the m x m triangular solves, the largest cost of a
+        # GMRES iteration. Without friction it is J's exact inverse and stays in double.
+        self.single = bool(J.friction) if single is None else bool(single)
         Xc = (T[:, :, 1::2, :] - 1j * T[:, :, 2::2, :]).transpose(2, 0, 1, 3)  # (N_h, i, q, c)
         Zs = self.Zi[:, R][:, :, cols].reshape(-1, nt, nt, nq).transpose(0, 2, 1, 3)  # (N_h, i, o, q)
         Y = Zs @ Xc  # (N_h, i, o, c)
