@@ -9,10 +9,12 @@ displacement, (max - min) / 2, the convention of the time-integration side.
 from __future__ import annotations
 
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass, field, replace
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from hbm.continuation import ContinuationOptions, ContinuationPoint, continue_branch
 from hbm.harmonic_balance import HarmonicBalanceResidual, HarmonicForcing, build_residual
@@ -278,32 +280,37 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
             pending.append((p, ex))
 
     t0 = time.perf_counter()
-    start_note = "resumed"
-    if resume is not None:
-        old = getattr(resume, "branch", resume)
-        conv = np.asarray(old.converged, dtype=bool)
-        m0 = int(np.flatnonzero(conv)[-1]) + 1 if conv.any() else 0
-        for i in range(m0):
-            p = ContinuationPoint(i, float(old.omega[i]), np.asarray(old.x[i], dtype=float), True,
-                                  float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
-                                  float(old.time[i]))
-            rows.append(row(p, "")[:2])
-        branch = continue_branch(res, None, None, opts, on_point=record, factorize=fac, resume=old)
-    elif guess is not None:
-        w0 = float(guess[0])
-        sol = damped_newton(res, pad_harmonics(guess[1], res.n_r, res.basis.n_harmonics), w0, opts.newton, fac)
-        start_note = f"damped Newton from the guess at omega={w0:.6g}" + ("" if sol.converged else f": {sol.reason}")
-        branch = continue_branch(res, sol.x, w0, opts, on_point=record, factorize=fac)
-    else:
-        w0 = opts.omega_min if opts.direction > 0 else opts.omega_max
-        x0, start_note = solve_start(res, w0, opts, fac)
-        if not _solves(res, x0, w0, opts):  # start from the other end of the range, going back
-            w1 = opts.omega_max if opts.direction > 0 else opts.omega_min
-            x1, note1 = solve_start(res, w1, opts, fac)
-            if _solves(res, x1, w1, opts):
-                opts, w0, x0 = replace(opts, direction=-opts.direction), w1, x1
-                start_note = f"no start at the first end ({start_note}); {note1} at the other end"
-        branch = continue_branch(res, x0, w0, opts, on_point=record, factorize=fac)
+    # The structured solve works on small blocks (27 x 27, m x m with m <= 9 (2 N_h + 1)):
+    # a second BLAS thread costs more than it gives (RL NFRC at N_h = 40: 47 s with one
+    # thread, 52 s with two, two runs each) and would keep the other core busy spinning.
+    threads = threadpool_limits(limits=1, user_api="blas") if getattr(res, "structured", False) else nullcontext()
+    with threads:
+        start_note = "resumed"
+        if resume is not None:
+            old = getattr(resume, "branch", resume)
+            conv = np.asarray(old.converged, dtype=bool)
+            m0 = int(np.flatnonzero(conv)[-1]) + 1 if conv.any() else 0
+            for i in range(m0):
+                p = ContinuationPoint(i, float(old.omega[i]), np.asarray(old.x[i], dtype=float), True,
+                                      float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
+                                      float(old.time[i]))
+                rows.append(row(p, "")[:2])
+            branch = continue_branch(res, None, None, opts, on_point=record, factorize=fac, resume=old)
+        elif guess is not None:
+            w0 = float(guess[0])
+            sol = damped_newton(res, pad_harmonics(guess[1], res.n_r, res.basis.n_harmonics), w0, opts.newton, fac)
+            start_note = f"damped Newton from the guess at omega={w0:.6g}" + ("" if sol.converged else f": {sol.reason}")
+            branch = continue_branch(res, sol.x, w0, opts, on_point=record, factorize=fac)
+        else:
+            w0 = opts.omega_min if opts.direction > 0 else opts.omega_max
+            x0, start_note = solve_start(res, w0, opts, fac)
+            if not _solves(res, x0, w0, opts):  # start from the other end of the range, going back
+                w1 = opts.omega_max if opts.direction > 0 else opts.omega_min
+                x1, note1 = solve_start(res, w1, opts, fac)
+                if _solves(res, x1, w1, opts):
+                    opts, w0, x0 = replace(opts, direction=-opts.direction), w1, x1
+                    start_note = f"no start at the first end ({start_note}); {note1} at the other end"
+            branch = continue_branch(res, x0, w0, opts, on_point=record, factorize=fac)
     wall = time.perf_counter() - t0
     if rows and not rows[-1][0].converged:  # the final failure carries the branch status
         last, xl = rows[-1]
