@@ -214,7 +214,8 @@ class HbmJacobian:
             holder["pre"] = self.preconditioner()
             stats["preconditioners"] = stats.get("preconditioners", 0) + 1
         # this J's own preconditioner (built here or handed in) is its exact inverse without friction
-        exact = holder["pre"].source is self and (not self.friction or not len(self.nodes))
+        pre0 = holder["pre"]
+        exact = pre0.source is self and not pre0.single and (not self.friction or not len(self.nodes))
         dense = {}
 
         def solve_one(b):
@@ -323,6 +324,8 @@ class ContactPreconditioner:
         self.R = R = 3 * nodes
         self.nc, self.nr, self.scale, self.g_eps, self.g_z = nc, nr, J.scale, J.g_eps, J.g_z
         self.T = T = J.T_normal  # (n_t, n_q, n_c, n_c)
+        # the m x m LU in single precision (see below); nothing to round without contact
+        self.single = bool(m) and (bool(J.friction) if single is None else bool(single))
         if not m:
             return
         nq = T.shape[1]
@@ -335,7 +338,6 @@ class ContactPreconditioner:
         # residual in double precision), so S and its LU are single precision by default:
         # half the memory traffic of the m x m triangular solves, the largest cost of a
         # GMRES iteration. Without friction it is J's exact inverse and stays in double.
-        self.single = bool(J.friction) if single is None else bool(single)
         Xc = (T[:, :, 1::2, :] - 1j * T[:, :, 2::2, :]).transpose(2, 0, 1, 3)  # (N_h, i, q, c)
         Zs = self.Zi[:, R][:, :, cols].reshape(-1, nt, nt, nq).transpose(0, 2, 1, 3)  # (N_h, i, o, q)
         Y = Zs @ Xc  # (N_h, i, o, c)
