@@ -101,7 +101,6 @@ class ReusedLu:
     rtol: float = 1e-10
     max_krylov: int = 25
     refactor_after: int = 12
-    atol: float = 0.0
     n_factorizations: int = 0
     n_solves: int = 0
     n_krylov: int = 0

@@ -5,6 +5,8 @@ on unknowns of order 1, far below the 1e-6 asked. DLFT is piecewise smooth: at a
 point no time sample lies within the step of a switch (had one, the difference would
 differ by O(1) and the test fail loudly, not pass wrongly).
 """
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -70,3 +72,13 @@ def test_weighted_product_equals_dense_dft_product():
         F = bb.to_freq(np.eye(bb.n_time))
         Ft = bb.to_time(np.eye(bb.n_coeffs))
         assert np.abs(bb.weighted_product(ww) - np.einsum("ij,bj,jk->bik", F, ww, Ft)).max() < 1e-13
+
+
+def test_non_symmetric_rom_matrix_is_named():
+    """The exact condensation uses Z_ln = Z_nl^T: a non-symmetric K, M or C is refused by name."""
+    rom = standin_rom()
+    K = rom.K.copy()
+    K[0, 30] *= 1.01
+    with pytest.raises(ValueError, match="matrix K is not symmetric"):
+        build_residual(dataclasses.replace(rom, K=K), CasingOptions(), ContactOptions(),
+                       HbmOptions(n_harmonics=3, n_time=16))
