@@ -26,7 +26,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from hbm.nfrc import compute_nfrc  # noqa: E402
+from hbm.harmonic.nfrc import compute_nfrc  # noqa: E402
 from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
 
 

@@ -25,8 +25,8 @@ sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions  # noqa: E402
-from hbm.sweep import simulate, sweep  # noqa: E402
-from hbm.time_integration import rom_modal_system  # noqa: E402
+from hbm.ti.sweep import simulate, sweep  # noqa: E402
+from hbm.ti.march import rom_modal_system  # noqa: E402
 
 
 def load_rom(name):

@@ -14,8 +14,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
-from hbm.sweep import SweepResult
-from hbm.validation import ValidationResult
+from hbm.ti.sweep import SweepResult
+from hbm.ti.validation import ValidationResult
 from pipelines import artifacts as art
 
 STAGES = ("mesh", "fem", "rom", "hbm", "ti")
@@ -137,8 +137,8 @@ def _provenance(scene, h: str, stage: str) -> dict:
 
 
 def _run_hbm(scene, out: Path, h: str):
-    from hbm.branch_store import BranchStore, load_branch, partial_path
-    from hbm.nfrc import compute_nfrc
+    from pipelines.branch_store import BranchStore, load_branch, partial_path
+    from hbm.harmonic.nfrc import compute_nfrc
 
     rom = read_rom(out)
     for method in scene.hbm.methods:
@@ -179,7 +179,7 @@ def _run_hbm(scene, out: Path, h: str):
 
 
 def _plot_nfrc(scene, out: Path):
-    from hbm.branch_store import load_branch
+    from pipelines.branch_store import load_branch
     from pipelines.figures import plot_nfrc
 
     curves = {}
@@ -213,7 +213,7 @@ class TiArtifact:
 def _run_ti(scene, out: Path, h: str):
     import numpy as np
 
-    from hbm.sweep import sweep
+    from hbm.ti.sweep import sweep
     from pipelines.figures import plot_ti_sweep
 
     rom = read_rom(out)
@@ -233,9 +233,9 @@ def _validate(scene, out: Path, rom):
     """March from the highest-amplitude converged point of the first NFRC and compare."""
     import numpy as np
 
-    from hbm.branch_store import load_branch
-    from hbm.harmonic_balance import build_residual
-    from hbm.validation import validate_against_hbm
+    from pipelines.branch_store import load_branch
+    from hbm.harmonic.residual import build_residual
+    from hbm.ti.validation import validate_against_hbm
     from pipelines.figures import plot_time_signals
 
     method = scene.hbm.methods[0]

@@ -4,9 +4,9 @@ residual is recomputed independently of the solver)."""
 import numpy as np
 import pytest
 
-from hbm.continuation import ContinuationOptions
-from hbm.newton import NewtonOptions
-from hbm.nfrc import compute_nfrc
+from hbm.continuation.arclength import ContinuationOptions
+from hbm.continuation.newton import NewtonOptions
+from hbm.harmonic.nfrc import compute_nfrc
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from support import standin_rom
 from test_obstacle import D, F, K, M, W, _solve, C
@@ -41,7 +41,7 @@ def _short_nfrc(method, contact, nh=10, nt=256):
     ("dlft", ContactOptions(epsilon=1e8), 10),
 ])
 def test_stiff_soft_and_rich_cases_are_honest(method, contact, nh):
-    from hbm.harmonic_balance import build_residual
+    from hbm.harmonic.residual import build_residual
     r, rom, casing, hbm = _short_nfrc(method, contact, nh=nh, nt=max(256, 4 * nh + 2))
     res = build_residual(rom, casing, contact, hbm.__class__(n_harmonics=nh, n_time=max(256, 4 * nh + 2)),
                          method=method)
@@ -58,7 +58,7 @@ def test_stiff_soft_and_rich_cases_are_honest(method, contact, nh):
 def test_eighty_harmonics_converge_to_the_same_orbit(method):
     """N_h = 80 on the exact 1-dof obstacle problem: converges and agrees with N_h = 32
     to the N_h = 32 truncation error (~2e-5 of the amplitude, see test_obstacle)."""
-    from hbm.aft import FourierBasis
+    from hbm.harmonic.fourier import FourierBasis
     f32, dof = _solve(method, 32, 8192)
     f80, _ = _solve(method, 80, 8192, guess_full=f32)
     x32 = FourierBasis(32, 4096).to_time(f32[:, dof])

@@ -5,9 +5,9 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from hbm.continuation import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
+from hbm.continuation.arclength import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
                               STATUS_START_FAILED, STATUS_STEP_FLOOR, ContinuationOptions, continue_branch)
-from hbm.newton import NewtonOptions, factorize_default, newton_solve, solve_bordered
+from hbm.continuation.newton import NewtonOptions, factorize_default, newton_solve, solve_bordered
 from systems import Circle, Duffing1, Helix, Wall, Wave
 
 TOL = 1e-10  # residual tolerance of every run here

@@ -6,9 +6,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from hbm.branch_store import BranchStore, load_branch
-from hbm.continuation import STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_STEP_FLOOR, ContinuationOptions, continue_branch
-from hbm.newton import NewtonOptions
+from pipelines.branch_store import BranchStore, load_branch
+from hbm.continuation.arclength import STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_STEP_FLOOR, ContinuationOptions, continue_branch
+from hbm.continuation.newton import NewtonOptions
 from systems import Duffing1, Wall
 
 DUFFING = Duffing1(zeta=0.02, gamma=1.0, force=0.1)

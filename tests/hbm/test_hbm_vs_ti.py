@@ -12,13 +12,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hbm.aft import FourierBasis
-from hbm.harmonic_balance import build_residual
-from hbm.newton import NewtonOptions, newton_solve
+from hbm.harmonic.fourier import FourierBasis
+from hbm.harmonic.residual import build_residual
+from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from hbm.sweep import steps_per_revolution
-from hbm.time_integration import Recording, march, rom_modal_system
-from hbm.validation import validate_against_hbm
+from hbm.ti.sweep import steps_per_revolution
+from hbm.ti.march import Recording, march, rom_modal_system
+from hbm.ti.validation import validate_against_hbm
 from rom.model import load_rom
 
 ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"

@@ -10,8 +10,8 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hbm.aft import FourierBasis
-from hbm.harmonic_balance import HarmonicForcing, build_residual
+from hbm.harmonic.fourier import FourierBasis
+from hbm.harmonic.residual import HarmonicForcing, build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from support import standin_rom
 

@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hbm.branch_store import BranchStore, load_branch, partial_path
-from hbm.nfrc import compute_nfrc, default_continuation
+from pipelines.branch_store import BranchStore, load_branch, partial_path
+from hbm.harmonic.nfrc import compute_nfrc, default_continuation
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from support import distance_to_polyline
 
@@ -85,7 +85,7 @@ def test_le_amplitude_is_half_peak_to_peak(rom):
     at most O((pi N_h / N_t)^2) relative, < 6 % here, so a 10 % tolerance)."""
     r = compute_nfrc(rom, CasingOptions(), ContactOptions(), HBM, "dlft",
                      continuation=replace(CONT, max_points=3))
-    from hbm.aft import FourierBasis
+    from hbm.harmonic.fourier import FourierBasis
     sig = FourierBasis(HBM.n_harmonics, 4096).to_time(r.harmonics[0][:, 0])
     assert r.le_amplitude[0] == pytest.approx(0.5 * (sig.max() - sig.min()), rel=0.1)
     assert r.le_max[0] == pytest.approx(sig.max(), rel=0.1)
@@ -152,7 +152,7 @@ def test_primary_resonance_dlft_solution_and_contact(rom, peak_branches):
     the truncation ripple of the force divided by eps) and eps g <= -P_N lambda where
     lambda = 0. Both to 1e-6 of max lambda (round-off of the FFTs and the 1e-8 residual
     tolerance, which is ~1e-8 k_ref / alpha ~ 1e-3 N on the force)."""
-    from hbm.harmonic_balance import build_residual
+    from hbm.harmonic.residual import build_residual
     r = peak_branches["dlft"]
     i = int(np.argmax(r.le_amplitude))
     u, w = r.unknowns[i], r.omega[i]

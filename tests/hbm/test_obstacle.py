@@ -25,9 +25,9 @@ import pytest
 import scipy.linalg as sla
 from scipy.optimize import brentq, fsolve
 
-from hbm.aft import FourierBasis
-from hbm.harmonic_balance import HarmonicForcing, build_residual
-from hbm.newton import NewtonOptions, newton_solve
+from hbm.harmonic.fourier import FourierBasis
+from hbm.harmonic.residual import HarmonicForcing, build_residual
+from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 
 M, C, K, F, W, D, KAPPA = 1.0, 0.05, 1.0, 1.0, 0.5, 1.0, 4.0

@@ -1,4 +1,4 @@
-"""Periodicity classification (hbm.periodicity) on synthetic signals of known period.
+"""Periodicity classification (hbm.ti.periodicity) on synthetic signals of known period.
 
 Signals are continuous functions of t sampled at the Poincare sections t_k = k T_c,
 T_c = pi / Omega (two lobes), with uniform noise of 10 % of the tolerance: every class must
@@ -7,7 +7,7 @@ come out right, and noise of twice the tolerance must destroy the period.
 import numpy as np
 import pytest
 
-from hbm.periodicity import CASING, NONE, REVOLUTION, SUBHARMONIC, SUPERHARMONIC, classify_period
+from hbm.ti.periodicity import CASING, NONE, REVOLUTION, SUBHARMONIC, SUPERHARMONIC, classify_period
 
 OMEGA = 1234.0
 RTOL = 1e-2

@@ -13,10 +13,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hbm.harmonic_balance import HarmonicForcing, build_residual
-from hbm.jacobian_solver import HbmSolver
-from hbm.newton import solve_bordered
-from hbm.nfrc import compute_nfrc, default_continuation
+from hbm.harmonic.residual import HarmonicForcing, build_residual
+from hbm.harmonic.solver import HbmSolver
+from hbm.continuation.newton import solve_bordered
+from hbm.harmonic.nfrc import compute_nfrc, default_continuation
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from rom.model import load_rom
 from support import distance_to_polyline, standin_rom

@@ -1,4 +1,4 @@
-"""Central differences with forward-increment Lagrange multiplier contact (hbm.time_integration).
+"""Central differences with forward-increment Lagrange multiplier contact (hbm.ti.march).
 
 References are independent of the kernel: closed-form solutions of the constrained problems,
 the discrete energy that central differences conserve exactly, and a step-by-step numpy
@@ -9,9 +9,9 @@ import math
 import numpy as np
 import pytest
 
-from hbm.casing import casing_distance
+from hbm.contact.casing import casing_distance
 from hbm.options import CasingOptions
-from hbm.time_integration import Recording, critical_time_step, march, modal_system, rom_modal_system
+from hbm.ti.march import Recording, critical_time_step, march, modal_system, rom_modal_system
 from support import standin_rom
 
 

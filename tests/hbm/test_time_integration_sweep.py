@@ -15,13 +15,13 @@ import math
 import numpy as np
 import pytest
 
-from hbm.aft import FourierBasis
-from hbm.casing import casing_distance
+from hbm.harmonic.fourier import FourierBasis
+from hbm.contact.casing import casing_distance
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.periodicity import CASING
-from hbm.sweep import sweep
-from hbm.time_integration import modal_system
-from hbm.validation import validate_against_hbm
+from hbm.ti.periodicity import CASING
+from hbm.ti.sweep import sweep
+from hbm.ti.march import modal_system
+from hbm.ti.validation import validate_against_hbm
 from rom.model import modal_damping
 from support import standin_rom
 

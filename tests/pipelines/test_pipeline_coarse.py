@@ -124,7 +124,7 @@ def _hbm_scene(scene, out, name):
 def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, monkeypatch):
     import shutil
 
-    from hbm import branch_store
+    from pipelines import branch_store
 
     scene, out = coarse_run
     # two output folders sharing the ROM: one run straight through, one interrupted then resumed

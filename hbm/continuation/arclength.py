@@ -9,7 +9,7 @@ accepts), dR_domega (n,). Its parts, kept apart as in BifurcationKit:
   dimensionless;
 - predictor, eq. (23): secant through the last two points (tangent from the Jacobians
   for the first step);
-- corrector, eq. (24)-(25): Newton on the bordered system (`hbm.newton.solve_bordered`);
+- corrector, eq. (24)-(25): Newton on the bordered system (`hbm.continuation.newton.solve_bordered`);
 - step control: ds grows after fast corrections, shrinks after slow or failed ones, and
   the branch ends, with its reason, once a failure would need ds < ds_min;
 - stops: omega leaving [omega_min, omega_max] (landing on the bound), max_points, and the
@@ -25,7 +25,7 @@ from typing import Callable, NamedTuple
 import numpy as np
 import scipy.sparse as sp
 
-from hbm.newton import (Factorize, NewtonOptions, Residual, SingularJacobian, evaluate,
+from hbm.continuation.newton import (Factorize, NewtonOptions, Residual, SingularJacobian, evaluate,
                         factorize_default, newton_solve, solve_bordered)
 
 STATUS_OMEGA_MAX = "reached omega_max"

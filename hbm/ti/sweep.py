@@ -23,8 +23,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.periodicity import classify_period
-from hbm.time_integration import ModalSystem, Recording, check_time_step, march, rom_modal_system
+from hbm.ti.periodicity import classify_period
+from hbm.ti.march import ModalSystem, Recording, check_time_step, march, rom_modal_system
 
 
 @dataclass(frozen=True)
@@ -55,7 +55,7 @@ class SweepResult:
     omega: Omega, (n_omega,), rad/s.
     amplitude: (max - min) / 2 of the LE radial displacement over the kept window, (n_omega,), m.
     max_abs: max |r| of the LE over the kept window, (n_omega,), m.
-    period_class: hbm.periodicity code (0: omega = n_l Omega (2 Omega), 1: omega = Omega,
+    period_class: hbm.ti.periodicity code (0: omega = n_l Omega (2 Omega), 1: omega = Omega,
         2: subharmonic, 3: none / omega < Omega / max_order), (n_omega,).
     period: period in casing periods p (0 when none), (n_omega,). order: nu = Omega / omega
         = p / n_l (nan when none), (n_omega,), -. mismatch: section mismatch of the accepted

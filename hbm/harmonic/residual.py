@@ -9,8 +9,8 @@ is Z_r / k_ref + ... ~ O(1). Omega stays in rad/s (omega = Omega); the frequency
 beta of eq. (1) only matters to the continuation's arc-length metric, which owns it.
 
 Equation (internal-force form of eq. 1): M x'' + C x' + K x + f_nl(x, x', Omega) = f_ext,
-f_nl = +lam on the radial dof (lam >= 0 compressive, see hbm.contact) and +mu lam s on
-(theta, z) (see hbm.friction).
+f_nl = +lam on the radial dof (lam >= 0 compressive, see hbm.contact.normal) and +mu lam s on
+(theta, z) (see hbm.contact.friction).
 """
 from __future__ import annotations
 
@@ -18,11 +18,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hbm.aft import FourierBasis
-from hbm.casing import casing_distance
-from hbm.contact import correct_dlft, regularised_penalty
-from hbm.friction import slide_direction
-from hbm.jacobian import HbmJacobian
+from hbm.harmonic.fourier import FourierBasis
+from hbm.contact.casing import casing_distance
+from hbm.contact.normal import correct_dlft, regularised_penalty
+from hbm.contact.friction import slide_direction
+from hbm.harmonic.jacobian import HbmJacobian
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 
 
@@ -235,7 +235,7 @@ class HarmonicBalanceResidual:
     """residual(u, omega) -> (R, dR_du, dR_domega) for DLFT- or RL-HBM on the condensed ROM.
 
     u: scaled unknowns alpha x~_r, ((2 N_h + 1) n_r,), 1 (eq. 5 order). omega = Omega, rad/s.
-    R: (n_u,), 1 (H_r alpha / k_ref). dR_du: dense (n_u, n_u), or an hbm.jacobian.HbmJacobian when
+    R: (n_u,), 1 (H_r alpha / k_ref). dR_du: dense (n_u, n_u), or an hbm.harmonic.jacobian.HbmJacobian when
     `structured` is set (same matrix; `J @ v`, `np.asarray(J)`, `J.factorize()`). dR_domega: (n_u,), s/rad.
     """
 
@@ -270,7 +270,7 @@ class HarmonicBalanceResidual:
         self.jacobian_buffers = 0
         self._jbufs: list[np.ndarray] = []
         self._jnext = 0
-        # structured = True: dR_du comes back as an hbm.jacobian.HbmJacobian (harmonic blocks
+        # structured = True: dR_du comes back as an hbm.harmonic.jacobian.HbmJacobian (harmonic blocks
         # plus contact columns, solved without the dense LU); False: a dense ndarray.
         self.structured = False
 

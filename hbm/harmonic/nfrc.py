@@ -1,7 +1,7 @@
 """Nonlinear frequency response curve of the rotor blade against the ovalised casing.
 
 `compute_nfrc` follows the omega = Omega branch over [omega_start, omega_end] with the
-arc-length continuation of hbm.continuation, from a start point at omega_start (see
+arc-length continuation of hbm.continuation.arclength, from a start point at omega_start (see
 `solve_start`), for one contact treatment (DLFT or RL), and returns every point with the
 leading-edge (LE) radial amplitude of Fig. 6: half the peak-to-peak LE radial
 displacement, (max - min) / 2, the convention of the time-integration side.
@@ -16,10 +16,10 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from hbm.continuation import ContinuationOptions, ContinuationPoint, continue_branch
-from hbm.harmonic_balance import HarmonicBalanceResidual, HarmonicForcing, build_residual
-from hbm.jacobian_solver import HbmSolver
-from hbm.newton import NewtonOptions, newton_solve
+from hbm.continuation.arclength import ContinuationOptions, ContinuationPoint, continue_branch
+from hbm.harmonic.residual import HarmonicBalanceResidual, HarmonicForcing, build_residual
+from hbm.harmonic.solver import HbmSolver
+from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 
 
@@ -56,7 +56,7 @@ class NfrcResult:
     (the y-axis of Fig. 6, as the time integration reports it).
     le_max (m,), m. residual_norm, iterations, step, time (s), converged (m,).
     reason (m,) str: "" for converged points, why for the last failed one.
-    status: why the branch stopped (hbm.continuation STATUS_*). wall_time, s.
+    status: why the branch stopped (hbm.continuation.arclength STATUS_*). wall_time, s.
     n_factorizations: LU factorisations of the Jacobian. unknowns: x of every point in
     the residual's scaled unknowns (m, n_u), to restart or expand (residual.expand_harmonics).
     start: how the start point was found (solve_start's note; "resumed" for a resume).
@@ -103,9 +103,9 @@ def damped_newton(res, u0: np.ndarray, omega: float, opts: NewtonOptions, fac, m
     """Newton at fixed omega with backtracking on ||R|| (halving the step up to 8 times).
 
     A start-up aid for far-off guesses (stiff penalty contact, u0 = contact-free solution);
-    the continuation's corrector stays plain Newton. Returns hbm.newton.NewtonResult.
+    the continuation's corrector stays plain Newton. Returns hbm.continuation.newton.NewtonResult.
     """
-    from hbm.newton import NewtonResult, SingularJacobian
+    from hbm.continuation.newton import NewtonResult, SingularJacobian
     u = np.array(u0, dtype=float)
     R, J, _ = res(u, omega)
     rn = float(np.linalg.norm(R))
@@ -255,7 +255,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     """
     if residual is None:
         res = build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
-        res.structured = True  # solved without the dense LU (hbm.jacobian)
+        res.structured = True  # solved without the dense LU (hbm.harmonic.jacobian)
     else:
         res = residual
     opts = continuation or default_continuation(hbm)

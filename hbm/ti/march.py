@@ -260,7 +260,7 @@ def _padded_columns(a: np.ndarray) -> np.ndarray:
 # ----------------------------------------------------------------------------------------
 @njit(cache=True)
 def _casing(tau, theta_j, c, p, w, n_lobes):
-    """d_j(tau) of eq. (28), the same operations as hbm.casing.casing_distance."""
+    """d_j(tau) of eq. (28), the same operations as hbm.contact.casing.casing_distance."""
     period = 2.0 * math.pi / n_lobes
     x = tau + theta_j
     phase = x - period * math.floor(x / period)

@@ -55,12 +55,12 @@ def times_z_rows(T: np.ndarray, Z0: np.ndarray, P: np.ndarray, Q: np.ndarray, ro
 class HbmJacobian:
     """dR/du of the scaled HBM residual, J = scale (Z_r + U G + F_v); see the module doc.
 
-    op: hbm.harmonic_balance.CondensedOperator at omega (Z0, P, Q in N/m). scale: 1/k_ref,
+    op: hbm.harmonic.residual.CondensedOperator at omega (Z0, P, Q in N/m). scale: 1/k_ref,
     m/N (R and u are scaled so that J ~ 1). nodes: (n_t,) boundary nodes in contact.
     weights: (n_t, n_w, N_t) time weights on the AFT grid: [d lam/d g] (n_w = 1, no
     friction) or [d lam/d g, mu s_theta d lam/d g, mu s_z d lam/d g, mu lam ds_theta/dv_theta,
     mu lam ds_theta/dv_z, mu lam ds_z/dv_z] (n_w = 6): N/m per unit of g, and N s/m.
-    basis: the hbm.aft.FourierBasis. sigma: (n_c,) Lanczos factors on the output rows.
+    basis: the hbm.harmonic.fourier.FourierBasis. sigma: (n_c,) Lanczos factors on the output rows.
     g_eps, g_z: g_j = g_eps x_r - g_z (Z_r x)_r: (1, 0) for RL, (epsilon, 1) for DLFT.
     The AFT products T = F diag(w) F~ are formed only when a preconditioner or the dense
     matrix needs them; `J @ v` goes through the FFT. Use `J @ v`, `np.asarray(J)` (dense,
@@ -199,15 +199,15 @@ class HbmJacobian:
         rtol: ||J x - b|| / ||b|| asked of GMRES. stats: a dict whose counters "krylov",
         "preconditioners" and "dense_fallback" are incremented. If GMRES stalls with a reused
         preconditioner, this J's own is built; if it stalls with that too, the dense LU
-        answers. Raises hbm.newton.SingularJacobian when Z_r or the reduced matrix is singular.
+        answers. Raises hbm.continuation.newton.SingularJacobian when Z_r or the reduced matrix is singular.
         forcing, atol: the bordered solve (solve.bordered) asks GMRES for the relative residual
         min(1e-3, max(rtol, forcing ||[R; P]||, atol / ||[R; P]||)) (an inexact Newton step):
         forcing keeps Newton's convergence fast far from the solution, atol (an absolute
         residual, the size Newton's own test can ignore) stops over-solving the last step;
         0, 0: rtol.
         """
-        from hbm.jacobian_solver import gmres
-        from hbm.newton import SingularJacobian
+        from hbm.harmonic.solver import gmres
+        from hbm.continuation.newton import SingularJacobian
         stats = stats if stats is not None else {}
         holder = {"pre": preconditioner}
         if preconditioner is None:
@@ -296,7 +296,7 @@ class ContactPreconditioner:
     """
 
     def __init__(self, J: HbmJacobian, single: bool | None = None):
-        from hbm.newton import SingularJacobian
+        from hbm.continuation.newton import SingularJacobian
         self.source = J
         op, nc, nr = J.op, J.n_c, J.n_r
         Zc = op.P + 1j * op.Q

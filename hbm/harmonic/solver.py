@@ -18,7 +18,7 @@ import scipy.linalg as sla
 
 
 class SingularJacobianError(RuntimeError):
-    """LU found a zero pivot; callers relying on hbm.newton catch its SingularJacobian."""
+    """LU found a zero pivot; callers relying on hbm.continuation.newton catch its SingularJacobian."""
 
 
 def _lu(J: np.ndarray):
@@ -27,7 +27,7 @@ def _lu(J: np.ndarray):
         lu = sla.lu_factor(J, check_finite=False)
     if not np.all(np.isfinite(lu[0])) or np.any(np.diag(lu[0]) == 0.0):
         try:
-            from hbm.newton import SingularJacobian
+            from hbm.continuation.newton import SingularJacobian
         except ImportError:  # pragma: no cover - the continuation module is optional here
             SingularJacobian = SingularJacobianError
         raise SingularJacobian("dense LU: zero pivot")
@@ -152,10 +152,10 @@ class ReusedLu:
 
 @dataclass
 class HbmSolver:
-    """factorize(J) -> solve(b) for the HBM Jacobians of hbm.harmonic_balance.
+    """factorize(J) -> solve(b) for the HBM Jacobians of hbm.harmonic.residual.
 
-    An hbm.jacobian.HbmJacobian is solved by GMRES to rtol, preconditioned by the direct
-    structured solve (hbm.jacobian.ContactPreconditioner) of an earlier J, kept across
+    An hbm.harmonic.jacobian.HbmJacobian is solved by GMRES to rtol, preconditioned by the direct
+    structured solve (hbm.harmonic.jacobian.ContactPreconditioner) of an earlier J, kept across
     Newton iterations and continuation points while it works: a solve that needed more
     than refactor_after iterations makes the next factorize() build a fresh one. A dense
     ndarray goes to the ReusedLu `dense`.
@@ -198,7 +198,7 @@ class HbmSolver:
         return self.stats.get("krylov", 0) + self.dense.n_krylov
 
     def __call__(self, J):
-        from hbm.jacobian import HbmJacobian
+        from hbm.harmonic.jacobian import HbmJacobian
         if not isinstance(J, HbmJacobian):
             return self.dense(J)
         if self._stale or self._pre is None:

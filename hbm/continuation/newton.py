@@ -103,7 +103,7 @@ def _full_bordered_solve(J, r_omega, p, q, R, P):
     """Solve [[J, r_omega], [p^T, q]] [dx; dw] = -[R; P] as one matrix (dense or sparse)."""
     rhs = -np.concatenate([R, [P]])
     if not (sp.issparse(J) or isinstance(J, np.ndarray)) and hasattr(J, "toarray"):
-        J = J.toarray()  # a structured Jacobian (hbm.jacobian.HbmJacobian): its dense form
+        J = J.toarray()  # a structured Jacobian (hbm.harmonic.jacobian.HbmJacobian): its dense form
     if sp.issparse(J):
         A = sp.bmat([[J, sp.csc_matrix(r_omega[:, None])], [sp.csr_matrix(p[None, :]), q]], format="csc")
         try:

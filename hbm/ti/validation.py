@@ -14,10 +14,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hbm.aft import FourierBasis
+from hbm.harmonic.fourier import FourierBasis
 from hbm.options import CasingOptions, ContactOptions
-from hbm.sweep import steps_per_revolution
-from hbm.time_integration import ModalSystem, Recording, march, rom_modal_system
+from hbm.ti.sweep import steps_per_revolution
+from hbm.ti.march import ModalSystem, Recording, march, rom_modal_system
 
 
 @dataclass(frozen=True)
