@@ -23,7 +23,7 @@ from typing import NamedTuple
 import h5py
 import numpy as np
 
-from hbm.continuation.arclength import Branch, ContinuationPoint
+from hbm.continuation.branch import Branch, ContinuationPoint
 
 _FIELDS = {  # name: (dtype, unit)
     "omega": (np.float64, "rad/s"),

@@ -1,15 +1,16 @@
 """Arc-length continuation of R(x, omega) = 0 (section 1.6 of the reference paper).
 
-The continuation knows only a callable `residual(x, omega) -> (R, dR_dx, dR_domega)`:
-R (n,), dR_dx (n, n) (dense ndarray, scipy sparse, or anything the caller's `factorize`
-accepts), dR_domega (n,). Its parts, kept apart as in BifurcationKit:
+The continuation knows only a callable `residual(x, omega) -> (R, dR_dx, dR_domega)`
+(R (n,), dR_dx whatever the LinearSolver accepts, dR_domega (n,)) and a LinearSolver
+(hbm.linalg.protocol). Its parts, kept apart as in BifurcationKit:
 
 - parameterisation, eq. (22): the hypersphere ||dx / x_scale||^2 + (dw / omega_scale)^2
   = ds^2 around the previous point; the scales make x and omega commensurable, ds is
   dimensionless;
-- predictor, eq. (23): secant through the last two points (tangent from the Jacobians
-  for the first step);
-- corrector, eq. (24)-(25): Newton on the bordered system (`hbm.continuation.newton.solve_bordered`);
+- predictor, eq. (23): secant through the last two points, or the parabola through the
+  last three (tangent from the Jacobians for the first step);
+- corrector, eq. (24)-(25): the Newton loop of hbm.continuation.newton on (x, omega), each
+  step the solver's bordered solve;
 - step control: ds grows after fast corrections, shrinks after slow or failed ones, and
   the branch ends, with its reason, once a failure would need ds < ds_min;
 - stops: omega leaving [omega_min, omega_max] (landing on the bound), max_points, and the
@@ -23,17 +24,13 @@ from dataclasses import dataclass, field
 from typing import Callable, NamedTuple
 
 import numpy as np
-import scipy.sparse as sp
 
-from hbm.continuation.newton import (Factorize, NewtonOptions, Residual, SingularJacobian, evaluate,
-                        factorize_default, newton_solve, solve_bordered)
-
-STATUS_OMEGA_MAX = "reached omega_max"
-STATUS_OMEGA_MIN = "reached omega_min"
-STATUS_CLOSED_LOOP = "closed loop"
-STATUS_MAX_POINTS = "max points reached"
-STATUS_STEP_FLOOR = "step below floor"  # followed by ": <why the last correction failed>"
-STATUS_START_FAILED = "start point did not converge"  # followed by ": <why>"
+from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
+                                     STATUS_START_FAILED, STATUS_STEP_FLOOR, Branch, ContinuationPoint)
+from hbm.continuation.newton import NewtonOptions, NewtonResult, Residual, newton_iterate, newton_solve
+from hbm.linalg.dense import DirectSolver
+from hbm.linalg.errors import SingularMatrixError
+from hbm.linalg.protocol import LinearSolver
 
 
 @dataclass(frozen=True)
@@ -109,80 +106,6 @@ class ContinuationOptions:
         return min(max(ds, self.ds_min), self.ds_max)
 
 
-class ContinuationPoint(NamedTuple):
-    """One point of a branch, as handed to `on_point`.
-
-    index: position in the branch (0: start point). omega: rad/s. x: (n,).
-    converged: False only for a final failed attempt (its x, omega are the last iterate).
-    residual_norm: ||R||_2. iterations: Newton iterations of the accepted correction.
-    step: scaled arc length from the previous point (0 for the start point).
-    time: wall-clock seconds spent on this point, failed attempts included.
-    """
-
-    index: int
-    omega: float
-    x: np.ndarray
-    converged: bool
-    residual_norm: float
-    iterations: int
-    step: float
-    time: float
-
-
-@dataclass(frozen=True, eq=False)  # arrays: compare fields explicitly, not with ==
-class Branch:
-    """A computed branch, m points of n unknowns.
-
-    omega (m,) rad/s; x (m, n); converged (m,) bool; residual_norm (m,); iterations (m,)
-    int; step (m,) scaled arc length from the previous point; time (m,) s per point.
-    status: why it stopped (one of the STATUS_* strings; the failure ones followed by
-    ": details"). detail: extra information (e.g. d_int of a closed loop).
-    Only the last point can be unconverged (the failure that ended the branch).
-    """
-
-    omega: np.ndarray
-    x: np.ndarray
-    converged: np.ndarray
-    residual_norm: np.ndarray
-    iterations: np.ndarray
-    step: np.ndarray
-    time: np.ndarray
-    status: str = ""
-    detail: str = ""
-
-    def __len__(self) -> int:
-        return len(self.omega)
-
-    def point(self, i: int) -> ContinuationPoint:
-        """The i-th point (negative i counts from the end)."""
-        i = range(len(self))[i]
-        return ContinuationPoint(i, float(self.omega[i]), self.x[i], bool(self.converged[i]),
-                                 float(self.residual_norm[i]), int(self.iterations[i]),
-                                 float(self.step[i]), float(self.time[i]))
-
-    @classmethod
-    def from_points(cls, points, n: int, status: str = "", detail: str = "") -> "Branch":
-        """Stack ContinuationPoints (x of size n each) into a Branch."""
-        pts = list(points)
-        return cls(omega=np.array([p.omega for p in pts], dtype=float),
-                   x=np.array([p.x for p in pts], dtype=float).reshape(len(pts), n),
-                   converged=np.array([p.converged for p in pts], dtype=bool),
-                   residual_norm=np.array([p.residual_norm for p in pts], dtype=float),
-                   iterations=np.array([p.iterations for p in pts], dtype=np.int64),
-                   step=np.array([p.step for p in pts], dtype=float),
-                   time=np.array([p.time for p in pts], dtype=float),
-                   status=status, detail=detail)
-
-
-class _Correction(NamedTuple):
-    x: np.ndarray
-    omega: float
-    converged: bool
-    residual_norm: float
-    iterations: int
-    reason: str
-
-
 class _Scaling(NamedTuple):
     """Maps (x, omega) to the dimensionless y = (x / x_scale, omega / omega_scale)."""
 
@@ -200,74 +123,106 @@ class _Scaling(NamedTuple):
         return tx / nrm, tw / nrm
 
 
-def _correct(residual, x, w, x_prev, w_prev, ds, sc: _Scaling, nopt: NewtonOptions, fac) -> _Correction:
-    """Newton on eq. (24)-(25) from the prediction (x, w), on the sphere of radius ds."""
-    step_norm = math.inf
-    rn = math.nan
-    for it in range(nopt.max_iter + 1):
-        R, J, r_w = evaluate(residual, x, w)
+def _correct(residual, x, w, x_prev, w_prev, ds, sc: _Scaling, nopt: NewtonOptions,
+             solver: LinearSolver) -> NewtonResult:
+    """Newton on eq. (24)-(25) from the prediction (x, w), on the sphere of radius ds around
+    (x_prev, w_prev). The result's x is (x, omega) stacked, (n + 1,)."""
+    n = x.size
+    scale = np.append(sc.sx, sc.sw)
+
+    def linearise(y):
+        xi, wi = y[:n], float(y[n])
+        R, J, r_w = residual(xi, wi)
+        R = np.asarray(R, dtype=float).reshape(-1)
+        r_w = np.asarray(r_w, dtype=float).reshape(-1)
         rn = float(np.linalg.norm(R))
-        if not (math.isfinite(rn) and np.all(np.isfinite(r_w))):
-            return _Correction(x, w, False, rn, it, f"non-finite residual at omega={w:.6g}")
-        step_ok = nopt.tol_step is None or (it > 0 and step_norm <= nopt.tol_step)
-        if rn <= nopt.tol_residual and step_ok:
-            return _Correction(x, w, True, rn, it, "")
-        if it == nopt.max_iter:
-            break
-        dxs, dws = (x - x_prev) / sc.sx, (w - w_prev) / sc.sw
+        if not np.all(np.isfinite(r_w)):
+            rn = math.nan
+        dxs, dws = (xi - x_prev) / sc.sx, (wi - w_prev) / sc.sw
         P = float(dxs @ dxs) + dws * dws - ds * ds  # eq. (22)
-        try:
-            dx, dw, _ = solve_bordered(J, r_w, 2.0 * dxs / sc.sx, 2.0 * dws / sc.sw, R, P, fac)
-        except SingularJacobian as exc:
-            return _Correction(x, w, False, rn, it, f"singular bordered system at omega={w:.6g}: {exc}")
-        x, w = x + dx, w + dw
-        step_norm = math.sqrt(float(((dx / sc.sx) @ (dx / sc.sx))) + (dw / sc.sw) ** 2)
-    return _Correction(x, w, False, rn, nopt.max_iter,
-                       f"no convergence in {nopt.max_iter} iterations near omega={w:.6g} "
-                       f"(||R||={rn:.3e} > {nopt.tol_residual:.1e})")
+
+        def step():
+            dx, dw, _ = solver.factorize(J).solve_bordered(r_w, 2.0 * dxs / sc.sx, 2.0 * dws / sc.sw, R, P)
+            return np.append(dx, dw)
+
+        return rn, step
+
+    return newton_iterate(np.append(x, w), linearise, nopt, scale=scale, where=f" near omega={w:.6g}")
 
 
-def _tangent(residual, x, w, direction, sc: _Scaling, fac):
+def _tangent(residual, x, w, direction, sc: _Scaling, solver: LinearSolver):
     """Unit scaled tangent (tx, tw) of the branch at a solution, omega part along `direction`.
 
     Solves J b = dR_domega, tangent ~ (-b, 1); at a singular J (start on a fold) the null
     vector of the dense [J, dR_domega] is used instead.
     """
-    _, J, r_w = evaluate(residual, x, w)
+    _, J, r_w = residual(x, w)
+    r_w = np.asarray(r_w, dtype=float).reshape(-1)
     try:
-        b = np.asarray(fac(J)(r_w)).reshape(-1)
+        b = np.asarray(solver.factorize(J).solve(r_w)).reshape(-1)
         if not np.all(np.isfinite(b)):
-            raise SingularJacobian("non-finite tangent")
+            raise SingularMatrixError("non-finite tangent")
         tx, tw = sc.unit(-b, 1.0)
-    except SingularJacobian:
-        Jd = J.toarray() if sp.issparse(J) else np.asarray(J, dtype=float)
+    except SingularMatrixError:
+        Jd = J.toarray() if hasattr(J, "toarray") else np.asarray(J, dtype=float)
         v = np.linalg.svd(np.column_stack([Jd, r_w]))[2][-1]
         tx, tw = sc.unit(v[:-1], v[-1])
     sign = 1.0 if tw * direction > 0 or (tw == 0 and direction > 0) else -1.0
     return sign * tx, sign * tw
 
 
+def _resumed_points(resume) -> list[ContinuationPoint]:
+    """The converged points of an interrupted branch (trailing failures dropped)."""
+    old = getattr(resume, "branch", resume)
+    good = np.flatnonzero(np.asarray(old.converged, dtype=bool))
+    if good.size == 0 or good[0] != 0:
+        raise ValueError("resume: the branch to continue has no converged start point")
+    m = good[-1] + 1
+    if not np.all(np.asarray(old.converged[:m], dtype=bool)):
+        raise ValueError("resume: unconverged point inside the branch")
+    return [ContinuationPoint(i, float(old.omega[i]), np.array(old.x[i], dtype=float), True,
+                              float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
+                              float(old.time[i])) for i in range(m)]
+
+
+def _prediction(points, ds, tx, tw, sc: _Scaling, quadratic: bool):
+    """Predicted (x, omega) ds beyond the last point: along the unit secant (tx, tw), or on
+    the parabola through the last three points in their arc length (Lagrange weights)."""
+    last = points[-1]
+    if quadratic and len(points) >= 3:
+        p2, p1 = points[-3], points[-2]
+        h1 = sc.dist(p1.x, p1.omega, p2.x, p2.omega)
+        h2 = sc.dist(last.x, last.omega, p1.x, p1.omega)
+        if h1 > 0 and h2 > 0:
+            s0, s1, s2, s = 0.0, h1, h1 + h2, h1 + h2 + ds
+            l0 = (s - s1) * (s - s2) / ((s0 - s1) * (s0 - s2))
+            l1 = (s - s0) * (s - s2) / ((s1 - s0) * (s1 - s2))
+            l2 = (s - s0) * (s - s1) / ((s2 - s0) * (s2 - s1))
+            return l0 * p2.x + l1 * p1.x + l2 * last.x, l0 * p2.omega + l1 * p1.omega + l2 * last.omega
+    return last.x + ds * tx * sc.sx, last.omega + ds * tw * sc.sw
+
+
 def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | None, options: ContinuationOptions,
                     *, on_point: Callable[[ContinuationPoint], None] | None = None,
-                    factorize: Factorize | None = None, resume=None) -> Branch:
+                    solver: LinearSolver | None = None, resume=None) -> Branch:
     """Follow the solution branch of residual(x, omega) = 0 through folds, from (x0, omega0).
 
     x0: initial guess (n,), corrected at fixed omega0 (rad/s) by Newton first.
     options: see ContinuationOptions. on_point(point): called after each point, converged
-    or the final failure, e.g. to append it to a BranchStore (an exception raised there
-    stops the run; the points already handed over are complete).
-    factorize(dR_dx) -> solve(b): linear solver (default: LU / SuperLU).
-    resume: a Branch (or anything with its fields, e.g. `load_branch(...).branch`) whose
-    points continue here: x0, omega0 are then ignored (may be None), trailing unconverged
-    points are dropped, the first point stays the closed-loop reference and the next step
-    length is rebuilt from the last point's step and iterations, so that a resumed run
-    gives the points of an uninterrupted one. The returned Branch holds the resumed points
-    followed by the new ones; on_point is called for the new ones only.
+    or the final failure, e.g. to append it to a store (an exception raised there stops
+    the run; the points already handed over are complete).
+    solver: the LinearSolver (hbm.linalg.protocol) for dR_dx; default: direct LU.
+    resume: a Branch (or anything with its fields) whose points continue here: x0, omega0
+    are then ignored (may be None), trailing unconverged points are dropped, the first
+    point stays the closed-loop reference and the next step length is rebuilt from the
+    last point's step and iterations, so that a resumed run gives the points of an
+    uninterrupted one. The returned Branch holds the resumed points followed by the new
+    ones; on_point is called for the new ones only.
     Returns a Branch whose `status` says why it stopped; the run never raises on a
     correction that fails (only on errors of the caller's residual or on_point).
     """
     opt = options
-    fac = factorize or factorize_default
+    solver = solver or DirectSolver()
     t_start = time.perf_counter()
     points: list[ContinuationPoint] = []
 
@@ -279,35 +234,23 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             on_point(p)
         return p
 
-    def done(status, detail=""):
-        return Branch.from_points(points, n, status, detail)
-
     if resume is not None:
-        old = getattr(resume, "branch", resume)
-        good = np.flatnonzero(np.asarray(old.converged, dtype=bool))
-        if good.size == 0 or good[0] != 0:
-            raise ValueError("resume: the branch to continue has no converged start point")
-        m = good[-1] + 1
-        if not np.all(np.asarray(old.converged[:m], dtype=bool)):
-            raise ValueError("resume: unconverged point inside the branch")
-        n = np.asarray(old.x).shape[1]
-        points = [ContinuationPoint(i, float(old.omega[i]), np.array(old.x[i], dtype=float), True,
-                                    float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
-                                    float(old.time[i])) for i in range(m)]
-        if len(points) >= 2:
-            ds = opt.next_step(points[-1].step, points[-1].iterations)
-        else:
-            ds = opt.ds
+        points = _resumed_points(resume)
+        n = points[0].x.size
+        ds = opt.next_step(points[-1].step, points[-1].iterations) if len(points) >= 2 else opt.ds
     else:
         x0 = np.array(x0, dtype=float).reshape(-1)
         n = x0.size
         if not opt.omega_min <= omega0 <= opt.omega_max:
             raise ValueError(f"omega0 = {omega0} outside [{opt.omega_min}, {opt.omega_max}]")
-        sol = newton_solve(residual, x0, omega0, opt.newton, factorize=fac, x_scale=opt.x_scale)
+        sol = newton_solve(residual, x0, omega0, opt.newton, solver=solver, x_scale=opt.x_scale)
         emit(sol.x, omega0, sol.converged, sol.residual_norm, sol.iterations, 0.0, t_start)
         if not sol.converged:
-            return done(f"{STATUS_START_FAILED}: {sol.reason}")
+            return Branch.from_points(points, n, f"{STATUS_START_FAILED}: {sol.reason}")
         ds = opt.ds
+
+    def done(status, detail=""):
+        return Branch.from_points(points, n, status, detail)
 
     sc = _Scaling(np.broadcast_to(np.asarray(opt.x_scale, dtype=float), (n,)), float(opt.omega_scale))
     ref_x, ref_w = points[0].x, points[0].omega
@@ -327,45 +270,31 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             prev = points[-2]
             tx, tw = sc.unit(last.x - prev.x, last.omega - prev.omega)
         else:
-            tx, tw = _tangent(residual, last.x, last.omega, opt.direction, sc, fac)
-        quad = None
-        if opt.predictor == "quadratic" and len(points) >= 3:
-            p2, p1 = points[-3], points[-2]
-            h1 = sc.dist(p1.x, p1.omega, p2.x, p2.omega)
-            h2 = sc.dist(last.x, last.omega, p1.x, p1.omega)
-            if h1 > 0 and h2 > 0:
-                quad = (p2, p1, h1, h2)
+            tx, tw = _tangent(residual, last.x, last.omega, opt.direction, sc, solver)
         t0 = time.perf_counter()
         while True:
-            if quad is None:
-                xp, wp = last.x + ds * tx * sc.sx, last.omega + ds * tw * sc.sw
-            else:  # Lagrange weights of the parabola at arc length s = h1 + h2 + ds (p2 at 0)
-                p2, p1, h1, h2 = quad
-                s0, s1, s2, s = 0.0, h1, h1 + h2, h1 + h2 + ds
-                l0 = (s - s1) * (s - s2) / ((s0 - s1) * (s0 - s2))
-                l1 = (s - s0) * (s - s2) / ((s1 - s0) * (s1 - s2))
-                l2 = (s - s0) * (s - s1) / ((s2 - s0) * (s2 - s1))
-                xp, wp = l0 * p2.x + l1 * p1.x + l2 * last.x, l0 * p2.omega + l1 * p1.omega + l2 * last.omega
-            c = _correct(residual, xp, wp, last.x, last.omega, ds, sc, opt.newton, fac)
+            xp, wp = _prediction(points, ds, tx, tw, sc, opt.predictor == "quadratic")
+            c = _correct(residual, xp, wp, last.x, last.omega, ds, sc, opt.newton, solver)
+            cx, cw = c.x[:n], float(c.x[n])
             if c.converged:
-                d = sc.dist(c.x, c.omega, last.x, last.omega)
-                cos = (float(((c.x - last.x) / sc.sx) @ tx) + (c.omega - last.omega) / sc.sw * tw) / max(d, 1e-300)
+                d = sc.dist(cx, cw, last.x, last.omega)
+                cos = (float(((cx - last.x) / sc.sx) @ tx) + (cw - last.omega) / sc.sw * tw) / max(d, 1e-300)
                 if d > 0 and cos >= cos_max_turn:
                     break
                 c = c._replace(converged=False,
                                reason=f"correction turned {math.degrees(math.acos(max(-1.0, min(1.0, cos)))):.0f} deg "
-                                      f"from the predictor near omega={c.omega:.6g}")
+                                      f"from the predictor near omega={cw:.6g}")
             if ds * opt.shrink < opt.ds_min:
-                emit(c.x, c.omega, False, c.residual_norm, c.iterations, ds, t0)
+                emit(cx, cw, False, c.residual_norm, c.iterations, ds, t0)
                 return done(f"{STATUS_STEP_FLOOR}: {c.reason} (ds={ds:.3g}, ds_min={opt.ds_min:.3g})")
             ds *= opt.shrink
 
-        x_new, w_new, rn, it, step = c.x, c.omega, c.residual_norm, c.iterations, ds
+        x_new, w_new, rn, it, step = cx, cw, c.residual_norm, c.iterations, ds
         bound = opt.omega_max if w_new > opt.omega_max else opt.omega_min if w_new < opt.omega_min else None
         if bound is not None:
             if opt.land_on_bounds:
                 f = (bound - last.omega) / (w_new - last.omega)
-                sol = newton_solve(residual, last.x + f * (x_new - last.x), bound, opt.newton, factorize=fac,
+                sol = newton_solve(residual, last.x + f * (x_new - last.x), bound, opt.newton, solver=solver,
                                    x_scale=sc.sx)
                 if sol.converged and sc.dist(sol.x, bound, last.x, last.omega) <= step * (1 + 1e-9) + 1e-300:
                     x_new, w_new, rn, it = sol.x, bound, sol.residual_norm, sol.iterations

@@ -16,10 +16,14 @@ from typing import Callable
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from hbm.continuation.arclength import ContinuationOptions, ContinuationPoint, continue_branch
-from hbm.harmonic.residual import HarmonicBalanceResidual, HarmonicForcing, build_residual
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.branch import ContinuationPoint
+from hbm.continuation.newton import NewtonOptions
+from hbm.harmonic.condensation import HarmonicForcing
+from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.harmonic.solver import HbmSolver
-from hbm.continuation.newton import NewtonOptions, newton_solve
+from hbm.harmonic.start import damped_newton, pad_harmonics, solve_start
+from hbm.linalg.protocol import LinearSolver
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 
 
@@ -99,119 +103,6 @@ def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
                                closed_loop_tol=1e-3, predictor="quadratic")
 
 
-def damped_newton(res, u0: np.ndarray, omega: float, opts: NewtonOptions, fac, max_iter: int = 40):
-    """Newton at fixed omega with backtracking on ||R|| (halving the step up to 8 times).
-
-    A start-up aid for far-off guesses (stiff penalty contact, u0 = contact-free solution);
-    the continuation's corrector stays plain Newton. Returns hbm.continuation.newton.NewtonResult.
-    """
-    from hbm.continuation.newton import NewtonResult, SingularJacobian
-    u = np.array(u0, dtype=float)
-    R, J, _ = res(u, omega)
-    rn = float(np.linalg.norm(R))
-    for it in range(max_iter + 1):
-        if not np.isfinite(rn):
-            return NewtonResult(u, False, rn, it, f"non-finite residual at omega={omega:.6g}")
-        if rn <= opts.tol_residual:
-            return NewtonResult(u, True, rn, it, "")
-        if it == max_iter:
-            break
-        try:
-            du = np.asarray(fac(J)(-R)).reshape(-1)
-        except SingularJacobian as exc:
-            return NewtonResult(u, False, rn, it, f"singular Jacobian at omega={omega:.6g}: {exc}")
-        t = 1.0
-        for _ in range(9):
-            Rt = res(u + t * du, omega, jacobian=False)
-            rt = float(np.linalg.norm(Rt))
-            if np.isfinite(rt) and rt < (1.0 - 1e-4 * t) * rn:
-                break
-            t *= 0.5
-        u = u + t * du
-        R, J, _ = res(u, omega)
-        rn = float(np.linalg.norm(R))
-    return NewtonResult(u, False, rn, max_iter, f"damped Newton: no convergence in {max_iter} iterations "
-                                                 f"at omega={omega:.6g} (||R||={rn:.3e})")
-
-
-def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions, fac) -> tuple[np.ndarray, str]:
-    """Start point at omega, tried in order until one converges:
-
-    1. damped Newton from the contact-free solution;
-    2. (RL only) the DLFT solution at omega (same N_h, N_t, epsilon of the scene; DLFT
-       starts easily because its Jacobian outside contact is Z_r and inside it is
-       epsilon-regular), then a penalty homotopy kappa = epsilon -> kappa of the scene: the
-       stiff kappa = 1e9 law is out of Newton's reach from far away but close to the
-       softer solutions; an arc length in log10 kappa, as the RL solution can fold in
-       kappa (it does at Omega = 400 rad/s on the rotor 67 ROM);
-    3. an arc-length homotopy from a round casing (obstacle scale s = 0) to the real one.
-    Returns (u, note); u is the best available guess (continue_branch corrects it again
-    and records a failure with its reason if it is no solution).
-    """
-    u_lin = res.linear_solution(omega)
-    sol = damped_newton(res, u_lin, omega, opts.newton, fac)
-    if sol.converged:
-        return sol.x, "damped Newton from the contact-free solution"
-    if res.method == "rl":
-        c = res.contact
-        dl = build_residual(res.rom, res.casing, c, res.options, method="dlft", forcing=res.model.forcing,
-                            alpha=res.alpha, friction=res.friction, distance=res._distance)
-        sd = damped_newton(dl, u_lin, omega, opts.newton, fac)
-        if sd.converged:
-            rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.model.forcing,
-                                alpha=res.alpha, friction=res.friction, distance=res._distance)
-            lo, hi = np.log10(min(c.epsilon, c.kappa)), np.log10(c.kappa)
-
-            def penalty(u, q, jacobian=True):  # q = log10 kappa; dR/dq by central difference
-                rk.contact = replace(c, kappa=float(10.0 ** q))
-                R, J, _ = rk(u, omega)
-                h = 1e-5
-                rk.contact = replace(c, kappa=float(10.0 ** (q + h)))
-                Rp = rk(u, omega, jacobian=False)
-                rk.contact = replace(c, kappa=float(10.0 ** (q - h)))
-                Rm = rk(u, omega, jacobian=False)
-                return R, J, (Rp - Rm) / (2 * h)
-
-            if hi > lo:
-                kopt = replace(opts, omega_min=lo, omega_max=hi, omega_scale=0.5, ds=0.05, ds_max=0.5,
-                               closed_loop_tol=None, direction=1, max_points=300)
-                br = continue_branch(penalty, sd.x, lo, kopt, factorize=fac)
-                if br.converged[-1] and abs(br.omega[-1] - hi) < 1e-9:
-                    return br.x[-1], f"DLFT solution then kappa homotopy ({len(br)} points)"
-            else:
-                return sd.x, "DLFT solution"
-
-    def homotopy(u, s, jacobian=True):
-        res.set_obstacle_scale(s)
-        try:
-            R, J, _ = res(u, omega)
-            h = 1e-6
-            res.set_obstacle_scale(s + h)
-            Rp = res(u, omega, jacobian=False)
-            res.set_obstacle_scale(s - h)
-            Rm = res(u, omega, jacobian=False)
-        finally:
-            res.set_obstacle_scale(1.0)
-        return R, J, (Rp - Rm) / (2 * h)  # dR/ds by central difference: a start-up aid only
-
-    hopt = replace(opts, omega_min=0.0, omega_max=1.0, omega_scale=0.2, ds=0.05, ds_max=0.5,
-                   closed_loop_tol=None, direction=1, max_points=200)
-    br = continue_branch(homotopy, u_lin, 0.0, hopt, factorize=fac)
-    return br.x[-1], f"obstacle homotopy: {br.status} ({len(br)} points)"
-
-
-def pad_harmonics(u: np.ndarray, n_r: int, n_harmonics: int) -> np.ndarray:
-    """Unknowns of another N_h on n_harmonics: u ((2 N_h' + 1) n_r,) in eq. (5) order ->
-    ((2 n_harmonics + 1) n_r,), the missing higher harmonics zero (or the extra ones
-    dropped). A start guess from a cheap low-N_h solution, which carries the contact
-    phase and the low harmonics that the contact-free solution lacks."""
-    u = np.asarray(u, dtype=float).reshape(-1, n_r)
-    out = np.zeros((2 * n_harmonics + 1, n_r))
-    m = min(len(u), len(out))
-    out[:m] = u[:m]
-    return out.reshape(-1)
-
-
 def nfrc_extras(res: HarmonicBalanceResidual, u: np.ndarray) -> dict:
     """Per-point NFRC data for a store, from the unknowns u (n_u,) of a point.
 
@@ -227,8 +118,8 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                  hbm: HbmOptions = HbmOptions(), method: str = "dlft", *,
                  on_point: Callable[[ContinuationPoint, dict], None] | None = None,
                  continuation: ContinuationOptions | None = None, forcing: HarmonicForcing | None = None,
-                 residual: HarmonicBalanceResidual | None = None, resume=None,
-                 guess: tuple[float, np.ndarray] | None = None) -> NfrcResult:
+                 residual: HarmonicBalanceResidual | None = None, solver: LinearSolver | None = None,
+                 resume=None, guess: tuple[float, np.ndarray] | None = None) -> NfrcResult:
     """NFRC over Omega in [hbm.omega_start, hbm.omega_end] for one method.
 
     rom: RomModel (node 0 = LE). casing, contact, hbm: scene options. method: "dlft" | "rl".
@@ -238,6 +129,9 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       BranchStore.append(point, extras) takes. The final failed point is handed over
       once the branch has ended (its reason is the result's status).
     continuation: overrides default_continuation(hbm) (omega range taken from it).
+    residual: a prepared HarmonicBalanceResidual (default: built from the options).
+    solver: the LinearSolver (default: HbmSolver, GMRES on the structured Jacobian, with
+      atol = tol_residual / 10; hbm.linalg.dense.DirectSolver factorises the dense form).
     resume: a StoredBranch (load_branch(..., allow_partial=True)) or Branch of an
       interrupted run of the same inputs: its converged points are kept and the branch goes
       on from them (no start solve); on_point sees the new points only; the result holds
@@ -253,13 +147,9 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       Newton from u0, the unknowns of a solution at any N_h (pad_harmonics adapts them),
       e.g. a low-N_h NFRC's point; the branch then goes in the continuation's direction.
     """
-    if residual is None:
-        res = build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
-        res.structured = True  # solved without the dense LU (hbm.harmonic.jacobian)
-    else:
-        res = residual
+    res = residual or build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
     opts = continuation or default_continuation(hbm)
-    fac = HbmSolver(atol=0.1 * opts.newton.tol_residual)
+    fac = solver or HbmSolver(atol=0.1 * opts.newton.tol_residual)
     rows = []
     pending = []
 
@@ -283,7 +173,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     # The structured solve works on small blocks (27 x 27, m x m with m <= 9 (2 N_h + 1)):
     # a second BLAS thread costs more than it gives (RL NFRC at N_h = 40: 47 s with one
     # thread, 52 s with two, two runs each) and would keep the other core busy spinning.
-    threads = threadpool_limits(limits=1, user_api="blas") if getattr(res, "structured", False) else nullcontext()
+    threads = threadpool_limits(limits=1, user_api="blas") if isinstance(fac, HbmSolver) else nullcontext()
     with threads:
         start_note = "resumed"
         if resume is not None:
@@ -295,12 +185,12 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                                       float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
                                       float(old.time[i]))
                 rows.append(row(p, "")[:2])
-            branch = continue_branch(res, None, None, opts, on_point=record, factorize=fac, resume=old)
+            branch = continue_branch(res, None, None, opts, on_point=record, solver=fac, resume=old)
         elif guess is not None:
             w0 = float(guess[0])
             sol = damped_newton(res, pad_harmonics(guess[1], res.n_r, res.basis.n_harmonics), w0, opts.newton, fac)
             start_note = f"damped Newton from the guess at omega={w0:.6g}" + ("" if sol.converged else f": {sol.reason}")
-            branch = continue_branch(res, sol.x, w0, opts, on_point=record, factorize=fac)
+            branch = continue_branch(res, sol.x, w0, opts, on_point=record, solver=fac)
         else:
             w0 = opts.omega_min if opts.direction > 0 else opts.omega_max
             x0, start_note = solve_start(res, w0, opts, fac)
@@ -310,7 +200,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                 if _solves(res, x1, w1, opts):
                     opts, w0, x0 = replace(opts, direction=-opts.direction), w1, x1
                     start_note = f"no start at the first end ({start_note}); {note1} at the other end"
-            branch = continue_branch(res, x0, w0, opts, on_point=record, factorize=fac)
+            branch = continue_branch(res, x0, w0, opts, on_point=record, solver=fac)
     wall = time.perf_counter() - t0
     if rows and not rows[-1][0].converged:  # the final failure carries the branch status
         last, xl = rows[-1]

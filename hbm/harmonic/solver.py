@@ -1,231 +1,184 @@
-"""Linear solves with the HBM Jacobian that reuse an LU factorisation across Newton
-iterations and continuation steps.
+"""The HBM's LinearSolver: GMRES on the structured Jacobian, preconditioned by a direct solve
+of an earlier, nearby one (hbm.harmonic.preconditioner), kept across Newton iterations and
+continuation points while it works.
 
-The dense condensed Jacobian (n_u = 27 (2 N_h + 1) = 2187 for N_h = 40) costs ~0.2 s to
-factorise on 2 cores but ~2 ms to multiply or back-substitute. Between successive
-iterations it changes little (Z_r(omega) smoothly, the contact part where the contact
-set moves), so a stale LU is an excellent preconditioner: GMRES on J with M = LU(J_old)
-converges in a few iterations to a tight tolerance. The solve stays exact (to rtol) for
-the current J; only when GMRES stalls is J factorised again.
+Nothing is approximated: each solve meets its tolerance on the true J (or falls back, in
+turn, to this J's own preconditioner and to the dense LU). The tolerances are those of an
+inexact Newton method: the corrector's step needs only the digits Newton's test can see.
 """
 from __future__ import annotations
 
-import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 import scipy.linalg as sla
 
-
-class SingularJacobianError(RuntimeError):
-    """LU found a zero pivot; callers relying on hbm.continuation.newton catch its SingularJacobian."""
-
-
-def _lu(J: np.ndarray):
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore", sla.LinAlgWarning)
-        lu = sla.lu_factor(J, check_finite=False)
-    if not np.all(np.isfinite(lu[0])) or np.any(np.diag(lu[0]) == 0.0):
-        try:
-            from hbm.continuation.newton import SingularJacobian
-        except ImportError:  # pragma: no cover - the continuation module is optional here
-            SingularJacobian = SingularJacobianError
-        raise SingularJacobian("dense LU: zero pivot")
-    return lu
-
-
-def gmres(matvec, precond, b: np.ndarray, x0: np.ndarray, rtol: float, max_iter: int):
-    """Right-preconditioned GMRES (no restart), Givens rotations on the Hessenberg matrix.
-
-    Converged when the residual ||b - A x|| (the Arnoldi estimate) <= rtol ||b||.
-    Returns (x, iterations, converged).
-    """
-    bn = float(np.linalg.norm(b))
-    if bn == 0.0:
-        return np.zeros_like(b), 0, True
-    r = b - matvec(x0)
-    beta = float(np.linalg.norm(r))
-    if beta <= rtol * bn:
-        return x0, 0, True
-    n = b.size
-    V = np.empty((max_iter + 1, n))
-    Zs = np.empty((max_iter, n))
-    H = np.zeros((max_iter + 1, max_iter))
-    cs, sn = np.zeros(max_iter), np.zeros(max_iter)
-    g = np.zeros(max_iter + 1)
-    g[0] = beta
-    V[0] = r / beta
-
-    def update(j):
-        y = sla.solve_triangular(H[:j, :j], g[:j], check_finite=False)
-        return x0 + y @ Zs[:j]
-
-    for j in range(max_iter):
-        Zs[j] = precond(V[j])
-        w = matvec(Zs[j])
-        # classical Gram-Schmidt, twice (as accurate as modified GS, in BLAS-2 products)
-        h = V[:j + 1] @ w
-        w -= h @ V[:j + 1]
-        c = V[:j + 1] @ w
-        w -= c @ V[:j + 1]
-        h += c
-        hn = float(np.linalg.norm(w))
-        for i in range(j):  # previous rotations on the new column
-            h[i], h[i + 1] = cs[i] * h[i] + sn[i] * h[i + 1], -sn[i] * h[i] + cs[i] * h[i + 1]
-        d = float(np.hypot(h[j], hn))
-        if d == 0.0:  # breakdown with a zero column: nothing more to gain
-            return (update(j) if j else x0), j, False
-        cs[j], sn[j] = h[j] / d, hn / d
-        h[j] = d
-        H[:j + 1, j] = h
-        g[j + 1] = -sn[j] * g[j]
-        g[j] *= cs[j]
-        if abs(g[j + 1]) <= rtol * bn or hn == 0.0:
-            return update(j + 1), j + 1, True
-        V[j + 1] = w / hn
-    return update(max_iter), max_iter, False
-
-
-@dataclass
-class ReusedLu:
-    """factorize(J) -> solve(b) keeping the last LU as a preconditioner.
-
-    J: dense (n, n) ndarray. solve(b): b (n,) or (n, k); returns the same shape.
-    rtol: relative residual ||J x - b|| / ||b|| required of each solve.
-    max_krylov: GMRES iterations allowed before J is factorised afresh.
-    refactor_after: a call that needed more than this many iterations factorises J
-    at the next factorize() (cheaper than paying the slow convergence again).
-    Counters: n_factorizations, n_solves, n_krylov (statistics, for benchmarks).
-    """
-
-    rtol: float = 1e-10
-    max_krylov: int = 25
-    refactor_after: int = 12
-    n_factorizations: int = 0
-    n_solves: int = 0
-    n_krylov: int = 0
-    _lu: object = field(default=None, repr=False)
-    _stale: bool = field(default=True, repr=False)
-
-    def reset(self):
-        """Forget the stored factorisation (next call factorises)."""
-        self._lu, self._stale = None, True
-
-    def _factor(self, J):
-        self._lu = _lu(J)
-        self.n_factorizations += 1
-        self._stale = False
-
-    def __call__(self, J) -> callable:
-        J = np.asarray(J, dtype=float)
-        fresh = self._lu is None or self._stale
-        if fresh:
-            self._factor(J)
-            self._stale = False
-        holder = {"fresh": fresh}
-
-        def solve(b):
-            b = np.asarray(b, dtype=float)
-            cols = b.reshape(b.shape[0], -1)
-            out = np.empty_like(cols)
-            for c in range(cols.shape[1]):
-                self.n_solves += 1
-                lu = self._lu
-                x0 = sla.lu_solve(lu, cols[:, c], check_finite=False)
-                if holder["fresh"]:
-                    out[:, c] = x0
-                    continue
-                x, it, ok = gmres(J.__matmul__, lambda v: sla.lu_solve(lu, v, check_finite=False), cols[:, c], x0,
-                                  self.rtol, self.max_krylov)
-                self.n_krylov += it
-                if not ok:  # the old LU no longer preconditions: factorise this J
-                    self._factor(J)
-                    holder["fresh"] = True
-                    x = sla.lu_solve(self._lu, cols[:, c], check_finite=False)
-                elif it > self.refactor_after:
-                    self._stale = True
-                out[:, c] = x
-            return out.reshape(b.shape)
-
-        return solve
+from hbm.harmonic.jacobian import HbmJacobian
+from hbm.harmonic.preconditioner import ContactPreconditioner
+from hbm.linalg.bordered import bordered_residual, eliminate_bordered, finite
+from hbm.linalg.dense import lu_factor
+from hbm.linalg.errors import SingularMatrixError
+from hbm.linalg.gmres import gmres
+from hbm.linalg.protocol import BorderedStep
 
 
 @dataclass
 class HbmSolver:
-    """factorize(J) -> solve(b) for the HBM Jacobians of hbm.harmonic.residual.
+    """LinearSolver (hbm.linalg.protocol) for hbm.harmonic.jacobian.HbmJacobian.
 
-    An hbm.harmonic.jacobian.HbmJacobian is solved by GMRES to rtol, preconditioned by the direct
-    structured solve (hbm.harmonic.jacobian.ContactPreconditioner) of an earlier J, kept across
-    Newton iterations and continuation points while it works: a solve that needed more
-    than refactor_after iterations makes the next factorize() build a fresh one. A dense
-    ndarray goes to the ReusedLu `dense`.
-    rtol: an inexact Newton step: 3e-7 keeps Newton's convergence (its own test is on
-    ||R||) and passes the continuation's check of each bordered solve (1e-6) with margin.
+    rtol: ||J x - b|| / ||b|| asked of each plain solve. 3e-7 keeps Newton's convergence
+      (its own test is on ||R||) and passes the bordered check (refine_tol) with margin.
     forcing: the bordered (corrector) solves are inexact Newton steps with relative
-    tolerance min(1e-3, max(rtol, forcing ||R||)): loose far from the solution, rtol
-    near it (superlinear convergence is kept, fewer GMRES iterations are spent). Measured
-    on the coarse rotor 67 ROM, [1500, 2000] rad/s, N_h = 40: forcing 0 / 1e-3 / 1e-2:
-    RL 33.3 / 31.8 / 29.9 s, DLFT 14.7 / 12.8 / 13.5 s (DLFT's Newton iterations 696 / 941
-    / 1063: its semi-smooth law dislikes inexact steps; 1e-3 is the compromise).
-    atol: absolute residual asked of the bordered solves at most (see
-    HbmJacobian.factorize); compute_nfrc sets tol_residual / 10, which relaxes the last
-    Newton step of each point to what Newton's test can see (RL NFRC 77 -> 67 s).
+      tolerance min(1e-3, max(rtol, forcing ||rhs||, atol / ||rhs||)): loose far from the
+      solution, tight near it. Measured on the coarse rotor 67 ROM, [1500, 2000] rad/s,
+      N_h = 40: forcing 0 / 1e-3 / 1e-2: RL 33.3 / 31.8 / 29.9 s, DLFT 14.7 / 12.8 / 13.5 s
+      (DLFT's semi-smooth law dislikes inexact steps: 696 / 941 / 1063 Newton iterations);
+      1e-3 is the compromise.
+    atol: absolute residual asked of the bordered solves at most; compute_nfrc sets
+      tol_residual / 10, which relaxes the last Newton step of each point to what Newton's
+      test can see (RL NFRC 77 -> 67 s).
+    max_krylov: GMRES iterations before a solve is declared stalled.
     refactor_after: a preconditioner costs ~12 ms at N_h = 40, a GMRES iteration ~1 ms,
-    and its solves take 1.6, 2.5, 3.8, 5.7, 6.5 ... 9 iterations as it ages (RL, [1500,
-    2000] rad/s); rebuilding after a solve of more than 6 iterations (every ~3 to 4
-    solves) measured, whole NFRC at N_h = 40, refactor_after = 4 / 6 / 8 / 12: RL 51.0 /
-    47.8 / 50.1 / 54.6 s, DLFT 23.8 / 24.1 / 27.0 / 27.5 s (one run each, +-3 s noise).
-    Counters: n_factorizations (preconditioners built plus dense LUs), n_krylov (GMRES
-    iterations, both kinds).
+      and its solves take 1.6, 2.5, 3.8, 5.7, 6.5 ... 9 iterations as it ages; rebuilding
+      after a solve of more than 6 iterations measured best over a whole NFRC at N_h = 40
+      (refactor_after 4 / 6 / 8 / 12: RL 51.0 / 47.8 / 50.1 / 54.6 s, DLFT 23.8 / 24.1 /
+      27.0 / 27.5 s).
+    single: the preconditioner's m x m LU in single precision (None: with friction, i.e.
+      whenever it is a preconditioner only and not J's exact inverse).
+    refine_tol: accepted relative residual of the bordered system's fall-back (block
+      elimination, hbm.linalg.bordered).
+    stats: counters "preconditioners", "krylov", "last_krylov", "dense_fallback".
     """
 
     rtol: float = 3e-7
     forcing: float = 1e-3
+    atol: float = 0.0
     max_krylov: int = 60
     refactor_after: int = 6
-    atol: float = 0.0
-    dense: ReusedLu = field(default_factory=ReusedLu)
+    single: bool | None = None
+    refine_tol: float = 1e-6
     stats: dict = field(default_factory=dict)
-    _pre: object = field(default=None, repr=False)
+    _pre: ContactPreconditioner | None = field(default=None, repr=False)
     _stale: bool = field(default=True, repr=False)
 
     @property
     def n_factorizations(self) -> int:
-        return self.stats.get("preconditioners", 0) + self.dense.n_factorizations
+        """Preconditioners built plus dense fall-back LUs."""
+        return self.stats.get("preconditioners", 0) + self.stats.get("dense_fallback", 0)
+
+    def _count(self, key: str, n: int = 1) -> None:
+        self.stats[key] = self.stats.get(key, 0) + n
+
+    def precondition(self, J: HbmJacobian) -> ContactPreconditioner:
+        """Build (and keep, for the next factorize calls) J's own preconditioner."""
+        self._pre = ContactPreconditioner(J, self.single)
+        self._stale = False
+        self._count("preconditioners")
+        return self._pre
+
+    def factorize(self, J: HbmJacobian, preconditioner: ContactPreconditioner | None = None) -> "HbmFactorization":
+        """J at the current point; reuses the kept preconditioner unless it has aged
+        (or the given one, e.g. from another state, to test a stale preconditioner)."""
+        if not isinstance(J, HbmJacobian):
+            raise TypeError(f"HbmSolver solves HbmJacobian, got {type(J).__name__} "
+                            f"(use hbm.linalg.dense.DirectSolver for dense or sparse matrices)")
+        error = None
+        if preconditioner is not None:
+            self._pre, self._stale = preconditioner, False
+        elif self._stale or self._pre is None:
+            try:
+                self.precondition(J)
+            except SingularMatrixError as exc:  # Z_r or the contact system singular: see solve()
+                self._pre, self._stale, error = None, True, exc
+        return HbmFactorization(J, self, error)
+
+    def _gmres(self, matvec, prec, b, x0, rtol):
+        x, it, ok = gmres(matvec, prec, b, x0, rtol, self.max_krylov)
+        self._count("krylov", it)
+        self.stats["last_krylov"] = it
+        if it > self.refactor_after:
+            self._stale = True
+        return x, ok
+
+
+class HbmFactorization:
+    """HbmSolver's Factorization of one J (see hbm.linalg.protocol)."""
+
+    def __init__(self, J: HbmJacobian, solver: HbmSolver, error: SingularMatrixError | None = None):
+        self.J, self.solver = J, solver
+        self._dense_lu = None
+        self._error = error  # no preconditioner could be built: solves fail, the bordered
+        # system falls back to its full dense matrix (a fold where Z_r itself is singular)
 
     @property
-    def n_krylov(self) -> int:
-        return self.stats.get("krylov", 0) + self.dense.n_krylov
+    def _exact(self) -> bool:
+        """The kept preconditioner is J's exact inverse (no friction, double precision)."""
+        pre, J = self.solver._pre, self.J
+        return pre.source is J and not pre.single and (not J.friction or not len(J.nodes))
 
-    def __call__(self, J):
-        from hbm.harmonic.jacobian import HbmJacobian
-        if not isinstance(J, HbmJacobian):
-            return self.dense(J)
-        if self._stale or self._pre is None:
-            self._pre = J.preconditioner()
-            self.stats["preconditioners"] = self.stats.get("preconditioners", 0) + 1
-            self._stale = False
-        inner = J.factorize(rtol=self.rtol, max_krylov=self.max_krylov, stats=self.stats, preconditioner=self._pre,
-                            forcing=self.forcing, atol=self.atol)
-
-        def after():
-            self._pre = inner.preconditioner["pre"]  # a fresh one if the old one stalled
-            if self.stats.get("last_krylov", 0) > self.refactor_after:
-                self._stale = True
-
-        def solve(b):
-            x = inner(b)
-            after()
+    def _solve_one(self, b: np.ndarray) -> np.ndarray:
+        s, J = self.solver, self.J
+        x = s._pre(b)
+        if self._exact:
             return x
+        x, ok = s._gmres(J.__matmul__, s._pre, b, x, s.rtol)
+        if ok:
+            return x
+        if s._pre.source is not J:  # the reused preconditioner is too far off: build this J's
+            pre = s.precondition(J)
+            x, ok = s._gmres(J.__matmul__, pre, b, pre(b), s.rtol)
+            if ok:
+                return x
+        s._count("dense_fallback")  # GMRES stalled even with J's own preconditioner
+        if self._dense_lu is None:
+            self._dense_lu = lu_factor(J.toarray())
+        return sla.lu_solve(self._dense_lu, b, check_finite=False)
 
-        def bordered(*args):
-            try:
-                return inner.bordered(*args)
-            except Exception:
-                self._stale = True
-                raise
-            finally:
-                after()
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        if self._error is not None:
+            raise self._error
+        b = np.asarray(b, dtype=float)
+        cols = b.reshape(b.shape[0], -1)
+        out = np.column_stack([self._solve_one(cols[:, c]) for c in range(cols.shape[1])])
+        if not finite(out):
+            raise SingularMatrixError("structured solve: non-finite result")
+        return out.reshape(b.shape)
 
-        solve.bordered = bordered
-        return solve
+    def solve_bordered(self, c, p, q, r, s) -> BorderedStep:
+        """One GMRES run on the whole bordered system (instead of the two solves of the block
+        elimination), preconditioned by the block elimination done with the preconditioner,
+        to the inexact-Newton tolerance (see HbmSolver); checked on the bordered system, and
+        the block elimination with this factorisation's solve if GMRES stalls."""
+        sv, J = self.solver, self.J
+        rhs = -np.append(r, s)
+        rn = float(np.linalg.norm(rhs))
+        try:
+            if self._error is not None:
+                raise self._error
+            pre = sv._pre
+            cc = pre(c)
+            den = q - p @ cc
+            if not (np.isfinite(den) and den != 0.0):
+                raise SingularMatrixError("bordered preconditioner: zero pivot")
+
+            def prec(v):
+                a = pre(v[:-1])
+                dw = (v[-1] - p @ a) / den
+                return np.append(a - cc * dw, dw)
+
+            def mv(v):
+                return np.append(J @ v[:-1] + c * v[-1], p @ v[:-1] + q * v[-1])
+
+            tol = sv.rtol
+            if sv.forcing > 0 or sv.atol > 0:
+                tol = min(1e-3, max(sv.rtol, sv.forcing * rn, sv.atol / max(rn, 1e-300)))
+            d, ok = sv._gmres(mv, prec, rhs, prec(rhs), tol)
+            if not (ok and finite(d)):
+                raise SingularMatrixError("bordered GMRES: no convergence")
+        except SingularMatrixError:
+            sv._stale = True  # the next solve starts from a fresh preconditioner
+        else:
+            dx, dw = d[:-1], float(d[-1])
+            if bordered_residual(J, c, p, q, r, s, dx, dw) <= max(sv.refine_tol, 2.0 * tol) * max(rn, 1e-300):
+                return BorderedStep(dx, dw, False)
+        return eliminate_bordered(self.solve, J, c, p, q, r, s, sv.refine_tol)

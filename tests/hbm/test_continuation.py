@@ -5,9 +5,11 @@ import numpy as np
 import pytest
 import scipy.sparse as sp
 
-from hbm.continuation.arclength import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
-                              STATUS_START_FAILED, STATUS_STEP_FLOOR, ContinuationOptions, continue_branch)
-from hbm.continuation.newton import NewtonOptions, factorize_default, newton_solve, solve_bordered
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
+                                     STATUS_START_FAILED, STATUS_STEP_FLOOR)
+from hbm.continuation.newton import NewtonOptions, newton_solve
+from hbm.linalg.dense import DirectSolver
 from systems import Circle, Duffing1, Helix, Wall, Wave
 
 TOL = 1e-10  # residual tolerance of every run here
@@ -97,11 +99,12 @@ def test_duffing_sparse_and_custom_factorisation_give_the_same_branch(duffing):
         R, J, dw = duffing(x, w)
         return R, sp.csr_matrix(J), dw
 
-    def counting_factorize(J):
-        calls.append(1)
-        return factorize_default(J)
+    class CountingSolver(DirectSolver):
+        def factorize(self, J):
+            calls.append(1)
+            return super().factorize(J)
 
-    for kw in ({"residual": sparse_residual}, {"residual": duffing, "factorize": counting_factorize}):
+    for kw in ({"residual": sparse_residual}, {"residual": duffing, "solver": CountingSolver()}):
         b = continue_branch(kw.pop("residual"), np.zeros(2), 0.5, opts(0.5, 2.5), **kw)
         assert len(b) == len(ref)
         np.testing.assert_allclose(b.x, ref.x, rtol=0, atol=1e-9)  # same steps, LU vs SuperLU rounding
@@ -227,7 +230,7 @@ def test_bordered_solve_at_a_fold(sparse, case):
     q, P = 0.3, -0.2
     A = np.block([[J, r_w[:, None]], [p[None, :], np.array([[q]])]])
     ref = np.linalg.solve(A, -np.concatenate([R, [P]]))
-    dx, dw, used_full = solve_bordered(sp.csr_matrix(J) if sparse else J, r_w, p, q, R, P)
+    dx, dw, used_full = DirectSolver().factorize(sp.csr_matrix(J) if sparse else J).solve_bordered(r_w, p, q, R, P)
     np.testing.assert_allclose(np.concatenate([dx, [dw]]), ref, rtol=1e-8, atol=1e-10)
     if case == "exact":  # a zero pivot: only the full bordered matrix can do it
         assert used_full
@@ -237,7 +240,7 @@ def test_bordered_solve_regular_uses_block_elimination():
     rng = np.random.default_rng(2)
     J = np.eye(4) * 3 + 0.1 * rng.standard_normal((4, 4))
     r_w, p, R = rng.standard_normal((3, 4))
-    dx, dw, used_full = solve_bordered(J, r_w, p, 0.5, R, 0.1)
+    dx, dw, used_full = DirectSolver().factorize(J).solve_bordered(r_w, p, 0.5, R, 0.1)
     A = np.block([[J, r_w[:, None]], [p[None, :], np.array([[0.5]])]])
     np.testing.assert_allclose(A @ np.concatenate([dx, [dw]]), -np.concatenate([R, [0.1]]), atol=1e-12)
     assert not used_full

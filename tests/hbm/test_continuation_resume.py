@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 
 from pipelines.branch_store import BranchStore, load_branch
-from hbm.continuation.arclength import STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_STEP_FLOOR, ContinuationOptions, continue_branch
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.branch import STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_STEP_FLOOR
 from hbm.continuation.newton import NewtonOptions
 from systems import Duffing1, Wall
 

@@ -26,7 +26,8 @@ import scipy.linalg as sla
 from scipy.optimize import brentq, fsolve
 
 from hbm.harmonic.fourier import FourierBasis
-from hbm.harmonic.residual import HarmonicForcing, build_residual
+from hbm.harmonic.condensation import HarmonicForcing
+from hbm.harmonic.residual import build_residual
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from pipelines.branch_store import BranchStore, load_branch, partial_path
-from hbm.continuation.arclength import ContinuationPoint
+from hbm.continuation.branch import ContinuationPoint
 
 ATTRS = {"units": "{length: m, angular_speed: rad/s}", "scene": "[hbm]\nn_harmonics = 40  # ω, é\n",
          "code_version": "0.1.0+abc123", "inputs_hash": "f" * 64, "method": "dlft",

@@ -1,0 +1,82 @@
+"""The bordered system of the arc-length corrector by block elimination, with its fall-back.
+
+[[J, c], [p^T, q]] [dx; dw] = -[r; s]: with J a = r and J b = c, dw = (p.a - s) / (q - p.b)
+and dx = -a - b dw, so only J is factorised. Block elimination fails at an exact fold
+(J singular) and loses digits near one, so its answer is checked on the bordered system,
+refined once with the same factors, and replaced by a solve of the full bordered matrix
+when the relative error still exceeds refine_tol: Newton needs only a few exact digits in
+its step, but those it needs.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.sparse as sp
+import scipy.sparse.linalg as spla
+
+from hbm.linalg.errors import SingularMatrixError
+from hbm.linalg.protocol import BorderedStep
+
+
+def finite(*arrays) -> bool:
+    """Whether every entry of every array is finite."""
+    return all(np.all(np.isfinite(a)) for a in arrays)
+
+
+def bordered_residual(J, c, p, q, r, s, dx, dw) -> float:
+    """||[[J, c], [p^T, q]] [dx; dw] + [r; s]||_2 (J needs `@`)."""
+    eR = J @ dx + c * dw + r
+    eP = p @ dx + q * dw + s
+    return float(np.sqrt(eR @ eR + eP * eP))
+
+
+def solve_full_bordered(J, c, p, q, r, s) -> BorderedStep:
+    """The bordered matrix factorised as a whole: dense LU, or SuperLU for scipy sparse J.
+
+    J: (n, n) ndarray, scipy sparse, or anything with __array__ (made dense).
+    """
+    rhs = -np.concatenate([r, [s]])
+    if sp.issparse(J):
+        A = sp.bmat([[J, sp.csc_matrix(c[:, None])], [sp.csr_matrix(p[None, :]), q]], format="csc")
+        try:
+            d = spla.splu(A).solve(rhs)
+        except RuntimeError as exc:  # "Factor is exactly singular"
+            raise SingularMatrixError(f"bordered matrix: {exc}") from exc
+    else:
+        A = np.block([[np.asarray(J, dtype=float), c[:, None]], [p[None, :], np.array([[q]])]])
+        try:
+            d = np.linalg.solve(A, rhs)
+        except np.linalg.LinAlgError as exc:
+            raise SingularMatrixError(f"bordered matrix: {exc}") from exc
+    if not finite(d):
+        raise SingularMatrixError("bordered matrix: non-finite solution")
+    return BorderedStep(d[:-1], float(d[-1]), True)
+
+
+def eliminate_bordered(solve, J, c, p, q, r, s, refine_tol: float = 1e-6) -> BorderedStep:
+    """Block elimination with `solve(b)` (J^-1 b for b (n,) or (n, 2)), checked on the
+    bordered system (J needs `@`), refined once, else the full bordered solve."""
+    rhs_norm = max(float(np.sqrt(r @ r + s * s)), np.finfo(float).tiny)
+    try:
+        ab = np.asarray(solve(np.column_stack([r, c])))
+        a, b = ab[:, 0], ab[:, 1]
+        den = q - p @ b
+        if not (finite(a, b) and np.isfinite(den) and den != 0.0):
+            raise SingularMatrixError("block elimination: non-finite or zero pivot")
+
+        def eliminate(rs, a):  # [dx; dw] from a = J^-1 (right-hand side of the R rows)
+            dw = (p @ a - rs) / den
+            return -a - b * dw, dw
+
+        dx, dw = eliminate(s, a)
+        for _ in range(2):  # check, refine once with the same factors, check again
+            if not finite(dx, dw):
+                raise SingularMatrixError("block elimination: non-finite step")
+            eR = J @ dx + c * dw + r
+            eP = p @ dx + q * dw + s
+            if np.sqrt(eR @ eR + eP * eP) <= refine_tol * rhs_norm:
+                return BorderedStep(dx, float(dw), False)
+            cx, cw = eliminate(eP, np.asarray(solve(eR)).reshape(-1))
+            dx, dw = dx + cx, dw + cw
+    except SingularMatrixError:
+        pass
+    return solve_full_bordered(J, np.asarray(c, float), p, q, r, s)
