@@ -30,24 +30,13 @@ from hbm.harmonic.nfrc import compute_nfrc  # noqa: E402
 from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
 
 
-def load_rom(path: str | None):
+def load(path: str | None):
+    """The ROM of a rom.h5 file, or the stand-in without one."""
     if path is None:
         from support import standin_rom
         return standin_rom()
-    import rom.model as rm
-    for name in ("load_rom", "read_rom"):
-        if hasattr(rm, name):
-            return getattr(rm, name)(path)
-    import rom as rpkg
-    for mod in ("rom.io", "rom.artifact", "rom.craig_bampton"):
-        try:
-            m = __import__(mod, fromlist=["x"])
-        except ImportError:
-            continue
-        for name in ("load_rom", "read_rom"):
-            if hasattr(m, name):
-                return getattr(m, name)(path)
-    raise SystemExit(f"no ROM reader found in {rpkg.__name__} for {path}")
+    from rom.model import load_rom
+    return load_rom(path)
 
 
 def run(rom, method, nh, nt, casing):
@@ -66,7 +55,7 @@ def main():
     ap.add_argument("--nt", type=int, nargs="+", default=[256, 512, 1024, 2048])
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
     a = ap.parse_args()
-    rom = load_rom(a.rom)
+    rom = load(a.rom)
     casing = CasingOptions(penetration=a.penetration)
     print(f"ROM: {a.rom or 'stand-in'}; casing penetration {a.penetration:g} m\n")
     print("| method | N_h | N_t | median wall (s) | points | omega covered (rad/s) | peak LE amp (mm) at Omega "

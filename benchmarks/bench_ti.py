@@ -67,7 +67,7 @@ def main():
         print(f"| {w:.0f} | {steps:.3e} | {med:.2f} | {1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | "
               f"{r.amplitude:.4e} | {r.period_class} |")
     # cost of a point ~ steps ~ 1 / Omega: average over the default grid from the measured ns/step
-    grid = np.linspace(opts.omega_start, opts.omega_end, opts.n_omega)
+    grid = np.linspace(opts.omega_min, opts.omega_max, opts.n_omega)
     ns = statistics.median(1e9 * per_point[w] * w / (opts.n_revolutions * 2 * np.pi / 1e-7) for w in omegas)
     total = (ns * 1e-9 * opts.n_revolutions * 2 * np.pi / (grid * 1e-7)).sum()
     print(f"\nExtrapolated (not measured): mean {total / len(grid):.2f} s per point over the {len(grid)}-point grid, "

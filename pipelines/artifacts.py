@@ -13,6 +13,7 @@ import datetime
 import os
 import subprocess
 import typing
+from contextlib import contextmanager
 from pathlib import Path
 
 import h5py
@@ -86,34 +87,57 @@ def _write_fields(group: h5py.Group, obj):
         _write_value(group, f.name, getattr(obj, f.name), f.metadata.get("unit"))
 
 
-def write_artifact(path: Path | str, result, *, stage: str, scene_text: str = "",
-                   inputs_hash: str = "", extra_attrs: dict | None = None) -> Path:
-    """Write a dataclass `result` to `path` atomically (temporary name, then rename).
+def now() -> str:
+    """The `created` attribute: UTC time, ISO 8601."""
+    return datetime.datetime.now(datetime.timezone.utc).isoformat()
 
-    Root attributes: stage, units, scene, inputs_hash, code_version, created.
-    An existing good file at `path` is replaced only once the new one is complete.
+
+def commit(tmp: Path | str, path: Path | str) -> Path:
+    """Make the complete file `tmp` the file `path`: fsync, then an atomic rename (same folder).
+
+    The one way a finished file gets its final name in this project: a reader sees either
+    the previous file or the complete new one, never a partial one.
     """
+    with open(tmp, "rb") as fh:
+        os.fsync(fh.fileno())
+    os.replace(tmp, path)
+    return Path(path)
+
+
+@contextmanager
+def atomic_output(path: Path | str):
+    """Yield a temporary path next to `path`; on success `commit` it to `path`, on any
+    failure (an exception, Ctrl-C) remove it and leave a previous `path` untouched."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
     try:
+        yield tmp
+        commit(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_artifact(path: Path | str, result, *, stage: str, scene_text: str = "",
+                   inputs_hash: str = "", extra_attrs: dict | None = None) -> Path:
+    """Write a dataclass `result` to `path` atomically (see atomic_output).
+
+    Root attributes: stage, units, scene, inputs_hash, code_version, created, and extra_attrs.
+    """
+    path = Path(path)
+    with atomic_output(path) as tmp:
         with h5py.File(tmp, "w") as h5:
             h5.attrs["stage"] = stage
             h5.attrs["units"] = UNITS_SI
             h5.attrs["scene"] = scene_text
             h5.attrs["inputs_hash"] = inputs_hash
             h5.attrs["code_version"] = code_version()
-            h5.attrs["created"] = datetime.datetime.now(datetime.timezone.utc).isoformat()
+            h5.attrs["created"] = now()
             h5.attrs["dataclass"] = type(result).__qualname__
             for k, v in (extra_attrs or {}).items():
                 h5.attrs[k] = v
             _write_fields(h5, result)
-        with open(tmp, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    finally:
-        if tmp.exists():
-            tmp.unlink()
     return path
 
 
@@ -158,12 +182,17 @@ def _read_fields(group: h5py.Group, cls):
             v = group.attrs[f.name]
             kwargs[f.name] = v.decode() if isinstance(v, bytes) else v
         elif f.default is dataclasses.MISSING and f.default_factory is dataclasses.MISSING:
-            kwargs[f.name] = None
+            raise ArtifactError(f"{group.file.filename}: field '{f.name}' of {cls.__name__} is missing "
+                                f"(in {group.name}); the file is incomplete or from another version")
     return cls(**kwargs)
 
 
 def read_artifact(path: Path | str, cls):
-    """Read a file written by `write_artifact` back into an instance of `cls`."""
+    """Read a file written by `write_artifact` back into an instance of `cls`.
+
+    Raises ArtifactError when the file is missing, unreadable, or lacks a field of `cls`
+    that has no default.
+    """
     path = Path(path)
     if not path.is_file():
         raise ArtifactError(f"artifact not found: {path}")

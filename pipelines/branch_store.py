@@ -6,17 +6,19 @@ file complete and renames it to `NAME.h5`. A file is complete only if it has the
 name *and* `complete = 1`; `load_branch` refuses anything else unless asked for a partial.
 
 Layout (m points, n unknowns):
-  root attrs: the caller's (units, scene, code_version, inputs_hash, ...), plus
+  root attrs: the caller's (units, scene, code_version, inputs_hash, ...), plus created,
     n_unknowns, n_points (rows fully written), complete (0/1), status, detail.
-  omega (m,) rad/s; x (m, n); converged (m,) bool; residual_norm (m,); iterations (m,);
-  step (m,) scaled arc length; time (m,) s;  extras/NAME (m, ...) caller's per-point data.
+  omega (m,) rad/s; x (m, n) the continuation's unknowns (for the HBM: the scaled
+  harmonics alpha x~_r, unit 1); converged (m,) bool; residual_norm (m,) (unit of the
+  residual: 1 for the scaled HBM residual); iterations (m,); step (m,) scaled arc length;
+  time (m,) s; extras/NAME (m, ...) caller's per-point data, with the units given at create.
+Every dataset has a `unit` attribute.
 Datasets may be longer than n_points after a crash in the middle of an append; readers
 use the first n_points rows only.
 """
 from __future__ import annotations
 
 import json
-import os
 from pathlib import Path
 from typing import NamedTuple
 
@@ -24,17 +26,18 @@ import h5py
 import numpy as np
 
 from hbm.continuation.branch import Branch, ContinuationPoint
+from pipelines.artifacts import commit, now
 
 _FIELDS = {  # name: (dtype, unit)
     "omega": (np.float64, "rad/s"),
-    "x": (np.float64, None),
-    "converged": (np.bool_, None),
-    "residual_norm": (np.float64, None),
-    "iterations": (np.int64, None),
-    "step": (np.float64, "-"),
+    "x": (np.float64, "1"),
+    "converged": (np.bool_, "1"),
+    "residual_norm": (np.float64, "1"),
+    "iterations": (np.int64, "1"),
+    "step": (np.float64, "1"),
     "time": (np.float64, "s"),
 }
-_RESERVED_ATTRS = {"n_unknowns", "n_points", "complete", "status", "detail"}
+_RESERVED_ATTRS = {"n_unknowns", "n_points", "complete", "status", "detail", "created", "extras_units"}
 
 
 class StoredBranch(NamedTuple):
@@ -87,14 +90,17 @@ class BranchStore:
         self.n = int(h5.attrs["n_unknowns"])
         self.n_points = int(h5.attrs["n_points"])
         self._extras = set(h5["extras"].keys())
+        self._units = json.loads(_decode(h5.attrs.get("extras_units", "{}")) or "{}")
 
     @classmethod
-    def create(cls, path: Path | str, n: int, *, attrs: dict | None = None) -> "BranchStore":
+    def create(cls, path: Path | str, n: int, *, attrs: dict | None = None,
+               units: dict | None = None) -> "BranchStore":
         """Start `NAME.partial.h5` for a branch of n unknowns (path: NAME.h5 or NAME.partial.h5).
 
         attrs: root attributes (units, scene, code_version, inputs_hash, metadata ...); dicts
-        and lists are stored as JSON text. An older partial file of that name is replaced;
-        a finished NAME.h5 is left alone until `finalize` replaces it.
+        and lists are stored as JSON text. units: {extra name: unit} of the extras that
+        `append` will write ("1" for those not named). An older partial file of that name is
+        replaced; a finished NAME.h5 is left alone until `finalize` replaces it.
         """
         bad = _RESERVED_ATTRS & set(attrs or {})
         if bad:
@@ -105,13 +111,13 @@ class BranchStore:
         try:
             for k, v in (attrs or {}).items():
                 h5.attrs[k] = _attr_value(v)
-            h5.attrs.update({"n_unknowns": int(n), "n_points": 0, "complete": 0, "status": "", "detail": ""})
+            h5.attrs.update({"n_unknowns": int(n), "n_points": 0, "complete": 0, "status": "", "detail": "",
+                             "created": now(), "extras_units": json.dumps(units or {})})
             for name, (dtype, unit) in _FIELDS.items():
                 shape = (0, n) if name == "x" else (0,)
                 ds = h5.create_dataset(name, shape=shape, maxshape=(None,) + shape[1:], dtype=dtype,
                                        chunks=(64,) + shape[1:])
-                if unit:
-                    ds.attrs["unit"] = unit
+                ds.attrs["unit"] = unit
             h5.create_group("extras")
             h5.flush()
         except Exception:
@@ -159,7 +165,9 @@ class BranchStore:
         if self.n_points == 0 and not self._extras:
             g = self._h5["extras"]
             for k, v in extras.items():
-                g.create_dataset(k, shape=(0,) + v.shape, maxshape=(None,) + v.shape, dtype=v.dtype, chunks=True)
+                ds = g.create_dataset(k, shape=(0,) + v.shape, maxshape=(None,) + v.shape, dtype=v.dtype,
+                                      chunks=True)
+                ds.attrs["unit"] = self._units.get(k, "1")
             self._extras = set(extras)
         if set(extras) != self._extras:
             raise ValueError(f"extras {sorted(extras)} differ from the store's {sorted(self._extras)}")
@@ -189,11 +197,7 @@ class BranchStore:
         self._h5.attrs["complete"] = 1
         self._h5.flush()
         self._h5.close()
-        part = partial_path(self.path)
-        with open(part, "rb") as fh:
-            os.fsync(fh.fileno())
-        os.replace(part, self.path)
-        return self.path
+        return commit(partial_path(self.path), self.path)
 
     def close(self) -> None:
         """Close without finalising (the file stays NAME.partial.h5)."""

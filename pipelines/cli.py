@@ -5,24 +5,29 @@ import argparse
 import sys
 from pathlib import Path
 
+from pipelines.artifacts import ArtifactError
 from pipelines.scene import SceneError, load_scene
 
 
 def _cmd_run(args) -> int:
-    from pipelines.stages import STAGES, run_scene
+    from pipelines.progress import Progress
+    from pipelines.runner import run_scene
 
     scene = load_scene(args.scene)
-    if args.until not in STAGES:
-        raise SceneError(f"unknown stage '{args.until}'; stages: {', '.join(STAGES)}")
-    run_scene(scene, Path(args.out), until=args.until, force=args.force)
+    progress = Progress(quiet=args.quiet)
+    try:
+        run_scene(scene, Path(args.out), until=args.until, force=args.force, progress=progress)
+    finally:
+        progress.summary()
     return 0
 
 
 def _cmd_render(args) -> int:
-    from pipelines.stages import render_modes
+    from pipelines.progress import Progress
+    from pipelines.runner import render_modes
 
     scene = load_scene(args.scene)
-    for p in render_modes(scene, Path(args.out), n_modes=args.modes):
+    for p in render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True)):
         print(p)
     return 0
 
@@ -35,8 +40,9 @@ def main(argv: list[str] | None = None) -> int:
     run = sub.add_parser("run", help="run a scene's stages in order, skipping those already up to date")
     run.add_argument("scene", type=Path, help="scene file (TOML)")
     run.add_argument("--out", type=Path, required=True, help="output folder for artifacts and figures")
-    run.add_argument("--until", default=STAGES[-1], help=f"last stage to run, one of {', '.join(STAGES)}")
+    run.add_argument("--until", default=STAGES[-1], choices=STAGES, help="last stage to run (default: all)")
     run.add_argument("--force", action="store_true", help="recompute stages even if up to date")
+    run.add_argument("--quiet", action="store_true", help="print errors only (no live line, no summary)")
     run.set_defaults(func=_cmd_run)
     ren = sub.add_parser("render", help="render mode shapes off-screen to PNG (needs fem.h5 in --out)")
     ren.add_argument("scene", type=Path)
@@ -46,7 +52,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     try:
         return args.func(args)
-    except (SceneError, ValueError, FileNotFoundError) as exc:
+    except (SceneError, ArtifactError, ValueError, FileNotFoundError) as exc:
         print(f"bladerub: error: {exc}", file=sys.stderr)
         return 2
 

@@ -70,6 +70,22 @@ class Scene:
         payload = {n: _jsonable(dataclasses.asdict(getattr(self, n))) for n in names}
         return hashlib.sha256(json.dumps(payload, sort_keys=True).encode()).hexdigest()
 
+    def value(self, key: str):
+        """The value named by `key`: "section" (its fields as a dict), "section.field" (one
+        field), or "section~field~field" (the section without those fields)."""
+        if "." in key:
+            section, field = key.split(".", 1)
+            return _jsonable(getattr(getattr(self, section), field))
+        section, *dropped = key.split("~")
+        obj = getattr(self, section)
+        if not dataclasses.is_dataclass(obj):
+            return _jsonable(obj)
+        return {k: v for k, v in _jsonable(dataclasses.asdict(obj)).items() if k not in dropped}
+
+    def key_hash(self, key: str) -> str:
+        """Hash of value(key) (defaults included): what a stage depends on."""
+        return hashlib.sha256(json.dumps(self.value(key), sort_keys=True).encode()).hexdigest()
+
 
 def _jsonable(d):
     if isinstance(d, dict):
@@ -123,6 +139,11 @@ def _coerce(cls: type, section: str, key: str, value, hint):
     return value
 
 
+#: Keys renamed since earlier versions: (section, old) -> new.
+RENAMED = {("hbm", "omega_start"): "omega_min", ("hbm", "omega_end"): "omega_max",
+           ("ti", "omega_start"): "omega_min", ("ti", "omega_end"): "omega_max"}
+
+
 def _build_section(name: str, cls: type, table: dict):
     if not isinstance(table, dict):
         raise SceneError(f"[{name}] must be a table")
@@ -130,6 +151,8 @@ def _build_section(name: str, cls: type, table: dict):
     fields = {f.name for f in dataclasses.fields(cls) if f.init}
     kwargs = {}
     for key, value in table.items():
+        if (name, key) in RENAMED:
+            raise SceneError(f"[{name}] {key} was renamed to {RENAMED[name, key]}")
         if key not in fields:
             raise SceneError(f"unknown key '{key}' in [{name}]{_suggest(key, fields)}; "
                              f"known keys: {', '.join(sorted(fields))}")

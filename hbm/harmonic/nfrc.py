@@ -1,8 +1,9 @@
 """Nonlinear frequency response curve of the rotor blade against the ovalised casing.
 
-`compute_nfrc` follows the omega = Omega branch over [omega_start, omega_end] with the
-arc-length continuation of hbm.continuation.arclength, from a start point at omega_start (see
-`solve_start`), for one contact treatment (DLFT or RL), and returns every point with the
+`compute_nfrc` follows the omega = Omega branch over [omega_min, omega_max] with the
+arc-length continuation of hbm.continuation.arclength, from a start point at the end of the
+range that `HbmOptions.start` names (see hbm.harmonic.start), for one contact treatment
+(DLFT or RL), and returns every point with the
 leading-edge (LE) radial amplitude of Fig. 6: half the peak-to-peak LE radial
 displacement, (max - min) / 2, the convention of the time-integration side.
 """
@@ -85,22 +86,20 @@ class NfrcResult:
 
 
 def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
-    """Continuation settings used by compute_nfrc (u is already ~1: x_scale = 1;
-    omega_scale = 100 rad/s: a unit arc length is 100 rad/s on a flat branch).
+    """Continuation settings used by compute_nfrc, from the scene's [hbm] keys (range, start,
+    max_points, ds_max, tolerance).
 
-    ds_max = 5: with 0.5 the step sat at the cap on ~all points (2911 points, 232 s for
-    RL over [400, 2000] at N_h = 10); with 5 the same branch (same peaks to 4 digits)
-    takes 338 points, Newton still converging in 3-4 iterations. predictor = "quadratic":
-    at N_h = 40 on the coarse rotor 67 ROM, RL 956 -> 865 points, DLFT 513 -> 504, same
-    peaks to 0.05 % (iter_grow = 4 on top sent RL back up from 400 rad/s on another
-    sheet). direction = -1: start
-    at omega_end, where both methods start from the contact-free solution on the rotor 67
-    ROM (at 400 rad/s DLFT starts on a sheet that folds back at 420.8 rad/s, RL not at all).
+    u is already ~1: x_scale = 1; omega_scale = 100 rad/s: a unit arc length is 100 rad/s
+    on a flat branch. predictor = "quadratic": at N_h = 40 on the coarse rotor 67 ROM, RL
+    956 -> 865 points, DLFT 513 -> 504 against the secant, same peaks to 0.05 %
+    (iter_grow = 4 on top sent RL back up from 400 rad/s on another sheet). ds_min = 1e-5:
+    the sharpest turns of the rotor 67 branches pass at ds ~ 1e-4.
     """
-    return ContinuationOptions(omega_min=hbm.omega_start, omega_max=hbm.omega_end, ds=0.05, ds_min=1e-5,
-                               ds_max=5.0, direction=-1, max_points=4000, x_scale=1.0, omega_scale=100.0,
-                               newton=NewtonOptions(tol_residual=1e-8, max_iter=12), iter_grow=3, iter_shrink=6,
-                               closed_loop_tol=1e-3, predictor="quadratic")
+    return ContinuationOptions(omega_min=hbm.omega_min, omega_max=hbm.omega_max, ds=0.05, ds_min=1e-5,
+                               ds_max=hbm.ds_max, direction=-1 if hbm.start == "omega_max" else 1,
+                               max_points=hbm.max_points, x_scale=1.0, omega_scale=100.0,
+                               newton=NewtonOptions(tol_residual=hbm.tolerance, max_iter=12), iter_grow=3,
+                               iter_shrink=6, closed_loop_tol=1e-3, predictor="quadratic")
 
 
 def nfrc_extras(res: HarmonicBalanceResidual, u: np.ndarray) -> dict:
@@ -120,7 +119,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                  continuation: ContinuationOptions | None = None, forcing: HarmonicForcing | None = None,
                  residual: HarmonicBalanceResidual | None = None, solver: LinearSolver | None = None,
                  resume=None, guess: tuple[float, np.ndarray] | None = None) -> NfrcResult:
-    """NFRC over Omega in [hbm.omega_start, hbm.omega_end] for one method.
+    """NFRC over Omega in [hbm.omega_min, hbm.omega_max] for one method.
 
     rom: RomModel (node 0 = LE). casing, contact, hbm: scene options. method: "dlft" | "rl".
     on_point(point, extras): called after each new point, converged or the final failure:

@@ -132,7 +132,7 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
     system = rom if isinstance(rom, ModalSystem) else rom_modal_system(rom)
     check_time_step(system, ti_options.dt)
     if omegas is None:
-        omegas = np.linspace(ti_options.omega_start, ti_options.omega_end, ti_options.n_omega)
+        omegas = np.linspace(ti_options.omega_min, ti_options.omega_max, ti_options.n_omega)
     omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
     if not (omegas > 0).all():
         raise ValueError("rotation speeds must be > 0 rad/s")

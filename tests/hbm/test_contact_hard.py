@@ -28,7 +28,7 @@ def test_grazing_contact_converges_to_the_free_orbit(monkeypatch):
 
 def _short_nfrc(method, contact, nh=10, nt=256):
     rom = standin_rom()
-    hbm = HbmOptions(n_harmonics=nh, n_time=nt, omega_start=400.0, omega_end=410.0)
+    hbm = HbmOptions(n_harmonics=nh, n_time=nt, omega_min=400.0, omega_max=410.0)
     cont = ContinuationOptions(omega_min=400.0, omega_max=410.0, ds=0.02, ds_min=1e-4, ds_max=0.05,
                                omega_scale=100.0, max_points=40, newton=NewtonOptions(tol_residual=1e-8))
     casing = CasingOptions(penetration=2e-5)

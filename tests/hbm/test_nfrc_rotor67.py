@@ -16,7 +16,7 @@ from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from support import distance_to_polyline
 
 ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
-HBM = HbmOptions(n_harmonics=5, n_time=64, omega_start=400.0, omega_end=500.0)
+HBM = HbmOptions(n_harmonics=5, n_time=64, omega_min=400.0, omega_max=500.0)
 CONT = replace(default_continuation(HBM), direction=1, ds=0.02, ds_max=0.05, max_points=25)  # from 400 rad/s
 
 
@@ -97,8 +97,8 @@ def test_le_amplitude_is_half_peak_to_peak(rom):
 # guess, padded with zero harmonics to N_h = 10. The 1290-1400 window holds the peak of the
 # primary resonance at N_h = 10 (RL ~1.73 mm at ~1311 rad/s, DLFT ~1.58 mm at ~1326 rad/s,
 # the same values as the whole NFRC continued from 2000 rad/s at N_h = 10).
-LOW = HbmOptions(n_harmonics=5, n_time=64, omega_start=1400.0, omega_end=2000.0)
-PEAK = HbmOptions(n_harmonics=10, n_time=256, omega_start=1290.0, omega_end=1400.0)
+LOW = HbmOptions(n_harmonics=5, n_time=64, omega_min=1400.0, omega_max=2000.0)
+PEAK = HbmOptions(n_harmonics=10, n_time=256, omega_min=1290.0, omega_max=1400.0)
 
 
 def _peak_branch(rom, method):

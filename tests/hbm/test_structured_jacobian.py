@@ -153,7 +153,7 @@ def test_nfrc_window_same_with_dense_and_structured_jacobians(method):
     tolerance (1e-8 on the scaled residual) leaves; the curves agree to the sag of the
     chords between points (0.1 % of a step at ds_max = 0.5)."""
     rom = load_rom(ROM_PATH)
-    hbm = HbmOptions(n_harmonics=5, n_time=64, omega_start=1900.0, omega_end=2000.0)
+    hbm = HbmOptions(n_harmonics=5, n_time=64, omega_min=1900.0, omega_max=2000.0)
     cont = dataclasses.replace(default_continuation(hbm), max_points=40, ds_max=0.5)  # small chords: small sag
     out = {}
     for structured in (False, True):

@@ -114,8 +114,8 @@ def _hbm_scene(scene, out, name):
     text = scene.read_text()
     start = text.index("[hbm]")
     end = text.index("[ti]")
-    hbm = ('[hbm]\nmethods = ["dlft"]\nn_harmonics = 5\nn_time = 64\nomega_start = 1900.0\n'
-           'omega_end = 2000.0\n\n')
+    hbm = ('[hbm]\nmethods = ["dlft"]\nn_harmonics = 5\nn_time = 64\nomega_min = 1900.0\n'
+           'omega_max = 2000.0\n\n')
     path = out / name
     path.write_text(text[:start] + hbm + text[end:])
     return path

@@ -1,0 +1,88 @@
+"""What a stage is: the scene keys and artifacts it depends on, what it writes, how.
+
+A stage reads its upstream stages' artifacts (files, never objects in memory) and writes
+its own. Each output has an inputs hash: the hash of exactly the scene values, input
+files and upstream artifacts it depends on. An output whose file carries the same hash is
+current and is not recomputed. Figures are outputs too, drawn from artifacts only: a
+missing or outdated figure is redrawn without recomputing anything.
+"""
+from __future__ import annotations
+
+import json
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+
+@dataclass(frozen=True)
+class Output:
+    """One artifact of a stage. file: its name in the output folder. key: what tells it
+    apart from the stage's other outputs (e.g. the contact treatment), part of its hash.
+    depends: scene keys this output depends on beyond its stage's."""
+
+    file: str
+    key: str = ""
+    depends: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Figure:
+    """Figures drawn from artifacts.
+
+    name: its entry in figures/manifest.json. files(scene): PNG names under figures/.
+    depends: scene keys ("section" or "section.key") that change the picture.
+    inputs(scene): artifact file names it reads; those that exist enter its hash.
+    draw(ctx): draws them.
+    """
+
+    name: str
+    files: Callable[[object], tuple[str, ...]]
+    depends: tuple[str, ...]
+    inputs: Callable[[object], tuple[str, ...]]
+    draw: Callable[["Context"], None]
+
+
+@dataclass(frozen=True)
+class Stage:
+    """name. depends: scene keys ("section" or "section.key") its results depend on.
+    upstream: stages whose artifacts it reads. outputs(scene): its Outputs.
+    compute(ctx, outputs): computes and writes the given (not current) outputs.
+    files(scene): input files that enter the hash by content, {label: path}.
+    figures: the Figures drawn from its artifacts."""
+
+    name: str
+    depends: tuple[str, ...]
+    upstream: tuple[str, ...]
+    outputs: Callable[[object], tuple[Output, ...]]
+    compute: Callable[["Context", tuple[Output, ...]], None]
+    files: Callable[[object], dict] = lambda scene: {}
+    figures: tuple[Figure, ...] = ()
+
+
+@dataclass
+class Context:
+    """What a stage's functions get. scene; out: the output folder; progress: the run's
+    pipelines.progress.Progress; hashes: {file: inputs hash} and inputs: {file: {component:
+    hash}} of the outputs being written (what write_artifact records)."""
+
+    scene: object
+    out: Path
+    progress: object
+    hashes: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)
+
+    def provenance(self, output: Output, stage: str) -> dict:
+        """Keyword arguments of write_artifact for `output` (stage, scene text, hashes)."""
+        return {"stage": stage, "scene_text": self.scene.text, "inputs_hash": self.hashes[output.file],
+                "extra_attrs": {"inputs": json.dumps(self.inputs[output.file], sort_keys=True)}}
+
+    def attrs(self, output: Output, stage: str) -> dict:
+        """Root attributes of a branch file (pipelines.branch_store) for `output`."""
+        from pipelines import artifacts as art
+
+        return {"stage": stage, "units": art.UNITS_SI, "scene": self.scene.text,
+                "inputs_hash": self.hashes[output.file], "code_version": art.code_version(),
+                "inputs": json.dumps(self.inputs[output.file], sort_keys=True)}
+
+    def log(self, text: str) -> None:
+        self.progress.log(text)

@@ -1,0 +1,68 @@
+"""Stage fem: dolfinx P2 elasticity, K and M, full-model modes and the Craig-Bampton
+ingredients from one factorisation of K (fem.h5); the mode-shape pictures."""
+from __future__ import annotations
+
+import dataclasses
+
+from pipelines import artifacts as art
+from pipelines.stages.base import Context, Figure, Output, Stage
+from pipelines.stages.mesh import MESH, read_mesh
+
+FEM = Output("fem.h5")
+
+
+def read_fem(out):
+    """The FemResult of an output folder."""
+    from fem.analysis import FemResult
+
+    return art.read_artifact(out / FEM.file, FemResult)
+
+
+def _options(scene):
+    """The FEM stage also computes the ROM's fixed-interface modes from its factorisation of K."""
+    n = max(scene.fem.n_fixed_interface_modes, scene.rom.n_fixed_modes)
+    return dataclasses.replace(scene.fem, n_fixed_interface_modes=n)
+
+
+def _compute(ctx: Context, outputs) -> None:
+    from fem.analysis import analyse_blade
+
+    mesh = read_mesh(ctx.out)
+    timings: dict = {}
+    with ctx.progress.step("fem", None) as update:
+        update("assembly, Cholesky factorisation, modes, interface basis")
+        result = analyse_blade(mesh, ctx.scene.material, _options(ctx.scene), timings=timings)
+    prov = ctx.provenance(FEM, "fem")
+    prov["extra_attrs"].update({f"time_{k}_s": v for k, v in timings.items()})
+    art.write_artifact(ctx.out / FEM.file, result, **prov)
+    ctx.log(f"  {result.K.shape[0]} free dof; " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
+    ctx.log("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
+
+
+def mode_files(scene) -> tuple[str, ...]:
+    return tuple(f"mode_{j + 1:02d}.png" for j in range(scene.render.n_modes))
+
+
+def render_modes(ctx: Context, n_modes: int | None = None) -> list:
+    """Render the first mode shapes of fem.h5 off-screen (in a child process, see
+    pipelines.render.render_artifacts)."""
+    from pipelines.render import render_artifacts
+
+    scene = ctx.scene
+    n = scene.render.n_modes if n_modes is None else n_modes
+    if n == 0:
+        return []
+    with ctx.progress.step("render", None) as update:
+        update(f"{n} mode shapes, off-screen")
+        paths = render_artifacts(ctx.out / MESH.file, ctx.out / FEM.file, ctx.out / "figures", n_modes=n,
+                                 scale=scene.render.scale, window=tuple(scene.render.window),
+                                 title_prefix=f"{scene.name}: ")
+    ctx.log(f"  rendered {len(paths)} mode shapes -> {ctx.out / 'figures'}")
+    return paths
+
+
+MODES = Figure("modes", files=mode_files, depends=("render", "name"), inputs=lambda s: (MESH.file, FEM.file),
+               draw=render_modes)
+
+STAGE = Stage("fem", depends=("material", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
+              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES,))

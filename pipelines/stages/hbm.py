@@ -1,0 +1,111 @@
+"""Stage hbm: one NFRC per contact treatment (nfrc_dlft.h5, nfrc_rl.h5), each its own
+output: a finished treatment is never recomputed because another one changed or failed.
+
+Points are appended to NAME.partial.h5 as they are computed (pipelines.branch_store); an
+interrupted run of the same inputs resumes from them.
+"""
+from __future__ import annotations
+
+import time
+
+from pipelines import artifacts as art
+from pipelines.stages.base import Context, Figure, Output, Stage
+from pipelines.stages.rom import read_rom
+
+#: Units of the per-point extras that compute_nfrc hands over (hbm.harmonic.nfrc.nfrc_extras).
+EXTRA_UNITS = {"le_amplitude": "m", "le_max": "m", "harmonics": "m"}
+
+
+#: The contact keys each treatment reads beyond the common ones (mu, and epsilon, which RL's
+#: start strategy uses too: it starts from the DLFT solution when its own Newton fails).
+_TREATMENT_KEYS = {"dlft": (), "rl": ("contact.kappa", "contact.gamma", "contact.lanczos")}
+
+
+def nfrc_output(method: str) -> Output:
+    return Output(f"nfrc_{method}.h5", key=method, depends=_TREATMENT_KEYS[method])
+
+
+def _outputs(scene) -> tuple[Output, ...]:
+    return tuple(nfrc_output(m) for m in scene.hbm.methods)
+
+
+def _compute(ctx: Context, outputs) -> None:
+    rom = read_rom(ctx.out)
+    for output in outputs:
+        _run_method(ctx, rom, output)
+
+
+def _run_method(ctx: Context, rom, output: Output) -> None:
+    from hbm.harmonic.nfrc import compute_nfrc
+    from pipelines.branch_store import BranchStore, load_branch, partial_path
+
+    scene, method = ctx.scene, output.key
+    final = ctx.out / output.file
+    part = partial_path(final)
+    attrs = {**ctx.attrs(output, "hbm"), "method": method}
+    resume, store = None, None
+    if part.is_file() and art.read_attrs(part).get("inputs_hash") == ctx.hashes[output.file]:
+        # an interrupted run of exactly these inputs: keep its points and go on from them
+        resume = load_branch(part, allow_partial=True)
+        store = BranchStore.reopen(part)
+        ctx.log(f"  {method}: resuming from {store.n_points} points on disk")
+    t0 = time.perf_counter()
+    with ctx.progress.step(f"hbm {method}", None) as update:
+        def on_point(point, extras):
+            nonlocal store
+            if store is None:
+                store = BranchStore.create(final, len(point.x), attrs=attrs, units=EXTRA_UNITS)
+            store.append(point, extras)
+            update(f"\u03a9 = {point.omega:.1f} rad/s, {point.index + 1} points, ds = {point.step:.3g}")
+
+        try:
+            result = compute_nfrc(rom, scene.casing, scene.contact, scene.hbm, method=method, on_point=on_point,
+                                  resume=resume)
+        finally:
+            if store is not None:
+                store.close()
+    if store is None:  # not even a start point: still record why, in a complete file
+        BranchStore.create(final, result.unknowns.shape[-1] if result.unknowns.ndim == 2 else 0,
+                           attrs=attrs, units=EXTRA_UNITS).close()
+    BranchStore.reopen(part).finalize(result.status)
+    ok = int(result.converged.sum())
+    ctx.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
+            f"status: {result.status}")
+
+
+def _nfrc_inputs(scene) -> tuple[str, ...]:
+    return tuple(o.file for o in _outputs(scene)) + ("ti.h5",)
+
+
+def draw_nfrc(ctx: Context) -> None:
+    """The NFRC figure (the paper's Fig. 6): every treatment's curve, and the time-integration
+    sweep's points by periodicity class when ti.h5 exists."""
+    import h5py
+
+    from pipelines.branch_store import load_branch
+    from pipelines.figures import plot_nfrc
+
+    scene, out = ctx.scene, ctx.out
+    curves = {}
+    for o in _outputs(scene):
+        if (out / o.file).is_file():
+            stored = load_branch(out / o.file)
+            curves[f"{o.key.upper()}-HBM"] = (stored.branch.omega, stored.extras["le_amplitude"],
+                                             stored.branch.converged)
+    ti = None
+    if (out / "ti.h5").is_file():
+        with h5py.File(out / "ti.h5", "r") as h5:
+            g = h5["sweep"]
+            ti = (g["omega"][()], g["amplitude"][()], g["period_class"][()])
+    if curves or ti is not None:
+        plot_nfrc(curves, out / "figures" / "nfrc.png", ti_points=ti,
+                  omega_range=(scene.hbm.omega_min, scene.hbm.omega_max))
+
+
+NFRC_FIGURE = Figure("nfrc", files=lambda scene: ("nfrc.png",), depends=("hbm.omega_min", "hbm.omega_max"),
+                     inputs=_nfrc_inputs, draw=draw_nfrc)
+
+# hbm~methods: adding or removing a treatment leaves the other's NFRC current
+STAGE = Stage("hbm", depends=("casing", "contact.mu", "contact.epsilon", "hbm~methods"), upstream=("rom",),
+              outputs=_outputs,
+              compute=_compute, figures=(NFRC_FIGURE,))

@@ -1,0 +1,37 @@
+"""Stage rom: Craig-Bampton reduction on the contact nodes (rom.h5)."""
+from __future__ import annotations
+
+import numpy as np
+
+from pipelines import artifacts as art
+from pipelines.stages.base import Context, Output, Stage
+from pipelines.stages.fem import read_fem
+from pipelines.stages.mesh import read_mesh
+
+ROM = Output("rom.h5")
+
+
+def read_rom(out, with_recovery: bool = False):
+    """The RomModel of an output folder (rom.model.load_rom: refuses a file with a missing
+    field; the large recovery matrix only when asked)."""
+    from rom.model import load_rom
+
+    path = out / ROM.file
+    if not path.is_file():
+        raise art.ArtifactError(f"artifact not found: {path}")
+    return load_rom(path, with_recovery=with_recovery)
+
+
+def _compute(ctx: Context, outputs) -> None:
+    from rom.craig_bampton import build_craig_bampton
+
+    rom = build_craig_bampton(read_fem(ctx.out), read_mesh(ctx.out), ctx.scene.rom)
+    art.write_artifact(ctx.out / ROM.file, rom, **ctx.provenance(ROM, "rom"))
+    k = min(6, len(rom.full_frequencies))
+    err = (rom.frequencies[:k] - rom.full_frequencies[:k]) / rom.full_frequencies[:k]
+    ctx.log(f"  {rom.n_dof} dof ({3 * rom.n_boundary} boundary + {rom.n_dof - 3 * rom.n_boundary} modal)")
+    ctx.log("  ROM frequencies, Hz:  " + " ".join(f"{f:.2f}" for f in rom.frequencies[:k] / (2 * np.pi)))
+    ctx.log("  error vs full model:  " + " ".join(f"{100 * e:+.3f}%" for e in err))
+
+
+STAGE = Stage("rom", depends=("rom",), upstream=("fem", "mesh"), outputs=lambda scene: (ROM,), compute=_compute)
