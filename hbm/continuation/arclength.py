@@ -45,8 +45,15 @@ class ContinuationOptions:
     newton: convergence rule of every correction (shared with `newton_solve`).
     iter_grow: ds *= grow after a correction of at most this many iterations;
     iter_shrink: ds *= shrink after one of more than this many; failure: ds *= shrink.
-    max_turn_deg: a corrected point whose secant turns more than this from the predictor
-      is refused (it went back along the branch or jumped to another one) and ds shrinks.
+    max_turn_deg: a corrected point whose secant turns more than this from the previous
+      secant is refused and ds shrinks: a large turn at a large step is how a corrector
+      lands on another stretch of the branch (through a cluster of close folds) or goes
+      back along it. At the step floor ds_min a turn up to 90 deg is accepted (a genuinely
+      sharp corner of the branch, e.g. at a contact onset with the stiff penalty law, turns
+      by tens of degrees even at ds ~ 1e-5, where no other stretch is that close); a turn
+      beyond 90 deg there ends the branch.
+    turn_shrink_deg: a point whose secant turns more than this is kept but the next step
+      shrinks instead of growing: the branch curves too much for the current step.
     closed_loop_tol: d_min of eq. (27); None disables the test. The test is armed only
       once some point x_j has been farther than d_min from the start in the same metric,
       ||x_j - x_0|| / ||x_j|| > d_min: "back within d_min" presupposes having left, and
@@ -74,7 +81,8 @@ class ContinuationOptions:
     iter_shrink: int = 7
     grow: float = 1.5
     shrink: float = 0.5
-    max_turn_deg: float = 90.0
+    max_turn_deg: float = 45.0
+    turn_shrink_deg: float = 30.0
     closed_loop_tol: float | None = 1e-2
     land_on_bounds: bool = True
     predictor: str = "secant"
@@ -96,13 +104,16 @@ class ContinuationOptions:
             raise ValueError(f"predictor must be 'secant' or 'quadratic', got {self.predictor!r}")
         if not 0 < self.max_turn_deg <= 180:
             raise ValueError(f"max_turn_deg must be in (0, 180], got {self.max_turn_deg}")
+        if not 0 < self.turn_shrink_deg <= 180:
+            raise ValueError(f"turn_shrink_deg must be in (0, 180], got {self.turn_shrink_deg}")
 
-    def next_step(self, ds: float, iterations: int) -> float:
-        """Step after a correction that converged in `iterations` with step `ds`."""
-        if iterations <= self.iter_grow:
-            ds *= self.grow
-        elif iterations > self.iter_shrink:
+    def next_step(self, ds: float, iterations: int, turn_deg: float = 0.0) -> float:
+        """Step after a correction that converged in `iterations` with step `ds` and turned
+        the secant by `turn_deg`."""
+        if iterations > self.iter_shrink or turn_deg > self.turn_shrink_deg:
             ds *= self.shrink
+        elif iterations <= self.iter_grow:
+            ds *= self.grow
         return min(max(ds, self.ds_min), self.ds_max)
 
 
@@ -185,6 +196,16 @@ def _resumed_points(resume) -> list[ContinuationPoint]:
                               float(old.time[i])) for i in range(m)]
 
 
+def _turn(points, sc: _Scaling) -> float:
+    """Angle between the last two secants of a branch, deg (0 with fewer than 3 points)."""
+    if len(points) < 3:
+        return 0.0
+    p2, p1, p0 = points[-3], points[-2], points[-1]
+    a = np.append(*sc.unit(p1.x - p2.x, p1.omega - p2.omega))
+    b = np.append(*sc.unit(p0.x - p1.x, p0.omega - p1.omega))
+    return math.degrees(math.acos(max(-1.0, min(1.0, float(a @ b)))))
+
+
 def _prediction(points, ds, tx, tw, sc: _Scaling, quadratic: bool):
     """Predicted (x, omega) ds beyond the last point: along the unit secant (tx, tw), or on
     the parabola through the last three points in their arc length (Lagrange weights)."""
@@ -237,7 +258,7 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
     if resume is not None:
         points = _resumed_points(resume)
         n = points[0].x.size
-        ds = opt.next_step(points[-1].step, points[-1].iterations) if len(points) >= 2 else opt.ds
+        ds = None  # rebuilt below from the last points, as the uninterrupted run set it
     else:
         x0 = np.array(x0, dtype=float).reshape(-1)
         n = x0.size
@@ -253,6 +274,10 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return Branch.from_points(points, n, status, detail)
 
     sc = _Scaling(np.broadcast_to(np.asarray(opt.x_scale, dtype=float), (n,)), float(opt.omega_scale))
+    if ds is None:
+        ds = opt.ds
+        if len(points) >= 2:
+            ds = opt.next_step(points[-1].step, points[-1].iterations, _turn(points, sc))
     ref_x, ref_w = points[0].x, points[0].omega
     d_min = opt.closed_loop_tol
 
@@ -260,7 +285,6 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
 
     armed = any(far(p.x) for p in points)
-    cos_max_turn = math.cos(math.radians(opt.max_turn_deg))
 
     while True:
         if len(points) >= opt.max_points:
@@ -276,15 +300,16 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             xp, wp = _prediction(points, ds, tx, tw, sc, opt.predictor == "quadratic")
             c = _correct(residual, xp, wp, last.x, last.omega, ds, sc, opt.newton, solver)
             cx, cw = c.x[:n], float(c.x[n])
+            floor = ds * opt.shrink < opt.ds_min
             if c.converged:
                 d = sc.dist(cx, cw, last.x, last.omega)
                 cos = (float(((cx - last.x) / sc.sx) @ tx) + (cw - last.omega) / sc.sw * tw) / max(d, 1e-300)
-                if d > 0 and cos >= cos_max_turn:
+                turn = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+                if d > 0 and (turn <= opt.max_turn_deg or (floor and turn <= 90.0)):
                     break
-                c = c._replace(converged=False,
-                               reason=f"correction turned {math.degrees(math.acos(max(-1.0, min(1.0, cos)))):.0f} deg "
-                                      f"from the predictor near omega={cw:.6g}")
-            if ds * opt.shrink < opt.ds_min:
+                c = c._replace(converged=False, reason=f"correction turned {turn:.0f} deg from the previous "
+                                                       f"secant near omega={cw:.6g}")
+            if floor:
                 emit(cx, cw, False, c.residual_norm, c.iterations, ds, t0)
                 return done(f"{STATUS_STEP_FLOOR}: {c.reason} (ds={ds:.3g}, ds_min={opt.ds_min:.3g})")
             ds *= opt.shrink
@@ -311,4 +336,4 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             if d_int < d_min:
                 return done(STATUS_CLOSED_LOOP, f"d_int={d_int:.3e} < {d_min:.3e} "
                                                 f"between points {last.index} and {last.index + 1}")
-        ds = opt.next_step(step, it)
+        ds = opt.next_step(step, it, turn)

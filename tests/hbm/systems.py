@@ -134,3 +134,44 @@ class Helix:
         R = np.array([u * u + v * v - self.r ** 2, u * s - v * co])
         J = np.array([[2 * u, 0.0], [s, (u * co + v * s) / self.h]])
         return R, J, np.array([2 * v, -co])
+
+
+class Vee:
+    """omega = w0 + a sqrt(x1^2 + eps^2), x2 = 0: a corner at x1 = 0 where the branch turns by
+    180 - 2 atan(1 / a) deg (a = 0.5: 53 deg, a = 5: 157 deg), rounded over |x1| ~ eps."""
+
+    def __init__(self, w0=1.0, a=0.5, eps=1e-7):
+        self.w0, self.a, self.eps = w0, a, eps
+
+    def turn_deg(self) -> float:
+        return 180.0 - 2.0 * np.degrees(np.arctan(1.0 / self.a))
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        r = np.hypot(x1, self.eps)
+        return (np.array([w - self.w0 - self.a * r, x2]), np.array([[-self.a * x1 / r, 0.0], [0.0, 1.0]]),
+                np.array([1.0, 0.0]))
+
+
+class ZigZag:
+    """A branch folding back and forth many times over a narrow omega band, as RL-HBM's does
+    over 420-432 rad/s on rotor 67: omega = w0 + h sin(kappa x1), x2 = 0, a fold every
+    pi / kappa in x1. With h kappa >> 1 the stretches between folds run nearly parallel to
+    the omega axis, pi / kappa apart: a step longer than that can land on a later stretch
+    and skip the folds in between."""
+
+    def __init__(self, w0=1.0, h=0.05, kappa=12.0):
+        self.w0, self.h, self.kappa = w0, h, kappa
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        ph = self.kappa * x1
+        return (np.array([w - self.w0 - self.h * np.sin(ph), x2]),
+                np.array([[-self.h * self.kappa * np.cos(ph), 0.0], [0.0, 1.0]]), np.array([1.0, 0.0]))
+
+    def extrema_between(self, a: float, b: float) -> int:
+        """Number of folds (crests and troughs, kappa x1 = pi/2 + j pi) with a < x1 < b."""
+        lo, hi = sorted((a, b))
+        j = np.arange(np.floor((self.kappa * lo - np.pi / 2) / np.pi) - 1, np.ceil((self.kappa * hi) / np.pi) + 2)
+        xs = (np.pi / 2 + j * np.pi) / self.kappa
+        return int(np.sum((xs > lo) & (xs < hi)))

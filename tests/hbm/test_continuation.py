@@ -10,7 +10,7 @@ from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STAT
                                      STATUS_START_FAILED, STATUS_STEP_FLOOR)
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.linalg.dense import DirectSolver
-from systems import Circle, Duffing1, Helix, Wall, Wave
+from systems import Circle, Duffing1, Helix, Vee, Wall, Wave, ZigZag
 
 TOL = 1e-10  # residual tolerance of every run here
 DS_MAX = 0.05
@@ -176,7 +176,7 @@ def test_fold_next_to_the_start_is_not_a_loop():
 def test_turn_limit_is_enforced():
     # On the circle of radius 0.5 a step ds turns the chord by ~ds / 0.5 rad (5.7 deg at ds_max):
     # with max_turn_deg = 2 the steps must shrink until each chord turns by <= 2 deg from the
-    # secant predictor; with a floor that forbids it, the branch ends saying why.
+    # previous secant.
     c, x0 = Circle(), np.array([2.5, 1.5625])
     b = continue_branch(c, x0, 1.5, opts(0.0, 5.0, max_turn_deg=2.0, ds_min=1e-4, max_points=60))
     assert b.status == STATUS_MAX_POINTS
@@ -184,8 +184,47 @@ def test_turn_limit_is_enforced():
     d /= np.linalg.norm(d, axis=1)[:, None]
     turn = np.degrees(np.arccos(np.clip(np.sum(d[1:] * d[:-1], axis=1), -1, 1)))
     assert turn.max() <= 2.0 + 1e-9 and turn.max() > 1.0  # bounded, and the bound was active
-    b = continue_branch(c, x0, 1.5, opts(0.0, 5.0, max_turn_deg=2.0, ds=0.05, ds_min=0.03))
-    assert b.status.startswith(STATUS_STEP_FLOOR) and "turned" in b.status
+
+
+@pytest.mark.parametrize("a, passes", [(0.5, True), (5.0, False)])
+def test_sharp_corner_at_the_step_floor(a, passes):
+    # A corner of the branch (Vee, rounded over 1e-7) turns it by 53 deg (a = 0.5) or 157 deg
+    # (a = 5) whatever the step: above max_turn_deg = 45 at any ds. At the step floor a turn up
+    # to 90 deg is a genuine corner and is passed; beyond it no correction can both converge
+    # and go on forwards (the sphere meets the branch only behind the corner or on an arm that
+    # turns back by 157 deg), and the branch ends there, saying why, with no wrong point.
+    v = Vee(a=a)
+    assert (v.turn_deg() < 90.0) == passes
+    b = continue_branch(v, np.array([-0.5, 0.0]), 1.0 + 0.5 * a,
+                        opts(0.0, 5.0, ds_min=1e-3, max_points=400, direction=-1))  # towards the corner
+    ok = b.converged
+    np.testing.assert_allclose(b.omega[ok], 1.0 + a * np.hypot(b.x[ok, 0], 1e-7), atol=TOL)  # on the branch
+    if passes:
+        assert b.x[:, 0].max() > 0.1 and np.all(np.diff(b.x[ok, 0]) > 0)  # through the corner, forwards
+    else:
+        assert b.status.startswith(STATUS_STEP_FLOOR)
+        assert abs(b.x[ok][-1, 0]) < 0.01 and np.all(np.diff(b.x[ok, 0]) > 0)  # it ended at the corner
+
+
+def test_zigzag_branch_traverses_every_fold():
+    # ZigZag folds every pi / kappa = 0.26 in x1 between stretches ~0.26 apart, a cluster like
+    # RL-HBM's over 420-432 rad/s on rotor 67. With ds_max = 1 a step can reach a later stretch.
+    # The turn control (refuse > 45 deg, shrink the next step after > 30 deg) keeps the run on
+    # its own stretch: every fold in the x1 span covered shows up as a reversal of omega.
+    z = ZigZag(h=0.05, kappa=12.0)
+
+    def run(**kw):
+        o = opts(0.0, 5.0, ds=0.05, ds_max=1.0, ds_min=1e-4, max_points=300, closed_loop_tol=None, **kw)
+        b = continue_branch(z, np.zeros(2), 1.0, o)
+        assert b.status == STATUS_MAX_POINTS and b.converged.all()
+        folds = int(np.sum(np.diff(np.sign(np.diff(b.omega))) != 0))
+        return folds, z.extrema_between(b.x[0, 0], b.x[-1, 0])
+
+    folds, expected = run()
+    assert folds == expected >= 40
+    # the control matters: with only the old 90 deg refusal the run skips most folds
+    folds, expected = run(max_turn_deg=90.0, turn_shrink_deg=180.0)
+    assert folds < 0.2 * expected
 
 
 # ---------------------------------------------------------------- failures
