@@ -36,11 +36,11 @@ def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0) -> RomMod
                     frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios)
 
 
-# The shared data folder beside the repository (CI clones main with ../shared beside it).
-import os as _os
+# The shared data folder beside the repository (CI clones main with ../shared beside it):
+# the one way tests find it.
 from pathlib import Path as _Path
 
-SHARED = _Path(_os.environ.get("BLADERUB_SHARED", _Path(__file__).resolve().parents[2] / "shared"))
+SHARED = _Path(__file__).resolve().parents[2] / "shared"
 
 
 def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
@@ -50,3 +50,18 @@ def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:
     rel = points[:, None] - poly[None, :-1]
     t = np.clip(np.einsum("ksn,sn->ks", rel, seg) / np.einsum("sn,sn->s", seg, seg), 0.0, 1.0)
     return np.linalg.norm(rel - t[..., None] * seg[None], axis=2).min(axis=1)
+
+
+def coarse_text() -> str:
+    """The coarse rotor 67 scene's text with the shared data folder made absolute and two
+    mode pictures instead of six."""
+    text = (_Path(__file__).resolve().parents[1] / "scenes" / "rotor67_coarse.toml").read_text()
+    return text.replace("../../shared", str(SHARED)).replace("n_modes = 6", "n_modes = 2")
+
+
+def fresh_copy(src, dst):
+    """A private copy of an output folder (artifacts and figures), for a test that changes it."""
+    import shutil
+
+    shutil.copytree(src, dst, dirs_exist_ok=True)
+    return _Path(dst)

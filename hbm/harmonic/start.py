@@ -25,54 +25,43 @@ def damped_newton(res, u0: np.ndarray, omega: float, opts: NewtonOptions, solver
     return newton_solve(res, u0, omega, replace(opts, line_search=True, max_iter=max_iter), solver=solver)
 
 
-def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions,
-                solver: LinearSolver) -> tuple[np.ndarray, str]:
-    """Start point at omega, tried in order until one converges:
+def penalty_homotopy(res: HarmonicBalanceResidual, u_soft: np.ndarray, omega: float, opts: ContinuationOptions,
+                     solver: LinearSolver, kappa_start: float) -> tuple[np.ndarray | None, str]:
+    """RL's solution at the scene's kappa, followed from a solution u_soft of the softer
+    penalty kappa_start by an arc length in q = log10 kappa (the RL solution can fold in
+    kappa: it does at Omega = 400 rad/s on the rotor 67 ROM). Returns (u, note), u None
+    when the homotopy does not reach the scene's kappa."""
+    c = res.contact
+    rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.model.forcing,
+                        alpha=res.alpha, friction=res.friction, distance=res._distance)
+    lo, hi = np.log10(min(kappa_start, c.kappa)), np.log10(c.kappa)
+    if not hi > lo:
+        return u_soft, "no kappa homotopy needed"
 
-    1. damped Newton from the contact-free solution;
-    2. (RL only) the DLFT solution at omega (same N_h, N_t, epsilon of the scene; DLFT
-       starts easily because its Jacobian outside contact is Z_r and inside it is
-       epsilon-regular), then a penalty homotopy kappa = epsilon -> kappa of the scene: the
-       stiff kappa = 1e9 law is out of Newton's reach from far away but close to the
-       softer solutions; an arc length in log10 kappa, as the RL solution can fold in
-       kappa (it does at Omega = 400 rad/s on the rotor 67 ROM);
-    3. an arc-length homotopy from a round casing (obstacle scale s = 0) to the real one.
-    Returns (u, note); u is the best available guess (continue_branch corrects it again
-    and records a failure with its reason if it is no solution).
-    """
-    u_lin = res.linear_solution(omega)
-    sol = damped_newton(res, u_lin, omega, opts.newton, solver)
-    if sol.converged:
-        return sol.x, "damped Newton from the contact-free solution"
-    if res.method == "rl":
-        c = res.contact
-        dl = build_residual(res.rom, res.casing, c, res.options, method="dlft", forcing=res.model.forcing,
-                            alpha=res.alpha, friction=res.friction, distance=res._distance)
-        sd = damped_newton(dl, u_lin, omega, opts.newton, solver)
-        if sd.converged:
-            rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.model.forcing,
-                                alpha=res.alpha, friction=res.friction, distance=res._distance)
-            lo, hi = np.log10(min(c.epsilon, c.kappa)), np.log10(c.kappa)
+    def penalty(u, q, jacobian=True):  # q = log10 kappa; dR/dq by central difference
+        rk.contact = replace(c, kappa=float(10.0 ** q))
+        R, J, _ = rk(u, omega)
+        h = 1e-5
+        rk.contact = replace(c, kappa=float(10.0 ** (q + h)))
+        Rp = rk(u, omega, jacobian=False)
+        rk.contact = replace(c, kappa=float(10.0 ** (q - h)))
+        Rm = rk(u, omega, jacobian=False)
+        return R, J, (Rp - Rm) / (2 * h)
 
-            def penalty(u, q, jacobian=True):  # q = log10 kappa; dR/dq by central difference
-                rk.contact = replace(c, kappa=float(10.0 ** q))
-                R, J, _ = rk(u, omega)
-                h = 1e-5
-                rk.contact = replace(c, kappa=float(10.0 ** (q + h)))
-                Rp = rk(u, omega, jacobian=False)
-                rk.contact = replace(c, kappa=float(10.0 ** (q - h)))
-                Rm = rk(u, omega, jacobian=False)
-                return R, J, (Rp - Rm) / (2 * h)
+    kopt = replace(opts, omega_min=lo, omega_max=hi, omega_scale=0.5, ds=0.05, ds_max=0.5,
+                   closed_loop_tol=None, direction=1, max_points=300)
+    br = continue_branch(penalty, u_soft, lo, kopt, solver=solver)
+    if br.converged[-1] and abs(br.omega[-1] - hi) < 1e-9:
+        return br.x[-1], f"kappa homotopy ({len(br)} points)"
+    return None, f"kappa homotopy: {br.status}"
 
-            if hi > lo:
-                kopt = replace(opts, omega_min=lo, omega_max=hi, omega_scale=0.5, ds=0.05, ds_max=0.5,
-                               closed_loop_tol=None, direction=1, max_points=300)
-                br = continue_branch(penalty, sd.x, lo, kopt, solver=solver)
-                if br.converged[-1] and abs(br.omega[-1] - hi) < 1e-9:
-                    return br.x[-1], f"DLFT solution then kappa homotopy ({len(br)} points)"
-            else:
-                return sd.x, "DLFT solution"
 
+def obstacle_homotopy(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions,
+                      solver: LinearSolver) -> tuple[np.ndarray, str]:
+    """An arc length in the obstacle scale s (hbm.harmonic.residual set_obstacle_scale) from
+    a round casing at the clearance (s = 0: the contact-free solution solves it) to the real
+    casing (s = 1). Returns (u, note): u the last point, a solution only if the note says
+    the homotopy reached s = 1 ("reached omega_max")."""
     def homotopy(u, s, jacobian=True):
         res.set_obstacle_scale(s)
         try:
@@ -88,8 +77,37 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
 
     hopt = replace(opts, omega_min=0.0, omega_max=1.0, omega_scale=0.2, ds=0.05, ds_max=0.5,
                    closed_loop_tol=None, direction=1, max_points=200)
-    br = continue_branch(homotopy, u_lin, 0.0, hopt, solver=solver)
+    br = continue_branch(homotopy, res.linear_solution(omega), 0.0, hopt, solver=solver)
     return br.x[-1], f"obstacle homotopy: {br.status} ({len(br)} points)"
+
+
+def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions,
+                solver: LinearSolver) -> tuple[np.ndarray, str]:
+    """Start point at omega, tried in order until one converges:
+
+    1. damped Newton from the contact-free solution;
+    2. (RL only) the DLFT solution at omega (same N_h, N_t, epsilon of the scene; DLFT
+       starts easily because its Jacobian outside contact is Z_r and inside it is
+       epsilon-regular), then penalty_homotopy from kappa = epsilon to the scene's kappa:
+       the stiff kappa = 1e9 law is out of Newton's reach from far away but close to the
+       softer solutions;
+    3. obstacle_homotopy from a round casing to the real one.
+    Returns (u, note); u is the best available guess (continue_branch corrects it again
+    and records a failure with its reason if it is no solution).
+    """
+    u_lin = res.linear_solution(omega)
+    sol = damped_newton(res, u_lin, omega, opts.newton, solver)
+    if sol.converged:
+        return sol.x, "damped Newton from the contact-free solution"
+    if res.method == "rl":
+        dl = build_residual(res.rom, res.casing, res.contact, res.options, method="dlft", forcing=res.model.forcing,
+                            alpha=res.alpha, friction=res.friction, distance=res._distance)
+        sd = damped_newton(dl, u_lin, omega, opts.newton, solver)
+        if sd.converged:
+            u, note = penalty_homotopy(res, sd.x, omega, opts, solver, res.contact.epsilon)
+            if u is not None:
+                return u, f"DLFT solution then {note}"
+    return obstacle_homotopy(res, omega, opts, solver)
 
 
 def pad_harmonics(u: np.ndarray, n_r: int, n_harmonics: int) -> np.ndarray:

@@ -12,6 +12,7 @@ import pytest
 from pipelines import artifacts as art
 from pipelines.cli import main
 from rom.model import RomModel
+from support import SHARED
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -19,7 +20,7 @@ ROOT = Path(__file__).resolve().parents[2]
 @pytest.mark.slow
 def test_default_scene_rom_matches_full_model(tmp_path):
     text = (ROOT / "scenes" / "rotor67.toml").read_text()
-    text = text.replace("../../shared", str(ROOT.parent / "shared"))
+    text = text.replace("../../shared", str(SHARED))
     text = text.replace("[render]\nn_modes = 6", "[render]\nn_modes = 0")  # figures are not under test here
     scene = tmp_path / "rotor67.toml"
     scene.write_text(text)

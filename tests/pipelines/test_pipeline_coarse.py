@@ -5,10 +5,6 @@ skips up-to-date stages, a changed input recomputes only what depends on it, bad
 stops with a clear error without touching good artifacts, and the ROM built from the
 files agrees with the full model it came from.
 """
-import shutil
-import subprocess
-import sys
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -16,20 +12,8 @@ import pytest
 from pipelines import artifacts as art
 from pipelines.cli import main
 from rom.model import RomModel
-from support import distance_to_polyline
+from support import SHARED, distance_to_polyline, fresh_copy
 
-ROOT = Path(__file__).resolve().parents[2]
-COARSE = ROOT / "scenes" / "rotor67_coarse.toml"
-
-
-@pytest.fixture(scope="module")
-def coarse_run(tmp_path_factory):
-    out = tmp_path_factory.mktemp("coarse")
-    scene = out / "scene.toml"
-    text = COARSE.read_text().replace("../../shared", str(ROOT.parent / "shared"))
-    scene.write_text(text.replace("n_modes = 6", "n_modes = 2"))  # two PNGs are enough here
-    assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
-    return scene, out
 
 
 def test_artifacts_have_provenance(coarse_run):
@@ -68,14 +52,14 @@ def test_mode_pngs_are_rendered(coarse_run):
     assert img.shape == (900, 1200) and img.std() > 10  # not blank
 
 
-def test_second_run_skips_and_changes_recompute_downstream_only(coarse_run, capsys):
-    scene, out = coarse_run
+def test_second_run_skips_and_changes_recompute_downstream_only(coarse_run, tmp_path, capsys):
+    scene, out = coarse_run[0], fresh_copy(coarse_run[1], tmp_path / "run")
     stamps = {n: (out / n).stat().st_mtime_ns for n in ("mesh.h5", "fem.h5", "rom.h5")}
     assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
     assert "[mesh] up to date" in capsys.readouterr().out
     assert stamps == {n: (out / n).stat().st_mtime_ns for n in stamps}
     # a damping change touches the ROM only
-    scene2 = out / "scene2.toml"
+    scene2 = tmp_path / "scene2.toml"
     scene2.write_text(scene.read_text().replace("damping_high = 5e-3", "damping_high = 6e-3"))
     assert main(["run", str(scene2), "--out", str(out), "--until", "rom"]) == 0
     printed = capsys.readouterr().out
@@ -88,7 +72,7 @@ def test_bad_input_is_named_and_good_artifacts_survive(coarse_run, tmp_path, cap
     scene, out = coarse_run
     before = {n: (out / n).read_bytes() for n in ("mesh.h5", "rom.h5")}
     bad_geometry = tmp_path / "rotor67_truncated.dat"
-    lines = (ROOT.parent / "shared/data/rotor67/rotor67geometry.dat").read_text().splitlines()
+    lines = (SHARED / "data/rotor67/rotor67geometry.dat").read_text().splitlines()
     bad_geometry.write_text("\n".join(lines[:600]) + "\n")  # cut inside surface 9
     bad = tmp_path / "bad.toml"
     text = scene.read_text()
@@ -122,8 +106,6 @@ def _hbm_scene(scene, out, name):
 
 
 def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, monkeypatch):
-    import shutil
-
     from pipelines import branch_store
 
     scene, out = coarse_run

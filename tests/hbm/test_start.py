@@ -1,0 +1,121 @@
+"""The NFRC's start strategies (hbm.harmonic.start) where plain Newton fails, and static
+forcing, on the forced 1-dof oscillator against an obstacle of test_obstacle.py."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+import test_obstacle as t
+from hbm.harmonic import nfrc as nfrc_module
+from hbm.harmonic.condensation import HarmonicForcing
+from hbm.harmonic.fourier import FourierBasis
+from hbm.harmonic.nfrc import compute_nfrc, default_continuation, nfrc_extras
+from hbm.harmonic.residual import build_residual
+from hbm.harmonic.start import damped_newton, solve_start
+from hbm.linalg.dense import DirectSolver
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+
+HBM = HbmOptions(n_harmonics=16, n_time=512)
+
+
+def _lobe(tau, d0=1.5, d1=0.6, w=0.6):
+    """An obstacle that comes down to d1 around tau = 0 (where the forced orbit peaks) and
+    stays at d0, above the free orbit (amplitude 1.33), elsewhere. (N_t, 1), m."""
+    phi = np.mod(tau + np.pi, 2 * np.pi) - np.pi
+    return (d0 - (d0 - d1) * np.exp(-(phi / w) ** 2))[:, None]
+
+
+def _residual(method, kappa, distance, hbm=HBM, forcing=None):
+    rom, f, _ = t._model("rl")  # the boundary dof is x itself, for both treatments here
+    contact = ContactOptions(kappa=kappa, gamma=0.0, epsilon=3.0, mu=0.0, lanczos=False)
+    return build_residual(rom, CasingOptions(), contact, hbm, method=method,
+                          forcing=forcing or HarmonicForcing(f, 1), alpha=1.0, distance=distance)
+
+
+def _start(res):
+    opts = default_continuation(HBM)
+    free = damped_newton(res, res.linear_solution(t.W), t.W, opts.newton, DirectSolver())
+    u, note = solve_start(res, t.W, opts, DirectSolver())
+    assert np.linalg.norm(res(u, t.W, jacobian=False)) <= opts.newton.tol_residual  # recomputed here
+    return free.converged, u, note
+
+
+def test_obstacle_homotopy_reaches_a_start_newton_cannot():
+    """A lobe that cuts into the forced orbit: damped Newton from the contact-free solution
+    fails for both treatments (and RL's DLFT route too); the homotopy from a round obstacle
+    above the orbit (no contact) to the lobe reaches a solution. RL's stiff penalty
+    (kappa = 1e3 against k = 1) must then sit close to DLFT's rigid obstacle: within its
+    penetration and the two laws' different N_h = 16 truncations (measured 1.6e-3)."""
+    amps = {}
+    for method, kappa in (("dlft", 1e3), ("rl", 1e3)):
+        res = _residual(method, kappa, _lobe)
+        newton_ok, u, note = _start(res)
+        assert not newton_ok  # the fallback is what is under test
+        assert note.startswith("obstacle homotopy: reached"), note
+        assert res.samples(res.to_coefficients(u), t.W).active.any()  # in contact
+        amps[method] = nfrc_extras(res, u)["le_amplitude"]
+    assert amps["dlft"] > 1.5  # the lobe does change the orbit (free: 1.33)
+    assert abs(amps["rl"] - amps["dlft"]) / amps["dlft"] < 5e-3
+
+
+def test_kappa_homotopy_reaches_the_stiff_penalty_solution(monkeypatch):
+    """The flat obstacle with a penalty 100 times the oscillator's stiffness: damped Newton
+    from the contact-free solution fails; the DLFT solution (rigid) followed by the homotopy
+    in log10 kappa from epsilon to kappa gives the RL solution, checked against the exact
+    piecewise-linear periodic orbit (matrix-exponential shooting, test_obstacle) to the
+    N_h = 32 truncation error (measured 3.4e-4)."""
+    monkeypatch.setattr(t, "KAPPA", 100.0)
+    hbm = HbmOptions(n_harmonics=32, n_time=2048)
+    res = _residual("rl", 100.0, lambda tau: np.full((len(tau), 1), t.D), hbm=hbm)
+    opts = default_continuation(hbm)
+    assert not damped_newton(res, res.linear_solution(t.W), t.W, opts.newton, DirectSolver()).converged
+    u, note = solve_start(res, t.W, opts, DirectSolver())
+    assert note.startswith("DLFT solution then kappa homotopy"), note
+    x = FourierBasis(32, t.NG).to_time(res.expand_harmonics(u, t.W)[:, 0])
+    v = t.W * FourierBasis(32, t.NG).to_time(FourierBasis(32, t.NG).derivative(
+        res.expand_harmonics(u, t.W)[:, [0]]))[:, 0]
+    ref = t._reference(np.array([x[0], v[0]]))
+    assert ref.max() > t.D + 5e-3  # the exact orbit is in contact (penetration ~0.8 % at kappa = 100)
+    assert np.abs(x - ref).max() / np.abs(ref).max() < 1e-3
+
+
+def test_start_from_the_other_end(monkeypatch):
+    """When no start converges at the end of the range the scene names, compute_nfrc starts
+    at the other end and runs back: the same curve as a run started there."""
+    dist = lambda tau: np.full((len(tau), 1), t.D)  # noqa: E731
+    hbm = replace(HBM, omega_min=0.45, omega_max=0.55)
+    cont = replace(default_continuation(hbm), omega_scale=0.1, ds_max=0.2)
+    rom, f, _ = t._model("rl")
+    kw = dict(hbm=hbm, method="dlft", continuation=cont, solver=DirectSolver())
+    ref = compute_nfrc(rom, residual=_residual("dlft", 4.0, dist, hbm), **{**kw, "continuation": replace(
+        cont, direction=1)})
+    real = nfrc_module.solve_start
+
+    def fail_at_the_top(res, omega, opts, solver):
+        if omega == hbm.omega_max:
+            return res.linear_solution(omega) + 1.0, "made to fail"
+        return real(res, omega, opts, solver)
+
+    monkeypatch.setattr(nfrc_module, "solve_start", fail_at_the_top)
+    r = compute_nfrc(rom, residual=_residual("dlft", 4.0, dist, hbm), **kw)
+    assert "at the other end" in r.start and r.converged.all()
+    assert r.omega[0] == pytest.approx(hbm.omega_min) and r.omega[-1] == pytest.approx(hbm.omega_max)
+    np.testing.assert_allclose(np.interp(ref.omega, r.omega, r.le_amplitude), ref.le_amplitude, rtol=1e-6)
+
+
+@pytest.mark.parametrize("method", ["rl", "dlft"])
+def test_static_forcing_against_the_obstacle(method):
+    """A static force (harmonic k = 0) pushing the oscillator into the obstacle: the exact
+    equilibrium of k x + kappa (x - d)_+ = F is x = (F + kappa d) / (k + kappa) (RL, the
+    penalty law with gamma = 0), and x = d for DLFT's rigid obstacle; nothing oscillates."""
+    rom, _, fdof = t._model("rl")
+    F = 3.0  # > k d = 1: in contact
+    f = np.zeros(rom.K.shape[0])
+    f[fdof] = F
+    res = _residual(method, t.KAPPA, lambda tau: np.full((len(tau), 1), t.D),
+                    forcing=HarmonicForcing(f, 0))
+    u, _ = solve_start(res, t.W, default_continuation(HBM), DirectSolver())
+    x = res.expand_harmonics(u, t.W)[:, fdof]
+    exact = (F + t.KAPPA * t.D) / (t.K + t.KAPPA) if method == "rl" else t.D
+    assert x[0] == pytest.approx(exact, rel=1e-9)
+    assert np.abs(x[1:]).max() < 1e-9
