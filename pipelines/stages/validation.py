@@ -2,7 +2,7 @@
 (validation.h5), a stage of its own so that changing N_h never reruns the TI sweep."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -21,7 +21,7 @@ class ValidationArtifact:
     NFRC point marched from. result: hbm.ti.validation.ValidationResult."""
 
     method: str
-    point: int
+    point: int = field(metadata={"unit": "1"})
     result: ValidationResult
 
 

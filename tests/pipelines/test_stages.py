@@ -1,0 +1,183 @@
+"""Stages depend only on what they use, end to end on a tiny scene built on the coarse ROM.
+
+The tiny scene keeps the coarse rotor 67 mesh, FEM and ROM (shared, session-wide) and runs
+a cheap NFRC (N_h = 5, N_t = 64, Omega in [1900, 2000]) and a short TI sweep (2 speeds, 20
+revolutions), then the validation stage, the figures and `bladerub render`.
+"""
+import h5py
+import numpy as np
+import pytest
+
+from pipelines import artifacts as art
+from pipelines.cli import main
+from pipelines.progress import Progress
+from pipelines.runner import run_scene
+from pipelines.scene import load_scene
+from support import fresh_copy
+
+TINY = """
+[hbm]
+methods = ["dlft", "rl"]
+n_harmonics = 5
+n_time = 64
+omega_min = 1900.0
+omega_max = 2000.0
+
+[ti]
+n_revolutions = 20
+n_keep = 5
+omega_min = 1900.0
+omega_max = 2000.0
+n_omega = 2
+"""
+
+
+def _scene(text: str, path):
+    """The coarse scene with the [hbm] and [ti] sections replaced by TINY's."""
+    start, end = text.index("[hbm]"), text.index("[render]")
+    path.write_text(text[:start] + TINY + "\n" + text[end:])
+    return path
+
+
+def _records(scene_path, out, **kw):
+    """{stage: (action, why)} of one run."""
+    progress = Progress(quiet=True)
+    run_scene(load_scene(scene_path), out, progress=progress, **kw)
+    return {r.stage: (r.action, r.why) for r in progress.records}
+
+
+@pytest.fixture(scope="module")
+def tiny(coarse_run, tmp_path_factory):
+    """A private folder with the coarse ROM, run through every stage once."""
+    scene0, base = coarse_run
+    out = fresh_copy(base, tmp_path_factory.mktemp("tiny"))
+    scene = _scene(scene0.read_text(), out / "tiny.toml")
+    rec = _records(scene, out)
+    assert rec["hbm"][0] == rec["ti"][0] == rec["validation"][0] == "computed"
+    return scene, out
+
+
+def _stamps(out):
+    return {p.name: p.stat().st_mtime_ns for p in out.glob("*.h5")}
+
+
+def test_every_stage_and_figure_is_made(tiny):
+    scene, out = tiny
+    for name in ("nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5"):
+        assert art.read_attrs(out / name)["created"], name
+    figs = out / "figures"
+    for png in ("nfrc.png", "ti_sweep.png", "validation_displacement.png", "validation_force.png", "mode_01.png"):
+        assert (figs / png).stat().st_size > 10_000, png
+    # every dataset of every artifact carries its unit (the NFRC files included)
+    for name in ("nfrc_dlft.h5", "rom.h5", "validation.h5"):
+        with h5py.File(out / name) as h5:
+            missing = []
+            h5.visititems(lambda k, obj: missing.append(k) if isinstance(obj, h5py.Dataset)
+                          and "unit" not in obj.attrs and "unit" not in obj.parent.attrs else None)
+        assert not missing, (name, missing[:5])
+
+
+def test_a_second_run_reuses_everything(tiny):
+    scene, out = tiny
+    before = _stamps(out)
+    rec = _records(scene, out)
+    assert all(action == "reused" for action, _ in rec.values()), rec
+    assert _stamps(out) == before
+
+
+def _changed(tiny, tmp_path, old, new):
+    """Run a copy of the tiny folder with one scene value changed; (records, before, after)."""
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    text = scene.read_text()
+    assert old in text
+    path = tmp_path / "changed.toml"
+    path.write_text(text.replace(old, new, 1))
+    before = {p.name: p.read_bytes() for p in out.glob("*.h5")}
+    rec = _records(path, out)
+    after = {p.name: p.read_bytes() for p in out.glob("*.h5")}
+    return rec, {k for k in before if before[k] != after[k]}
+
+
+def test_render_settings_never_recompute_the_fem(tiny, tmp_path):
+    rec, changed = _changed(tiny, tmp_path, "[render]\nn_modes = 2", "[render]\nn_modes = 3\nscale = 0.05")
+    assert changed == set()  # no artifact touched
+    assert rec["fem"][0] == "reused" and rec["figure modes"][0] == "computed"
+    assert (tmp_path / "out" / "figures" / "mode_03.png").is_file()
+
+
+def test_harmonics_rerun_the_hbm_but_never_the_sweep(tiny, tmp_path):
+    rec, changed = _changed(tiny, tmp_path, "n_harmonics = 5", "n_harmonics = 4")
+    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5", "validation.h5"}
+    assert rec["ti"] == ("reused", "up to date")
+
+
+def test_penalty_stiffness_reruns_rl_only(tiny, tmp_path):
+    rec, changed = _changed(tiny, tmp_path, "kappa = 1e9", "kappa = 2e9")
+    assert changed == {"nfrc_rl.h5", "validation.h5"}
+    assert "contact.kappa" in rec["hbm"][1] and "nfrc_dlft" not in rec["hbm"][1]
+
+
+def test_friction_reruns_both_treatments_and_the_sweep(tiny, tmp_path):
+    rec, changed = _changed(tiny, tmp_path, "mu = 0.15", "mu = 0.1")
+    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5"}
+    assert rec["mesh"][0] == rec["fem"][0] == rec["rom"][0] == "reused"
+
+
+def test_the_nfrc_figure_reads_the_sweep_back(tiny):
+    """nfrc.png overlays the TI sweep's points (Fig. 6): its recorded inputs include ti.h5."""
+    from pipelines.runner import figure_hash
+    from pipelines.stages.hbm import NFRC_FIGURE
+    import json
+
+    scene, out = tiny
+    manifest = json.loads((out / "figures" / "manifest.json").read_text())
+    with_ti = figure_hash(load_scene(scene), out, NFRC_FIGURE)
+    assert manifest["nfrc"] == with_ti
+    moved = out.parent / "ti_moved.h5"
+    (out / "ti.h5").rename(moved)
+    try:
+        assert figure_hash(load_scene(scene), out, NFRC_FIGURE) != with_ti
+    finally:
+        moved.rename(out / "ti.h5")
+
+
+def test_a_missing_figure_is_redrawn_without_recomputing(tiny, tmp_path):
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    (out / "figures" / "nfrc.png").unlink()
+    before = _stamps(out)
+    rec = _records(scene, out)
+    assert rec["figure nfrc"][0] == "computed" and (out / "figures" / "nfrc.png").is_file()
+    assert all(rec[s][0] == "reused" for s in ("mesh", "fem", "rom", "hbm", "ti", "validation"))
+    assert _stamps(out) == before
+
+
+def test_render_command(tiny, tmp_path, capsys):
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    assert main(["render", str(scene), "--out", str(out), "--modes", "1"]) == 0
+    assert (out / "figures" / "mode_01.png").is_file()
+    # before the fem stage: one clear line naming the command to run, exit 2
+    assert main(["render", str(scene), "--out", str(tmp_path / "empty")]) == 2
+    err = capsys.readouterr().err
+    assert "--until fem" in err and "Traceback" not in err
+
+
+def test_a_missing_field_is_a_clear_error(tiny, tmp_path):
+    from hbm.ti.validation import ValidationResult  # noqa: F401  (the artifact's layout)
+    from pipelines.stages.validation import ValidationArtifact
+
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    with h5py.File(out / "validation.h5", "a") as h5:
+        del h5["result"]["drift"]
+    with pytest.raises(art.ArtifactError, match="field 'drift' of ValidationResult is missing"):
+        art.read_artifact(out / "validation.h5", ValidationArtifact)
+    from rom.model import load_rom
+
+    with h5py.File(out / "rom.h5", "a") as h5:
+        del h5["K"]
+    with pytest.raises(ValueError, match="dataset 'K' is missing"):
+        load_rom(out / "rom.h5")
+    assert np.isfinite(art.read_attrs(out / "rom.h5").get("n_lobes", 0.0))  # attributes still readable
