@@ -116,23 +116,31 @@ def root_nodes(bx: Box, cone_deg: float = 0.0) -> np.ndarray:
     return np.flatnonzero(np.abs(x[:, 0] - bx.R0 - np.tan(np.radians(cone_deg)) * x[:, 2]) < 1e-9 * bx.L)
 
 
+def deck_ids(n: int, id_offset: int = 1000) -> np.ndarray:
+    """Node ids write_deck gives n nodes: 1-based positions + id_offset, with a gap of 7 in
+    the middle (so that ids are not positions)."""
+    ids = id_offset + 1 + np.arange(n)
+    ids[n // 2:] += 7
+    return ids
+
+
 def write_deck(path: Path, bx: Box, axis: str = "z", units: str = "m", root: np.ndarray | None = None,
                boundary: bool = True, material=None, n_modes: int = 0, id_offset: int = 1000,
-               kind: str | None = None, extra: str = "") -> np.ndarray:
-    """Write the box as an .inp deck. Node ids are 1-based positions + id_offset (with a gap,
-    so ids are not positions). root: node indices of NSET=ROOT (fixed in *BOUNDARY if
+               kind: str | None = None, extra: str = "", digits: int = 16) -> np.ndarray:
+    """Write the box as an .inp deck, node ids by deck_ids. root: node indices of NSET=ROOT (fixed in *BOUNDARY if
     `boundary`). material: (E Pa, nu, rho kg/m^3) and n_modes > 0 add a *FREQUENCY step
     for CalculiX, in the deck's consistent unit system (length unit, N, s). kind: write the
-    element type under another name (e.g. the linear one, with the corners only).
+    element type under another name (e.g. the linear one, with the corners only). digits:
+    decimals of the coordinates (CalculiX reads 20 columns per number: give it 12).
     Returns the node ids."""
     scale = UNITS[units]
     xf = (bx.points @ AXIS_ROTATIONS[axis]) / scale  # R^T x for row vectors
-    ids = id_offset + 1 + np.arange(len(xf))
-    ids[len(ids) // 2:] += 7  # a gap in the numbering
+    ids = deck_ids(len(xf), id_offset)
     kind = kind or bx.kind
     cells = bx.cells if kind == bx.kind else bx.cells[:, :N_CORNERS[bx.kind]]
     lines = ["*HEADING", f"bladerub test box, {bx.kind}, axis {axis}, {units}", "*NODE, NSET=NALL"]
-    lines += [f"{i}, {a:.12e}, {b:.12e}, {c:.12e}" for i, (a, b, c) in zip(ids, xf)]  # ccx reads 20 columns
+    f = f"{{:.{digits}e}}"
+    lines += [f"{i}, {f.format(a)}, {f.format(b)}, {f.format(c)}" for i, (a, b, c) in zip(ids, xf)]
     lines.append(f"*ELEMENT, TYPE={ABAQUS_TYPE[kind]}, ELSET=EALL")
     for e, row in enumerate(ids[cells], 1):
         vals = [str(e)] + [str(v) for v in row]
