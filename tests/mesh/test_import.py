@@ -244,3 +244,37 @@ def test_contact_node_on_the_root_is_refused(decks, tmp_path):
     ids = write_deck(deck, bx, root=root_nodes(bx))
     with pytest.raises(MeshImportError, match="lie on the clamped root"):
         _import(deck, contact_nodes=[int(ids[root_nodes(bx)[0]]), int(ids[-1])])
+
+
+def test_rotor67_table_mesh_read_back_as_a_deck(tmp_path):
+    # The coarse rotor 67 mesh bladerub makes from the NASA table, written as a C3D10 deck in
+    # mm about the file's y axis, read back with root = "hub" and contact nodes chosen on the
+    # tip: the same nodes, root face, tip face, and contact nodes near the table's camber
+    # points: the tip/hub finders and the LE convention (smallest axial coordinate) on a
+    # twisted blade with conical hub and tip, against the table's own definitions.
+    from support import SHARED
+    from mesh.blade import mesh_blade
+
+    table = BladeOptions()
+    m0 = mesh_blade(table, MeshOptions(element_size=0.008, edge_layers=1, size_growth=0.5),
+                    SHARED / "data" / "rotor67" / "rotor67geometry.dat")
+    from decks import Box
+
+    bx = Box("tetra10", m0.nodes, m0.cells[:, [0, 1, 2, 3, 4, 5, 6, 7, 9, 8]], 0.0, 1.0, 1.0, 1.0)
+    deck = tmp_path / "r67.inp"
+    ids = write_deck(deck, bx, axis="y", units="mm")
+    m = _import(deck, n_boundary=9, units="mm", axis="y", root="hub")
+    pos = np.searchsorted(ids, m.source_node_ids)
+    np.testing.assert_allclose(m.nodes, m0.nodes[pos], atol=1e-12)
+    assert set(pos[np.unique(m.root_facets)].tolist()) == set(np.unique(m0.root_facets).tolist())
+    assert set(pos[np.unique(m.tip_facets)].tolist()) == set(np.unique(m0.tip_facets).tolist())
+    # LE and TE of the table are mesh nodes (geometry vertices): hit exactly; the others within
+    # half the 12 mm spacing of the table's even camber points (the camber traced from the
+    # mesh differs from the table's by less than an element)
+    b0 = m0.boundary_xyz
+    np.testing.assert_allclose(m.boundary_xyz[[0, -1]], b0[[0, -1]], atol=1e-12)
+    spacing = np.linalg.norm(np.diff(b0, axis=0), axis=1).min()
+    assert np.linalg.norm(m.boundary_xyz - b0, axis=1).max() < 0.5 * spacing
+    np.testing.assert_allclose(m.boundary_frames, m0.boundary_frames[np.argmin(
+        np.linalg.norm(m.boundary_xyz[:, None] - b0[None], axis=2), axis=1)], atol=0.05)
+    assert m.volume == pytest.approx(m0.volume, rel=1e-12)
