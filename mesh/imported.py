@@ -12,10 +12,11 @@ Conventions that a file cannot state, and how they are decided:
 - The tip face: the connected set of boundary facets whose outward normal lies within 60
   degrees of the radial direction, grown from the boundary facet farthest from the axis
   across edges where neighbouring normals differ by less than 30 degrees (the tip's
-  corners with the blade's sides are creases of about 90 degrees).
-  Its radial extent must stay below half the blade's, and the blade must extend radially
-  over at least a fifth of its axial length, or the axis is not this blade's rotation
-  axis (rotor 67: 0.15 m radially over 0.09 m axially). "hub" roots are found alike from the facet nearest the axis.
+  corners with the blade's sides are creases of about 90 degrees). Its radial extent must
+  stay below half the blade's, and the blade must extend radially over at least a fifth
+  of its axial length, or the axis is not this blade's rotation axis (rotor 67: 0.15 m
+  radially over 0.09 m axially). "hub" roots are found alike from the facet nearest the
+  axis.
 - The leading edge is the upstream end of the tip: flow along +axis, so the LE is the tip
   point with the smallest axial coordinate (the tables' convention: rotor 67's LE lies
   upstream at smaller z). Where a blade is meant the other way, list contact_nodes.

@@ -55,12 +55,14 @@ class Box:
     t: float
 
 
-def box(kind: str, L=0.3, b=0.02, t=0.01, R0=0.2, n=(30, 2, 1), cone_deg=0.0, perturb=0.0, seed=0) -> Box:
+def box(kind: str, L=0.3, b=0.02, t=0.01, R0=0.2, n=(30, 2, 1), cone_deg=0.0, perturb=0.0, seed=0,
+        msh: Path | None = None) -> Box:
     """Mesh the box with gmsh: kind "wedge15" or "hexahedron20"; n = divisions (length,
     chord, thickness). cone_deg tilts the root face in the x-z plane (x = R0 + tan * z at the
     root, blended to the flat tip): a root that is not at a constant radius. perturb moves
     the corner nodes by up to perturb x the element size inside the box (the box's faces
-    stay planar; the mid-edge nodes stay at edge midpoints)."""
+    stay planar; the mid-edge nodes stay at edge midpoints). msh: also write gmsh's own
+    .msh file of the plain box, with physical groups BLADE (volume) and ROOT (root face)."""
     import gmsh
 
     nl, nb, nt = n
@@ -77,13 +79,18 @@ def box(kind: str, L=0.3, b=0.02, t=0.01, R0=0.2, n=(30, 2, 1), cone_deg=0.0, pe
         geo.mesh.setTransfiniteSurface(surf, "Alternate")
         if kind == "hexahedron20":
             geo.mesh.setRecombine(2, surf)
-        geo.extrude([(2, surf)], L, 0, 0, numElements=[nl], recombine=True)
+        ext = geo.extrude([(2, surf)], L, 0, 0, numElements=[nl], recombine=True)
         geo.synchronize()
+        if msh is not None:
+            gmsh.model.setPhysicalName(3, gmsh.model.addPhysicalGroup(3, [t for d, t in ext if d == 3]), "BLADE")
+            gmsh.model.setPhysicalName(2, gmsh.model.addPhysicalGroup(2, [surf]), "ROOT")
         gmsh.option.setNumber("Mesh.ElementOrder", 2)
         gmsh.option.setNumber("Mesh.SecondOrderIncomplete", 1)
         gmsh.model.mesh.generate(3)
         tags, coords, _ = gmsh.model.mesh.getNodes()
         _, enodes = gmsh.model.mesh.getElementsByType(GMSH_TYPE[kind])
+        if msh is not None:
+            gmsh.write(str(msh))
     finally:
         gmsh.finalize()
     x = np.asarray(coords).reshape(-1, 3)

@@ -278,3 +278,54 @@ def test_rotor67_table_mesh_read_back_as_a_deck(tmp_path):
     np.testing.assert_allclose(m.boundary_frames, m0.boundary_frames[np.argmin(
         np.linalg.norm(m.boundary_xyz[:, None] - b0[None], axis=2), axis=1)], atol=0.05)
     assert m.volume == pytest.approx(m0.volume, rel=1e-12)
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_gmsh_msh_file_through_meshio(tmp_path, kind):
+    # the same gmsh mesh as .msh (read by meshio, with its 15-node wedges registered) and as
+    # a deck: the same solid, and root = "nset:ROOT" (a physical surface) = the deck's *BOUNDARY
+    bx = box(kind, n=(12, 2, 1), msh=tmp_path / "box.msh")
+    write_deck(tmp_path / "box.inp", bx, root=root_nodes(bx))
+    a = _import(tmp_path / "box.inp", n_boundary=3)
+    b = _import(tmp_path / "box.msh", n_boundary=3, root="nset:ROOT")
+    assert b.n_nodes == a.n_nodes and len(b.cells) == len(a.cells)
+    assert b.volume == pytest.approx(bx.L * bx.b * bx.t, rel=2e-11)
+    key = lambda x: np.round(x / 1e-9).astype(np.int64).tolist()  # noqa: E731
+    assert sorted(map(tuple, key(b.nodes))) == sorted(map(tuple, key(a.nodes)))
+    ra, rb = a.nodes[np.unique(a.root_facets)], b.nodes[np.unique(b.root_facets)]
+    assert sorted(map(tuple, key(ra))) == sorted(map(tuple, key(rb)))
+    np.testing.assert_allclose(b.boundary_xyz, a.boundary_xyz, atol=1e-12)
+    with pytest.raises(MeshImportError, match=r"root = \"boundary\" needs the file's own boundary conditions"):
+        _import(tmp_path / "box.msh")
+
+
+@pytest.mark.parametrize("text, message", [
+    ('mesh = "b.inp"\ngeometry = "t.dat"\nunits = "mm"', r"\[blade\]: geometry .* and mesh .* are mutually exclusive"),
+    ('mesh = "b.inp"', r"\[blade\]: units is required with mesh"),
+    ('mesh = "b.inp"\nunits = "furlong"', r"unknown length unit 'furlong'"),
+    ('mesh = "b.inp"\nunits = "mm"\naxis = "w"', r"\[blade\]: axis must be one of x, y, z"),
+    ('mesh = "b.inp"\nunits = "mm"\nroot = "clamp"', r"\[blade\]: root must be"),
+    ('mesh = "b.inp"\nunits = "mm"\nroot = "nset:"', r"\[blade\]: root must be"),
+    ('mesh = "b.inp"\nunits = "mm"\ncontact_nodes = [3]', r"contact_nodes needs at least 2 node ids"),
+    ('mesh = "b.inp"\nunits = "mm"\ncontact_nodes = [3, 4, 3]', r"contact_nodes lists a node twice"),
+    ('mesh = "b.inp"\nunits = "mm"\ncontact_nodes = [3, 4.5]', r"\[blade\] contact_nodes"),
+    ('axis = "x"', r"\[blade\]: axis applies to a mesh file only"),
+    ('contact_nodes = [1, 2]', r"\[blade\]: contact_nodes applies to a mesh file only"),
+    ('mesh = "b.inp"\nunits = "mm"\nroots = "hub"', r"unknown key 'roots' in \[blade\] \(did you mean 'root'\?\)"),
+])
+def test_scene_keys_are_validated(text, message):
+    from pipelines.scene import SceneError, parse_scene
+
+    with pytest.raises(SceneError, match=message):
+        parse_scene("[blade]\n" + text + "\n")
+
+
+def test_scene_defaults():
+    from pipelines.scene import parse_scene
+
+    table = parse_scene("")
+    assert table.blade.geometry.endswith("rotor67geometry.dat") and table.blade.units == "ft"
+    assert table.blade.mesh is None and table.blade.source == table.blade.geometry
+    own = parse_scene('[blade]\nmesh = "b.inp"\nunits = "mm"\ncontact_nodes = [12, 40]\n')
+    assert own.blade.geometry is None and own.blade.source == "b.inp"
+    assert (own.blade.axis, own.blade.root, own.blade.contact_nodes) == ("z", "boundary", (12, 40))
