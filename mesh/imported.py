@@ -90,7 +90,7 @@ def import_blade(blade: BladeOptions, options: MeshOptions, path: Path) -> Blade
     source_ids = np.concatenate([src.node_ids, np.full(len(sub.nodes) - n_orig, -1)])[used]
 
     _check_jacobians(nodes, cells, sub.parent, element_ids, path)
-    faces, boundary = _faces(cells, path)
+    _, boundary = _faces(cells, len(nodes), path)
     _check_connected(cells, len(nodes), path)
 
     # root: clamped file nodes, extended to the split's new nodes on clamped faces
@@ -204,25 +204,33 @@ def _check_jacobians(nodes, cells, parent, element_ids, path, chunk: int = 50000
                               f"{ids[:10].tolist()}{' ...' if ids.size > 10 else ''}")
 
 
-def _faces(cells: np.ndarray, path: Path) -> tuple[np.ndarray, np.ndarray]:
+def _triple_keys(rows: np.ndarray, n: int) -> np.ndarray:
+    """One int64 per sorted row of three node indices < n (packed; np.unique's ids beyond 2^21)."""
+    if n < 2 ** 21:
+        return (rows[:, 0] << 42) | (rows[:, 1] << 21) | rows[:, 2]
+    return np.unique(rows, axis=0, return_inverse=True)[1].ravel()
+
+
+def _faces(cells: np.ndarray, n_nodes: int, path: Path) -> tuple[np.ndarray, np.ndarray]:
     """All tri6 faces (4 per cell, outward) and the boundary ones; refuses a non-conforming mesh."""
     faces = cells[:, TET10_FACES].reshape(-1, 6)
     v = faces[:, :3]
     order = np.argsort(v, axis=1)
     sv = np.take_along_axis(v, order, axis=1)
-    # the mid node opposite each sorted vertex: opposite of corner k is mid node (k + 1) % 3
-    mids = faces[:, 3:]
-    opp = mids[:, [1, 2, 0]]  # opposite of corner 0 is edge 12 (mid 1), of 1 edge 20, of 2 edge 01
-    so = np.take_along_axis(opp, order, axis=1)
-    _, inv3, count = np.unique(sv, axis=0, return_inverse=True, return_counts=True)
-    inv3 = inv3.ravel()
-    n6 = len(np.unique(np.column_stack([sv, so]), axis=0))
+    # the mid node opposite each corner: of corner 0 edge 12 (mid 1), of 1 edge 20, of 2 edge 01
+    so = np.take_along_axis(faces[:, 3:][:, [1, 2, 0]], order, axis=1)
+    key = _triple_keys(sv, n_nodes)
+    by_key = np.argsort(key, kind="stable")
+    ks = key[by_key]
+    first = np.flatnonzero(np.concatenate([[True], ks[1:] != ks[:-1]]))
+    count = np.diff(np.concatenate([first, [len(ks)]]))
     if count.max() > 2:
         raise MeshImportError(f"{path}: a triangular face is shared by {count.max()} cells (overlapping elements)")
-    if n6 != len(count):
+    pair = first[count == 2]
+    if not np.array_equal(so[by_key[pair]], so[by_key[pair + 1]]):
         raise MeshImportError(f"{path}: non-conforming mesh: two cells share a face's corners but not its "
                               "mid-edge nodes (duplicate or unmerged mid nodes)")
-    return faces, faces[count[inv3] == 1]
+    return faces, faces[np.sort(by_key[first[count == 1]])]
 
 
 def _check_connected(cells: np.ndarray, n: int, path: Path) -> None:
@@ -298,8 +306,7 @@ def _face_from_extreme(nodes, boundary, outward: bool, axis: str, path: Path) ->
     f = boundary[idx, :3]
     edges = np.sort(np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]]), axis=1)
     owner = np.tile(np.arange(len(idx)), 3)
-    _, inv = np.unique(edges, axis=0, return_inverse=True)
-    inv = inv.ravel()
+    inv = edges[:, 0] * len(nodes) + edges[:, 1]
     order = np.argsort(inv, kind="stable")
     same = inv[order][1:] == inv[order][:-1]
     a, b = owner[order][:-1][same], owner[order][1:][same]
