@@ -193,18 +193,51 @@ def rotor67(args):
                      'root = "boundary"\n')
     if args.deck_only:
         return
+    if args.steps:
+        steps(deck)
+        return
     cmd = [sys.executable, "-m", "pipelines.cli", "run", str(scene), "--out", str(out / "run"), "--until",
            args.until, "--force"]
     t0 = time.perf_counter()
-    proc = subprocess.run(cmd, cwd=ROOT, capture_output=True, text=True,
+    proc = subprocess.run(cmd, cwd=ROOT, stderr=subprocess.STDOUT,
                           env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(Path.home())})
     wall = time.perf_counter() - t0
-    print("\n".join(line for line in proc.stdout.splitlines() if not line.startswith("INFO")))
     if proc.returncode:
-        print(proc.stderr[-3000:])
         raise SystemExit(proc.returncode)
     peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024 ** 2
     print(f"bladerub run --until {args.until}: {wall:.1f} s wall ({wall / 60:.2f} min), peak memory {peak:.2f} GB")
+
+
+def steps(deck: Path):
+    """The same chain in this process, step by step, with the peak memory after each."""
+    from fem.analysis import solve_system
+    from fem.assembly import assemble_system
+    from fem.material import Material
+    from fem.options import FemOptions
+    from mesh.imported import import_blade
+    from mesh.options import BladeOptions, MeshOptions
+    from rom.craig_bampton import build_craig_bampton
+    from rom.options import RomOptions
+
+    def peak():
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2
+
+    t = time.perf_counter()
+    m = import_blade(BladeOptions(mesh=deck.name, units="mm"), MeshOptions(), deck)
+    print(f"import: {m.n_nodes} tet10 nodes, {len(m.cells)} cells, {time.perf_counter() - t:.1f} s, "
+          f"peak {peak():.2f} GB; volume {m.volume:.6e} m^3, file's elements {m.reference_volume:.6e} m^3", flush=True)
+    t = time.perf_counter()
+    system = assemble_system(m.nodes, m.cells, m.root_facets, Material())
+    print(f"assembly: {system.n_free} free dof, nnz(K) {system.K.nnz}, {time.perf_counter() - t:.1f} s, "
+          f"peak {peak():.2f} GB", flush=True)
+    timings = {}
+    fem = solve_system(system, FemOptions(), m.boundary_node_index, timings)
+    print("; ".join(f"{k} {v:.1f}" for k, v in timings.items()) + f"; peak {peak():.2f} GB", flush=True)
+    t = time.perf_counter()
+    rom = build_craig_bampton(fem, m, RomOptions())
+    print(f"ROM {time.perf_counter() - t:.1f} s, peak {peak():.2f} GB; full-model Hz "
+          + " ".join(f"{f:.1f}" for f in fem.frequencies_hz[:6]) + "; ROM Hz "
+          + " ".join(f"{f / 2 / np.pi:.1f}" for f in rom.frequencies[:6]), flush=True)
 
 
 def main(argv=None):
@@ -216,6 +249,8 @@ def main(argv=None):
     p.add_argument("--out", default=str(ROOT / "out" / "bench_mesh_import"))
     p.add_argument("--until", default="rom")
     p.add_argument("--deck-only", action="store_true", help="write the deck and the scene, do not run")
+    p.add_argument("--steps", action="store_true", help="run import, assembly, FEM and ROM in this process, "
+                   "printing the peak memory after each step, instead of bladerub run")
     args = p.parse_args(argv)
     if args.boxes:
         boxes()
