@@ -204,8 +204,10 @@ def rotor67(args):
     wall = time.perf_counter() - t0
     if proc.returncode:
         raise SystemExit(proc.returncode)
-    peak = resource.getrusage(resource.RUSAGE_CHILDREN).ru_maxrss / 1024 ** 2
-    print(f"bladerub run --until {args.until}: {wall:.1f} s wall ({wall / 60:.2f} min), peak memory {peak:.2f} GB")
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)
+    print(f"bladerub run --until {args.until}: {wall:.1f} s wall ({wall / 60:.2f} min), CPU "
+          f"{ru.ru_utime + ru.ru_stime:.1f} s (all threads; wall depends on the machine's other jobs), "
+          f"peak memory {ru.ru_maxrss / 1024 ** 2:.2f} GB")
 
 
 def steps(deck: Path):
