@@ -1,9 +1,10 @@
 """Abaqus / CalculiX input decks (.inp): nodes, solid elements, node sets and *BOUNDARY.
 
 Read here rather than by meshio 5.0, whose Abaqus reader (a) fails on C3D15 (KeyError
-'wedge15'), (b) replaces the nodes of earlier *NODE blocks by those of a later one, (c)
-drops node sets built from other sets, and (d) does not read *BOUNDARY at all, which is
-how a deck says where the blade is clamped. What is read:
+'wedge15'), (b) fails on a deck with a second *NODE block (KeyError: the second block
+replaces the first's id table), (c) empties a node set that names another set ("A, 3"
+gives an empty set), and (d) does not read *BOUNDARY at all, which is how a deck says
+where the blade is clamped (all four checked on meshio 5.0.0). What is read:
 
 - *NODE (optionally NSET=): "id, x, y, z" lines; several blocks append.
 - *ELEMENT, TYPE=..., (ELSET=): solid elements C3D4, C3D6, C3D8, C3D10, C3D15, C3D20 and

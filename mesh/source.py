@@ -1,7 +1,7 @@
 """What a user's mesh file holds, in the file's own units and numbering.
 
-Abaqus/CalculiX decks (.inp) are read by `mesh.abaqus` (meshio 5's reader cannot give
-*BOUNDARY and loses nodes of a second *NODE block, see there); every other format
+Abaqus/CalculiX decks (.inp) are read by `mesh.abaqus` (meshio 5's reader gives no
+*BOUNDARY and fails on C3D15 and on a second *NODE block, see there); every other format
 (.msh, .med, .bdf, .vtu, .xdmf, ...) through meshio.
 """
 from __future__ import annotations

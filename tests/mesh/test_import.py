@@ -329,3 +329,36 @@ def test_scene_defaults():
     own = parse_scene('[blade]\nmesh = "b.inp"\nunits = "mm"\ncontact_nodes = [12, 40]\n')
     assert own.blade.geometry is None and own.blade.source == "b.inp"
     assert (own.blade.axis, own.blade.root, own.blade.contact_nodes) == ("z", "boundary", (12, 40))
+
+
+def test_deck_dialects_read_alike(decks, tmp_path):
+    # What meshio 5's Abaqus reader gets wrong, read here: two *NODE blocks (meshio keeps the
+    # last), an *INCLUDE, lower-case keywords and comments inside data, C3D20R elements
+    # continued on a second line, NSET ... GENERATE and sets of sets, *BOUNDARY ENCASTRE.
+    bx, _ = decks["hexahedron20", "plain"]
+    plain = tmp_path / "plain.inp"
+    ids = write_deck(plain, bx, root=root_nodes(bx))
+    a = _import(plain, n_boundary=3)
+    node_lines = [f"{i},{x:.17g},{y:.17g},{z:.17g}" for i, (x, y, z) in zip(ids, bx.points)]
+    half = len(node_lines) // 2
+    (tmp_path / "more_nodes.inp").write_text("*node\n" + "\n".join(node_lines[half:]) + "\n")
+    body = ["** another dialect", "*Heading", "dialects", "*node, nset=nall", *node_lines[:half],
+            "** between blocks", "*include, input=more_nodes.inp", "*element, type=C3D20R, elset=eall"]
+    for e, row in enumerate(ids[bx.cells], 1):
+        body += [f"{e}, " + ", ".join(map(str, row[:15])) + ",", ", ".join(map(str, row[15:]))]
+        if e == 3:
+            body.append("** a comment inside the data")
+    root = np.sort(ids[root_nodes(bx)])
+    body += ["*nset, nset=first, generate", f"{root[0]}, {root[0]}, 1", "*nset, nset=rest"]
+    body += [", ".join(map(str, root[1:][i:i + 8])) for i in range(0, len(root) - 1, 8)]
+    body += ["*nset, nset=root_all", "first, rest", "*boundary", "root_all, ENCASTRE"]
+    dialect = tmp_path / "dialect.inp"
+    dialect.write_text("\n".join(body) + "\n")
+    b = _import(dialect, n_boundary=3)
+    np.testing.assert_array_equal(b.source_node_ids, a.source_node_ids)
+    np.testing.assert_array_equal(b.nodes, a.nodes)
+    np.testing.assert_array_equal(b.cells, a.cells)
+    np.testing.assert_array_equal(np.unique(b.root_facets), np.unique(a.root_facets))
+    from mesh.source import source_files
+
+    assert [p.name for p in source_files(dialect)] == ["dialect.inp", "more_nodes.inp"]
