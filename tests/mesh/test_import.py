@@ -362,3 +362,19 @@ def test_deck_dialects_read_alike(decks, tmp_path):
     from mesh.source import source_files
 
     assert [p.name for p in source_files(dialect)] == ["dialect.inp", "more_nodes.inp"]
+
+
+def test_clamped_node_on_no_complete_face_is_kept(decks, tmp_path):
+    # A root set may hold nodes that complete no boundary facet (here: one extra node on a
+    # side face); they stay clamped, as degenerate root rows (the node six times).
+    bx, _ = decks["wedge15", "plain"]
+    x = bx.points
+    side = np.flatnonzero((np.abs(x[:, 1] - bx.t / 2) < 1e-12) & (np.abs(x[:, 0] - bx.R0 - 0.15) < 1e-9))[0]
+    deck = tmp_path / "box.inp"
+    ids = write_deck(deck, bx, root=np.append(root_nodes(bx), side))
+    m = _import(deck)
+    k = int(np.flatnonzero(m.source_node_ids == ids[side])[0])
+    assert k in np.unique(m.root_facets)
+    rows = m.root_facets[np.any(m.root_facets == k, axis=1)]
+    np.testing.assert_array_equal(rows, np.full((1, 6), k))
+    assert set(m.source_node_ids[np.unique(m.root_facets)].tolist()) - {-1} == set(ids[np.append(root_nodes(bx), side)].tolist())
