@@ -274,20 +274,28 @@ class BoundaryNodes:
 
 def camber_points(section: Section, n: int) -> np.ndarray:
     """(n, 3) points evenly spaced in arc length along the section's camber line, LE to TE, m."""
-    c = section.camber_xyz()
+    return points_along(section.camber_xyz(), n)
+
+
+def points_along(polyline: np.ndarray, n: int) -> np.ndarray:
+    """(n, 3) points evenly spaced in arc length along a (k, 3) polyline, first to last point."""
+    c = np.asarray(polyline, dtype=np.float64)
     s = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(c, axis=0), axis=1))])
     u = np.linspace(0.0, s[-1], n)
     return np.column_stack([np.interp(u, s, c[:, i]) for i in range(3)])
 
 
-def boundary_nodes(nodes: np.ndarray, tip_facets: np.ndarray, tip: Section, n: int) -> BoundaryNodes:
-    """Snap n evenly spaced tip camber points to the nearest nodes of the tip face."""
-    targets = camber_points(tip, n)
-    candidates = np.unique(tip_facets)
+def nearest_nodes(nodes: np.ndarray, candidates: np.ndarray, targets: np.ndarray) -> np.ndarray:
+    """(n,) the candidate node nearest to each of the (n, 3) targets (not necessarily distinct)."""
     d = np.linalg.norm(nodes[candidates][None, :, :] - targets[:, None, :], axis=2)
-    index = candidates[np.argmin(d, axis=1)].astype(np.int64)
-    if len(np.unique(index)) != n:
-        raise MeshingError(f"{n} boundary nodes snap onto fewer distinct tip nodes; refine the mesh")
+    return candidates[np.argmin(d, axis=1)].astype(np.int64)
+
+
+def contact_geometry(nodes: np.ndarray, index: np.ndarray, targets: np.ndarray | None = None) -> BoundaryNodes:
+    """Radius, angle relative to the first node, and local frames (e_r, e_theta, e_z) of the
+    contact nodes `index` (LE first); z is the rotation axis."""
+    index = np.asarray(index, dtype=np.int64)
+    n = len(index)
     xyz = nodes[index]
     rho = np.hypot(xyz[:, 0], xyz[:, 1])
     phi = np.arctan2(xyz[:, 1], xyz[:, 0])
@@ -295,4 +303,14 @@ def boundary_nodes(nodes: np.ndarray, tip_facets: np.ndarray, tip: Section, n: i
     frames = np.stack([np.column_stack([np.cos(phi), np.sin(phi), zero]),
                        np.column_stack([-np.sin(phi), np.cos(phi), zero]),
                        np.column_stack([zero, zero, zero + 1.0])], axis=1)
-    return BoundaryNodes(index=index, xyz=xyz, rho=rho, theta=phi - phi[0], frames=frames, targets=targets)
+    return BoundaryNodes(index=index, xyz=xyz, rho=rho, theta=phi - phi[0], frames=frames,
+                         targets=xyz.copy() if targets is None else targets)
+
+
+def boundary_nodes(nodes: np.ndarray, tip_facets: np.ndarray, tip: Section, n: int) -> BoundaryNodes:
+    """Snap n evenly spaced tip camber points to the nearest nodes of the tip face."""
+    targets = camber_points(tip, n)
+    index = nearest_nodes(nodes, np.unique(tip_facets), targets)
+    if len(np.unique(index)) != n:
+        raise MeshingError(f"{n} boundary nodes snap onto fewer distinct tip nodes; refine the mesh")
+    return contact_geometry(nodes, index, targets)

@@ -7,29 +7,83 @@ KNOWN_FORMATS = ("rotor67", "rotor37")
 KNOWN_UNITS = {"ft": 0.3048, "in": 0.0254, "cm": 0.01, "mm": 0.001, "m": 1.0}
 
 
+DEFAULT_GEOMETRY = "../../shared/data/rotor67/rotor67geometry.dat"
+DEFAULT_TABLE_UNITS = "ft"  # rotor 67's table
+KNOWN_AXES = ("x", "y", "z")
+
+
 @dataclass(frozen=True)
 class BladeOptions:
-    """Which blade, from which table.
+    """Which blade: a NASA geometry table meshed by bladerub, or the user's own mesh file.
 
-    geometry: path of the NASA table, relative to the scene file.
+    geometry: path of the NASA table, relative to the scene file (default: rotor 67's, when
+        no mesh is given).
     format: table layout, one of KNOWN_FORMATS.
-    units: length unit of the table, one of KNOWN_UNITS (rotor 67: "ft").
-    hub_section, tip_section: 1-based streamsurfaces that bound the solid.
+    units: length unit of the table or of the mesh file, one of KNOWN_UNITS. Tables default
+        to "ft" (rotor 67); a mesh file must say its unit (a deck carries none).
+    hub_section, tip_section: 1-based streamsurfaces of the table that bound the solid.
+    mesh: path of a quadratic solid mesh (tet10, wedge15, hex20; .inp, .msh, .med, .bdf,
+        .vtu, .xdmf...), relative to the scene file; excludes geometry. Read by
+        mesh.imported.import_blade; format, hub_section and tip_section do not apply.
+    axis: the mesh file's rotation axis through its origin, "x", "y" or "z" (mesh only).
+    root: clamped nodes of the mesh file (mesh only): "boundary" = the nodes whose three
+        translations the file fixes (*BOUNDARY of an .inp deck), "nset:NAME" = a node set
+        of the file, "hub" = the nodes of the boundary faces that face the axis.
+    contact_nodes: node ids as numbered in the mesh file, leading edge first (mesh only);
+        None: [mesh] n_boundary nodes along the tip face, as for the tables.
     """
 
-    geometry: str = "../../shared/data/rotor67/rotor67geometry.dat"
+    geometry: str | None = None
     format: str = "rotor67"
-    units: str = "ft"
+    units: str | None = None
     hub_section: int = 1
     tip_section: int = 13
+    mesh: str | None = None
+    axis: str = "z"
+    root: str = "boundary"
+    contact_nodes: tuple[int, ...] | None = None
 
     def __post_init__(self):
+        if self.mesh is not None and self.geometry is not None:
+            raise ValueError(f"geometry ('{self.geometry}') and mesh ('{self.mesh}') are mutually exclusive: "
+                             "give the table to mesh or the mesh file, not both")
+        if self.mesh is None:
+            if self.geometry is None:
+                object.__setattr__(self, "geometry", DEFAULT_GEOMETRY)
+            if self.units is None:
+                object.__setattr__(self, "units", DEFAULT_TABLE_UNITS)
+            for key, value, default in (("axis", self.axis, "z"), ("root", self.root, "boundary"),
+                                        ("contact_nodes", self.contact_nodes, None)):
+                if value != default:
+                    raise ValueError(f"{key} applies to a mesh file only ([blade] mesh); "
+                                     "a geometry table is meshed with its own axis, root and contact nodes")
+        else:
+            if not self.mesh.strip():
+                raise ValueError("mesh must name a mesh file")
+            if self.units is None:
+                raise ValueError(f"units is required with mesh: the length unit of '{self.mesh}', "
+                                 f"one of {', '.join(KNOWN_UNITS)}")
+            if self.axis not in KNOWN_AXES:
+                raise ValueError(f"axis must be one of {', '.join(KNOWN_AXES)}, got '{self.axis}'")
+            if not (self.root in ("boundary", "hub") or (self.root.startswith("nset:") and self.root[5:].strip())):
+                raise ValueError(f"root must be \"boundary\", \"hub\" or \"nset:NAME\", got '{self.root}'")
+            if self.contact_nodes is not None:
+                ids = list(self.contact_nodes)
+                if len(ids) < 2:
+                    raise ValueError(f"contact_nodes needs at least 2 node ids (LE first), got {ids}")
+                if len(set(ids)) != len(ids):
+                    raise ValueError(f"contact_nodes lists a node twice: {ids}")
         if self.format not in KNOWN_FORMATS:
             raise ValueError(f"unknown geometry format '{self.format}'; known: {', '.join(KNOWN_FORMATS)}")
         if self.units not in KNOWN_UNITS:
             raise ValueError(f"unknown length unit '{self.units}'; known: {', '.join(KNOWN_UNITS)}")
         if not 1 <= self.hub_section < self.tip_section:
             raise ValueError(f"need 1 <= hub_section < tip_section, got {self.hub_section}, {self.tip_section}")
+
+    @property
+    def source(self) -> str:
+        """The file the mesh stage reads: the mesh file, else the geometry table."""
+        return self.mesh if self.mesh is not None else self.geometry
 
 
 @dataclass(frozen=True)

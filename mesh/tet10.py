@@ -37,12 +37,22 @@ def shape_gradients(points: np.ndarray) -> np.ndarray:
     return g
 
 
+def det3(J: np.ndarray) -> np.ndarray:
+    """Determinants of (..., 3, 3) matrices by the rule of Sarrus (several times faster than
+    np.linalg.det's batched LU on millions of 3 x 3 blocks)."""
+    return (J[..., 0, 0] * (J[..., 1, 1] * J[..., 2, 2] - J[..., 1, 2] * J[..., 2, 1])
+            - J[..., 0, 1] * (J[..., 1, 0] * J[..., 2, 2] - J[..., 1, 2] * J[..., 2, 0])
+            + J[..., 0, 2] * (J[..., 1, 0] * J[..., 2, 1] - J[..., 1, 1] * J[..., 2, 0]))
+
+
+def jacobians(x: np.ndarray, gradients: np.ndarray) -> np.ndarray:
+    """(c, p, 3, 3) d(x_i)/d(xi_j) from (c, n, 3) node coordinates and (p, n, 3) shape gradients."""
+    return np.tensordot(x, gradients, axes=([1], [1])).transpose(0, 2, 1, 3)  # BLAS, not einsum
+
+
 def jacobian_determinants(nodes: np.ndarray, cells: np.ndarray, points: np.ndarray = CHECK_POINTS) -> np.ndarray:
     """(n_cells, p) det of d(x)/d(reference) of each tet10 at (p, 3) reference points (m^3 per unit)."""
-    x = nodes[cells]  # (c, 10, 3)
-    g = shape_gradients(points)  # (p, 10, 3)
-    J = np.einsum("cni,pnj->cpij", x, g)  # dx_i / dxi_j
-    return np.linalg.det(J)
+    return det3(jacobians(nodes[cells], shape_gradients(points)))
 
 
 def cell_volumes(nodes: np.ndarray, cells: np.ndarray) -> np.ndarray:
