@@ -10,9 +10,9 @@ from fem.cholesky import ORDERINGS
 class FemOptions:
     """n_modes: number of full-model modes computed and stored (>= 6 for the report).
     n_fixed_interface_modes: fixed-interface modes computed for the ROM stage from the same
-        factorisation (the ROM keeps the first rom.n_fixed_modes of them, so this must be
-        >= rom.n_fixed_modes); 0 skips the interface basis (the ROM stage then factorises
-        K itself, which doubles the dominant cost).
+        factorisation. The fem stage computes max(this, [rom] n_fixed_modes), so that the
+        ROM never factorises K a second time (that would double the dominant cost); a larger
+        value keeps modes for ROMs with more of them.
     tol: eigen-solver convergence: largest relative change of a wanted eigenvalue (w^2) in
         the last block step (Ritz values converge monotonically from above).
     ordering: fill-reducing ordering of the sparse Cholesky (metis, scotch, pord, amd).

@@ -1,4 +1,4 @@
-"""Alternating frequency/time transforms (section 1.3) with numpy's real FFT.
+"""Alternating frequency/time transforms (section 1.3) with scipy's real FFT.
 
 Harmonic coefficients follow eq. (5): rows [c_0, a_1, b_1, ..., a_Nh, b_Nh] with
 c_0 = a_0 / 2 the mean, so that x(tau) = c_0 + sum_k a_k cos(k tau) + b_k sin(k tau),
@@ -121,9 +121,9 @@ class FourierBasis:
         w = np.asarray(weights, dtype=float)
         nh, nt = self.n_harmonics, self.n_time
         if nt // 2 >= 2 * nh:
-            W = np.fft.rfft(w, axis=-1)[..., :2 * nh + 1] / nt
+            W = sfft.rfft(w, axis=-1)[..., :2 * nh + 1] / nt
         else:  # orders k + l beyond N_t / 2 alias: take them from the full FFT
-            W = np.fft.fft(w, axis=-1)[..., np.arange(2 * nh + 1) % nt] / nt
+            W = sfft.fft(w, axis=-1)[..., np.arange(2 * nh + 1) % nt] / nt
         k = np.arange(1, nh + 1)
         dif = k[:, None] - k[None, :]
         sm = k[:, None] + k[None, :]
