@@ -1,0 +1,22 @@
+"""The nonlinear side: harmonic balance and time integration of a reduced blade model rubbing
+a rigid casing. Plain numpy/scipy (and numba for the time-integration kernel); never the FE
+stack, so a ROM from any FE code can be used (see rom.model.RomModel for the layout).
+
+Layers, lowest first (import-linter contracts in pyproject.toml):
+
+- hbm.linalg: the LinearSolver protocol the solvers use, direct solves, GMRES, the bordered
+  system of the arc-length corrector, SingularMatrixError. A leaf.
+- hbm.continuation: the one Newton loop, arc-length continuation of any residual(x, omega)
+  -> (R, dR/dx, dR/domega) with a LinearSolver, branches. Knows nothing of contact.
+- hbm.contact: the casing of eq. (28), the normal laws (DLFT correction, regularised
+  penalty) and sliding friction, on time samples only; shared by HBM and time integration.
+- hbm.harmonic: the Fourier basis and AFT, the exact condensation on the contact dof, the
+  residual, its structured Jacobian and solver, start strategies, the NFRC.
+- hbm.ti: time integration with exact Lagrange-multiplier contact, the speed sweep,
+  periodicity classes, and marching from HBM solutions (validation).
+
+Design choices a maintainer should know (the measured reasons are in the docstrings):
+the HBM Jacobian is never factorised densely (hbm.harmonic.jacobian, preconditioner, solver);
+the corrector's linear solves are inexact Newton steps (hbm.harmonic.solver); the casing law
+exists once for both solvers (hbm.contact.casing).
+"""

@@ -1,0 +1,1 @@
+"""Time integration with exact Lagrange-multiplier contact: march, sweep, periodicity, validation."""
