@@ -54,6 +54,15 @@ class ContinuationOptions:
       beyond 90 deg there ends the branch.
     turn_shrink_deg: a point whose secant turns more than this is kept but the next step
       shrinks instead of growing: the branch curves too much for the current step.
+    rejoin_check: refuse a correction that lands back on the branch's own earlier path
+      (the same solution, to rejoin_tol times the step, travelled the other way: in a
+      cluster of close folds stretches run parallel a fraction of a step apart, and a
+      corrector that lands on an earlier one turns by only a few degrees yet retraces the
+      branch). The same landing in the old direction of travel, persisting down to ds_min,
+      is a loop closing away from the start: the branch ends as a closed loop (unless
+      closed_loop_tol is None: then it goes round again). The two sheets of a fold are never
+      taken for each other: at the same omega they lie about twice the arc length from the
+      fold's tip apart, and a step away from the tip that is far more than rejoin_tol ds.
     closed_loop_tol: d_min of eq. (27); None disables the test. The test is armed only
       once some point x_j has been farther than d_min from the start in the same metric,
       ||x_j - x_0|| / ||x_j|| > d_min: "back within d_min" presupposes having left, and
@@ -83,6 +92,8 @@ class ContinuationOptions:
     shrink: float = 0.5
     max_turn_deg: float = 45.0
     turn_shrink_deg: float = 30.0
+    rejoin_check: bool = True
+    rejoin_tol: float = 1e-3
     closed_loop_tol: float | None = 1e-2
     land_on_bounds: bool = True
     predictor: str = "secant"
@@ -196,6 +207,56 @@ def _resumed_points(resume) -> list[ContinuationPoint]:
                               float(old.time[i])) for i in range(m)]
 
 
+class _Trail:
+    """The branch's points as arrays, grown in place, for the rejoin test: x (m, n), omega
+    (m,), cumulative scaled arc length s (m,)."""
+
+    def __init__(self, n: int):
+        self.x, self.w, self.s, self.m = np.empty((64, n)), np.empty(64), np.empty(64), 0
+
+    def add(self, p: ContinuationPoint) -> None:
+        if self.m == len(self.w):
+            self.x = np.concatenate([self.x, np.empty_like(self.x)])
+            self.w, self.s = np.concatenate([self.w, np.empty_like(self.w)]), np.concatenate([self.s, np.empty_like(self.s)])
+        self.x[self.m], self.w[self.m] = p.x, p.omega
+        self.s[self.m] = (self.s[self.m - 1] + p.step) if self.m else 0.0
+        self.m += 1
+
+
+def _rejoined(trail: _Trail, x, w, tx, tw, ds: float, sc: _Scaling, residual, opt: "ContinuationOptions", solver):
+    """Whether the corrected point (x, w), reached by a step ds moving along the unit scaled
+    direction (tx, tw), is a point of the branch's earlier path: returns (segment index, cos
+    of the angle between the directions of travel now and then), or None.
+
+    Segments of the earlier path that bracket w are tried, nearest first: Newton at w from
+    the segment's interpolation; a solution within rejoin_tol * ds of (x, w) (scaled) is the
+    same point, and the path is rejoined. The last 3 ds of arc length are not looked at: the
+    other sheet of a fold just passed lies within 2 ds of arc behind the new point.
+    """
+    m = int(np.searchsorted(trail.s[:trail.m], trail.s[trail.m - 1] - 3.0 * ds, side="right"))
+    if m < 2:
+        return None
+    W = trail.w[:m]
+    lo, hi = np.minimum(W[:-1], W[1:]), np.maximum(W[:-1], W[1:])
+    cand = np.flatnonzero((lo <= w) & (w <= hi) & (hi > lo))
+    if not cand.size:
+        return None
+    f = (w - W[cand]) / (W[cand + 1] - W[cand])
+    X = trail.x[cand] + f[:, None] * (trail.x[cand + 1] - trail.x[cand])
+    d = np.linalg.norm((X - x) / sc.sx, axis=1)
+    chord = np.sqrt(np.sum(((trail.x[cand + 1] - trail.x[cand]) / sc.sx) ** 2, axis=1)
+                    + ((W[cand + 1] - W[cand]) / sc.sw) ** 2)
+    for k in np.argsort(d)[:3]:
+        if d[k] > 0.5 * max(chord[k], ds):  # not even near that chord (its sag is below half of it)
+            break
+        sol = newton_solve(residual, X[k], w, opt.newton, solver=solver, x_scale=sc.sx)
+        if sol.converged and np.linalg.norm((sol.x - x) / sc.sx) <= opt.rejoin_tol * ds:
+            i = int(cand[k])
+            ox, ow = sc.unit(trail.x[i + 1] - trail.x[i], trail.w[i + 1] - trail.w[i])
+            return i, float(ox @ tx + ow * tw)
+    return None
+
+
 def _turn(points, sc: _Scaling) -> float:
     """Angle between the last two secants of a branch, deg (0 with fewer than 3 points)."""
     if len(points) < 3:
@@ -285,6 +346,9 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
 
     armed = any(far(p.x) for p in points)
+    trail = _Trail(n)
+    for p in points:
+        trail.add(p)
 
     while True:
         if len(points) >= opt.max_points:
@@ -305,10 +369,24 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
                 d = sc.dist(cx, cw, last.x, last.omega)
                 cos = (float(((cx - last.x) / sc.sx) @ tx) + (cw - last.omega) / sc.sw * tw) / max(d, 1e-300)
                 turn = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
+                rejoin = None
                 if d > 0 and (turn <= opt.max_turn_deg or (floor and turn <= 90.0)):
-                    break
-                c = c._replace(converged=False, reason=f"correction turned {turn:.0f} deg from the previous "
-                                                       f"secant near omega={cw:.6g}")
+                    if not opt.rejoin_check:
+                        break
+                    rejoin = _rejoined(trail, cx, cw, *sc.unit(cx - last.x, cw - last.omega), ds, sc, residual,
+                                       opt, solver)
+                    if rejoin is None or (rejoin[1] > 0 and d_min is None):  # going round again: allowed
+                        break
+                    if rejoin[1] > 0 and floor:  # the loop closes on itself, away from its start
+                        emit(cx, cw, True, c.residual_norm, c.iterations, ds, t0)
+                        return done(STATUS_CLOSED_LOOP, f"rejoined its own path between points {rejoin[0]} "
+                                                        f"and {rejoin[0] + 1}")
+                    why = "backwards" if rejoin[1] <= 0 else "forwards"
+                    c = c._replace(converged=False, reason=f"correction landed {why} on the branch's own path "
+                                                           f"(points {rejoin[0]}-{rejoin[0] + 1}) near omega={cw:.6g}")
+                else:
+                    c = c._replace(converged=False, reason=f"correction turned {turn:.0f} deg from the previous "
+                                                           f"secant near omega={cw:.6g}")
             if floor:
                 emit(cx, cw, False, c.residual_norm, c.iterations, ds, t0)
                 return done(f"{STATUS_STEP_FLOOR}: {c.reason} (ds={ds:.3g}, ds_min={opt.ds_min:.3g})")
@@ -327,7 +405,7 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             emit(x_new, w_new, True, rn, it, step, t0)
             return done(STATUS_OMEGA_MAX if bound == opt.omega_max else STATUS_OMEGA_MIN)
 
-        emit(x_new, w_new, True, rn, it, step, t0)
+        trail.add(emit(x_new, w_new, True, rn, it, step, t0))
         armed = armed or far(x_new)
         crossed = (last.omega < ref_w <= w_new) or (last.omega > ref_w >= w_new)
         if armed and last.index >= 1 and crossed:  # eq. (26)-(27)

@@ -175,3 +175,30 @@ class ZigZag:
         j = np.arange(np.floor((self.kappa * lo - np.pi / 2) / np.pi) - 1, np.ceil((self.kappa * hi) / np.pi) + 2)
         xs = (np.pi / 2 + j * np.pi) / self.kappa
         return int(np.sum((xs > lo) & (xs < hi)))
+
+
+class Hairpin:
+    """Two wavy lanes 2 r apart joined by a U-turn at the bottom, as the stretches of a fold
+    cluster run parallel a fraction of a step apart:
+
+    (x1 - a sin(k w))^2 + max(0, w0 - w)^2 = r^2, x2 = 0: the left lane x1 = a sin(k w) - r
+    and the right lane a sin(k w) + r for w >= w0, a half circle of radius r below w0.
+    Going down the left lane and round the U-turn, the branch goes up the right lane; a
+    step longer than 2 r can land back on the left lane and retrace it.
+    """
+
+    def __init__(self, w0=1.0, r=0.01, a=0.3, k=6.0):
+        self.w0, self.r, self.a, self.k = w0, r, a, k
+
+    def lane(self, w, side: int) -> float:
+        """x1 of the left (side -1) or right (+1) lane at w >= w0."""
+        return self.a * np.sin(self.k * w) + side * self.r
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        e = x1 - self.a * np.sin(self.k * w)
+        b = max(0.0, self.w0 - w)
+        R = np.array([e * e + b * b - self.r ** 2, x2])
+        J = np.array([[2 * e, 0.0], [0.0, 1.0]])
+        dw = np.array([-2 * e * self.a * self.k * np.cos(self.k * w) - 2 * b, 0.0])
+        return R, J, dw

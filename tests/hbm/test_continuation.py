@@ -10,7 +10,7 @@ from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STAT
                                      STATUS_START_FAILED, STATUS_STEP_FLOOR)
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.linalg.dense import DirectSolver
-from systems import Circle, Duffing1, Helix, Vee, Wall, Wave, ZigZag
+from systems import Circle, Duffing1, Hairpin, Helix, Vee, Wall, Wave, ZigZag
 
 TOL = 1e-10  # residual tolerance of every run here
 DS_MAX = 0.05
@@ -225,6 +225,26 @@ def test_zigzag_branch_traverses_every_fold():
     # the control matters: with only the old 90 deg refusal the run skips most folds
     folds, expected = run(max_turn_deg=90.0, turn_shrink_deg=180.0)
     assert folds < 0.2 * expected
+
+
+def test_no_retrace_onto_a_parallel_stretch():
+    # Hairpin: down the left lane, round a U-turn of radius 0.01, up the right lane 0.02 away.
+    # Steps of up to 0.5 on the way up can land back on the left lane a few degrees off the
+    # secant: the run then retraces its own descent (the rotor 67 RL branch at N_h = 60 did,
+    # over 420-432 rad/s). The rejoin check refuses such a landing (Newton from the old path
+    # finds the same solution) and the run stays on the right lane up to omega_max.
+    h = Hairpin(r=0.01, a=0.1, k=2.0)
+
+    def run(check):
+        o = opts(0.0, 3.0, ds=0.05, ds_max=0.5, ds_min=1e-5, max_points=400, direction=-1, rejoin_check=check)
+        b = continue_branch(h, np.array([h.lane(3.0, -1), 0.0]), 3.0, o)
+        assert b.status == STATUS_OMEGA_MAX and b.converged.all()
+        up = np.arange(int(np.argmin(b.omega)) + 1, len(b))
+        lanes = np.sign(b.x[up, 0] - np.array([h.lane(w, 0) for w in b.omega[up]]))
+        return lanes[b.omega[up] >= h.w0]
+
+    assert np.all(run(True) == 1)  # the right lane all the way up
+    assert np.any(run(False) == -1)  # without the check: back on the left lane
 
 
 # ---------------------------------------------------------------- failures
