@@ -12,6 +12,7 @@ import dataclasses
 import difflib
 import hashlib
 import json
+import math
 import tomllib
 import typing
 from pathlib import Path
@@ -21,7 +22,7 @@ from fem.options import FemOptions
 from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions
 from mesh.options import BladeOptions, MeshOptions
 from rom.options import RomOptions
-from pipelines.options import RenderOptions
+from pipelines.options import LimitOptions, RenderOptions
 
 
 class SceneError(ValueError):
@@ -39,6 +40,7 @@ SECTIONS: dict[str, type] = {
     "hbm": HbmOptions,
     "ti": TimeIntegrationOptions,
     "render": RenderOptions,
+    "limits": LimitOptions,
 }
 
 
@@ -59,6 +61,7 @@ class Scene:
     hbm: HbmOptions
     ti: TimeIntegrationOptions
     render: RenderOptions
+    limits: LimitOptions
 
     def resolve(self, p: str | Path) -> Path:
         """A path of the scene, made absolute relative to the scene file's folder."""
@@ -144,6 +147,17 @@ RENAMED = {("hbm", "omega_start"): "omega_min", ("hbm", "omega_end"): "omega_max
            ("ti", "omega_start"): "omega_min", ("ti", "omega_end"): "omega_max"}
 
 
+def _non_finite(value) -> bool:
+    """True if `value` (a TOML value: number, string, list, table) holds a NaN or an infinity."""
+    if isinstance(value, float):
+        return not math.isfinite(value)
+    if isinstance(value, list):
+        return any(_non_finite(v) for v in value)
+    if isinstance(value, dict):
+        return any(_non_finite(v) for v in value.values())
+    return False
+
+
 def _build_section(name: str, cls: type, table: dict):
     if not isinstance(table, dict):
         raise SceneError(f"[{name}] must be a table")
@@ -156,6 +170,10 @@ def _build_section(name: str, cls: type, table: dict):
         if key not in fields:
             raise SceneError(f"unknown key '{key}' in [{name}]{_suggest(key, fields)}; "
                              f"known keys: {', '.join(sorted(fields))}")
+        # Every number of every section, whatever its type: no option of the pipeline means
+        # anything at NaN or infinity, and a range check `x < 0` lets NaN through.
+        if _non_finite(value):
+            raise SceneError(f"[{name}] {key} must be a finite number, got {value!r}")
         kwargs[key] = _coerce(cls, name, key, value, hints[key])
     try:
         return cls(**kwargs)
@@ -178,7 +196,39 @@ def parse_scene(text: str, path: Path | str = Path("scene.toml")) -> Scene:
             raise SceneError(f"unknown section [{key}]{_suggest(key, SECTIONS)} in {path}; "
                              f"known sections: {', '.join(SECTIONS)}")
     parts = {sec: _build_section(sec, cls, data.get(sec, {})) for sec, cls in SECTIONS.items()}
-    return Scene(name=name, path=path, text=text, **parts)
+    scene = Scene(name=name, path=path, text=text, **parts)
+    _check_combinations(scene)
+    return scene
+
+
+def _check_combinations(scene: Scene) -> None:
+    """Values valid one by one that cannot work together: a SceneError naming both keys."""
+    if scene.render.n_modes > scene.fem.n_modes:
+        raise SceneError(f"[render] n_modes = {scene.render.n_modes} exceeds [fem] n_modes = {scene.fem.n_modes}: "
+                         f"only {scene.fem.n_modes} modes are computed to be drawn")
+
+
+def scene_warnings(scene: Scene) -> list[str]:
+    """Values that are valid but make (part of) the run pointless; the CLI prints each once.
+
+    Casing, eq. (28) of the reference paper: d_j = c - (c + p) exp(-(phi / w)^2), so the
+    lobe's deepest point is at d = -p, and neighbouring lobes meet at phi = +-pi / n_l,
+    where d should be back at the clearance c: exp(-(pi / (n_l w))^2) < 1 % needs
+    w < pi / (2.146 n_l).
+    """
+    out = []
+    c = scene.casing
+    if c.penetration <= 0:
+        out.append(f"[casing] penetration = {c.penetration:g} m <= 0: the lobes never reach the blade's "
+                   f"circular path (the casing stays >= {-c.penetration:g} m away from it), so nothing excites "
+                   "the blade and every NFRC point is the blade at rest")
+    tail = (c.clearance + c.penetration) * math.exp(-((math.pi / c.n_lobes) / c.width) ** 2)
+    if tail > 0.01 * (c.clearance + c.penetration):
+        out.append(f"[casing] width = {c.width:g} rad is too wide for {c.n_lobes} lobes: they overlap, so between "
+                   f"them the casing comes back only to {c.clearance - tail:.3g} m from the blade's path instead of "
+                   f"the clearance {c.clearance:g} m, with a kink where they meet (width below "
+                   f"{math.pi / c.n_lobes / 2.146:.3g} rad keeps the overlap under 1 % of the lobe depth)")
+    return out
 
 
 def load_scene(path: Path | str) -> Scene:

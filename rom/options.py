@@ -19,6 +19,8 @@ class RomOptions:
     def __post_init__(self):
         if self.n_fixed_modes < 0:
             raise ValueError(f"n_fixed_modes must be >= 0, got {self.n_fixed_modes}")
+        if self.n_low_modes < 0:
+            raise ValueError(f"n_low_modes must be >= 0 (a count of modes), got {self.n_low_modes}")
         for k in ("damping_low", "damping_high"):
             v = getattr(self, k)
             if not 0 <= v < 1:

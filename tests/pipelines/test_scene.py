@@ -1,9 +1,12 @@
 """Scene parsing: defaults, overrides, and clear errors for bad input."""
+import dataclasses
+import typing
 from pathlib import Path
 
 import pytest
 
-from pipelines.scene import SceneError, load_scene, parse_scene
+from pipelines.cli import main
+from pipelines.scene import SECTIONS, SceneError, load_scene, parse_scene, scene_warnings
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -53,3 +56,63 @@ def test_section_hash_tracks_values_not_text():
     assert a.section_hash("material") == b.section_hash("material")
     assert a.section_hash("material") != c.section_hash("material")
     assert a.section_hash("hbm") == c.section_hash("hbm")
+
+
+# --- every number, found by introspection (a key added later is covered too) ----------
+def _numeric(hint) -> str | None:
+    """'scalar' or 'list' when a field of this type holds numbers, else None."""
+    if hint in (int, float):
+        return "scalar"
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin is tuple:
+        return "list" if any(_numeric(a) for a in args if a is not Ellipsis) else None
+    if args:  # a union: float | None, tuple[int, ...] | None
+        kinds = {_numeric(a) for a in args if a is not type(None)} - {None}
+        return kinds.pop() if kinds else None
+    return None
+
+
+NUMERIC_KEYS = [(section, f.name, kind) for section, cls in SECTIONS.items()
+                for f in dataclasses.fields(cls) if f.init
+                for kind in [_numeric(typing.get_type_hints(cls)[f.name])] if kind]
+
+
+def test_numeric_keys_are_found():
+    # the parametrisation below must not silently shrink to nothing
+    assert len(NUMERIC_KEYS) >= 40 and ("material", "E", "scalar") in NUMERIC_KEYS
+    assert ("render", "window", "list") in NUMERIC_KEYS
+
+
+@pytest.mark.parametrize("value", ["nan", "inf", "-inf"])
+@pytest.mark.parametrize("section, key, kind", NUMERIC_KEYS)
+def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_path, capsys):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(f"[{section}]\n{key} = {f'[{value}, 1.0]' if kind == 'list' else value}\n")
+    out = tmp_path / "out"
+    assert main(["run", str(scene), "--out", str(out)]) == 2
+    err = capsys.readouterr().err
+    assert err.strip().splitlines() == [f"bladerub: error: [{section}] {key} must be a finite number, got "
+                                        f"{'[' if kind == 'list' else ''}{float(value)!r}"
+                                        f"{', 1.0]' if kind == 'list' else ''}"]
+    assert not out.exists(), "nothing may be written for a scene refused at load"
+
+
+@pytest.mark.parametrize("text, message", [
+    ("[rom]\nn_low_modes = -1\n", r"n_low_modes must be >= 0 \(a count of modes\)"),
+    ("[render]\nscale = 0\n", r"scale must be > 0 \(the largest displacement drawn"),
+    ("[render]\nn_modes = 13\n", r"\[render\] n_modes = 13 exceeds \[fem\] n_modes = 12"),
+    ("[limits]\nmemory_gb = -1\n", r"memory_gb must be >= 0 GB"),
+])
+def test_value_out_of_range_is_named_with_its_reason(text, message):
+    with pytest.raises(SceneError, match=message):
+        parse_scene(text)
+
+
+def test_pointless_casing_is_warned():
+    assert scene_warnings(parse_scene("")) == []
+    flat, = scene_warnings(parse_scene("[casing]\npenetration = 0.0\n"))
+    assert "[casing] penetration = 0 m <= 0: the lobes never reach the blade" in flat
+    # eq. (28): two lobes of width 1 rad meet at phi = pi / 2, where the Gaussian is still
+    # exp(-(pi/2)^2) = 8.48 % of the depth c + p = 5.25e-4 m: d = 4e-4 - 4.45e-5 = 3.55e-4 m
+    wide, = scene_warnings(parse_scene("[casing]\nwidth = 1.0\n"))
+    assert "width = 1 rad is too wide for 2 lobes" in wide and "back only to 0.000355 m" in wide
