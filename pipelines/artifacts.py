@@ -5,14 +5,21 @@ matrices, scalars, strings or nested dataclasses. Each field may carry its SI un
 `dataclasses.field(metadata={"unit": "m"})`; the unit is stored as the dataset's
 `unit` attribute. Files are written to a temporary name in the same folder and renamed
 only when complete, so an interrupted run never leaves a file that looks valid.
+
+Every file made final carries the checksum of each of its datasets (root attribute
+`checksums`, see `add_checksums`), so that bytes changed on disk, a dataset deleted or a
+file cut short are found (`verify`) before the file is taken as current.
 """
 from __future__ import annotations
 
 import dataclasses
 import datetime
+import hashlib
+import json
 import os
 import subprocess
 import typing
+from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -104,26 +111,151 @@ def commit(tmp: Path | str, path: Path | str) -> Path:
     return Path(path)
 
 
+#: Temporary names are ".NAME.tmpPID" beside NAME (pipelines.folder removes those a killed
+#: run left behind).
+TEMP_MARK = ".tmp"
+
+
+def temp_path(path: Path | str) -> Path:
+    """The temporary name a file is written under before `commit` makes it `path`."""
+    path = Path(path)
+    return path.with_name(f".{path.name}{TEMP_MARK}{os.getpid()}")
+
+
 @contextmanager
 def atomic_output(path: Path | str):
     """Yield a temporary path next to `path`; on success `commit` it to `path`, on any
-    failure (an exception, Ctrl-C) remove it and leave a previous `path` untouched."""
+    failure (an exception, a full disk, Ctrl-C) remove it and leave a previous `path` untouched."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{os.getpid()}")
+    tmp = temp_path(path)
     try:
         yield tmp
         commit(tmp, path)
     finally:
-        if tmp.exists():
+        try:
             tmp.unlink()
+        except FileNotFoundError:
+            pass
+
+
+# --- checksums ------------------------------------------------------------------------
+#: Root attribute holding {dataset path: checksum} as JSON.
+CHECKSUMS = "checksums"
+#: Checksums are sha256 over fixed 16 MiB blocks of a dataset's bytes, the block digests then
+#: hashed together (with dtype and shape): the blocks are hashed in parallel threads (hashlib
+#: releases the GIL), and sha256 is the fastest of hashlib's digests where the CPU has SHA
+#: instructions (measured: sha256 0.5-1 GB/s per core against 0.2 for blake2b; README).
+_BLOCK = 1 << 24
+_ALGORITHM = "sha256x16M"
+
+
+def _block_digest(fd: int, offset: int, size: int) -> bytes:
+    """sha256 of `size` bytes of the open file `fd` at `offset` (fewer if the file is shorter)."""
+    data = os.pread(fd, size, offset)
+    return hashlib.sha256(data).digest() + len(data).to_bytes(8, "little")
+
+
+def _memory_digest(buf: memoryview, start: int, size: int) -> bytes:
+    part = buf[start:start + size]
+    return hashlib.sha256(part).digest() + len(part).to_bytes(8, "little")
+
+
+def _datasets(h5: h5py.File) -> dict:
+    found = {}
+    h5.visititems(lambda name, obj: found.__setitem__(name, obj) if isinstance(obj, h5py.Dataset) else None)
+    return found
+
+
+def dataset_checksums(h5: h5py.File, names=None) -> dict:
+    """{dataset path: checksum} of the datasets of an open file (all, or those named).
+
+    A checksum covers the dataset's dtype, shape and its bytes in C order. Contiguous
+    datasets (the large ones: K, M, modes) are read straight from the file at their offset,
+    without HDF5 decoding; chunked or compressed ones are decoded (they are small here).
+    Flush a file open for writing first. Raises KeyError for a name that is not a dataset.
+    """
+    found = _datasets(h5)
+    names = sorted(found) if names is None else list(names)
+    jobs = {}  # name -> list of (callable, args)
+    keep = []  # decoded buffers, alive until hashed
+    fd = os.open(h5.filename, os.O_RDONLY)
+    try:
+        for name in names:
+            if name not in found:
+                raise KeyError(name)
+            ds = found[name]
+            size = ds.id.get_storage_size()
+            offset = ds.id.get_offset() if ds.chunks is None and not ds.compression else None
+            if offset is not None and size == ds.size * ds.dtype.itemsize:
+                jobs[name] = [(_block_digest, (fd, offset + k, min(_BLOCK, size - k))) for k in range(0, size, _BLOCK)]
+            else:
+                buf = memoryview(np.ascontiguousarray(ds[()]).reshape(-1).view(np.uint8)) if ds.size else memoryview(b"")
+                keep.append(buf)
+                jobs[name] = [(_memory_digest, (buf, k, _BLOCK)) for k in range(0, len(buf), _BLOCK)]
+        with ThreadPoolExecutor(max(1, min(8, len(os.sched_getaffinity(0))))) as pool:
+            futures = {name: [pool.submit(f, *a) for f, a in todo] for name, todo in jobs.items()}
+            out = {}
+            for name, fs in futures.items():
+                ds = found[name]
+                h = hashlib.sha256(f"{ds.dtype.str}{ds.shape}".encode())
+                for f in fs:
+                    h.update(f.result())
+                out[name] = f"{_ALGORITHM}:{h.hexdigest()}"
+        return out
+    finally:
+        os.close(fd)
+
+
+def add_checksums(path: Path | str) -> None:
+    """Write the checksums of every dataset of the closed file `path` into its root attribute."""
+    with h5py.File(path, "r") as h5:
+        sums = dataset_checksums(h5)
+    with h5py.File(path, "r+") as h5:
+        h5.attrs[CHECKSUMS] = json.dumps(sums, sort_keys=True)
+
+
+def verify(path: Path | str) -> str | None:
+    """None when every dataset that `path` records a checksum for is there with those bytes;
+    else why the file cannot be trusted, in words (no checksums, a dataset missing or
+    changed, unreadable)."""
+    path = Path(path)
+    try:
+        with h5py.File(path, "r") as h5:
+            text = h5.attrs.get(CHECKSUMS)
+            if text is None:
+                return "no checksums to verify it by (written by an older version)"
+            try:
+                sums = json.loads(text)
+            except ValueError:
+                return "damaged: its checksum list is unreadable"
+            found = _datasets(h5)
+            missing = sorted(set(sums) - set(found))
+            if missing:
+                more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
+                return f"damaged: dataset '{missing[0]}' is missing{more}"
+            now = dataset_checksums(h5, sums)
+    except (OSError, RuntimeError, ValueError, KeyError) as exc:
+        return f"damaged: unreadable ({first_line(exc)})"
+    bad = [name for name in sorted(sums) if now[name] != sums[name]]
+    if bad:
+        more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
+        return f"damaged: dataset '{bad[0]}' changed on disk (checksum mismatch){more}"
+    return None
+
+
+def first_line(exc: BaseException) -> str:
+    """The first line of an exception's message (HDF5's run over many lines)."""
+    text = str(exc).strip().splitlines()
+    return text[0] if text else type(exc).__name__
 
 
 def write_artifact(path: Path | str, result, *, stage: str, scene_text: str = "",
                    inputs_hash: str = "", extra_attrs: dict | None = None) -> Path:
     """Write a dataclass `result` to `path` atomically (see atomic_output).
 
-    Root attributes: stage, units, scene, inputs_hash, code_version, created, and extra_attrs.
+    Root attributes: stage, units, scene, inputs_hash, code_version, created, checksums
+    (see add_checksums), and extra_attrs.
     """
     path = Path(path)
     with atomic_output(path) as tmp:
@@ -138,6 +270,7 @@ def write_artifact(path: Path | str, result, *, stage: str, scene_text: str = ""
             for k, v in (extra_attrs or {}).items():
                 h5.attrs[k] = v
             _write_fields(h5, result)
+        add_checksums(tmp)
     return path
 
 
@@ -208,7 +341,7 @@ def read_attrs(path: Path | str) -> dict:
     try:
         with h5py.File(path, "r") as h5:
             return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
-    except OSError:
+    except (OSError, RuntimeError, ValueError, KeyError):  # not HDF5, damaged, cut short
         return {}
 
 

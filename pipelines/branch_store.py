@@ -7,7 +7,8 @@ name *and* `complete = 1`; `load_branch` refuses anything else unless asked for 
 
 Layout (m points, n unknowns):
   root attrs: the caller's (units, scene, code_version, inputs_hash, ...), plus created,
-    n_unknowns, n_points (rows fully written), complete (0/1), status, detail.
+    n_unknowns, n_points (rows fully written), complete (0/1), status, detail, and once
+    complete the datasets' checksums (pipelines.artifacts.verify).
   omega (m,) rad/s; x (m, n) the continuation's unknowns (for the HBM: the scaled
   harmonics alpha x~_r, unit 1); converged (m,) bool; residual_norm (m,) (unit of the
   residual: 1 for the scaled HBM residual); iterations (m,); step (m,) scaled arc length;
@@ -26,7 +27,7 @@ import h5py
 import numpy as np
 
 from hbm.continuation.branch import Branch, ContinuationPoint
-from pipelines.artifacts import commit, now
+from pipelines.artifacts import CHECKSUMS, commit, dataset_checksums, now
 
 _FIELDS = {  # name: (dtype, unit)
     "omega": (np.float64, "rad/s"),
@@ -37,7 +38,7 @@ _FIELDS = {  # name: (dtype, unit)
     "step": (np.float64, "1"),
     "time": (np.float64, "s"),
 }
-_RESERVED_ATTRS = {"n_unknowns", "n_points", "complete", "status", "detail", "created", "extras_units"}
+_RESERVED_ATTRS = {"n_unknowns", "n_points", "complete", "status", "detail", "created", "extras_units", CHECKSUMS}
 
 
 class StoredBranch(NamedTuple):
@@ -191,10 +192,13 @@ class BranchStore:
         self.n_points = m + 1
 
     def finalize(self, status: str, detail: str = "") -> Path:
-        """Record why the branch stopped, mark complete, rename to NAME.h5; returns that path."""
+        """Record why the branch stopped, mark complete, add the datasets' checksums
+        (pipelines.artifacts.verify), rename to NAME.h5; returns that path."""
         self._h5.attrs["status"] = status
         self._h5.attrs["detail"] = detail
         self._h5.attrs["complete"] = 1
+        self._h5.flush()
+        self._h5.attrs[CHECKSUMS] = json.dumps(dataset_checksums(self._h5), sort_keys=True)
         self._h5.flush()
         self._h5.close()
         return commit(partial_path(self.path), self.path)
