@@ -112,8 +112,10 @@ def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarra
     import ufl
     from mpi4py import MPI
     from dolfinx import fem, mesh as dmesh
+    # perm_gmsh, not dolfinx.io.gmshio: that imports gmsh, and importing gmsh sets SIGINT to
+    # its default action for the whole process (Ctrl-C would then kill a run without a word)
+    from dolfinx.cpp.io import perm_gmsh
     from dolfinx.fem.petsc import assemble_matrix
-    from dolfinx.io import gmshio
 
     nodes = np.ascontiguousarray(nodes, dtype=np.float64)
     cells = np.asarray(cells, dtype=np.int64)
@@ -123,7 +125,7 @@ def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarra
         raise TypeError(f"material must be a fem.material.Material, got {type(material).__name__}")
 
     # gmsh tet10 (edges 01,12,20,30,32,31) -> dolfinx local ordering
-    perm = gmshio.cell_perm_array(dmesh.CellType.tetrahedron, 10)
+    perm = perm_gmsh(dmesh.CellType.tetrahedron, 10)
     domain = ufl.Mesh(ufl.VectorElement(ufl.FiniteElement("Lagrange", ufl.tetrahedron, 2,
                                                           variant="equispaced")))
     msh = dmesh.create_mesh(MPI.COMM_SELF, cells[:, perm], nodes, domain)

@@ -1,22 +1,48 @@
-"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE]`, `bladerub render ...`."""
+"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes]`,
+`bladerub render SCENE.toml --out DIR`.
+
+Every failure is one line on standard error, and the exit code says which kind:
+0 done; 2 nothing was computed (a bad scene, table or artifact, an unusable or busy output
+folder, a run refused as too large for the machine or the disk, a stage asked for before the
+one it needs); 1 a stage failed while computing (e.g. a write on a full disk; the line says
+what was kept); 130 interrupted by Ctrl-C (the line says what was kept and how to go on).
+"""
 from __future__ import annotations
 
 import argparse
+import multiprocessing
+import os
+import shlex
+import signal
 import sys
+import threading
+import time
 from pathlib import Path
 
 from pipelines.artifacts import ArtifactError
-from pipelines.scene import SceneError, load_scene
+from pipelines.errors import RunError
+from pipelines.scene import SceneError, load_scene, scene_warnings
+
+
+def _command(args, *extra: str) -> str:
+    """The command line to give again to go on (no --force: what this run finished is kept)."""
+    words = ["bladerub", args.command, str(args.scene), "--out", str(args.out), *extra]
+    return " ".join(shlex.quote(w) for w in words)
 
 
 def _cmd_run(args) -> int:
     from pipelines.progress import Progress
     from pipelines.runner import run_scene
+    from pipelines.stages import STAGES
 
     scene = load_scene(args.scene)
     progress = Progress(quiet=args.quiet)
+    for text in scene_warnings(scene):
+        progress.warn(text)
+    extra = ([] if args.until == STAGES[-1] else ["--until", args.until]) + (["--yes"] if args.yes else [])
     try:
-        run_scene(scene, Path(args.out), until=args.until, force=args.force, progress=progress)
+        run_scene(scene, Path(args.out), until=args.until, force=args.force, progress=progress, yes=args.yes,
+                  command=_command(args, *extra))
     finally:
         progress.summary()
     return 0
@@ -27,34 +53,145 @@ def _cmd_render(args) -> int:
     from pipelines.runner import render_modes
 
     scene = load_scene(args.scene)
-    for p in render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True)):
+    for p in render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True),
+                          command=_command(args)):
         print(p)
     return 0
 
 
+def _failures() -> tuple:
+    """Errors of a stage's own making that the user can act on: one line, exit 1."""
+    from mesh.blade import MeshingError
+    from pipelines.child import ChildDied
+    from pipelines.render import RenderError
+
+    return MeshingError, ChildDied, RenderError
+
+
+def _stop_children(signum, frame):
+    """SIGINT: end this run's worker processes (a process pool waits for its running tasks
+    otherwise), then stop where the run is with KeyboardInterrupt."""
+    for child in multiprocessing.active_children():
+        child.terminate()
+    raise KeyboardInterrupt
+
+
+_FORK_HOOK = False
+
+
+def _silent_forked_child():
+    # A forked worker ends on Ctrl-C without a traceback of its own: the parent reports.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
+class _CtrlC:
+    """Ctrl-C is answered within GRACE seconds, whatever the main thread is doing.
+
+    Python runs its SIGINT handler in the main thread between two bytecodes: not while a C
+    library holds it (a sparse factorisation, a mesher), nor when the cleanup after
+    KeyboardInterrupt hangs (CPython 3.11's process pool waits forever on a pipe to workers
+    that are gone). The signal's wake-up byte (signal.set_wakeup_fd, written by the C-level
+    handler at once) wakes this watcher; if the run has not ended GRACE s later, it prints
+    the run's interruption line (pipelines.runner.interruption) and ends the process (exit
+    130). What it leaves is safe: finished artifacts were renamed into place complete, NFRC
+    points are flushed one by one, and the temporary file of a write in progress is removed
+    by the next run in that folder.
+    """
+
+    GRACE = 3.0
+
+    def __init__(self):
+        self.reported = False
+        self.finished = False
+        self._r, self._w = os.pipe()
+        os.set_blocking(self._w, False)
+        self._old = signal.set_wakeup_fd(self._w, warn_on_full_buffer=False)
+        threading.Thread(target=self._watch, name="bladerub-ctrl-c", daemon=True).start()
+
+    def _watch(self):
+        while True:
+            try:
+                data = os.read(self._r, 64)
+            except OSError:
+                return
+            if not data:
+                return
+            if signal.SIGINT not in data:
+                continue
+            time.sleep(self.GRACE)
+            if self.finished:
+                return
+            if not self.reported:
+                from pipelines import runner
+
+                os.write(2, f"bladerub: {runner.interruption(detailed=False)}\n".encode())
+            os._exit(130)
+
+    def close(self):
+        self.finished = True
+        signal.set_wakeup_fd(self._old)
+        os.close(self._w)  # the watcher reads end-of-file and returns
+
+
 def main(argv: list[str] | None = None) -> int:
+    global _FORK_HOOK
     from pipelines.stages import STAGES
 
-    parser = argparse.ArgumentParser(prog="bladerub", description=__doc__)
+    parser = argparse.ArgumentParser(prog="bladerub", description=__doc__,
+                                     formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene's stages in order, skipping those already up to date")
     run.add_argument("scene", type=Path, help="scene file (TOML)")
     run.add_argument("--out", type=Path, required=True, help="output folder for artifacts and figures")
     run.add_argument("--until", default=STAGES[-1], choices=STAGES, help="last stage to run (default: all)")
     run.add_argument("--force", action="store_true", help="recompute stages even if up to date")
-    run.add_argument("--quiet", action="store_true", help="print errors only (no live line, no summary)")
+    run.add_argument("--yes", action="store_true",
+                     help="run even what the size guard or the free-space check refuses")
+    run.add_argument("--quiet", action="store_true", help="print errors and warnings only (no live line, no summary)")
     run.set_defaults(func=_cmd_run)
-    ren = sub.add_parser("render", help="render mode shapes off-screen to PNG (needs fem.h5 in --out)")
+    ren = sub.add_parser("render", help="render mode shapes off-screen to PNG (needs a current fem.h5 in --out)")
     ren.add_argument("scene", type=Path)
     ren.add_argument("--out", type=Path, required=True)
     ren.add_argument("--modes", type=int, default=None, help="number of modes (default: the scene's)")
     ren.set_defaults(func=_cmd_render)
     args = parser.parse_args(argv)
+    if not _FORK_HOOK:
+        os.register_at_fork(after_in_child=_silent_forked_child)
+        _FORK_HOOK = True
+    interactive = (signal.getsignal(signal.SIGINT) is signal.default_int_handler
+                   and threading.current_thread() is threading.main_thread())
+    ctrl_c = None
+    if interactive:
+        signal.signal(signal.SIGINT, _stop_children)
+        ctrl_c = _CtrlC()
     try:
         return args.func(args)
+    except RunError as exc:
+        if ctrl_c is not None:
+            ctrl_c.reported = True
+        print(f"bladerub: {'error: ' if exc.exit_code != 130 else ''}{exc}", file=sys.stderr)
+        return exc.exit_code
     except (SceneError, ArtifactError, ValueError, FileNotFoundError) as exc:
         print(f"bladerub: error: {exc}", file=sys.stderr)
         return 2
+    except KeyboardInterrupt:
+        if ctrl_c is not None:
+            ctrl_c.reported = True
+        print("bladerub: interrupted before anything was computed", file=sys.stderr)
+        return 130
+    except OSError as exc:
+        print(f"bladerub: error: {os.strerror(exc.errno) if exc.errno else exc}"
+              f"{' ' + str(exc.filename) if exc.filename else ''}", file=sys.stderr)
+        return 1
+    except RuntimeError as exc:
+        if not isinstance(exc, _failures()):
+            raise  # a bug: its traceback is what a report needs
+        print(f"bladerub: error: {exc}", file=sys.stderr)
+        return 1
+    finally:
+        if interactive:
+            ctrl_c.close()
+            signal.signal(signal.SIGINT, signal.default_int_handler)
 
 
 if __name__ == "__main__":

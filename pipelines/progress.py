@@ -7,6 +7,7 @@ At the end, a table of the stages: wall time, peak memory, computed or reused an
 from __future__ import annotations
 
 import resource
+import sys
 import time
 from contextlib import contextmanager
 from dataclasses import dataclass
@@ -17,7 +18,7 @@ from pathlib import Path
 class StageRecord:
     """One row of the run's summary.
 
-    stage: its name. action: "computed" or "reused". why: the reason (for a computed stage
+    stage: its name. action: "computed", "reused", "interrupted" or "failed". why: the reason (for a computed stage
     which inputs changed; for a reused one "up to date"). wall: s. peak_memory: largest
     resident set of this process or of a child it waited for during the stage, bytes
     (0 when unknown).
@@ -83,6 +84,10 @@ class Progress:
         if not self.quiet:
             print(text, flush=True)
 
+    def warn(self, text: str) -> None:
+        """A warning: on standard error, --quiet or not (a valid run that may be pointless)."""
+        print(f"bladerub: warning: {text}", file=sys.stderr, flush=True)
+
     @contextmanager
     def step(self, label: str, total: int | None = None):
         """A long step with a live line; yields update(text=None, completed=None).
@@ -116,11 +121,20 @@ class Progress:
     @contextmanager
     def stage(self, name: str):
         """Time and measure one stage; the caller sets .action and .why on the yielded record."""
-        rec = _Pending()
+        rec, mem = _Pending(), None
         t0 = time.perf_counter()
-        with _PeakMemory() as mem:
-            yield rec
-        self.records.append(StageRecord(name, rec.action, rec.why, time.perf_counter() - t0, mem.peak))
+        try:
+            with _PeakMemory() as mem:
+                yield rec
+        except KeyboardInterrupt:
+            rec.action = "interrupted"
+            raise
+        except BaseException:
+            rec.action = "failed"
+            raise
+        finally:
+            self.records.append(StageRecord(name, rec.action, rec.why, time.perf_counter() - t0,
+                                            getattr(mem, "peak", 0)))
 
     def summary(self) -> None:
         """The table of the run's stages."""

@@ -1,18 +1,33 @@
 """Runs a scene's stages in order, skipping what is current, and redraws what is missing.
 
 An output is current when its file carries the inputs hash of exactly what it depends on
-(pipelines.stages.base). Otherwise the stage computes it, and the run says why: no
-artifact, which inputs changed, or --force. Figures are checked last, against
-figures/manifest.json: a figure whose file is missing or whose inputs changed is redrawn
-from the artifacts, nothing is recomputed for it.
+(pipelines.stages.base) and every dataset still matches the checksum written with it
+(pipelines.artifacts.verify). Otherwise the stage computes it, and the run says why: no
+artifact, which inputs changed, which dataset is damaged, or --force.
+
+Before anything is computed, the whole run is planned and checked: the folder is usable and
+locked for this run (pipelines.folder), temporary files of killed runs are removed, no
+artifact path is a folder, the free space holds what the run writes, and each stage to
+compute fits this machine's memory (pipelines.guard). A stage's expected inputs hash is known
+from the scene alone (its upstream stages' expected hashes, not their files), so the plan
+is final: an upstream output recomputed with the same inputs leaves its downstream current.
+
+Figures are checked last, against figures/manifest.json (inputs hash and file checksums): a
+figure whose file is missing, damaged or outdated is redrawn from the artifacts.
+Ctrl-C ends the run with pipelines.errors.Interrupted (what was kept, how to resume); a
+write that fails ends it with StageFailed; each is one line from the CLI.
 """
 from __future__ import annotations
 
 import hashlib
 import json
+import os
+from dataclasses import dataclass
 from pathlib import Path
 
 from pipelines import artifacts as art
+from pipelines import folder
+from pipelines.errors import Interrupted, Refused, StageFailed
 from pipelines.progress import Progress
 from pipelines.stages import REGISTRY, STAGES
 from pipelines.stages.base import Context, Figure, Output, Stage
@@ -33,29 +48,43 @@ def _digest(components: dict) -> str:
     return hashlib.sha256(json.dumps(components, sort_keys=True).encode()).hexdigest()
 
 
-def inputs_of(scene, out: Path, stage: Stage, output: Output) -> dict:
-    """What `output` of `stage` depends on, {component: hash}: scene keys, input files by
-    content, the upstream artifacts' own inputs hashes, and the output's key."""
-    comp = {f"scene {k}": scene.key_hash(k) for k in stage.depends + output.depends}
-    for label, path in stage.files(scene).items():
-        comp[f"file {label}"] = file_hash(path)
-    for up in stage.upstream:
-        for o in REGISTRY[up].outputs(scene):
-            comp[f"upstream {o.file}"] = art.read_attrs(out / o.file).get("inputs_hash", "missing")
-    if output.key:
-        comp["key"] = output.key
-    return comp
+def expected_inputs(scene, names) -> dict:
+    """{output file: (inputs {component: hash}, inputs hash)} for the outputs of the named
+    stages (and those upstream of them): scene keys, input files by content, the upstream
+    outputs' expected inputs hashes, and the output's key. Depends on the scene only."""
+    last = max(STAGES.index(n) for n in names)
+    memo: dict = {}
+    for name in STAGES[: last + 1]:
+        stage = REGISTRY[name]
+        files = {f"file {label}": file_hash(path) for label, path in stage.files(scene).items()}
+        for o in stage.outputs(scene):
+            comp = {f"scene {k}": scene.key_hash(k) for k in stage.depends + o.depends}
+            comp.update(files)
+            for up in stage.upstream:
+                for uo in REGISTRY[up].outputs(scene):
+                    comp[f"upstream {uo.file}"] = memo[uo.file][1]
+            if o.key:
+                comp["key"] = o.key
+            memo[o.file] = (comp, _digest(comp))
+    return memo
 
 
-def _why_stale(path: Path, inputs: dict, h: str) -> str | None:
-    """None when `path` is current for these inputs, else the reason to compute it."""
+def why_stale(path: Path, inputs: dict, h: str, verify: bool = True) -> str | None:
+    """None when `path` is current for these inputs and intact, else the reason to compute it.
+    verify: check every dataset against its checksum (else the inputs hash only)."""
+    if path.is_symlink() and not path.exists():
+        return "broken link"
     if not path.exists():
         return "no artifact"
+    if not path.is_file():
+        return "not a file"
+    if path.stat().st_size == 0:
+        return "empty file"
     attrs = art.read_attrs(path)
     if not attrs:
-        return "artifact unreadable"
+        return "unreadable file"
     if attrs.get("inputs_hash") == h:
-        return None
+        return art.verify(path) if verify else None
     try:
         old = json.loads(attrs.get("inputs", ""))
     except ValueError:
@@ -64,42 +93,146 @@ def _why_stale(path: Path, inputs: dict, h: str) -> str | None:
     return "inputs changed: " + ", ".join(changed) if changed else "made from other inputs"
 
 
-def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
-              progress: Progress | None = None) -> Progress:
-    """Run the scene's stages in order up to `until`, then bring the figures up to date.
+@dataclass
+class Step:
+    """One stage of a run's plan: its outputs, those to compute (todo) and why."""
 
-    Returns the Progress, whose `records` hold one StageRecord per stage.
-    """
-    if until not in STAGES:
-        raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
-    out = Path(out)
-    out.mkdir(parents=True, exist_ok=True)
-    progress = progress or Progress()
-    ran = []
-    for name in STAGES[: STAGES.index(until) + 1]:
+    stage: Stage
+    outputs: tuple[Output, ...]
+    todo: tuple[Output, ...]
+    why: str
+
+
+def plan(scene, out: Path, names, force: bool = False, expected: dict | None = None,
+         verify: bool = True) -> list[Step]:
+    """What a run of the named stages will compute and why. verify: check the checksums of
+    the outputs that are current by their inputs hash (else trust the hash alone)."""
+    expected = expected or expected_inputs(scene, names)
+    steps = []
+    for name in names:
         stage = REGISTRY[name]
-        ran.append(stage)
-        ctx = Context(scene, out, progress)
+        outputs = stage.outputs(scene)
         todo, reasons = [], []
-        for o in stage.outputs(scene):
-            inputs = inputs_of(scene, out, stage, o)
-            h = _digest(inputs)
-            why = "forced (--force)" if force else _why_stale(out / o.file, inputs, h)
-            ctx.hashes[o.file], ctx.inputs[o.file] = h, inputs
+        for o in outputs:
+            inputs, h = expected[o.file]
+            why = "forced (--force)" if force else why_stale(out / o.file, inputs, h, verify)
             if why is not None:
                 todo.append(o)
-                reasons.append(why if len(stage.outputs(scene)) == 1 else f"{o.file}: {why}")
-        with progress.stage(name) as record:
-            if not todo:
-                record.action, record.why = "reused", "up to date"
-                progress.log(f"[{name}] up to date ({', '.join(o.file for o in stage.outputs(scene)) or '-'})")
-                continue
-            record.why = "; ".join(reasons)
-            progress.log(f"[{name}] running ({record.why}) ...")
-            stage.compute(ctx, tuple(todo))
-            progress.log(f"[{name}] done -> {', '.join(o.file for o in todo)}")
-    update_figures(scene, out, ran, progress)
+                reasons.append(why if len(outputs) == 1 else f"{o.file}: {why}")
+        steps.append(Step(stage, outputs, tuple(todo), "; ".join(reasons) if todo else "up to date"))
+    return steps
+
+
+def _kept(out: Path, steps, done: set, detailed: bool = True) -> str:
+    """The artifacts a stopped run leaves usable, and the points of interrupted NFRCs
+    (counted when detailed: that opens the files)."""
+    from pipelines.branch_store import partial_path
+
+    kept = [o.file for s in steps for o in s.outputs if o.file in done]
+    for s in steps:
+        for o in s.todo:
+            part = partial_path(out / o.file)
+            if o.file not in done and o.file.endswith(".h5") and part.is_file():
+                n = art.read_attrs(part).get("n_points", 0) if detailed else "the"
+                if n:
+                    kept.append(f"{n} points of {part.name}")
+    return ", ".join(kept) if kept else "nothing new"
+
+
+#: What an interruption now would say (set while a run executes; pipelines.cli reads it).
+_describe = None
+
+
+def interruption(detailed: bool = True) -> str:
+    """The line for a run interrupted now: where, what was kept, how to go on."""
+    return _describe(detailed) if _describe is not None else "interrupted"
+
+
+def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
+              progress: Progress | None = None, yes: bool = False, command: str = "") -> Progress:
+    """Run the scene's stages in order up to `until`, then bring the figures up to date.
+
+    yes: run even what the size guard or the free-space check would refuse. command: the
+    command line, shown to a second run in the same folder and in the resume hint.
+    Returns the Progress, whose `records` hold one StageRecord per stage. Raises
+    pipelines.errors.RunError subclasses for what the user can act on (one line each).
+    """
+    from pipelines import guard
+
+    if until not in STAGES:
+        raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
+    progress = progress or Progress()
+    out = folder.prepare(Path(out))
+    command = command or f"bladerub run {scene.path} --out {out} --until {until}"
+    names = STAGES[: STAGES.index(until) + 1]
+    with folder.hold(out, command):
+        removed = folder.remove_orphans(out)
+        if removed:
+            progress.log(f"[folder] removed {len(removed)} temporary file(s) left by a run that was killed: "
+                         + ", ".join(f"{n} ({b / 1e6:.1f} MB)" for n, b in removed))
+        expected = expected_inputs(scene, names)
+        # first by inputs hash alone (milliseconds): a run too large for the machine is refused
+        # before a large artifact is read to verify it; then the checksums, which may add work
+        quick = plan(scene, out, names, force, expected, verify=False)
+        _check_paths(out, quick)
+        disk = guard.check_run(scene, out, quick, progress, yes=yes)
+        steps = plan(scene, out, names, force, expected)
+        damaged = [Step(s.stage, s.outputs, tuple(o for o in s.todo if o not in q.todo), s.why)
+                   for s, q in zip(steps, quick) if len(s.todo) > len(q.todo)]
+        _check_paths(out, damaged)
+        guard.check_run(scene, out, damaged, progress, yes=yes, disk=disk)
+        _execute(scene, out, steps, expected, progress, command)
     return progress
+
+
+def _check_paths(out: Path, steps) -> None:
+    from pipelines.branch_store import partial_path
+
+    for s in steps:
+        for o in s.todo:
+            folder.check_path(out / o.file)
+            folder.check_path(partial_path(out / o.file))
+    figures = out / "figures"
+    if figures.exists() and not figures.is_dir():
+        raise folder.FolderError(f"{figures} is not a folder: the run draws its figures there; move it away")
+
+
+def _execute(scene, out: Path, steps, expected: dict, progress: Progress, command: str) -> None:
+    global _describe
+    done = {o.file for s in steps for o in s.outputs if o not in s.todo}
+    where = "planning"
+
+    def describe(detailed: bool = True) -> str:
+        return (f"interrupted during {where}; kept: {_kept(out, steps, done, detailed)}; "
+                f"run `{command}` again to go on from there")
+
+    _describe = describe
+    try:
+        for s in steps:
+            where = f"stage {s.stage.name}"
+            ctx = Context(scene, out, progress)
+            for o in s.outputs:
+                ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
+            with progress.stage(s.stage.name) as record:
+                if not s.todo:
+                    record.action, record.why = "reused", "up to date"
+                    progress.log(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})")
+                    continue
+                record.why = s.why
+                progress.log(f"[{s.stage.name}] running ({s.why}) ...")
+                s.stage.compute(ctx, s.todo)
+                done.update(o.file for o in s.todo)
+                progress.log(f"[{s.stage.name}] done -> {', '.join(o.file for o in s.todo)}")
+        where = "the figures"
+        update_figures(scene, out, [s.stage for s in steps], progress)
+    except KeyboardInterrupt:
+        raise Interrupted(describe()) from None
+    except OSError as exc:
+        text = os.strerror(exc.errno) if exc.errno else art.first_line(exc)
+        name = f" {exc.filename}" if getattr(exc, "filename", None) else ""
+        raise StageFailed(f"{where} failed: {text}{name}; kept: {_kept(out, steps, done)}") from exc
+    finally:
+        _describe = None
 
 
 def figure_hash(scene, out: Path, fig: Figure) -> str:
@@ -109,12 +242,22 @@ def figure_hash(scene, out: Path, fig: Figure) -> str:
     return _digest(comp)
 
 
+def _figure_current(entry, h: str, folder_: Path, files) -> bool:
+    """A manifest entry is current when made from these inputs and its files have the
+    checksums recorded when they were drawn (an older manifest's bare hash never is)."""
+    if not isinstance(entry, dict) or entry.get("inputs") != h:
+        return False
+    sums = entry.get("files", {})
+    return all((folder_ / f).is_file() and sums.get(f) == file_hash(folder_ / f) for f in files)
+
+
 def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
-    """Draw the figures of `stages` that are missing or outdated; returns their names."""
-    folder = out / "figures"
-    path = folder / MANIFEST
+    """Draw the figures of `stages` that are missing, damaged or outdated; returns their names."""
+    folder_ = out / "figures"
+    path = folder_ / MANIFEST
     try:
         manifest = json.loads(path.read_text())
+        manifest = manifest if isinstance(manifest, dict) else {}
     except (OSError, ValueError):
         manifest = {}
     drawn = []
@@ -124,29 +267,41 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
             if not files or not any((out / name).is_file() for name in fig.inputs(scene)):
                 continue
             h = figure_hash(scene, out, fig)
-            if manifest.get(fig.name) == h and all((folder / f).is_file() for f in files):
+            entry = manifest.get(fig.name)
+            if _figure_current(entry, h, folder_, files):
                 continue
             with progress.stage(f"figure {fig.name}") as record:
-                record.why = "missing" if fig.name not in manifest else "inputs changed"
+                record.why = ("missing" if entry is None else "inputs changed"
+                              if not isinstance(entry, dict) or entry.get("inputs") != h else "file missing or damaged")
                 fig.draw(Context(scene, out, progress))
-            manifest[fig.name] = h
-            folder.mkdir(parents=True, exist_ok=True)
+            manifest[fig.name] = {"inputs": h, "files": {f: file_hash(folder_ / f) for f in files
+                                                         if (folder_ / f).is_file()}}
+            folder_.mkdir(parents=True, exist_ok=True)
             with art.atomic_output(path) as tmp:
                 tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
             drawn.append(fig.name)
     if drawn:
-        progress.log(f"[figures] drawn: {', '.join(drawn)} -> {folder}")
+        progress.log(f"[figures] drawn: {', '.join(drawn)} -> {folder_}")
     return drawn
 
 
-def render_modes(scene, out: Path, n_modes: int | None = None, progress: Progress | None = None) -> list:
-    """`bladerub render`: the mode-shape pictures of an existing fem.h5."""
-    from pipelines.stages.fem import FEM, render_modes as draw
-    from pipelines.stages.mesh import MESH
+def render_modes(scene, out: Path, n_modes: int | None = None, progress: Progress | None = None,
+                 command: str = "") -> list:
+    """`bladerub render`: the mode-shape pictures of an existing, current fem.h5."""
+    from pipelines.stages.fem import render_modes as draw
 
     out = Path(out)
-    for f in (MESH.file, FEM.file):
-        if not (out / f).is_file():
-            raise art.ArtifactError(f"{out / f} not found: run `bladerub run {scene.path} --out {out} "
-                                    f"--until fem` first")
-    return draw(Context(scene, out, progress or Progress()), n_modes)
+    if not out.is_dir():
+        raise Refused(f"no output folder {out}: run `bladerub run {scene.path} --out {out} --until fem` first")
+    out = folder.prepare(out)
+    with folder.hold(out, command or f"bladerub render {scene.path} --out {out}"):
+        for s in plan(scene, out, ("mesh", "fem")):
+            if s.todo:
+                o = s.todo[0]
+                state = "is missing" if s.why == "no artifact" else f"is not usable for this scene ({s.why})"
+                raise Refused(f"{out / o.file} {state}: run `bladerub run {scene.path} --out {out} --until fem` "
+                              "first")
+        try:
+            return draw(Context(scene, out, progress or Progress()), n_modes)
+        except KeyboardInterrupt:
+            raise Interrupted("interrupted while rendering; the artifacts are untouched") from None

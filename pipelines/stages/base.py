@@ -43,12 +43,30 @@ class Figure:
 
 
 @dataclass(frozen=True)
+class Estimate:
+    """What computing some outputs of a stage will roughly cost (pipelines.guard).
+
+    size: what drives the cost, in words ("~24 000 nodes"). memory: peak, bytes. seconds:
+    wall time on a machine like the 2-core reference one. disk: bytes of the files written.
+    advice: which scene key to change to make it smaller.
+    """
+
+    size: str
+    memory: float
+    seconds: float
+    disk: float
+    advice: str
+
+
+@dataclass(frozen=True)
 class Stage:
     """name. depends: scene keys ("section" or "section.key") its results depend on.
     upstream: stages whose artifacts it reads. outputs(scene): its Outputs.
     compute(ctx, outputs): computes and writes the given (not current) outputs.
     files(scene): input files that enter the hash by content, {label: path}.
-    figures: the Figures drawn from its artifacts."""
+    figures: the Figures drawn from its artifacts.
+    estimate(scene, out, outputs): an Estimate of computing those outputs (None: cheap or
+    unknown), for the size guard; `out` may hold current upstream artifacts to count from."""
 
     name: str
     depends: tuple[str, ...]
@@ -57,6 +75,7 @@ class Stage:
     compute: Callable[["Context", tuple[Output, ...]], None]
     files: Callable[[object], dict] = lambda scene: {}
     figures: tuple[Figure, ...] = ()
+    estimate: Callable[[object, Path, tuple[Output, ...]], "Estimate | None"] = lambda scene, out, outputs: None
 
 
 @dataclass

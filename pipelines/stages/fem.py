@@ -5,8 +5,8 @@ from __future__ import annotations
 import dataclasses
 
 from pipelines import artifacts as art
-from pipelines.stages.base import Context, Figure, Output, Stage
-from pipelines.stages.mesh import MESH, read_mesh
+from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
+from pipelines.stages.mesh import MESH, node_count, nodes_text, read_mesh
 
 FEM = Output("fem.h5")
 
@@ -39,6 +39,28 @@ def _compute(ctx: Context, outputs) -> None:
     ctx.log("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
 
 
+def fem_bytes(scene, nodes: float) -> float:
+    """Size of fem.h5 for a mesh of `nodes` nodes, bytes: K and M in CSR (~66 entries per row
+    for tet10, 8-byte values and 4-byte indices) and the full-model, constraint and
+    fixed-interface modes (8 bytes per dof each). 144 MB for the coarse mesh (24 104 nodes)."""
+    per_dof = 2 * 66 * 12 + 8 * (scene.fem.n_modes + 3 * scene.mesh.n_boundary
+                                 + max(scene.fem.n_fixed_interface_modes, scene.rom.n_fixed_modes))
+    return 3 * nodes * per_dof
+
+
+def _estimate(scene, out, outputs) -> Estimate | None:
+    # Peak memory ~35 kB per node (MUMPS factors, SLEPc bases): 0.83 GB for the coarse mesh
+    # (24 104 nodes), ~7 GB for the default one (197 000); time measured on 2 cores.
+    from pipelines.guard import count
+
+    n, exact = node_count(scene, out)
+    if n is None:  # a mesh file not imported yet: its size is not known before
+        return None
+    return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof", memory=0.2e9 + 35e3 * n,
+                    seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n),
+                    advice=f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers")
+
+
 def mode_files(scene) -> tuple[str, ...]:
     return tuple(f"mode_{j + 1:02d}.png" for j in range(scene.render.n_modes))
 
@@ -65,4 +87,4 @@ MODES = Figure("modes", files=mode_files, depends=("render", "name"), inputs=lam
                draw=render_modes)
 
 STAGE = Stage("fem", depends=("material", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
-              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES,))
+              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES,), estimate=_estimate)

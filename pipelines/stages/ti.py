@@ -7,7 +7,7 @@ import numpy as np
 
 from hbm.ti.sweep import SweepResult
 from pipelines import artifacts as art
-from pipelines.stages.base import Context, Figure, Output, Stage
+from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
 from pipelines.stages.rom import read_rom
 
 TI = Output("ti.h5")
@@ -50,6 +50,19 @@ def draw_sweep(ctx: Context) -> None:
 SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",), depends=("ti.omega_min", "ti.omega_max"),
                       inputs=lambda scene: (TI.file,), draw=draw_sweep)
 
+def _estimate(scene, out, outputs) -> Estimate:
+    # central-difference steps over the grid (each speed from rest); ~170 ns per step without
+    # contact, 2-3 times more in contact (README, bench_ti): 300 ns on average, over the cores
+    t = scene.ti
+    omegas = np.linspace(t.omega_min, t.omega_max, t.n_omega)
+    steps = float(np.sum(t.n_revolutions * 2 * np.pi / (omegas * t.dt)))
+    cores = len(__import__("os").sched_getaffinity(0))
+    return Estimate(size=f"{t.n_omega} speeds, {steps:.3g} steps", memory=0.3e9 * min(cores, t.n_omega),
+                    seconds=300e-9 * steps / min(cores, t.n_omega),
+                    disk=t.n_omega * (t.n_keep * t.samples_per_revolution * 4 + 64) * 8.0,
+                    advice="lower [ti] n_omega or n_revolutions, or raise dt")
+
+
 # only mu of [contact]: the sweep's contact is exact (Lagrange multipliers), not DLFT or RL
 STAGE = Stage("ti", depends=("casing", "contact.mu", "ti"), upstream=("rom",), outputs=lambda scene: (TI,),
-              compute=_compute, figures=(SWEEP_FIGURE,))
+              compute=_compute, figures=(SWEEP_FIGURE,), estimate=_estimate)

@@ -1,0 +1,114 @@
+"""The output folder: usable, held by one run at a time, cleared of what killed runs left.
+
+A run holds an exclusive `flock` on `.bladerub.lock` in its folder for as long as it runs;
+the lock file says who holds it (pid, command, start time), so a second run in the same
+folder is refused with that line. The kernel drops the lock when its process ends, however
+it ends (kill -9 included), so a stale lock file never blocks anyone. Temporary files
+(".NAME.tmpPID", pipelines.artifacts.temp_path) found by the run that holds the lock were
+left by a run that died while writing: nothing else can be writing them, and they are removed.
+"""
+from __future__ import annotations
+
+import datetime
+import errno
+import fcntl
+import json
+import os
+import socket
+from contextlib import contextmanager
+from pathlib import Path
+
+from pipelines.artifacts import TEMP_MARK
+from pipelines.errors import FolderBusy, FolderError
+
+LOCK = ".bladerub.lock"
+
+
+def _why(exc: OSError) -> str:
+    return os.strerror(exc.errno) if exc.errno else str(exc)
+
+
+def prepare(out: Path) -> Path:
+    """Create `out` if needed and check that files can be made in it; returns it.
+
+    Raises FolderError (one line) when --out names a file, or the folder cannot be created
+    or written (read-only file system, no permission, a path through a file).
+    """
+    out = Path(out)
+    if out.exists() and not out.is_dir():
+        raise FolderError(f"--out {out} is a file, not a folder: give a folder (it is created if missing)")
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise FolderError(f"cannot create the output folder {out}: {_why(exc)}") from None
+    probe = out / f".bladerub-probe{TEMP_MARK}{os.getpid()}"
+    try:
+        probe.write_bytes(b"")
+        probe.unlink()
+    except OSError as exc:
+        raise FolderError(f"cannot write in the output folder {out}: {_why(exc)}") from None
+    return out
+
+
+def _holder(fd: int) -> str:
+    try:
+        info = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+    except (OSError, ValueError):
+        info = {}
+    if not info:
+        return "another process"
+    return (f"pid {info.get('pid', '?')} on {info.get('host', '?')} (`{info.get('command', '?')}`, "
+            f"started {info.get('started', '?')})")
+
+
+@contextmanager
+def hold(out: Path, command: str):
+    """Hold the folder's lock for the duration of the block, or raise FolderBusy naming the
+    process that holds it. command: the command line shown to a second run."""
+    path = Path(out) / LOCK
+    try:
+        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise FolderError(f"cannot create the lock file {path}: {_why(exc)}") from None
+    try:
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+                raise FolderError(f"cannot lock {path}: {_why(exc)}") from None
+            raise FolderBusy(f"{out} is in use by another run: {_holder(fd)}; wait for it to end, "
+                             "or give another --out") from None
+        info = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
+                "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
+        os.ftruncate(fd, 0)
+        os.pwrite(fd, json.dumps(info).encode(), 0)
+        yield
+    finally:
+        os.close(fd)  # releases the lock
+
+
+def remove_orphans(out: Path) -> list[tuple[str, int]]:
+    """Remove the temporary files that runs killed while writing left in `out` (and figures/);
+    call it only while holding the lock. Returns [(name, bytes)] of those removed."""
+    removed = []
+    for folder in (Path(out), Path(out) / "figures"):
+        if not folder.is_dir():
+            continue
+        for p in folder.iterdir():
+            if p.name.startswith(".") and TEMP_MARK in p.name and p.is_file() and not p.is_symlink():
+                size = p.stat().st_size
+                try:
+                    p.unlink()
+                except OSError:
+                    continue
+                removed.append((str(p.relative_to(out)), size))
+    return removed
+
+
+def check_path(path: Path) -> None:
+    """Raise FolderError when something that is not a regular file sits where an artifact goes."""
+    if path.is_symlink() and not path.exists():
+        raise FolderError(f"{path} is a broken symbolic link: remove it, or give another --out")
+    if path.exists() and not path.is_file():
+        kind = "a folder" if path.is_dir() else "not a regular file"
+        raise FolderError(f"{path} is {kind}, where the run writes its artifact: move it away, or give another --out")
