@@ -22,6 +22,7 @@ from __future__ import annotations
 import hashlib
 import json
 import os
+import time
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -123,16 +124,25 @@ def plan(scene, out: Path, names, force: bool = False, expected: dict | None = N
     return steps
 
 
-def _kept(out: Path, steps, done: set, detailed: bool = True) -> str:
-    """The artifacts a stopped run leaves usable, and the points of interrupted NFRCs
-    (counted when detailed: that opens the files)."""
+def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: bool = True) -> str:
+    """The artifacts a stopped run leaves usable (those current before it, those it finished:
+    a stage with several outputs, such as the NFRCs, may have finished some), and the points
+    of interrupted NFRCs. detailed: read the files (else names and times only)."""
     from pipelines.branch_store import partial_path
 
-    kept = [o.file for s in steps for o in s.outputs if o.file in done]
+    def finished(o) -> bool:
+        p = out / o.file
+        if not p.is_file():
+            return False
+        if detailed:
+            return art.read_attrs(p).get("inputs_hash") == expected[o.file][1]
+        return p.stat().st_mtime >= since
+
+    kept = [o.file for s in steps for o in s.outputs if o.file in done or (o in s.todo and finished(o))]
     for s in steps:
         for o in s.todo:
             part = partial_path(out / o.file)
-            if o.file not in done and o.file.endswith(".h5") and part.is_file():
+            if o.file not in kept and o.file.endswith(".h5") and part.is_file():
                 n = art.read_attrs(part).get("n_points", 0) if detailed else "the"
                 if n:
                     kept.append(f"{n} points of {part.name}")
@@ -200,11 +210,13 @@ def _check_paths(out: Path, steps) -> None:
 def _execute(scene, out: Path, steps, expected: dict, progress: Progress, command: str) -> None:
     global _describe
     done = {o.file for s in steps for o in s.outputs if o not in s.todo}
-    where = "planning"
+    where, since = "planning", time.time()
+
+    def kept(detailed: bool = True) -> str:
+        return _kept(out, steps, done, expected, since, detailed)
 
     def describe(detailed: bool = True) -> str:
-        return (f"interrupted during {where}; kept: {_kept(out, steps, done, detailed)}; "
-                f"run `{command}` again to go on from there")
+        return f"interrupted during {where}; kept: {kept(detailed)}; run `{command}` again to go on from there"
 
     _describe = describe
     try:
@@ -230,7 +242,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
     except OSError as exc:
         text = os.strerror(exc.errno) if exc.errno else art.first_line(exc)
         name = f" {exc.filename}" if getattr(exc, "filename", None) else ""
-        raise StageFailed(f"{where} failed: {text}{name}; kept: {_kept(out, steps, done)}") from exc
+        raise StageFailed(f"{where} failed: {text}{name}; kept: {kept()}") from exc
     finally:
         _describe = None
 

@@ -1,0 +1,310 @@
+"""Faults injected into runs of the coarse scene: each is found and named in one line, never
+taken as current, and costs nothing that was good.
+
+Every test works in a clone of the shared runs (conftest.py): links to the artifacts it only
+reads, copies of those it damages.
+"""
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from coarse_runs import ROOT, clone
+from pipelines import artifacts as art
+from pipelines import folder
+from pipelines.branch_store import load_branch
+from pipelines.cli import main
+from pipelines.runner import plan
+from pipelines.scene import load_scene
+
+
+def run(scene, out, *args):
+    return main(["run", str(scene), "--out", str(out), *args])
+
+
+def one_line(err: str) -> str:
+    """The only line on standard error (no traceback)."""
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def temps(out: Path) -> list:
+    return [p.name for d in (out, out / "figures") if d.is_dir() for p in d.iterdir() if art.TEMP_MARK in p.name]
+
+
+def flip(path: Path, offset: int, n: int = 1) -> None:
+    """Invert n bytes of a file in place at offset."""
+    with open(path, "r+b") as fh:
+        fh.seek(offset)
+        data = fh.read(n)
+        fh.seek(offset)
+        fh.write(bytes(b ^ 0xFF for b in data))
+
+
+def storage(path: Path, name: str) -> tuple[int, int]:
+    with h5py.File(path, "r") as h5:
+        return h5[name].id.get_offset(), h5[name].id.get_storage_size()
+
+
+def with_rom_damping(scene: Path, value: str) -> Path:
+    """A copy of the scene whose [rom] damping_high differs: rom.h5 is no longer current."""
+    other = scene.with_name("damping.toml")
+    other.write_text(scene.read_text().replace("damping_high = 5e-3", f"damping_high = {value}"))
+    return other
+
+
+# --- damaged artifacts: detected, recomputed from their inputs, never used -------------
+def test_flipped_bytes_in_a_large_dataset_are_recomputed(coarse, tmp_path, capsys):
+    scene = clone(coarse[1], tmp_path, copy=("rom.h5",))
+    offset, size = storage(tmp_path / "rom.h5", "recovery")  # 11 MB, rom.h5's largest dataset
+    flip(tmp_path / "rom.h5", offset + size // 2, 8)
+    assert run(scene, tmp_path, "--until", "rom") == 0
+    out = capsys.readouterr().out
+    assert "[rom] running (damaged: dataset 'recovery' changed on disk (checksum mismatch))" in out
+    assert "[mesh] up to date" in out and "[fem] up to date" in out
+    assert art.verify(tmp_path / "rom.h5") is None
+    # the recomputed ROM is the intact one, bit for bit: the damaged bytes were not used
+    with h5py.File(tmp_path / "rom.h5") as new, h5py.File(coarse[1] / "rom.h5") as ref:
+        assert np.array_equal(new["recovery"][()], ref["recovery"][()])
+        assert np.array_equal(new["K"][()], ref["K"][()])
+
+
+def test_a_flipped_byte_anywhere_in_fem_is_found(coarse, tmp_path):
+    """fem.h5 (144 MB) damaged at the first byte of K, at a 16 MiB block boundary inside it,
+    and at the last byte of the modes: each time the plan recomputes fem and names the dataset
+    (recomputing it is the previous test's business, on a cheaper file)."""
+    clone(coarse[1], tmp_path, copy=("fem.h5",))
+    path, scene = tmp_path / "fem.h5", load_scene(tmp_path / "scene.toml")
+    k, k_size = storage(path, "K/data")
+    m, m_size = storage(path, "modes")
+    for offset, name in ((k, "K/data"), (k + (1 << 24), "K/data"), (m + m_size - 1, "modes")):
+        flip(path, offset)
+        step = plan(scene, tmp_path, ("mesh", "fem"))[1]
+        assert step.todo and step.why == f"damaged: dataset '{name}' changed on disk (checksum mismatch)"
+        flip(path, offset)  # back as it was: current again
+        assert not plan(scene, tmp_path, ("mesh", "fem"))[1].todo
+
+
+@pytest.mark.parametrize("fault, why", [
+    ("deleted dataset", "damaged: dataset 'theta' is missing"),
+    ("truncated file", "unreadable file"),
+    ("zero-byte file", "empty file"),
+])
+def test_damaged_file_is_recomputed(fault, why, coarse, tmp_path, capsys):
+    scene = clone(coarse[1], tmp_path, copy=("rom.h5",))
+    path = tmp_path / "rom.h5"
+    if fault == "deleted dataset":
+        with h5py.File(path, "r+") as h5:
+            del h5["theta"]
+    else:
+        os.truncate(path, path.stat().st_size // 2 if fault == "truncated file" else 0)
+    assert run(scene, tmp_path, "--until", "rom") == 0
+    assert f"[rom] running ({why}) ..." in capsys.readouterr().out
+    assert art.verify(path) is None and not temps(tmp_path)
+
+
+def test_artifact_path_that_is_a_folder_is_refused(coarse, tmp_path, capsys):
+    scene = clone(coarse[1], tmp_path)
+    (tmp_path / "rom.h5").unlink()
+    (tmp_path / "rom.h5").mkdir()
+    (tmp_path / "rom.h5" / "notes.txt").write_text("the user's")
+    assert run(scene, tmp_path, "--until", "rom") == 2
+    captured = capsys.readouterr()
+    assert one_line(captured.err) == (f"bladerub: error: {tmp_path / 'rom.h5'} is a folder, where the run writes its "
+                                      "artifact: move it away, or give another --out")
+    assert "running" not in captured.out  # refused before computing anything
+    assert (tmp_path / "rom.h5" / "notes.txt").read_text() == "the user's"
+
+
+def test_a_damaged_treatment_leaves_the_other_untouched(coarse_nfrc, tmp_path, capsys):
+    scene = clone(coarse_nfrc[1], tmp_path, copy=("nfrc_dlft.h5", "nfrc_rl.h5"))
+    rl = (tmp_path / "nfrc_rl.h5").read_bytes()
+    with h5py.File(tmp_path / "nfrc_dlft.h5", "r") as h5:  # a byte inside the first chunk of x
+        info = h5["x"].id.get_chunk_info(0)  # (chunked: its checksum goes through HDF5's decoding)
+    flip(tmp_path / "nfrc_dlft.h5", info.byte_offset + 100)
+    assert run(scene, tmp_path, "--until", "hbm") == 0
+    out = capsys.readouterr().out
+    assert "[hbm] running (nfrc_dlft.h5: damaged: dataset 'x' changed on disk (checksum mismatch)) ..." in out
+    assert (tmp_path / "nfrc_rl.h5").read_bytes() == rl
+    assert art.verify(tmp_path / "nfrc_dlft.h5") is None and load_branch(tmp_path / "nfrc_dlft.h5").complete
+
+
+# --- figures and treatments are outputs of their own -----------------------------------
+def test_interruption_between_artifact_and_figure(coarse_nfrc, tmp_path, monkeypatch, capsys):
+    """Ctrl-C after nfrc_rl.h5 is written but while the NFRC figure is drawn: the next run
+    draws the figure and recomputes nothing."""
+    import pipelines.figures
+
+    scene = clone(coarse_nfrc[1], tmp_path)
+    (tmp_path / "nfrc_rl.h5").unlink()
+    (tmp_path / "figures" / "nfrc.png").unlink()
+
+    def ctrl_c(*args, **kwargs):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(pipelines.figures, "plot_nfrc", ctrl_c)
+    assert run(scene, tmp_path, "--until", "hbm") == 130
+    assert one_line(capsys.readouterr().err) == (
+        "bladerub: interrupted during the figures; kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5; "
+        f"run `bladerub run {scene} --out {tmp_path} --until hbm` again to go on from there")
+    made = (tmp_path / "nfrc_rl.h5").stat().st_mtime_ns
+    monkeypatch.undo()
+    assert run(scene, tmp_path, "--until", "hbm") == 0
+    out = capsys.readouterr().out
+    assert "[hbm] up to date" in out and "[figures] drawn: nfrc" in out
+    assert (tmp_path / "nfrc_rl.h5").stat().st_mtime_ns == made and (tmp_path / "figures" / "nfrc.png").is_file()
+    # a damaged picture is redrawn too, from the same artifacts
+    flip(tmp_path / "figures" / "nfrc.png", 1000, 4)
+    assert run(scene, tmp_path, "--until", "hbm") == 0
+    assert "[figures] drawn: nfrc" in capsys.readouterr().out
+
+
+def test_interrupting_the_second_treatment_keeps_the_first(coarse, tmp_path, monkeypatch, capsys):
+    from pipelines import branch_store
+
+    scene = clone(coarse[1], tmp_path)
+    real = branch_store.BranchStore.append
+
+    def ctrl_c_in_rl(self, point, extras=None):
+        if self.path.name == "nfrc_rl.h5" and self.n_points == 3:
+            raise KeyboardInterrupt
+        real(self, point, extras)
+
+    monkeypatch.setattr(branch_store.BranchStore, "append", ctrl_c_in_rl)
+    assert run(scene, tmp_path, "--until", "hbm") == 130
+    assert "kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, 3 points of nfrc_rl.partial.h5;" in capsys.readouterr().err
+    dlft = (tmp_path / "nfrc_dlft.h5").read_bytes()
+    monkeypatch.undo()
+    assert run(scene, tmp_path, "--until", "hbm") == 0
+    out = capsys.readouterr().out
+    assert "[hbm] running (nfrc_rl.h5: no artifact) ..." in out and "rl: resuming from 3 points on disk" in out
+    assert (tmp_path / "nfrc_dlft.h5").read_bytes() == dlft
+    assert load_branch(tmp_path / "nfrc_rl.h5").complete and art.verify(tmp_path / "nfrc_rl.h5") is None
+
+
+# --- one run per folder ------------------------------------------------------------------
+def test_a_second_run_is_refused_naming_the_first(coarse, tmp_path, capsys):
+    scene = clone(coarse[1], tmp_path)
+    with folder.hold(tmp_path, "bladerub run other.toml --out here"):
+        assert run(scene, tmp_path, "--until", "rom") == 2
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith(f"bladerub: error: {tmp_path} is in use by another run: pid {os.getpid()} on ")
+    assert "(`bladerub run other.toml --out here`, started 20" in line
+    assert run(scene, tmp_path, "--until", "rom") == 0  # the lock went with its holder
+
+
+def test_two_concurrent_runs_compute_once(coarse, tmp_path):
+    scene = clone(coarse[1], tmp_path)
+    scene.write_text(scene.read_text().replace('methods = ["dlft", "rl"]', 'methods = ["dlft"]'))
+    cmd = [sys.executable, "-m", "pipelines.cli", "run", str(scene), "--out", str(tmp_path), "--until", "hbm"]
+    procs = [subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+             for _ in range(2)]
+    results = [(p.pid, *p.communicate(timeout=300)) for p in procs]
+    results = [(pid, p.returncode, out, err) for p, (pid, out, err) in zip(procs, results)]
+    computed = [r for r in results if "[hbm] done" in r[2]]
+    assert len(computed) == 1, results
+    winner, (other,) = computed[0], [r for r in results if r is not computed[0]]
+    assert winner[1] == 0
+    # the other was refused while the first ran, naming it, or came after it and found the work done
+    if other[1] == 2:
+        assert f"is in use by another run: pid {winner[0]} on " in one_line(other[3])
+    else:
+        assert other[1] == 0 and "[hbm] up to date" in other[2]
+    assert art.verify(tmp_path / "nfrc_dlft.h5") is None and load_branch(tmp_path / "nfrc_dlft.h5").complete
+    assert not temps(tmp_path) and not (tmp_path / "nfrc_dlft.partial.h5").exists()
+
+
+def test_temp_file_of_a_run_killed_while_writing_is_removed(coarse, tmp_path, capsys):
+    """kill -9 between the datasets and the rename of rom.h5: the next run in the folder
+    removes the orphan and keeps the previous rom.h5 until its own is complete."""
+    scene = with_rom_damping(clone(coarse[1], tmp_path, copy=("rom.h5",)), "6e-3")
+    before = (tmp_path / "rom.h5").read_bytes()
+    die = ("import os, signal, sys; import pipelines.artifacts as art; "
+           "art.add_checksums = lambda path: os.kill(os.getpid(), signal.SIGKILL); "
+           "from pipelines.cli import main; main(sys.argv[1:])")
+    r = subprocess.run([sys.executable, "-c", die, "run", str(scene), "--out", str(tmp_path), "--until", "rom"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+    assert r.returncode == -signal.SIGKILL
+    orphans = temps(tmp_path)
+    assert len(orphans) == 1 and orphans[0].startswith(".rom.h5.tmp")
+    assert (tmp_path / "rom.h5").read_bytes() == before
+    assert run(scene, tmp_path, "--until", "rom") == 0
+    assert f"[folder] removed 1 temporary file(s) left by a run that was killed: {orphans[0]} (11." in \
+        capsys.readouterr().out
+    assert not temps(tmp_path) and art.verify(tmp_path / "rom.h5") is None
+
+
+# --- unusable output folders: one line, before computing, nothing lost -----------------
+def test_out_that_is_a_file(coarse, tmp_path, capsys):
+    target = tmp_path / "results"
+    target.write_text("not a folder")
+    assert run(coarse[0], target) == 2
+    assert one_line(capsys.readouterr().err) == (f"bladerub: error: --out {target} is a file, not a folder: give a "
+                                                 "folder (it is created if missing)")
+    assert target.read_text() == "not a folder"
+
+
+def _mount(*args) -> str | None:
+    r = subprocess.run(["mount", *args], capture_output=True, text=True)
+    return None if r.returncode == 0 else (r.stderr.strip() or f"mount exit {r.returncode}")
+
+
+def test_read_only_folder(coarse, tmp_path, capsys):
+    """A read-only bind mount of a folder with work to do: refused before computing. (Tests
+    run as root, which ignores permission bits: only a read-only mount makes this real.)"""
+    src = tmp_path / "src"
+    scene = with_rom_damping(clone(coarse[1], src, copy=("rom.h5",)), "6e-3")
+    ro = tmp_path / "ro"
+    ro.mkdir()
+    why = _mount("--bind", str(src), str(ro))
+    if why:
+        pytest.skip(f"cannot bind-mount a folder here: {why}")
+    try:
+        why = _mount("-o", "remount,ro,bind", str(ro))
+        if why:
+            pytest.skip(f"cannot make a read-only bind mount here: {why}")
+        before = {p.name: p.read_bytes() for p in ro.iterdir() if p.is_file()}
+        assert run(ro / scene.name, ro, "--until", "rom") == 2
+        captured = capsys.readouterr()
+        assert one_line(captured.err) == (f"bladerub: error: cannot write in the output folder {ro}: "
+                                          "Read-only file system")
+        assert "running" not in captured.out
+        assert {p.name: p.read_bytes() for p in ro.iterdir() if p.is_file()} == before and not temps(ro)
+    finally:
+        subprocess.run(["umount", str(ro)], check=False)
+
+
+def test_full_file_system(coarse, tmp_path, capsys):
+    """rom.h5 (11.3 MB) to rewrite on a 14 MB tmpfs that already holds the old one: refused
+    before computing; with --yes the write fails on the full disk: one line, exit 1, no temp
+    file left, the old rom.h5 intact."""
+    small = tmp_path / "small"
+    small.mkdir()
+    why = _mount("-t", "tmpfs", "-o", "size=14m", "tmpfs", str(small))
+    if why:
+        pytest.skip(f"cannot mount a small tmpfs here: {why}")
+    try:
+        scene = with_rom_damping(clone(coarse[1], small, copy=("rom.h5",)), "6e-3")
+        shutil.rmtree(small / "figures")  # the mode pictures are current: nothing else to write
+        before = (small / "rom.h5").read_bytes()
+        assert run(scene, small, "--until", "rom") == 2
+        captured = capsys.readouterr()
+        line = one_line(captured.err)
+        assert line.startswith(f"bladerub: error: not enough free space in {small}: this run writes ~11.3 MB "
+                               "(stage rom: ~11.3 MB), ")
+        assert "[rom] running" not in captured.out
+        assert run(scene, small, "--until", "rom", "--yes") == 1
+        assert one_line(capsys.readouterr().err) == ("bladerub: error: stage rom failed: No space left on device; "
+                                                     "kept: mesh.h5, fem.h5")
+        assert not temps(small) and (small / "rom.h5").read_bytes() == before
+    finally:
+        subprocess.run(["umount", str(small)], check=False)
