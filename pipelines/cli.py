@@ -9,19 +9,25 @@ what was kept); 130 interrupted by Ctrl-C (the line says what was kept and how t
 """
 from __future__ import annotations
 
-import argparse
-import multiprocessing
-import os
-import shlex
 import signal
 import sys
-import threading
-import time
-from pathlib import Path
 
-from pipelines.artifacts import ArtifactError
-from pipelines.errors import RunError
-from pipelines.scene import SceneError, load_scene, scene_warnings
+if "--multiprocessing-fork" in sys.orig_argv:  # (spawn restores sys.argv to the parent's)
+    # A spawned worker of a run (multiprocessing imports __main__ again in it): Ctrl-C ends
+    # it without a traceback of its own, from here on; the run reports for it.
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+import argparse  # noqa: E402
+import multiprocessing  # noqa: E402
+import os  # noqa: E402
+import shlex  # noqa: E402
+import threading  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+from pipelines.artifacts import ArtifactError  # noqa: E402
+from pipelines.errors import RunError  # noqa: E402
+from pipelines.scene import SceneError, load_scene, scene_warnings  # noqa: E402
 
 
 def _command(args, *extra: str) -> str:
@@ -157,6 +163,10 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     if not _FORK_HOOK:
         os.register_at_fork(after_in_child=_silent_forked_child)
+        # After Ctrl-C a spawn-context pool (after dolfinx loaded MPI) may be left to the
+        # watcher's exit, and multiprocessing's resource tracker, which then unlinks the pool's
+        # semaphores as it should, would also warn about them: its flags come from ours.
+        sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
         _FORK_HOOK = True
     interactive = (signal.getsignal(signal.SIGINT) is signal.default_int_handler
                    and threading.current_thread() is threading.main_thread())
