@@ -17,8 +17,10 @@ import datetime
 import hashlib
 import json
 import os
+import mmap
 import subprocess
 import typing
+import zlib
 from concurrent.futures import ThreadPoolExecutor
 from contextlib import contextmanager
 from pathlib import Path
@@ -142,23 +144,24 @@ def atomic_output(path: Path | str):
 # --- checksums ------------------------------------------------------------------------
 #: Root attribute holding {dataset path: checksum} as JSON.
 CHECKSUMS = "checksums"
-#: Checksums are sha256 over fixed 16 MiB blocks of a dataset's bytes, the block digests then
-#: hashed together (with dtype and shape): the blocks are hashed in parallel threads (hashlib
-#: releases the GIL), and sha256 is the fastest of hashlib's digests where the CPU has SHA
-#: instructions (measured: sha256 0.5-1 GB/s per core against 0.2 for blake2b; README).
+#: A dataset's checksum: the CRC-32 of each 16 MiB block of its bytes, hashed together with
+#: its dtype and shape by sha256. The damage looked for is accidental (bytes overwritten, a
+#: file cut short, a dataset deleted), which CRC-32 finds as surely as HDF5's, zip's and PNG's
+#: own checks do: every burst of up to 32 bits, and other damage to a block with probability
+#: 1 - 2^-32. It is the fastest check in the standard library: on the 1.28 GB fem.h5 of the
+#: default scene 1.0 s against 1.9 s for sha256 (blake2b: 3x slower than sha256) with the
+#: 2-core machine shared (README). Blocks are hashed in threads (zlib and hashlib release the
+#: GIL) straight from a read-only memory map of the file (no copy).
 _BLOCK = 1 << 24
-_ALGORITHM = "sha256x16M"
+_ALGORITHM = "crc32x16M"
 
 
-def _block_digest(fd: int, offset: int, size: int) -> bytes:
-    """sha256 of `size` bytes of the open file `fd` at `offset` (fewer if the file is shorter)."""
-    data = os.pread(fd, size, offset)
-    return hashlib.sha256(data).digest() + len(data).to_bytes(8, "little")
-
-
-def _memory_digest(buf: memoryview, start: int, size: int) -> bytes:
+def _block_digest(buf: memoryview, start: int, size: int) -> bytes:
     part = buf[start:start + size]
-    return hashlib.sha256(part).digest() + len(part).to_bytes(8, "little")
+    try:
+        return zlib.crc32(part).to_bytes(4, "little") + len(part).to_bytes(8, "little")
+    finally:
+        part.release()
 
 
 def _datasets(h5: h5py.File) -> dict:
@@ -171,40 +174,47 @@ def dataset_checksums(h5: h5py.File, names=None) -> dict:
     """{dataset path: checksum} of the datasets of an open file (all, or those named).
 
     A checksum covers the dataset's dtype, shape and its bytes in C order. Contiguous
-    datasets (the large ones: K, M, modes) are read straight from the file at their offset,
+    datasets (the large ones: K, M, modes) are read in place from a memory map of the file,
     without HDF5 decoding; chunked or compressed ones are decoded (they are small here).
     Flush a file open for writing first. Raises KeyError for a name that is not a dataset.
     """
     found = _datasets(h5)
     names = sorted(found) if names is None else list(names)
-    jobs = {}  # name -> list of (callable, args)
-    keep = []  # decoded buffers, alive until hashed
-    fd = os.open(h5.filename, os.O_RDONLY)
-    try:
-        for name in names:
-            if name not in found:
-                raise KeyError(name)
-            ds = found[name]
-            size = ds.id.get_storage_size()
-            offset = ds.id.get_offset() if ds.chunks is None and not ds.compression else None
-            if offset is not None and size == ds.size * ds.dtype.itemsize:
-                jobs[name] = [(_block_digest, (fd, offset + k, min(_BLOCK, size - k))) for k in range(0, size, _BLOCK)]
-            else:
-                buf = memoryview(np.ascontiguousarray(ds[()]).reshape(-1).view(np.uint8)) if ds.size else memoryview(b"")
-                keep.append(buf)
-                jobs[name] = [(_memory_digest, (buf, k, _BLOCK)) for k in range(0, len(buf), _BLOCK)]
-        with ThreadPoolExecutor(max(1, min(8, len(os.sched_getaffinity(0))))) as pool:
-            futures = {name: [pool.submit(f, *a) for f, a in todo] for name, todo in jobs.items()}
-            out = {}
-            for name, fs in futures.items():
+    with open(h5.filename, "rb") as fh:
+        size = os.fstat(fh.fileno()).st_size
+        whole = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else None
+        views = [memoryview(whole) if whole is not None else memoryview(b"")]
+        try:
+            jobs = {}
+            for name in names:
+                if name not in found:
+                    raise KeyError(name)
                 ds = found[name]
-                h = hashlib.sha256(f"{ds.dtype.str}{ds.shape}".encode())
-                for f in fs:
-                    h.update(f.result())
-                out[name] = f"{_ALGORITHM}:{h.hexdigest()}"
-        return out
-    finally:
-        os.close(fd)
+                n = ds.id.get_storage_size()
+                offset = ds.id.get_offset() if ds.chunks is None else None
+                if offset is not None and n == ds.size * ds.dtype.itemsize:
+                    buf, start = views[0], offset
+                else:
+                    n = ds.size * ds.dtype.itemsize
+                    data = np.ascontiguousarray(ds[()]).reshape(-1) if ds.size else np.zeros(0, np.uint8)
+                    buf, start = memoryview(data).cast("B"), 0
+                    views.append(buf)
+                jobs[name] = [(buf, start + k, min(_BLOCK, n - k)) for k in range(0, n, _BLOCK)]
+            with ThreadPoolExecutor(max(1, min(8, len(os.sched_getaffinity(0))))) as pool:
+                futures = {name: [pool.submit(_block_digest, *job) for job in blocks] for name, blocks in jobs.items()}
+                out = {}
+                for name, fs in futures.items():
+                    ds = found[name]
+                    h = hashlib.sha256(f"{ds.dtype.str}{ds.shape}".encode())
+                    for f in fs:
+                        h.update(f.result())
+                    out[name] = f"{_ALGORITHM}:{h.hexdigest()}"
+            return out
+        finally:
+            for v in views:
+                v.release()
+            if whole is not None:
+                whole.close()
 
 
 def add_checksums(path: Path | str) -> None:
@@ -229,6 +239,8 @@ def verify(path: Path | str) -> str | None:
                 sums = json.loads(text)
             except ValueError:
                 return "damaged: its checksum list is unreadable"
+            if any(not str(v).startswith(f"{_ALGORITHM}:") for v in sums.values()):
+                return "no checksums this version can verify (written by another version)"
             found = _datasets(h5)
             missing = sorted(set(sums) - set(found))
             if missing:

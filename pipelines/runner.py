@@ -303,7 +303,7 @@ def render_modes(scene, out: Path, n_modes: int | None = None, progress: Progres
     from pipelines.stages.fem import render_modes as draw
 
     out = Path(out)
-    if not out.is_dir():
+    if not out.exists():
         raise Refused(f"no output folder {out}: run `bladerub run {scene.path} --out {out} --until fem` first")
     out = folder.prepare(out)
     with folder.hold(out, command or f"bladerub render {scene.path} --out {out}"):

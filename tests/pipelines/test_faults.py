@@ -308,3 +308,18 @@ def test_full_file_system(coarse, tmp_path, capsys):
         assert not temps(small) and (small / "rom.h5").read_bytes() == before
     finally:
         subprocess.run(["umount", str(small)], check=False)
+
+
+def test_render_before_fem_names_the_command_to_run(coarse, tmp_path, capsys):
+    scene = clone(coarse[1], tmp_path)
+    for name in ("fem.h5", "rom.h5"):
+        (tmp_path / name).unlink()
+    assert main(["render", str(scene), "--out", str(tmp_path)]) == 2
+    assert one_line(capsys.readouterr().err) == (
+        f"bladerub: error: {tmp_path / 'fem.h5'} is missing: run `bladerub run {scene} --out {tmp_path} --until fem` "
+        "first")
+    scene.write_text(scene.read_text().replace("E = 108e9", "E = 110e9"))  # fem.h5 there, but not this scene's
+    (tmp_path / "fem.h5").symlink_to(coarse[1] / "fem.h5")
+    assert main(["render", str(scene), "--out", str(tmp_path)]) == 2
+    assert "fem.h5 is not usable for this scene (inputs changed: material): run `bladerub run" in \
+        one_line(capsys.readouterr().err)

@@ -1,0 +1,110 @@
+"""Before computing: size estimates against what gmsh and the fem stage really made, the size
+guard's refusals (within a second, naming the key to change), and the blade's unit sanity."""
+from __future__ import annotations
+
+import dataclasses
+import time
+
+import h5py
+import numpy as np
+import pytest
+
+import pipelines.runner  # noqa: F401  (imported before the timed calls: a second is for the guard)
+import pipelines.stages.mesh as mesh_stage
+from coarse_runs import clone, coarse_scene_text
+from mesh.estimate import ESTIMATE_SPREAD
+from mesh.model import BladeMesh
+from pipelines import artifacts as art
+from pipelines import guard
+from pipelines.cli import main
+from pipelines.errors import Refused
+from pipelines.progress import Progress
+from pipelines.runner import plan
+from pipelines.scene import load_scene, parse_scene
+from pipelines.stages.fem import fem_bytes
+
+
+@pytest.fixture
+def machine_24gb(monkeypatch):
+    """The reference machine's memory, whatever machine runs the test."""
+    monkeypatch.setattr(guard, "machine_memory", lambda: 24e9)
+
+
+def error_line(capsys) -> str:
+    err = capsys.readouterr().err
+    lines = [x for x in err.splitlines() if x.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_estimates_against_the_coarse_run(coarse):
+    scene, out = load_scene(coarse[0]), coarse[1]
+    with h5py.File(out / "mesh.h5") as h5:
+        nodes = h5["nodes"].shape[0]
+    estimate = mesh_stage._estimated_nodes(scene)
+    assert 1 / ESTIMATE_SPREAD < estimate / nodes < ESTIMATE_SPREAD, (estimate, nodes)
+    # fem.h5 from the real node count: CSR of K and M plus the mode sets, within 2 %
+    assert fem_bytes(scene, nodes) == pytest.approx((out / "fem.h5").stat().st_size, rel=0.02)
+
+
+def test_absurd_element_size_is_refused_within_a_second(tmp_path, capsys, machine_24gb):
+    scene = tmp_path / "scene.toml"
+    scene.write_text(coarse_scene_text().replace("element_size = 0.008", "element_size = 1e-6"))
+    t0 = time.perf_counter()
+    assert main(["run", str(scene), "--out", str(tmp_path / "out")]) == 2
+    assert time.perf_counter() - t0 < 1.0
+    line = error_line(capsys)
+    assert line.startswith("bladerub: error: [mesh] ~1.1e+14 nodes (estimated) would need ~")
+    assert "more than this machine's memory (24 GB): coarsen [mesh] element_size (now 1e-06 m" in line
+    assert line.endswith("or pass --yes (or raise [limits] memory_gb) to run it anyway")
+    assert not (tmp_path / "out" / "mesh.h5").exists()
+
+
+def test_500_harmonics_are_refused_within_a_second(coarse, tmp_path, capsys, machine_24gb):
+    """With mesh, fem (144 MB) and rom current: refused before fem.h5 is read to verify it."""
+    scene = clone(coarse[1], tmp_path)
+    scene.write_text(scene.read_text().replace("n_harmonics = 5\nn_time = 64", "n_harmonics = 500\nn_time = 2048"))
+    t0 = time.perf_counter()
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "hbm"]) == 2
+    assert time.perf_counter() - t0 < 1.0
+    line = error_line(capsys)
+    # (2 N_h + 1) 3 n_b = 1001 * 27 = 27 027 unknowns; the dense fallback's SVD: 10 n_u^2 doubles
+    assert line.startswith("bladerub: error: [hbm] 2 NFRC(s) of 27 027 unknowns (N_h = 500) would need ~58.6 GB")
+    assert "lower [hbm] n_harmonics (now 500; the reference is 40)" in line
+    assert not (tmp_path / "nfrc_dlft.partial.h5").exists()
+
+
+def test_refusal_can_be_overridden(coarse, machine_24gb):
+    scene = load_scene(coarse[0])
+    big = dataclasses.replace(scene, hbm=dataclasses.replace(scene.hbm, n_harmonics=500, n_time=2048))
+    steps = [s for s in plan(big, coarse[1], ("mesh", "fem", "rom", "hbm"), verify=False) if s.todo]
+    assert [s.stage.name for s in steps] == ["hbm"]
+    quiet = Progress(quiet=True)
+    with pytest.raises(Refused):
+        guard.check_run(big, coarse[1], steps, quiet)
+    guard.check_run(big, coarse[1], steps, quiet, yes=True)  # --yes
+    roomy = dataclasses.replace(big, limits=dataclasses.replace(big.limits, memory_gb=64.0))
+    guard.check_run(roomy, coarse[1], steps, quiet)  # [limits] memory_gb
+
+
+def test_feet_table_read_as_metres_is_warned(coarse, tmp_path, monkeypatch, capsys):
+    """The mesh stage warns once, naming the value, the unit it assumed and the unit that fits
+    (gmsh replaced by the shared mesh scaled as a metres reading of the feet table would be)."""
+    with h5py.File(coarse[1] / "mesh.h5") as h5:
+        nodes = h5["nodes"][()]
+    metres = parse_scene("[blade]\nunits = \"m\"\n")
+    assert guard.blade_warnings(load_scene(coarse[0]), nodes) == []
+    warning, = guard.blade_warnings(metres, nodes / 0.3048)
+    tip = np.hypot(nodes[:, 0], nodes[:, 1]).max()  # rotor 67: 0.256 m (the paper's tip radius)
+    assert f"read in m ([blade] units = \"m\") has a tip radius of {tip / 0.3048:.3g} m" in warning
+    assert f"at 2000 rad/s its tip would move at {2000 * tip / 0.3048:.0f} m/s" in warning
+    assert f"Read in ft it would have a tip radius of {tip:.3g} m" in warning
+
+    mesh = art.read_artifact(coarse[1] / "mesh.h5", BladeMesh)
+    monkeypatch.setattr("pipelines.child.call_in_child",
+                        lambda func, *a, **k: dataclasses.replace(mesh, nodes=mesh.nodes / 0.3048))
+    scene = tmp_path / "scene.toml"
+    scene.write_text(coarse_scene_text().replace('units = "ft"', 'units = "m"'))
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--until", "mesh", "--yes"]) == 0
+    err = capsys.readouterr().err
+    assert err.count("bladerub: warning: the blade read in m") == 1 and "Read in ft" in err
