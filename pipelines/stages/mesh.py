@@ -66,7 +66,7 @@ def _estimated_nodes(scene) -> float | None:
 
 def node_count(scene, out) -> tuple[float | None, bool]:
     """(nodes, exact): from mesh.h5 when it is current for this scene, else estimated from the
-    table (mesh.estimate, within ~25 %); None for a mesh file not imported yet."""
+    table (mesh.estimate, within ~30 %); None for a mesh file not imported yet."""
     import h5py
 
     from pipelines.runner import expected_inputs

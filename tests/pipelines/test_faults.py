@@ -1,4 +1,4 @@
-"""Faults injected into runs of the coarse scene: each is found and named in one line, never
+"""Faults injected into runs of the coarse_run scene: each is found and named in one line, never
 taken as current, and costs nothing that was good.
 
 Every test works in a clone of the shared runs (conftest.py): links to the artifacts it only
@@ -63,8 +63,8 @@ def with_rom_damping(scene: Path, value: str) -> Path:
 
 
 # --- damaged artifacts: detected, recomputed from their inputs, never used -------------
-def test_flipped_bytes_in_a_large_dataset_are_recomputed(coarse, tmp_path, capsys):
-    scene = clone(coarse[1], tmp_path, copy=("rom.h5",))
+def test_flipped_bytes_in_a_large_dataset_are_recomputed(coarse_run, tmp_path, capsys):
+    scene = clone(coarse_run[1], tmp_path, copy=("rom.h5",))
     offset, size = storage(tmp_path / "rom.h5", "recovery")  # 11 MB, rom.h5's largest dataset
     flip(tmp_path / "rom.h5", offset + size // 2, 8)
     assert run(scene, tmp_path, "--until", "rom") == 0
@@ -73,16 +73,16 @@ def test_flipped_bytes_in_a_large_dataset_are_recomputed(coarse, tmp_path, capsy
     assert "[mesh] up to date" in out and "[fem] up to date" in out
     assert art.verify(tmp_path / "rom.h5") is None
     # the recomputed ROM is the intact one, bit for bit: the damaged bytes were not used
-    with h5py.File(tmp_path / "rom.h5") as new, h5py.File(coarse[1] / "rom.h5") as ref:
+    with h5py.File(tmp_path / "rom.h5") as new, h5py.File(coarse_run[1] / "rom.h5") as ref:
         assert np.array_equal(new["recovery"][()], ref["recovery"][()])
         assert np.array_equal(new["K"][()], ref["K"][()])
 
 
-def test_a_flipped_byte_anywhere_in_fem_is_found(coarse, tmp_path):
+def test_a_flipped_byte_anywhere_in_fem_is_found(coarse_run, tmp_path):
     """fem.h5 (144 MB) damaged at the first byte of K, at a 16 MiB block boundary inside it,
     and at the last byte of the modes: each time the plan recomputes fem and names the dataset
     (recomputing it is the previous test's business, on a cheaper file)."""
-    clone(coarse[1], tmp_path, copy=("fem.h5",))
+    clone(coarse_run[1], tmp_path, copy=("fem.h5",))
     path, scene = tmp_path / "fem.h5", load_scene(tmp_path / "scene.toml")
     k, k_size = storage(path, "K/data")
     m, m_size = storage(path, "modes")
@@ -99,8 +99,8 @@ def test_a_flipped_byte_anywhere_in_fem_is_found(coarse, tmp_path):
     ("truncated file", "unreadable file"),
     ("zero-byte file", "empty file"),
 ])
-def test_damaged_file_is_recomputed(fault, why, coarse, tmp_path, capsys):
-    scene = clone(coarse[1], tmp_path, copy=("rom.h5",))
+def test_damaged_file_is_recomputed(fault, why, coarse_run, tmp_path, capsys):
+    scene = clone(coarse_run[1], tmp_path, copy=("rom.h5",))
     path = tmp_path / "rom.h5"
     if fault == "deleted dataset":
         with h5py.File(path, "r+") as h5:
@@ -112,8 +112,8 @@ def test_damaged_file_is_recomputed(fault, why, coarse, tmp_path, capsys):
     assert art.verify(path) is None and not temps(tmp_path)
 
 
-def test_artifact_path_that_is_a_folder_is_refused(coarse, tmp_path, capsys):
-    scene = clone(coarse[1], tmp_path)
+def test_artifact_path_that_is_a_folder_is_refused(coarse_run, tmp_path, capsys):
+    scene = clone(coarse_run[1], tmp_path)
     (tmp_path / "rom.h5").unlink()
     (tmp_path / "rom.h5").mkdir()
     (tmp_path / "rom.h5" / "notes.txt").write_text("the user's")
@@ -168,10 +168,10 @@ def test_interruption_between_artifact_and_figure(coarse_nfrc, tmp_path, monkeyp
     assert "[figures] drawn: nfrc" in capsys.readouterr().out
 
 
-def test_interrupting_the_second_treatment_keeps_the_first(coarse, tmp_path, monkeypatch, capsys):
+def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path, monkeypatch, capsys):
     from pipelines import branch_store
 
-    scene = clone(coarse[1], tmp_path)
+    scene = clone(coarse_run[1], tmp_path)
     real = branch_store.BranchStore.append
 
     def ctrl_c_in_rl(self, point, extras=None):
@@ -192,8 +192,8 @@ def test_interrupting_the_second_treatment_keeps_the_first(coarse, tmp_path, mon
 
 
 # --- one run per folder ------------------------------------------------------------------
-def test_a_second_run_is_refused_naming_the_first(coarse, tmp_path, capsys):
-    scene = clone(coarse[1], tmp_path)
+def test_a_second_run_is_refused_naming_the_first(coarse_run, tmp_path, capsys):
+    scene = clone(coarse_run[1], tmp_path)
     with folder.hold(tmp_path, "bladerub run other.toml --out here"):
         assert run(scene, tmp_path, "--until", "rom") == 2
     line = one_line(capsys.readouterr().err)
@@ -202,8 +202,8 @@ def test_a_second_run_is_refused_naming_the_first(coarse, tmp_path, capsys):
     assert run(scene, tmp_path, "--until", "rom") == 0  # the lock went with its holder
 
 
-def test_two_concurrent_runs_compute_once(coarse, tmp_path):
-    scene = clone(coarse[1], tmp_path)
+def test_two_concurrent_runs_compute_once(coarse_run, tmp_path):
+    scene = clone(coarse_run[1], tmp_path)
     scene.write_text(scene.read_text().replace('methods = ["dlft", "rl"]', 'methods = ["dlft"]'))
     cmd = [sys.executable, "-m", "pipelines.cli", "run", str(scene), "--out", str(tmp_path), "--until", "hbm"]
     procs = [subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
@@ -223,10 +223,10 @@ def test_two_concurrent_runs_compute_once(coarse, tmp_path):
     assert not temps(tmp_path) and not (tmp_path / "nfrc_dlft.partial.h5").exists()
 
 
-def test_temp_file_of_a_run_killed_while_writing_is_removed(coarse, tmp_path, capsys):
+def test_temp_file_of_a_run_killed_while_writing_is_removed(coarse_run, tmp_path, capsys):
     """kill -9 between the datasets and the rename of rom.h5: the next run in the folder
     removes the orphan and keeps the previous rom.h5 until its own is complete."""
-    scene = with_rom_damping(clone(coarse[1], tmp_path, copy=("rom.h5",)), "6e-3")
+    scene = with_rom_damping(clone(coarse_run[1], tmp_path, copy=("rom.h5",)), "6e-3")
     before = (tmp_path / "rom.h5").read_bytes()
     die = ("import os, signal, sys; import pipelines.artifacts as art; "
            "art.add_checksums = lambda path: os.kill(os.getpid(), signal.SIGKILL); "
@@ -244,10 +244,10 @@ def test_temp_file_of_a_run_killed_while_writing_is_removed(coarse, tmp_path, ca
 
 
 # --- unusable output folders: one line, before computing, nothing lost -----------------
-def test_out_that_is_a_file(coarse, tmp_path, capsys):
+def test_out_that_is_a_file(coarse_run, tmp_path, capsys):
     target = tmp_path / "results"
     target.write_text("not a folder")
-    assert run(coarse[0], target) == 2
+    assert run(coarse_run[0], target) == 2
     assert one_line(capsys.readouterr().err) == (f"bladerub: error: --out {target} is a file, not a folder: give a "
                                                  "folder (it is created if missing)")
     assert target.read_text() == "not a folder"
@@ -258,11 +258,11 @@ def _mount(*args) -> str | None:
     return None if r.returncode == 0 else (r.stderr.strip() or f"mount exit {r.returncode}")
 
 
-def test_read_only_folder(coarse, tmp_path, capsys):
+def test_read_only_folder(coarse_run, tmp_path, capsys):
     """A read-only bind mount of a folder with work to do: refused before computing. (Tests
     run as root, which ignores permission bits: only a read-only mount makes this real.)"""
     src = tmp_path / "src"
-    scene = with_rom_damping(clone(coarse[1], src, copy=("rom.h5",)), "6e-3")
+    scene = with_rom_damping(clone(coarse_run[1], src, copy=("rom.h5",)), "6e-3")
     ro = tmp_path / "ro"
     ro.mkdir()
     why = _mount("--bind", str(src), str(ro))
@@ -283,7 +283,7 @@ def test_read_only_folder(coarse, tmp_path, capsys):
         subprocess.run(["umount", str(ro)], check=False)
 
 
-def test_full_file_system(coarse, tmp_path, capsys):
+def test_full_file_system(coarse_run, tmp_path, capsys):
     """rom.h5 (11.3 MB) to rewrite on a 14 MB tmpfs that already holds the old one: refused
     before computing; with --yes the write fails on the full disk: one line, exit 1, no temp
     file left, the old rom.h5 intact."""
@@ -293,7 +293,7 @@ def test_full_file_system(coarse, tmp_path, capsys):
     if why:
         pytest.skip(f"cannot mount a small tmpfs here: {why}")
     try:
-        scene = with_rom_damping(clone(coarse[1], small, copy=("rom.h5",)), "6e-3")
+        scene = with_rom_damping(clone(coarse_run[1], small, copy=("rom.h5",)), "6e-3")
         shutil.rmtree(small / "figures")  # the mode pictures are current: nothing else to write
         before = (small / "rom.h5").read_bytes()
         assert run(scene, small, "--until", "rom") == 2
@@ -310,8 +310,8 @@ def test_full_file_system(coarse, tmp_path, capsys):
         subprocess.run(["umount", str(small)], check=False)
 
 
-def test_render_before_fem_names_the_command_to_run(coarse, tmp_path, capsys):
-    scene = clone(coarse[1], tmp_path)
+def test_render_before_fem_names_the_command_to_run(coarse_run, tmp_path, capsys):
+    scene = clone(coarse_run[1], tmp_path)
     for name in ("fem.h5", "rom.h5"):
         (tmp_path / name).unlink()
     assert main(["render", str(scene), "--out", str(tmp_path)]) == 2
@@ -319,7 +319,7 @@ def test_render_before_fem_names_the_command_to_run(coarse, tmp_path, capsys):
         f"bladerub: error: {tmp_path / 'fem.h5'} is missing: run `bladerub run {scene} --out {tmp_path} --until fem` "
         "first")
     scene.write_text(scene.read_text().replace("E = 108e9", "E = 110e9"))  # fem.h5 there, but not this scene's
-    (tmp_path / "fem.h5").symlink_to(coarse[1] / "fem.h5")
+    (tmp_path / "fem.h5").symlink_to(coarse_run[1] / "fem.h5")
     assert main(["render", str(scene), "--out", str(tmp_path)]) == 2
     assert "fem.h5 is not usable for this scene (inputs changed: material): run `bladerub run" in \
         one_line(capsys.readouterr().err)

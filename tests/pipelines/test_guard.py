@@ -37,8 +37,8 @@ def error_line(capsys) -> str:
     return lines[0]
 
 
-def test_estimates_against_the_coarse_run(coarse):
-    scene, out = load_scene(coarse[0]), coarse[1]
+def test_estimates_against_the_coarse_run(coarse_run):
+    scene, out = load_scene(coarse_run[0]), coarse_run[1]
     with h5py.File(out / "mesh.h5") as h5:
         nodes = h5["nodes"].shape[0]
     estimate = mesh_stage._estimated_nodes(scene)
@@ -60,9 +60,9 @@ def test_absurd_element_size_is_refused_within_a_second(tmp_path, capsys, machin
     assert not (tmp_path / "out" / "mesh.h5").exists()
 
 
-def test_500_harmonics_are_refused_within_a_second(coarse, tmp_path, capsys, machine_24gb):
+def test_500_harmonics_are_refused_within_a_second(coarse_run, tmp_path, capsys, machine_24gb):
     """With mesh, fem (144 MB) and rom current: refused before fem.h5 is read to verify it."""
-    scene = clone(coarse[1], tmp_path)
+    scene = clone(coarse_run[1], tmp_path)
     scene.write_text(scene.read_text().replace("n_harmonics = 5\nn_time = 64", "n_harmonics = 500\nn_time = 2048"))
     t0 = time.perf_counter()
     assert main(["run", str(scene), "--out", str(tmp_path), "--until", "hbm"]) == 2
@@ -74,33 +74,33 @@ def test_500_harmonics_are_refused_within_a_second(coarse, tmp_path, capsys, mac
     assert not (tmp_path / "nfrc_dlft.partial.h5").exists()
 
 
-def test_refusal_can_be_overridden(coarse, machine_24gb):
-    scene = load_scene(coarse[0])
+def test_refusal_can_be_overridden(coarse_run, machine_24gb):
+    scene = load_scene(coarse_run[0])
     big = dataclasses.replace(scene, hbm=dataclasses.replace(scene.hbm, n_harmonics=500, n_time=2048))
-    steps = [s for s in plan(big, coarse[1], ("mesh", "fem", "rom", "hbm"), verify=False) if s.todo]
+    steps = [s for s in plan(big, coarse_run[1], ("mesh", "fem", "rom", "hbm"), verify=False) if s.todo]
     assert [s.stage.name for s in steps] == ["hbm"]
     quiet = Progress(quiet=True)
     with pytest.raises(Refused):
-        guard.check_run(big, coarse[1], steps, quiet)
-    guard.check_run(big, coarse[1], steps, quiet, yes=True)  # --yes
+        guard.check_run(big, coarse_run[1], steps, quiet)
+    guard.check_run(big, coarse_run[1], steps, quiet, yes=True)  # --yes
     roomy = dataclasses.replace(big, limits=dataclasses.replace(big.limits, memory_gb=64.0))
-    guard.check_run(roomy, coarse[1], steps, quiet)  # [limits] memory_gb
+    guard.check_run(roomy, coarse_run[1], steps, quiet)  # [limits] memory_gb
 
 
-def test_feet_table_read_as_metres_is_warned(coarse, tmp_path, monkeypatch, capsys):
+def test_feet_table_read_as_metres_is_warned(coarse_run, tmp_path, monkeypatch, capsys):
     """The mesh stage warns once, naming the value, the unit it assumed and the unit that fits
     (gmsh replaced by the shared mesh scaled as a metres reading of the feet table would be)."""
-    with h5py.File(coarse[1] / "mesh.h5") as h5:
+    with h5py.File(coarse_run[1] / "mesh.h5") as h5:
         nodes = h5["nodes"][()]
     metres = parse_scene("[blade]\nunits = \"m\"\n")
-    assert guard.blade_warnings(load_scene(coarse[0]), nodes) == []
+    assert guard.blade_warnings(load_scene(coarse_run[0]), nodes) == []
     warning, = guard.blade_warnings(metres, nodes / 0.3048)
     tip = np.hypot(nodes[:, 0], nodes[:, 1]).max()  # rotor 67: 0.256 m (the paper's tip radius)
     assert f"read in m ([blade] units = \"m\") has a tip radius of {tip / 0.3048:.3g} m" in warning
     assert f"at 2000 rad/s its tip would move at {2000 * tip / 0.3048:.0f} m/s" in warning
     assert f"Read in ft it would have a tip radius of {tip:.3g} m" in warning
 
-    mesh = art.read_artifact(coarse[1] / "mesh.h5", BladeMesh)
+    mesh = art.read_artifact(coarse_run[1] / "mesh.h5", BladeMesh)
     monkeypatch.setattr("pipelines.child.call_in_child",
                         lambda func, *a, **k: dataclasses.replace(mesh, nodes=mesh.nodes / 0.3048))
     scene = tmp_path / "scene.toml"

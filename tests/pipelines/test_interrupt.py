@@ -80,22 +80,22 @@ def interrupt(scene: Path, out: Path, stage: str, delay: float, *args, slow: boo
     return lines[0]
 
 
-def test_ctrl_c_while_meshing(coarse, tmp_path):
+def test_ctrl_c_while_meshing(coarse_run, tmp_path):
     out = tmp_path / "run"
     scene = tmp_path / "scene.toml"
-    scene.write_text(coarse[0].read_text())
+    scene.write_text(coarse_run[0].read_text())
     line = interrupt(scene, out, "mesh", 2.0, "--until", "mesh")
     assert "; kept: nothing new;" in line and not (out / "mesh.h5").exists()
     assert main(["run", str(scene), "--out", str(out), "--until", "mesh", "--quiet"]) == 0
     # gmsh meshes the same solid the same way (serial meshers): the shared run's very mesh
-    sums = [json.loads(art.read_attrs(d / "mesh.h5")["checksums"]) for d in (out, coarse[1])]
+    sums = [json.loads(art.read_attrs(d / "mesh.h5")["checksums"]) for d in (out, coarse_run[1])]
     assert sums[0] == sums[1]
 
 
-def test_ctrl_c_in_fem(coarse, tmp_path):
+def test_ctrl_c_in_fem(coarse_run, tmp_path):
     """The next run computes fem from the kept mesh.h5 (the plan below; computing fem from it
     is what the shared run itself did)."""
-    scene = clone(coarse[1], tmp_path, copy=("mesh.h5",))
+    scene = clone(coarse_run[1], tmp_path, copy=("mesh.h5",))
     for name in ("fem.h5", "rom.h5"):
         (tmp_path / name).unlink()
     line = interrupt(scene, tmp_path, "fem", 3.0, "--until", "fem")
@@ -104,18 +104,18 @@ def test_ctrl_c_in_fem(coarse, tmp_path):
     assert [(s.stage.name, s.why) for s in steps] == [("mesh", "up to date"), ("fem", "no artifact")]
 
 
-def test_ctrl_c_in_rom(coarse, tmp_path):
-    scene = clone(coarse[1], tmp_path)
+def test_ctrl_c_in_rom(coarse_run, tmp_path):
+    scene = clone(coarse_run[1], tmp_path)
     (tmp_path / "rom.h5").unlink()
     line = interrupt(scene, tmp_path, "rom", 0.5, "--until", "rom", slow=True)
     assert "; kept: mesh.h5, fem.h5;" in line
     assert main(["run", str(scene), "--out", str(tmp_path), "--until", "rom", "--quiet"]) == 0
-    with h5py.File(tmp_path / "rom.h5") as new, h5py.File(coarse[1] / "rom.h5") as ref:
+    with h5py.File(tmp_path / "rom.h5") as new, h5py.File(coarse_run[1] / "rom.h5") as ref:
         assert np.array_equal(new["K"][()], ref["K"][()])
 
 
-def test_ctrl_c_in_hbm(coarse, coarse_nfrc, tmp_path, capsys):
-    scene = clone(coarse[1], tmp_path)
+def test_ctrl_c_in_hbm(coarse_run, coarse_nfrc, tmp_path, capsys):
+    scene = clone(coarse_run[1], tmp_path)
     line = interrupt(scene, tmp_path, "hbm", 2.0, "--until", "hbm")
     kept = line.split("; kept: ")[1].split(";")[0]
     assert kept.startswith("mesh.h5, fem.h5, rom.h5")
