@@ -1,0 +1,147 @@
+"""Bifurcations of a branch of periodic orbits: the crossings of the unit circle by Floquet
+multipliers between two analysed points, classified with respect to the orbit's minimal
+period, and their location.
+
+Kinds (multiplier mu of the minimal period T_min crossing |mu| = 1):
+- "fold": mu = +1 where the branch turns back in Omega (a limit point);
+- "branch point": mu = +1 without a turn (another branch of the same period crosses);
+- "period doubling": mu = -1 (a branch of period 2 T_min is born). On the rotor 67 NFRC,
+  whose orbits hold only even harmonics of Omega (T_min = pi / Omega), it shows up in the
+  omega = Omega basis as a multiplier +1 with an odd-harmonic eigenvector, a
+  symmetry-breaking branch point: classified here on the minimal period, it is what it is
+  physically, a period doubling;
+- "Neimark-Sacker": a complex pair (quasi-periodic motion is born).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+FOLD = "fold"
+BRANCH_POINT = "branch point"
+PERIOD_DOUBLING = "period doubling"
+NEIMARK_SACKER = "Neimark-Sacker"
+UNCLASSIFIED = "unclassified"
+KINDS = (FOLD, BRANCH_POINT, PERIOD_DOUBLING, NEIMARK_SACKER, UNCLASSIFIED)
+
+#: a multiplier is real when its argument is within this of 0 or pi, rad: the exponents of
+#: real multipliers are exactly real or exactly omega / 2 (mod omega) in exact arithmetic;
+#: the Arnoldi eigenvalues carry ~1e-8 relative error, a complex pair near the real axis
+#: at least the distance of its crossing speed; 1e-3 rad separates both.
+REAL_ARG_TOL = 1e-3
+
+
+@dataclass(frozen=True, eq=False)
+class Bifurcation:
+    """One bifurcation along a branch.
+
+    kind: one of KINDS. omega: Omega at the bifurcation, rad/s. le_amplitude: LE amplitude
+    there (half peak-to-peak radial displacement), m. index: the branch point after which it
+    lies; fraction: its position between points index and index + 1 in arc length, [0, 1].
+    omega_bracket: (Omega at index, at index + 1), rad/s: the located value is inside;
+    the interpolation error is a fraction of this bracket (see `locate`).
+    multiplier: the crossing multiplier of the minimal period at the nearer point, -.
+    direction: +1 when the orbit loses stability going along the branch, -1 when it gains it.
+    period_ratio: g, the orbit's minimal period is T / g (T of the HBM basis).
+    eigenvector: the crossing Floquet mode at the nearer point, coefficients (2 N' + 1, n)
+    complex in the minimal period's basis (N' = N_h / g), eq. (5) order; None for folds.
+    """
+
+    kind: str
+    omega: float
+    le_amplitude: float
+    index: int
+    fraction: float
+    omega_bracket: tuple[float, float]
+    multiplier: complex
+    direction: int
+    period_ratio: int = 1
+    eigenvector: np.ndarray | None = field(default=None, repr=False)
+
+
+def classify(mu: complex, fold: bool) -> str:
+    """Kind of a crossing by its multiplier's argument (and whether the branch turns there)."""
+    a = abs(np.angle(mu))
+    if a <= REAL_ARG_TOL:
+        return FOLD if fold else BRANCH_POINT
+    if a >= np.pi - REAL_ARG_TOL:
+        return PERIOD_DOUBLING
+    return NEIMARK_SACKER
+
+
+def pair_multipliers(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: float = 1.0):
+    """Pairs (i, j) of the same multiplier at two nearby points (mu_a[i] ~ mu_b[j]).
+
+    Only multipliers with Im >= 0 (one of each conjugate pair), above floor (the larger
+    modulus_floor of the two spectra: below it one may be missing) and with
+    |log|mu|| < window are paired, greedily by distance in (log|mu|, |arg mu|).
+    """
+    def keep(mu):
+        mu = np.asarray(mu)
+        ok = (np.angle(mu) >= -REAL_ARG_TOL) & (np.abs(mu) > floor)
+        lm = np.log(np.abs(mu), where=ok, out=np.full(mu.shape, -np.inf))
+        return np.flatnonzero(ok & (np.abs(lm) < window))
+
+    ia, ib = keep(mu_a), keep(mu_b)
+    if not len(ia) or not len(ib):
+        return []
+
+    def coords(mu):
+        return np.stack([np.log(np.abs(mu)), np.abs(np.angle(mu))], axis=-1)
+
+    ca, cb = coords(np.asarray(mu_a)[ia]), coords(np.asarray(mu_b)[ib])
+    d = np.linalg.norm(ca[:, None] - cb[None], axis=-1)
+    pairs, used_a, used_b = [], set(), set()
+    for flat in np.argsort(d, axis=None):
+        i, j = np.unravel_index(flat, d.shape)
+        if i in used_a or j in used_b:
+            continue
+        used_a.add(i)
+        used_b.add(j)
+        pairs.append((int(ia[i]), int(ib[j])))
+    return pairs
+
+
+def crossings(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: float = 1.0):
+    """The pairs of pair_multipliers on opposite sides of the unit circle: the crossings
+    between the two points."""
+    return [(i, j) for i, j in pair_multipliers(mu_a, mu_b, floor, window)
+            if (abs(mu_a[i]) > 1.0) != (abs(mu_b[j]) > 1.0)]
+
+
+def parabola_vertex(s: np.ndarray, y: np.ndarray, z: np.ndarray | None = None):
+    """Vertex of the parabola y(s) through three points, and z(s) on the parabola through
+    (s, z) there: (s*, y*, z*). s, y, z: (3,)."""
+    c = np.polyfit(s, y, 2)
+    if c[0] == 0.0:
+        k = int(np.argmax(np.abs(y - y.mean())))
+        return float(s[k]), float(y[k]), (float(z[k]) if z is not None else None)
+    ss = -c[1] / (2.0 * c[0])
+    ss = float(np.clip(ss, s.min(), s.max()))
+    zz = float(np.polyval(np.polyfit(s, z, 2), ss)) if z is not None else None
+    return ss, float(np.polyval(c, ss)), zz
+
+
+def bifurcation_arrays(bifurcations) -> dict:
+    """The bifurcation table as arrays for a file (k rows), with units:
+
+    kind (k,) str; omega (k,) rad/s; le_amplitude (k,) m; index (k,) int; fraction (k,) -;
+    omega_low, omega_high (k,) rad/s (the bracketing points); multiplier_real,
+    multiplier_imag (k,) -; direction (k,) int (+1 loses stability along the branch);
+    period_ratio (k,) int. Returns {name: (array, unit)}.
+    """
+    b = list(bifurcations)
+    return {
+        "kind": (np.array([x.kind for x in b], dtype=object), "-"),
+        "omega": (np.array([x.omega for x in b], dtype=float), "rad/s"),
+        "le_amplitude": (np.array([x.le_amplitude for x in b], dtype=float), "m"),
+        "index": (np.array([x.index for x in b], dtype=np.int64), "-"),
+        "fraction": (np.array([x.fraction for x in b], dtype=float), "-"),
+        "omega_low": (np.array([x.omega_bracket[0] for x in b], dtype=float), "rad/s"),
+        "omega_high": (np.array([x.omega_bracket[1] for x in b], dtype=float), "rad/s"),
+        "multiplier_real": (np.array([np.real(x.multiplier) for x in b], dtype=float), "-"),
+        "multiplier_imag": (np.array([np.imag(x.multiplier) for x in b], dtype=float), "-"),
+        "direction": (np.array([x.direction for x in b], dtype=np.int64), "-"),
+        "period_ratio": (np.array([x.period_ratio for x in b], dtype=np.int64), "-"),
+    }

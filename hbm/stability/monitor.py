@@ -1,0 +1,279 @@
+"""Stability of every point of a branch, and its bifurcations, computed as the branch grows.
+
+A Floquet analysis (hbm.stability.spectrum.orbit_spectrum: shift-invert Arnoldi on Hill's
+problem, ~0.2-0.5 s at N_h = 40) costs ten continuation points, so not every point is
+analysed. The monitor analyses a point when the stability may have changed since the last
+analysed one, and infers the others:
+
+- the branch turned back in Omega (a fold: one real multiplier crosses +1 there);
+- `gap` points have passed since the last analysis. After each analysis the multipliers
+  are paired with the previous analysis' (bifurcation.pair_multipliers); each pair's
+  speed d log|mu| / ds along the arc length gives the arc length it needs to reach the
+  unit circle, and the next analysis comes after half the smallest of these, in points
+  (at most max_gap; 1 after a change of the count or an unpaired multiplier within
+  `margin` of the circle). The lightly damped modes' multipliers sit at |mu| ~ 0.95-0.99
+  over the minimal period, so a fixed margin would analyse every point;
+- when two consecutive analyses disagree on the number of unstable multipliers, the point
+  half-way between them is analysed, and so on (bisection on the stored points), until
+  the change lies between two neighbouring points. There the crossing multipliers are
+  paired (bifurcation.crossings), classified on the minimal period, and located by linear
+  interpolation of log|mu| in arc length between the two points (folds: at the vertex of
+  the parabola through the three points around the turn in Omega).
+
+Points between two analyses with the same count, and no fold between them, get that count
+(`stability_analysed` False). What this can miss: an even number of crossings between two
+analyses gap points apart (e.g. a Neimark-Sacker pair leaving and coming back); the gap
+control keeps such stretches short where multipliers are near the unit circle.
+
+The points are handed on (`on_point`) only once their stability is known, so up to
+max_gap points are held back.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from hbm.stability.bifurcation import (FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
+                                      parabola_vertex)
+from hbm.stability.hill import harmonic_period
+from hbm.stability.spectrum import FloquetSpectrum, orbit_spectrum
+
+
+@dataclass(frozen=True)
+class StabilityOptions:
+    """Settings of the stability monitor.
+
+    n_eig: Hill eigenvalues computed per analysis (see arnoldi_spectrum). max_gap: most
+    points between two analyses (1: every point). margin: |log|mu|| under which a
+    multiplier counts as near the unit circle (0.1: |mu| within 10 %), which resets the gap
+    to 1. n_leading: leading multiplier moduli stored per point. window: |log|mu|| within
+    which multipliers are paired across two points to find a crossing.
+    """
+
+    n_eig: int = 40
+    max_gap: int = 8
+    margin: float = 0.1
+    n_leading: int = 4
+    window: float = 1.5
+
+    def __post_init__(self):
+        if self.max_gap < 1 or self.n_eig < 2 or self.n_leading < 1:
+            raise ValueError(f"need max_gap >= 1, n_eig >= 2, n_leading >= 1, got {self}")
+
+
+@dataclass(eq=False)
+class _Entry:
+    index: int
+    omega: float
+    s: float  # cumulative scaled arc length
+    amplitude: float
+    x: np.ndarray
+    payload: tuple  # what to hand on: (point, extras)
+    spectrum: FloquetSpectrum | None = None
+    g: int = 1
+    n_unstable: int | None = None
+
+
+@dataclass
+class StabilityMonitor:
+    """Feed converged branch points with push(); it returns the points whose stability is
+    now known, their extras completed with:
+
+    stable (bool), n_unstable (int): multipliers outside the unit circle (minimal period);
+    stability_analysed (bool): computed at this point (else inferred, see the module doc);
+    leading_multipliers ((n_leading,) float): the largest |mu|, nan when not analysed;
+    period_ratio (int): g, minimal period T / g.
+    finish() hands on the rest. bifurcations: the located ones, in the order found.
+    analyse(x, omega) -> (FloquetSpectrum, g) is the Floquet analysis of one point.
+    """
+
+    analyse: object
+    options: StabilityOptions = field(default_factory=StabilityOptions)
+    bifurcations: list = field(default_factory=list)
+    n_analyses: int = 0
+    _buffer: list = field(default_factory=list)
+    _last: _Entry | None = None  # last analysed point, already handed on
+    _recent: list = field(default_factory=list)  # the last three points: (index, omega, s, amplitude)
+    _counts: dict = field(default_factory=dict)  # index -> n_unstable of recent points
+    _folds: list = field(default_factory=list)  # trios (f - 1, f, f + 1) around a turn in Omega
+    _gap: int = 1
+    _s: float = 0.0
+
+    @classmethod
+    def for_residual(cls, residual, options: StabilityOptions = StabilityOptions()) -> "StabilityMonitor":
+        """A monitor analysing points of hbm.harmonic.residual.HarmonicBalanceResidual."""
+        return cls(analyse=lambda x, w: orbit_spectrum(residual, x, w, n_eig=options.n_eig), options=options)
+
+    # -- feeding ----------------------------------------------------------------------------
+    def push(self, point, extras: dict) -> list:
+        """point: a converged hbm.continuation.branch.ContinuationPoint; extras: its dict (with
+        le_amplitude and harmonics). Returns [(point, extras), ...] now complete (maybe [])."""
+        self._s += float(point.step) if self._recent else 0.0
+        e = _Entry(point.index, float(point.omega), self._s, float(extras.get("le_amplitude", np.nan)),
+                   np.asarray(point.x), (point, extras))
+        self._buffer.append(e)
+        self._recent = (self._recent + [(e.index, e.omega, e.s, e.amplitude)])[-3:]
+        turned = False
+        if len(self._recent) == 3:
+            w0, w1, w2 = (o[1] for o in self._recent)
+            if (w1 - w0) * (w2 - w1) < 0:
+                self._folds.append(list(self._recent))
+                turned = True
+        since = e.index - self._last.index if self._last is not None else 0
+        if self._last is None or turned or since >= self._gap or len(self._buffer) >= self.options.max_gap:
+            return self._analyse_and_release(e)
+        return []
+
+    def seed(self, points, extras: list) -> None:
+        """Start after points already handed on (a resumed branch): the last one is analysed
+        (the reference for the next), the last three feed the fold detection."""
+        pts = list(points)[-3:]
+        exs = list(extras)[-3:]
+        for p, ex in zip(pts, exs):
+            self._s += float(p.step) if self._recent else 0.0
+            self._recent = (self._recent + [(p.index, float(p.omega), self._s, float(ex.get("le_amplitude", np.nan)))])[-3:]
+        if pts:
+            p, ex = pts[-1], exs[-1]
+            e = _Entry(p.index, float(p.omega), self._s, float(ex.get("le_amplitude", np.nan)), np.asarray(p.x), (p, ex))
+            self._spectrum(e)
+            self._last = e
+            self._counts[e.index] = (e.n_unstable, e.g)
+
+    def finish(self) -> list:
+        """Analyse the last held point and hand on everything still held."""
+        if not self._buffer:
+            return []
+        return self._analyse_and_release(self._buffer[-1])
+
+    # -- internals --------------------------------------------------------------------------
+    def _spectrum(self, e: _Entry) -> None:
+        if e.spectrum is None:
+            e.spectrum, e.g = self.analyse(e.x, e.omega)
+            e.n_unstable = e.spectrum.n_unstable
+            self.n_analyses += 1
+
+    def _analyse_and_release(self, e: _Entry) -> list:
+        self._spectrum(e)
+        prev = self._last
+        if prev is not None:
+            self._resolve(prev, e)
+            self._gap = self._next_gap(prev, e)
+        out = self._release(self._buffer.index(e) + 1)
+        self._record_folds()
+        return out
+
+    def _next_gap(self, a: _Entry, b: _Entry) -> int:
+        """Points until the next analysis, from the speed of the multipliers between a and b."""
+        if a.n_unstable != b.n_unstable or b.s <= a.s or b.index <= a.index:
+            return 1
+        sa, sb = a.spectrum, b.spectrum
+        floor = max(sa.modulus_floor, sb.modulus_floor)
+        pairs = pair_multipliers(sa.multipliers, sb.multipliers, floor, self.options.window)
+        paired = {j for _, j in pairs}
+        lb_all = np.log(np.abs(sb.multipliers))
+        for j in range(len(lb_all)):
+            if j not in paired and sb.multipliers[j].imag >= 0 and abs(sb.multipliers[j]) > floor \
+                    and abs(lb_all[j]) < self.options.margin:
+                return 1
+        reach = np.inf
+        for i, j in pairs:
+            la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
+            speed = abs(lb - la) / (b.s - a.s)
+            if speed > 0:
+                reach = min(reach, abs(lb) / speed)
+        ds = (b.s - a.s) / (b.index - a.index)  # mean arc length per point
+        return int(np.clip(0.5 * reach / ds, 1, self.options.max_gap)) if np.isfinite(reach) else self.options.max_gap
+
+    def _release(self, k: int) -> list:
+        out = []
+        for e in self._buffer[:k]:
+            point, extras = e.payload
+            if e.spectrum is None and "harmonics" in extras:
+                e.g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4)
+            lead = (e.spectrum.leading(self.options.n_leading) if e.spectrum is not None
+                    else np.full(self.options.n_leading, np.nan))
+            out.append((point, dict(extras, stable=bool(e.n_unstable == 0), n_unstable=int(e.n_unstable),
+                                    stability_analysed=e.spectrum is not None, leading_multipliers=lead,
+                                    period_ratio=int(e.g))))
+            self._counts[e.index] = (e.n_unstable, e.g)
+        if k:
+            self._last = self._buffer[k - 1]
+            keep = self._last.index - 4
+            self._counts = {i: c for i, c in self._counts.items() if i >= keep}
+        self._buffer = self._buffer[k:]
+        return out
+
+    def _resolve(self, a: _Entry, b: _Entry) -> None:
+        """Make each stability change between the analysed points a and b lie between
+        neighbours (bisection), record its bifurcations, give the points between their counts."""
+        mid = [e for e in self._buffer if a.index < e.index < b.index]
+        if a.n_unstable == b.n_unstable:
+            for e in mid:
+                e.n_unstable, e.g = a.n_unstable, a.g
+            return
+        if mid:
+            m = mid[len(mid) // 2]
+            self._spectrum(m)
+            self._resolve(a, m)
+            self._resolve(m, b)
+            return
+        self._locate(a, b)
+
+    def _turn_near(self, a: _Entry, b: _Entry) -> bool:
+        """Whether Omega turns at a or b (a fold whose real multiplier +1 crosses between them)."""
+        return any(t[1][0] in (a.index, b.index) for t in self._folds)
+
+    def _locate(self, a: _Entry, b: _Entry) -> None:
+        """Crossings between the neighbouring analysed points a and b, except the fold's (see
+        _record_folds)."""
+        sa, sb = a.spectrum, b.spectrum
+        floor = max(sa.modulus_floor, sb.modulus_floor)
+        fold = self._turn_near(a, b)
+        found = 0
+        for i, j in crossings(sa.multipliers, sb.multipliers, floor, self.options.window):
+            la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
+            frac = la / (la - lb)
+            near_b = frac >= 0.5
+            mu = sb.multipliers[j] if near_b else sa.multipliers[i]
+            kind = classify(mu, fold)
+            found += 1
+            if kind == FOLD:
+                continue
+            self.bifurcations.append(Bifurcation(
+                kind=kind, omega=a.omega + frac * (b.omega - a.omega),
+                le_amplitude=a.amplitude + frac * (b.amplitude - a.amplitude), index=a.index, fraction=float(frac),
+                omega_bracket=(a.omega, b.omega), multiplier=complex(mu), direction=1 if lb > la else -1,
+                period_ratio=(b if near_b else a).g,
+                eigenvector=(sb if near_b else sa).eigenvectors[j if near_b else i]))
+        if not found:
+            self.bifurcations.append(Bifurcation(
+                kind=UNCLASSIFIED, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
+                index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=complex(np.nan),
+                direction=1 if b.n_unstable > a.n_unstable else -1, period_ratio=b.g))
+
+    def _record_folds(self) -> None:
+        """Folds whose three points all have their counts: the vertex of the parabola Omega(s)
+        through them (interpolation error O(ds^3) in Omega), direction from the counts."""
+        for trio in list(self._folds):
+            if not all(t[0] in self._counts for t in trio):
+                continue
+            self._folds.remove(trio)
+            s, w, amp = (np.array([t[k] for t in trio]) for k in (2, 1, 3))
+            ss, ww, aa = parabola_vertex(s, w, amp)
+            k = 0 if ss <= s[1] else 1
+            frac = (ss - s[k]) / (s[k + 1] - s[k]) if s[k + 1] > s[k] else 0.0
+            n0, n2 = self._counts[trio[0][0]][0], self._counts[trio[2][0]][0]
+            self.bifurcations.append(Bifurcation(
+                kind=FOLD, omega=ww, le_amplitude=aa, index=int(trio[k][0]), fraction=float(frac),
+                omega_bracket=(float(w[k]), float(w[k + 1])), multiplier=complex(1.0),
+                direction=int(np.sign(n2 - n0)), period_ratio=int(self._counts[trio[1][0]][1])))
+
+
+def unknown_stability(extras: dict, options: StabilityOptions = StabilityOptions()) -> dict:
+    """extras completed with the stability keys of a point that was not analysed and cannot
+    be inferred (a failed final point): stable False, n_unstable -1, leading nan."""
+    g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4) if "harmonics" in extras else 1
+    return dict(extras, stable=False, n_unstable=-1, stability_analysed=False,
+                leading_multipliers=np.full(options.n_leading, np.nan), period_ratio=int(g))
