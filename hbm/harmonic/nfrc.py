@@ -26,6 +26,7 @@ from hbm.harmonic.solver import HbmSolver
 from hbm.harmonic.start import damped_newton, pad_harmonics, solve_start
 from hbm.linalg.protocol import LinearSolver
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from hbm.stability.monitor import StabilityMonitor, StabilityOptions, unknown_stability
 
 
 @dataclass(frozen=True)
@@ -65,6 +66,13 @@ class NfrcResult:
     n_factorizations: LU factorisations of the Jacobian. unknowns: x of every point in
     the residual's scaled unknowns (m, n_u), to restart or expand (residual.expand_harmonics).
     start: how the start point was found (solve_start's note; "resumed" for a resume).
+    With stability (see compute_nfrc; None otherwise): stable (m,) bool; n_unstable (m,)
+    int, Floquet multipliers of the minimal period outside the unit circle (-1: unknown,
+    the failed last point); stability_analysed (m,) bool, computed there (else inferred
+    from the analysed neighbours, hbm.stability.monitor); leading_multipliers (m, k), the
+    k largest |multipliers| (nan where not analysed). bifurcations: the located
+    hbm.stability.bifurcation.Bifurcation, in branch order (after a resume: of the new part
+    only). n_stability_analyses: Floquet analyses made; stability_time: their wall time, s.
     """
 
     method: str
@@ -83,6 +91,13 @@ class NfrcResult:
     n_factorizations: int
     unknowns: np.ndarray = field(repr=False)
     start: str = ""
+    stable: np.ndarray | None = None
+    n_unstable: np.ndarray | None = None
+    stability_analysed: np.ndarray | None = None
+    leading_multipliers: np.ndarray | None = None
+    bifurcations: tuple = ()
+    n_stability_analyses: int = 0
+    stability_time: float = 0.0
 
 
 def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
@@ -118,7 +133,8 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                  on_point: Callable[[ContinuationPoint, dict], None] | None = None,
                  continuation: ContinuationOptions | None = None, forcing: HarmonicForcing | None = None,
                  residual: HarmonicBalanceResidual | None = None, solver: LinearSolver | None = None,
-                 resume=None, guess: tuple[float, np.ndarray] | None = None) -> NfrcResult:
+                 resume=None, guess: tuple[float, np.ndarray] | None = None,
+                 stability: bool | StabilityOptions | None = None) -> NfrcResult:
     """NFRC over Omega in [hbm.omega_min, hbm.omega_max] for one method.
 
     rom: RomModel (node 0 = LE). casing, contact, hbm: scene options. method: "dlft" | "rl".
@@ -145,12 +161,29 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     guess: (omega0, u0): start instead at omega0 (rad/s, inside the range) by damped
       Newton from u0, the unknowns of a solution at any N_h (pad_harmonics adapts them),
       e.g. a low-N_h NFRC's point; the branch then goes in the continuation's direction.
+    stability: Floquet stability of every point and the bifurcations (hbm.stability.monitor;
+      True: default StabilityOptions; None: hbm.stability). on_point then sees each point
+      once its stability is known (up to StabilityOptions.max_gap points later), its extras
+      completed with stable, n_unstable, stability_analysed, leading_multipliers and
+      period_ratio (the failed last point: n_unstable -1).
     """
     res = residual or build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
     opts = continuation or default_continuation(hbm)
     fac = solver or HbmSolver(atol=0.1 * opts.newton.tol_residual)
     rows = []
     pending = []
+    if stability is None:
+        stability = hbm.stability
+    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions()
+    monitor = StabilityMonitor.for_residual(res, sopts) if stability else None
+    per_point = {}  # index -> stability extras
+    t_stab = [0.0]
+
+    def hand_on(items):
+        for q, exq in items:
+            per_point[q.index] = exq
+            if on_point is not None:
+                on_point(q, exq)
 
     def row(p: ContinuationPoint, reason: str):
         ex = nfrc_extras(res, p.x)
@@ -163,8 +196,14 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
         pt, x, ex = row(p, "" if p.converged else "failed")
         rows.append((pt, x))
         if p.converged:
-            if on_point is not None:
-                on_point(p, ex)
+            if monitor is None:
+                if on_point is not None:
+                    on_point(p, ex)
+            else:
+                t = time.perf_counter()
+                done = monitor.push(p, ex)
+                t_stab[0] += time.perf_counter() - t
+                hand_on(done)
         else:
             pending.append((p, ex))
 
@@ -184,6 +223,18 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                                       float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
                                       float(old.time[i]))
                 rows.append(row(p, "")[:2])
+            if monitor is not None and m0:
+                old_ex = getattr(resume, "extras", None) or {}
+                for i in range(m0):
+                    if "stable" in old_ex:
+                        per_point[i] = {k: old_ex[k][i] for k in ("stable", "n_unstable", "stability_analysed",
+                                                                   "leading_multipliers", "period_ratio") if k in old_ex}
+                seeds = [ContinuationPoint(i, float(old.omega[i]), np.asarray(old.x[i], dtype=float), True,
+                                           float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
+                                           float(old.time[i])) for i in range(max(0, m0 - 3), m0)]
+                t = time.perf_counter()
+                monitor.seed(seeds, [nfrc_extras(res, q.x) for q in seeds])
+                t_stab[0] += time.perf_counter() - t
             branch = continue_branch(res, None, None, opts, on_point=record, solver=fac, resume=old)
         elif guess is not None:
             w0 = float(guess[0])
@@ -200,15 +251,35 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                     opts, w0, x0 = replace(opts, direction=-opts.direction), w1, x1
                     start_note = f"no start at the first end ({start_note}); {note1} at the other end"
             branch = continue_branch(res, x0, w0, opts, on_point=record, solver=fac)
+        if monitor is not None:
+            t = time.perf_counter()
+            done = monitor.finish()
+            t_stab[0] += time.perf_counter() - t
+            hand_on(done)
     wall = time.perf_counter() - t0
     if rows and not rows[-1][0].converged:  # the final failure carries the branch status
         last, xl = rows[-1]
         rows[-1] = (replace(last, reason=branch.status), xl)
     for p, ex in pending:
+        if monitor is not None:
+            ex = unknown_stability(ex, sopts)
+            per_point[p.index] = ex
         if on_point is not None:
             on_point(p, ex)
     pts = [r[0] for r in rows]
     m = len(pts)
+    stab = {}
+    if monitor is not None:
+        def col(key, fill, dtype):
+            return np.array([per_point.get(p.index, {}).get(key, fill) for p in pts], dtype=dtype)
+
+        k = sopts.n_leading
+        stab = dict(stable=col("stable", False, bool), n_unstable=col("n_unstable", -1, int),
+                    stability_analysed=col("stability_analysed", False, bool),
+                    leading_multipliers=np.array([np.asarray(per_point.get(p.index, {}).get(
+                        "leading_multipliers", np.full(k, np.nan)), dtype=float) for p in pts]).reshape(m, k),
+                    bifurcations=tuple(sorted(monitor.bifurcations, key=lambda b: (b.index, b.fraction))),
+                    n_stability_analyses=monitor.n_analyses, stability_time=t_stab[0])
     return NfrcResult(
         method=method, omega=np.array([p.omega for p in pts]),
         harmonics=np.array([p.harmonics for p in pts]).reshape(m, res.n_c, res.n_r),
@@ -218,7 +289,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
         time=np.array([p.time for p in pts]), converged=np.array([p.converged for p in pts], dtype=bool),
         reason=np.array([p.reason for p in pts], dtype=object), status=branch.status, wall_time=wall,
         n_factorizations=fac.n_factorizations, unknowns=np.array([r[1] for r in rows]).reshape(m, res.size),
-        start=start_note)
+        start=start_note, **stab)
 
 
 def _solves(res, u, omega, opts: ContinuationOptions) -> bool:

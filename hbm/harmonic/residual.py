@@ -5,8 +5,11 @@ x~_r = [c_0, a_1, b_1, ..., a_Nh, b_Nh] (each block the n_r = 3 n_b dof, node-ma
 theta, z), scaled as u = alpha x~_r (alpha in 1/m, so that |u| ~ 1): this is the
 normalisation alpha of eq. (1). The residual is H_r of eq. (8) divided by the force scale
 k_ref / alpha (k_ref a stiffness scale of the condensed model, N/m), so that its Jacobian
-is Z_r / k_ref + ... ~ O(1). Omega stays in rad/s (omega = Omega); the frequency scale
-beta of eq. (1) only matters to the continuation's arc-length metric, which owns it.
+is Z_r / k_ref + ... ~ O(1). The continuation parameter is Omega in rad/s; the basis'
+fundamental is omega = Omega / nu (HbmOptions.subharmonic = nu, 1 by default: harmonic k
+is k Omega / nu, the casing angle Omega t is nu times the basis angle, and one basis
+period holds nu revolutions). The frequency scale beta of eq. (1) only matters to the
+continuation's arc-length metric, which owns it.
 
 Equation (internal-force form of eq. 1): M x'' + C x' + K x + f_nl(x, x', Omega) = f_ext,
 f_nl = +lam on the radial dof (lam >= 0 compressive, see hbm.contact.normal) and +mu lam s on
@@ -14,7 +17,7 @@ f_nl = +lam on the radial dof (lam >= 0 compressive, see hbm.contact.normal) and
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -48,7 +51,8 @@ class NonlinearSamples:
 class HarmonicBalanceResidual:
     """residual(u, omega) -> (R, dR_du, dR_domega) for DLFT- or RL-HBM on the condensed ROM.
 
-    u: scaled unknowns alpha x~_r, ((2 N_h + 1) n_r,), 1 (eq. 5 order). omega = Omega, rad/s.
+    u: scaled unknowns alpha x~_r, ((2 N_h + 1) n_r,), 1 (eq. 5 order), harmonics of
+    Omega / nu (nu = hbm.subharmonic). omega: the rotation speed Omega, rad/s.
     R: (n_u,), 1 (H_r alpha / k_ref). dR_du: an hbm.harmonic.jacobian.HbmJacobian (the
     structured matrix: `J @ v`, `np.asarray(J)` for its dense (n_u, n_u) form). dR_domega:
     (n_u,), s/rad. `residual(u, omega, jacobian=False)` returns R alone.
@@ -62,15 +66,20 @@ class HarmonicBalanceResidual:
         self.rom, self.casing, self.contact, self.options = rom, casing, contact, hbm
         self.method = method
         self.friction = friction and contact.mu > 0.0
+        self.nu = int(getattr(hbm, "subharmonic", 1))
         self.basis = FourierBasis(hbm.n_harmonics, hbm.n_time)
         self.n_b = rom.n_boundary
         self.n_r = 3 * self.n_b
+        self.forcing = forcing
+        if forcing is not None and self.nu != 1:  # harmonic k of Omega is harmonic k nu of the basis
+            forcing = replace(forcing, harmonic=forcing.harmonic * self.nu)
         self.model = CondensedModel(rom.K, rom.M, rom.C, rom.nonlinear_dofs, self.basis, forcing)
         self.rho = np.asarray(rom.rho, dtype=float)
         self.theta = np.asarray(rom.theta, dtype=float)
-        # distance(tau) -> (len(tau), n_b), m: the casing of eq. (28) unless another obstacle is given
+        # distance(tau) -> (len(tau), n_b), m, tau the casing angle Omega t: the casing of
+        # eq. (28) unless another obstacle is given; sampled at tau = nu (basis angle)
         self._distance = distance or (lambda tau: casing_distance(tau, self.theta, casing))
-        self.distance = self._distance(self.basis.tau)  # (N_t, n_b), m
+        self.distance = self._distance(self.nu * self.basis.tau)  # (N_t, n_b), m
         self.obstacle_scale = 1.0
         self.alpha = float(alpha if alpha is not None else 1.0 / max(casing.clearance, 1e-5))
         self.k_ref = float(np.mean(np.abs(np.diag(self.model.operator(0.0).Z0))))
@@ -78,6 +87,10 @@ class HarmonicBalanceResidual:
         self.sigma = sig
         self.n_c = self.basis.n_coeffs
         self.size = self.n_c * self.n_r
+
+    def fundamental(self, omega: float) -> float:
+        """The basis' fundamental Omega / nu, rad/s, at rotation speed omega = Omega."""
+        return float(omega) / self.nu
 
     # -- scaling ---------------------------------------------------------------------------
     def to_coefficients(self, u: np.ndarray) -> np.ndarray:
@@ -93,22 +106,22 @@ class HarmonicBalanceResidual:
                 op: CondensedOperator | None = None) -> NonlinearSamples:
         """Nonlinear forces on a time grid (the AFT grid unless another basis is given).
 
-        xr: condensed harmonics, (2 N_h + 1, n_r), m (N_h of the problem).
+        xr: condensed harmonics, (2 N_h + 1, n_r), m (N_h of the problem). omega: Omega, rad/s.
         """
         b = basis or self.basis
         if b.n_harmonics != self.basis.n_harmonics:
             raise ValueError("basis must keep the problem's N_h")
         nb = self.n_b
-        d = self.distance if b is self.basis else self._distance(b.tau)
+        d = self.distance if b is self.basis else self._distance(self.nu * b.tau)
         if self.obstacle_scale != 1.0:  # homotopy from a round casing (see set_obstacle_scale)
             d = d.max(axis=0) + self.obstacle_scale * (d - d.max(axis=0))
         x3 = xr.reshape(self.n_c, nb, 3)
         disp = b.to_time(x3)  # (N_t, n_b, 3)
-        vel = omega * b.to_time(b.derivative(x3))
+        vel = self.fundamental(omega) * b.to_time(b.derivative(x3))
         gap = disp[..., 0] - d
         aux = {}
         if self.method == "dlft":
-            op = op or self.model.operator(omega)
+            op = op or self.model.operator(self.fundamental(omega))
             rest = (op.force - op.apply(xr)).reshape(self.n_c, nb, 3)[..., 0]  # (f - Z x)_r
             lam, active = correct_dlft(b.to_time(rest) + self.contact.epsilon * gap)
             dlam = active.astype(float)
@@ -139,7 +152,7 @@ class HarmonicBalanceResidual:
     def __call__(self, u: np.ndarray, omega: float, jacobian: bool = True):
         omega = float(omega)
         xr = self.to_coefficients(u)
-        op = self.model.operator(omega)
+        op = self.model.operator(self.fundamental(omega))
         smp = self.samples(xr, omega, op=op)
         sig = self.sigma[:, None]
         fnl = sig * self.basis.to_freq(smp.force.reshape(-1, self.n_r))
@@ -149,7 +162,8 @@ class HarmonicBalanceResidual:
         if not jacobian:
             return R
         J = self._jacobian(xr, omega, op, smp)
-        dH = op.apply(xr, derivative=True) - op.dforce + sig * self._dforce_domega(xr, omega, op, smp)
+        # Z and the external force depend on Omega through omega = Omega / nu
+        dH = (op.apply(xr, derivative=True) - op.dforce) / self.nu + sig * self._dforce_domega(xr, omega, op, smp)
         return R, J, scale * dH.reshape(-1)
 
     def _dforce_domega(self, xr, omega, op, smp) -> np.ndarray:
@@ -158,7 +172,7 @@ class HarmonicBalanceResidual:
         dF = np.zeros((b.n_time, nb, 3))
         dlam = np.zeros((b.n_time, nb))
         if self.method == "dlft":
-            drest = (op.dforce - op.apply(xr, derivative=True)).reshape(self.n_c, nb, 3)[..., 0]
+            drest = (op.dforce - op.apply(xr, derivative=True)).reshape(self.n_c, nb, 3)[..., 0] / self.nu
             dlam = smp.aux["dlam"] * b.to_time(drest)
         dF[..., 0] = dlam
         if self.friction:
@@ -193,7 +207,7 @@ class HarmonicBalanceResidual:
     def linear_solution(self, omega: float) -> np.ndarray:
         """Contact-free solution u at omega (zero without forcing: the casing distortion is
         the only excitation in the rotor 67 scene), ((2 N_h + 1) n_r,)."""
-        op = self.model.operator(float(omega))
+        op = self.model.operator(self.fundamental(omega))
         x = np.zeros((self.n_c, self.n_r))
         x[0] = np.linalg.solve(op.Z0, op.force[0])
         Zc = op.P + 1j * op.Q
@@ -203,11 +217,13 @@ class HarmonicBalanceResidual:
         return self.to_unknowns(x)
 
     def expand_harmonics(self, u: np.ndarray, omega: float) -> np.ndarray:
-        """Full ROM harmonics, (2 N_h + 1, n), m, eq. (5) order (linear dof recovered)."""
-        return self.model.recover(self.to_coefficients(u), float(omega))
+        """Full ROM harmonics, (2 N_h + 1, n), m, eq. (5) order (linear dof recovered), in the
+        basis of Omega / nu; omega: Omega, rad/s."""
+        return self.model.recover(self.to_coefficients(u), self.fundamental(omega))
 
     def signals(self, u: np.ndarray, omega: float, n_time: int | None = None) -> dict:
-        """Time signals over one period tau = Omega t in [0, 2 pi).
+        """Time signals over one period of the basis, tau = Omega t / nu in [0, 2 pi) (nu
+        revolutions).
 
         Returns a dict: tau (N_t,), rad; t (N_t,), s; displacement (N_t, n), m, all ROM dof;
         force (N_t, n_b, 3), N, nonlinear force on the boundary dof (eq. 1 convention:
@@ -218,7 +234,7 @@ class HarmonicBalanceResidual:
         xr = self.to_coefficients(u)
         smp = self.samples(xr, float(omega), basis=b)
         full = b.to_time(self.expand_harmonics(u, omega))
-        return {"tau": b.tau, "t": b.tau / float(omega), "displacement": full, "force": smp.force,
+        return {"tau": b.tau, "t": b.tau / self.fundamental(omega), "displacement": full, "force": smp.force,
                 "lam": smp.lam, "gap": smp.gap, "distance": smp.displacement[..., 0] - smp.gap}
 
 

@@ -32,7 +32,7 @@ def penalty_homotopy(res: HarmonicBalanceResidual, u_soft: np.ndarray, omega: fl
     kappa: it does at Omega = 400 rad/s on the rotor 67 ROM). Returns (u, note), u None
     when the homotopy does not reach the scene's kappa."""
     c = res.contact
-    rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.model.forcing,
+    rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.forcing,
                         alpha=res.alpha, friction=res.friction, distance=res._distance)
     lo, hi = np.log10(min(kappa_start, c.kappa)), np.log10(c.kappa)
     if not hi > lo:
@@ -100,7 +100,7 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
     if sol.converged:
         return sol.x, "damped Newton from the contact-free solution"
     if res.method == "rl":
-        dl = build_residual(res.rom, res.casing, res.contact, res.options, method="dlft", forcing=res.model.forcing,
+        dl = build_residual(res.rom, res.casing, res.contact, res.options, method="dlft", forcing=res.forcing,
                             alpha=res.alpha, friction=res.friction, distance=res._distance)
         sd = damped_newton(dl, u_lin, omega, opts.newton, solver)
         if sd.converged:

@@ -41,11 +41,16 @@ class Bifurcation:
     lies; fraction: its position between points index and index + 1 in arc length, [0, 1].
     omega_bracket: (Omega at index, at index + 1), rad/s: the located value is inside;
     the interpolation error is a fraction of this bracket (see `locate`).
-    multiplier: the crossing multiplier of the minimal period at the nearer point, -.
+    multiplier: the crossing multiplier of the minimal period at the point on its unstable
+    side (where a period doubling's is real), -.
     direction: +1 when the orbit loses stability going along the branch, -1 when it gains it.
     period_ratio: g, the orbit's minimal period is T / g (T of the HBM basis).
-    eigenvector: the crossing Floquet mode at the nearer point, coefficients (2 N' + 1, n)
-    complex in the minimal period's basis (N' = N_h / g), eq. (5) order; None for folds.
+    exponent: the crossing Floquet exponent (centred member, see FloquetSpectrum) there, 1/s.
+    mode_omega: fundamental of the basis the mode was computed in (that of the minimal
+    period at that point), rad/s.
+    eigenvector: the crossing Floquet mode exp(exponent t) p(t) at that point: p's
+    coefficients (2 N' + 1, n) complex in the minimal period's basis (N' = N_h / g), all
+    ROM dof, eq. (5) order; None for folds.
     """
 
     kind: str
@@ -57,6 +62,8 @@ class Bifurcation:
     multiplier: complex
     direction: int
     period_ratio: int = 1
+    exponent: complex = 0j
+    mode_omega: float = 0.0
     eigenvector: np.ndarray | None = field(default=None, repr=False)
 
 
@@ -70,6 +77,13 @@ def classify(mu: complex, fold: bool) -> str:
     return NEIMARK_SACKER
 
 
+def upper_half(mu: np.ndarray) -> np.ndarray:
+    """(m,) bool: one multiplier of each conjugate pair (Im >= 0) and every real one (also a
+    real negative one whose round-off put it at arg = -pi)."""
+    a = np.angle(np.asarray(mu))
+    return (a >= -REAL_ARG_TOL) | (np.abs(a) >= np.pi - REAL_ARG_TOL)
+
+
 def pair_multipliers(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: float = 1.0):
     """Pairs (i, j) of the same multiplier at two nearby points (mu_a[i] ~ mu_b[j]).
 
@@ -79,7 +93,7 @@ def pair_multipliers(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: f
     """
     def keep(mu):
         mu = np.asarray(mu)
-        ok = (np.angle(mu) >= -REAL_ARG_TOL) & (np.abs(mu) > floor)
+        ok = upper_half(mu) & (np.abs(mu) > floor)
         lm = np.log(np.abs(mu), where=ok, out=np.full(mu.shape, -np.inf))
         return np.flatnonzero(ok & (np.abs(lm) < window))
 

@@ -36,7 +36,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.stability.bifurcation import (FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
-                                      parabola_vertex)
+                                      parabola_vertex, upper_half)
 from hbm.stability.hill import harmonic_period
 from hbm.stability.spectrum import FloquetSpectrum, orbit_spectrum
 
@@ -49,14 +49,15 @@ class StabilityOptions:
     points between two analyses (1: every point). margin: |log|mu|| under which a
     multiplier counts as near the unit circle (0.1: |mu| within 10 %), which resets the gap
     to 1. n_leading: leading multiplier moduli stored per point. window: |log|mu|| within
-    which multipliers are paired across two points to find a crossing.
+    which multipliers are paired across two points to find a crossing (3: |mu| in
+    [0.05, 20]; a stiff contact's multipliers move by factors of 10 between points).
     """
 
     n_eig: int = 40
     max_gap: int = 8
     margin: float = 0.1
     n_leading: int = 4
-    window: float = 1.5
+    window: float = 3.0
 
     def __post_init__(self):
         if self.max_gap < 1 or self.n_eig < 2 or self.n_leading < 1:
@@ -174,7 +175,7 @@ class StabilityMonitor:
         paired = {j for _, j in pairs}
         lb_all = np.log(np.abs(sb.multipliers))
         for j in range(len(lb_all)):
-            if j not in paired and sb.multipliers[j].imag >= 0 and abs(sb.multipliers[j]) > floor \
+            if j not in paired and upper_half(sb.multipliers[j:j + 1])[0] and abs(sb.multipliers[j]) > floor \
                     and abs(lb_all[j]) < self.options.margin:
                 return 1
         reach = np.inf
@@ -235,8 +236,11 @@ class StabilityMonitor:
         for i, j in crossings(sa.multipliers, sb.multipliers, floor, self.options.window):
             la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
             frac = la / (la - lb)
-            near_b = frac >= 0.5
-            mu = sb.multipliers[j] if near_b else sa.multipliers[i]
+            # the crossing multiplier and its mode from the unstable side: a real multiplier
+            # that crossed stays real there, whereas on the stable side it may still be half
+            # of a complex pair about to collide on the real axis (both within one step)
+            side, k = (b, j) if lb > la else (a, i)
+            mu = side.spectrum.multipliers[k]
             kind = classify(mu, fold)
             found += 1
             if kind == FOLD:
@@ -245,13 +249,26 @@ class StabilityMonitor:
                 kind=kind, omega=a.omega + frac * (b.omega - a.omega),
                 le_amplitude=a.amplitude + frac * (b.amplitude - a.amplitude), index=a.index, fraction=float(frac),
                 omega_bracket=(a.omega, b.omega), multiplier=complex(mu), direction=1 if lb > la else -1,
-                period_ratio=(b if near_b else a).g,
-                eigenvector=(sb if near_b else sa).eigenvectors[j if near_b else i]))
+                period_ratio=side.g, exponent=complex(side.spectrum.exponents[k]),
+                mode_omega=float(side.spectrum.omega), eigenvector=side.spectrum.eigenvectors[k]))
         if not found:
+            # the multipliers moved too far to be paired: classify by the one that crossed,
+            # the unstable one nearest the unit circle on the side with more of them, and
+            # place it half-way (bracket stated in omega_bracket)
+            side, other = (b, a) if b.n_unstable > a.n_unstable else (a, b)
+            sp = side.spectrum
+            unst = np.flatnonzero(sp.unstable & upper_half(sp.multipliers))
+            if len(unst):
+                j = unst[np.argmin(np.abs(np.log(np.abs(sp.multipliers[unst]))))]
+                mu, kind = complex(sp.multipliers[j]), classify(sp.multipliers[j], fold)
+                vec, ex = sp.eigenvectors[j], complex(sp.exponents[j])
+            else:
+                mu, kind, vec, ex = complex(np.nan), UNCLASSIFIED, None, 0j
             self.bifurcations.append(Bifurcation(
-                kind=UNCLASSIFIED, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
-                index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=complex(np.nan),
-                direction=1 if b.n_unstable > a.n_unstable else -1, period_ratio=b.g))
+                kind=kind, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
+                index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=mu,
+                direction=1 if b.n_unstable > a.n_unstable else -1, period_ratio=side.g, exponent=ex,
+                mode_omega=float(sp.omega), eigenvector=vec))
 
     def _record_folds(self) -> None:
         """Folds whose three points all have their counts: the vertex of the parabola Omega(s)

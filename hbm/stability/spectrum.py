@@ -53,15 +53,17 @@ class FloquetSpectrum:
 
     omega: fundamental of the basis, rad/s; period = 2 pi / omega, s (the orbit's minimal
     period when the operator was restricted to it, see hbm.stability.hill.restrict).
-    exponents: (m,) complex, 1/s: one per multiplier, the family member with the most
-    centred eigenvector found, moved to |Im| <= omega / 2 ... omega (Im is defined modulo
-    omega; only the family's multiplier is physical). Sorted by decreasing |multiplier|.
+    exponents: (m,) complex, 1/s: one per multiplier, the family's centred member
+    lam + i round(k_bar) omega (Im is defined modulo omega; the centred member's is the
+    mode's dominant angular frequency). Sorted by decreasing |multiplier|.
     multipliers: (m,) complex, exp(exponent * period).
     centred: (m,) bool, whether that member's eigenvector has |k_bar| <= 1/2.
     edge_energy: (m,) fraction of the eigenvector's energy in the outer 2 harmonics of each
     side of the band (truncation quality; ~0 for a converged eigenvector).
     eigenvectors: (m, 2 N + 1, n) complex: p(t)'s coefficients in eq. (5) order for the
-    reported member (unit 2-norm).
+    reported (centred) member: the Floquet mode is exp(exponent t) p(t) (unit 2-norm; the
+    coefficients shifted out of the band by the centring are lost when the member found was
+    not the centred one).
     modulus_floor: every multiplier with |mu| > modulus_floor is listed (0: all of them).
     method: "dense" or "arnoldi". note: why the result may be incomplete ("" if not).
     """
@@ -153,51 +155,63 @@ def harmonic_centre(P: np.ndarray, n_edge: int = 2) -> tuple[np.ndarray, np.ndar
 
 
 # -- selection ------------------------------------------------------------------------------
-def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float):
-    """Group eigenpairs into exponent families; the representative of each is its most
-    centred member. Returns (exponents, edge, vectors, centred) of the representatives.
+def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, dense: bool):
+    """One representative per exponent family: (exponents, edge, vectors, centred) of the
+    representatives (the centred member's exponent lam + i round(k_bar) omega and its
+    eigenvector).
 
-    Two eigenpairs are members of one family when their exponents, moved to the centred
-    member (lam + i round(k_bar) omega), have the same imaginary part (to 1e-2 omega) and
-    real parts within 5e-2 omega (the truncation moves an off-centre member's real part:
-    5 1/s at omega = 3900 rad/s measured on the rotor 67 ROM at N_h = 20), and their
-    eigenvectors, shifted alike, are parallel (|cos| > 0.5): the real parts of distinct
-    families can be that close, their eigenvectors are not.
+    dense (all eigenvalues at hand): every family's centred member (|k_bar| <= 1/2) is
+    among them, so those are the representatives (Lazarus and Thomas); the rest, including
+    truncation artefacts (eigenvalues whose eigenvector no shift brings to the band's
+    centre), is dropped. The family of a real negative multiplier has two members at
+    |k_bar| = 1/2 (lam and conj(lam) = lam - i omega): one multiplier, counted once.
+    Otherwise (the Arnoldi window): eigenpair i joins the family of representative j when
+    lam_i = lam_j + i m omega for an integer m, to 1e-2 omega in the imaginary part and
+    2e-3 omega in the real part (the truncation moves an off-centre member's real part: by
+    1.3e-3 omega on the rotor 67 ROM with DLFT at N_h = 20), and p_i is parallel to p_j
+    shifted by m harmonics (|cos| > 0.9). Two real negative multipliers just born from a
+    complex pair have nearly parallel eigenvectors and exponents a few 1e-2 omega apart in
+    their real parts: the real-part test keeps them apart.
     """
     kbar, edge = harmonic_centre(P)
+    centred = np.abs(kbar) <= 0.5 + 1e-3  # 1e-3: round-off and the truncation's shift of the centre
     order = np.argsort(np.abs(kbar))
-    reps = []  # (centred exponent, index, shifted vector)
+    reps = []
     for i in order:
         if not np.isfinite(lam[i]) or edge[i] > max_edge:
             continue  # an eigenvector at the truncation edge: a truncation artefact
-        s = int(np.round(kbar[i]))
-        lc = lam[i] + 1j * s * omega  # the centred member's exponent
-        a = shift_member(P[i], s).reshape(-1)
+        if dense and not centred[i]:
+            continue
+        a = P[i].reshape(-1)
         same = False
-        for lr, j, b in reps:
-            if abs(lc.imag - lr.imag) <= 1e-2 * omega and abs(lc.real - lr.real) <= 5e-2 * omega:
-                if abs(np.vdot(a, b)) > 0.5 * np.linalg.norm(a) * np.linalg.norm(b):
-                    same = True
-                    break
+        for j in reps:
+            d = lam[i] - lam[j]
+            m = int(np.round(d.imag / omega))
+            if dense:
+                same = m != 0 and abs(d.imag - m * omega) <= 1e-6 * omega and abs(d.real) <= 1e-6 * omega
+            elif abs(d.imag - m * omega) <= 1e-2 * omega and abs(d.real) <= 2e-3 * omega:
+                b = shift_member(P[j], m).reshape(-1)
+                same = abs(np.vdot(a, b)) > 0.9 * np.linalg.norm(a) * np.linalg.norm(b)
+            if same:
+                break
         if not same:
-            reps.append((lc, i, a))
-    idx = np.array([j for _, j, _ in reps], dtype=int)
-    ex = np.array([lc for lc, _, _ in reps], dtype=complex)
-    vec = np.array([v.reshape(P.shape[1:]) for _, _, v in reps]) if reps else P[:0]
-    return ex, edge[idx], vec, np.abs(kbar[idx]) <= 0.5 + 1e-12
+            reps.append(i)
+    idx = np.array(reps, dtype=int)
+    shifts = np.round(kbar[idx]).astype(int)
+    ex = lam[idx] + 1j * shifts * omega
+    vec = np.array([shift_member(P[j], s) for j, s in zip(idx, shifts)]) if len(idx) else P[:0]
+    return ex, edge[idx], vec, centred[idx]
 
 
 def _spectrum(lam, P, H: HillOperator, floor: float, method: str, note: str, max_edge: float) -> FloquetSpectrum:
     P = np.asarray(P).reshape(len(lam), H.n_c, H.n)
     norms = np.linalg.norm(P.reshape(len(lam), -1), axis=1)
     P = P / np.where(norms > 0, norms, 1.0)[:, None, None]
-    ex, edge, vec, centred = _families(np.asarray(lam), P, H.omega, max_edge)
+    ex, edge, vec, centred = _families(np.asarray(lam), P, H.omega, max_edge, dense=method == "dense")
     T = 2.0 * np.pi / H.omega
     mu = np.exp(ex * T)
     order = np.argsort(-np.abs(mu), kind="stable")
-    # Im modulo omega, in (-omega/2, omega/2]: the exponent of the member nearest the real axis
-    im = ex.imag - H.omega * np.round(ex.imag / H.omega)
-    return FloquetSpectrum(omega=H.omega, exponents=(ex.real + 1j * im)[order], multipliers=mu[order],
+    return FloquetSpectrum(omega=H.omega, exponents=ex[order], multipliers=mu[order],
                            centred=centred[order], edge_energy=edge[order], eigenvectors=vec[order],
                            modulus_floor=floor, method=method, note=note)
 
@@ -207,7 +221,9 @@ def dense_spectrum(H: HillOperator, max_edge: float = 0.05) -> FloquetSpectrum:
     z = [p; lam p]: for small operators (H.size up to ~1000: the QZ step is O(size^3)).
 
     max_edge: families whose best member keeps more than this energy fraction in the
-    outer harmonics are truncation artefacts and dropped.
+    outer harmonics are truncation artefacts and dropped. With all eigenvalues at hand the
+    representatives are the centred members (see _families): the 2 n exponents of an n-dof
+    system (Lazarus and Thomas).
     """
     L0, L1, L2 = H.dense()
     n = H.size
@@ -216,7 +232,9 @@ def dense_spectrum(H: HillOperator, max_edge: float = 0.05) -> FloquetSpectrum:
     A = np.block([[Z, I], [-L0, -L1]])
     B = np.block([[I, Z], [Z, L2]])
     lam, V = sla.eig(A, B)
-    ok = np.isfinite(lam)
+    # infinite eigenvalues (massless dof, DLFT's constrained rows) come out of QZ as inf or
+    # as ~1/eps; no Floquet exponent of the model is a million times the fundamental
+    ok = np.isfinite(lam) & (np.abs(lam) < 1e6 * H.omega)
     return _spectrum(lam[ok], V[:n, ok].T, H, 0.0, "dense", "", max_edge)
 
 
