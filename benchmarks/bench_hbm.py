@@ -3,7 +3,7 @@
 Usage:
   .venv/bin/python benchmarks/bench_hbm.py [--rom out/.../rom.h5] [--repeat 3]
       [--penetration 1.25e-4] [--table] [--nh 10 20 40 60] [--nt 256 512 1024 2048]
-      [--methods dlft rl] [--no-default]
+      [--methods dlft rl] [--no-default] [--stability {off,on,both}]
 
 Without --rom the 39-dof stand-in of tests/support.py is used (not a blade: figures
 exercise the code paths only). Prints markdown tables: median wall time per method, and
@@ -12,6 +12,10 @@ finest setting: the error of the max LE amplitude over the NFRC, and the max ove
 common omega grid of |A - A_ref| / max A_ref (interpolated along omega on the monotone
 envelope of each branch: a rough figure on the multi-valued rotor 67 NFRC, where a fold
 drawn a little earlier or later gives a large local difference). --no-default skips the N_h = 40, N_t = 1024 runs.
+--stability on: the NFRC with Floquet stability and bifurcations (hbm.stability); both:
+each repeat runs without, then with (alternating, so that the machine's load hits both
+alike), and the table gives both medians, the stability monitor's own time, the analyses,
+and the bifurcations found.
 """
 from __future__ import annotations
 
@@ -39,8 +43,9 @@ def load(path: str | None):
     return load_rom(path)
 
 
-def run(rom, method, nh, nt, casing):
-    return compute_nfrc(rom, casing, ContactOptions(), HbmOptions(n_harmonics=nh, n_time=nt), method)
+def run(rom, method, nh, nt, casing, stability=False):
+    return compute_nfrc(rom, casing, ContactOptions(), HbmOptions(n_harmonics=nh, n_time=nt), method,
+                        stability=stability)
 
 
 def main():
@@ -54,10 +59,14 @@ def main():
     ap.add_argument("--nh", type=int, nargs="+", default=[10, 20, 40, 60])
     ap.add_argument("--nt", type=int, nargs="+", default=[256, 512, 1024, 2048])
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    ap.add_argument("--stability", choices=["off", "on", "both"], default="off")
     a = ap.parse_args()
     rom = load(a.rom)
     casing = CasingOptions(penetration=a.penetration)
     print(f"ROM: {a.rom or 'stand-in'}; casing penetration {a.penetration:g} m\n")
+    if a.stability != "off" and a.default:
+        stability_table(rom, a, casing)
+        return
     print("| method | N_h | N_t | median wall (s) | points | omega covered (rad/s) | peak LE amp (mm) at Omega "
           "| factorisations | status |")
     print("|---|---|---|---|---|---|---|---|---|")
@@ -104,6 +113,34 @@ def main():
                 perr = abs(r.le_amplitude.max() - peak_ref) / peak_ref
                 cells.append(f"{r.wall_time:.1f} / {perr:.1e} / {err:.1e}")
             print(f"| {nh} | " + " | ".join(cells) + " |", flush=True)
+
+
+def stability_table(rom, a, casing):
+    """N_h = 40, N_t = 1024 NFRCs with stability (and without, for --stability both)."""
+    print("| method | median wall without (s) | median wall with (s) | added | monitor time (s) | analyses "
+          "| points | bifurcations |")
+    print("|---|---|---|---|---|---|---|---|")
+    for m in a.methods:
+        off, on = [], []
+        for _ in range(a.repeat):
+            if a.stability == "both":
+                off.append(run(rom, m, 40, 1024, casing, False))
+            on.append(run(rom, m, 40, 1024, casing, True))
+            print(f"  {m}: without {off[-1].wall_time if off else float('nan'):.1f} s, with {on[-1].wall_time:.1f} s "
+                  f"(monitor {on[-1].stability_time:.1f} s, {on[-1].n_stability_analyses} analyses)", flush=True)
+        t_off = statistics.median(r.wall_time for r in off) if off else float("nan")
+        t_on = statistics.median(r.wall_time for r in on)
+        r = on[-1]
+        kinds = {}
+        for b in r.bifurcations:
+            kinds[b.kind] = kinds.get(b.kind, 0) + 1
+        print(f"| {m} | {t_off:.1f} | {t_on:.1f} | {100 * (t_on / t_off - 1):.0f} % | "
+              f"{statistics.median(x.stability_time for x in on):.1f} | {r.n_stability_analyses} | {len(r.omega)} | "
+              + ", ".join(f"{v} {k}" for k, v in sorted(kinds.items())) + " |", flush=True)
+        for b in r.bifurcations:
+            print(f"    {b.kind:16s} Omega = {b.omega:8.2f} rad/s (bracket {min(b.omega_bracket):.2f}-"
+                  f"{max(b.omega_bracket):.2f}), LE amplitude {1e3 * b.le_amplitude:.3f} mm, |mu| = "
+                  f"{abs(b.multiplier):.3f}, {'loses' if b.direction > 0 else 'gains'} stability", flush=True)
 
 
 if __name__ == "__main__":

@@ -46,16 +46,16 @@ class StabilityOptions:
     """Settings of the stability monitor.
 
     n_eig: Hill eigenvalues computed per analysis (see arnoldi_spectrum). max_gap: most
-    points between two analyses (1: every point). margin: |log|mu|| under which a
-    multiplier counts as near the unit circle (0.1: |mu| within 10 %), which resets the gap
-    to 1. n_leading: leading multiplier moduli stored per point. window: |log|mu|| within
+    points between two analyses (1: every point). margin: |log|mu|| under which an unpaired
+    multiplier (no counterpart at the previous analysis) counts as near the unit circle and
+    resets the gap to 1 (0.02: |mu| within 2 %). n_leading: leading multiplier moduli stored per point. window: |log|mu|| within
     which multipliers are paired across two points to find a crossing (3: |mu| in
     [0.05, 20]; a stiff contact's multipliers move by factors of 10 between points).
     """
 
     n_eig: int = 40
     max_gap: int = 8
-    margin: float = 0.1
+    margin: float = 0.02
     n_leading: int = 4
     window: float = 3.0
 
@@ -166,8 +166,9 @@ class StabilityMonitor:
         return out
 
     def _next_gap(self, a: _Entry, b: _Entry) -> int:
-        """Points until the next analysis, from the speed of the multipliers between a and b."""
-        if a.n_unstable != b.n_unstable or b.s <= a.s or b.index <= a.index:
+        """Points until the next analysis, from the speed of the multipliers between a and b
+        (the changes between them are already located: they do not shorten the gap)."""
+        if b.s <= a.s or b.index <= a.index:
             return 1
         sa, sb = a.spectrum, b.spectrum
         floor = max(sa.modulus_floor, sb.modulus_floor)
@@ -177,7 +178,7 @@ class StabilityMonitor:
         for j in range(len(lb_all)):
             if j not in paired and upper_half(sb.multipliers[j:j + 1])[0] and abs(sb.multipliers[j]) > floor \
                     and abs(lb_all[j]) < self.options.margin:
-                return 1
+                return 1  # a multiplier near the circle that came from nowhere: look closely
         reach = np.inf
         for i, j in pairs:
             la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))

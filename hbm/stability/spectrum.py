@@ -58,8 +58,8 @@ class FloquetSpectrum:
     mode's dominant angular frequency). Sorted by decreasing |multiplier|.
     multipliers: (m,) complex, exp(exponent * period).
     centred: (m,) bool, whether that member's eigenvector has |k_bar| <= 1/2.
-    edge_energy: (m,) fraction of the eigenvector's energy in the outer 2 harmonics of each
-    side of the band (truncation quality; ~0 for a converged eigenvector).
+    edge_energy: (m,) fraction of the eigenvector's energy in the outer tenth of the band
+    on each side (truncation quality; ~0 for a converged eigenvector).
     eigenvectors: (m, 2 N + 1, n) complex: p(t)'s coefficients in eq. (5) order for the
     reported (centred) member: the Floquet mode is exp(exponent t) p(t) (unit 2-norm; the
     coefficients shifted out of the band by the centring are lost when the member found was
@@ -141,13 +141,14 @@ def shift_member(P: np.ndarray, m: int) -> np.ndarray:
     return real_coefficients(out)
 
 
-def harmonic_centre(P: np.ndarray, n_edge: int = 2) -> tuple[np.ndarray, np.ndarray]:
+def harmonic_centre(P: np.ndarray, n_edge: int | None = None) -> tuple[np.ndarray, np.ndarray]:
     """(k_bar, edge energy) of eigenvectors P (m, 2 N + 1, n): the energy-weighted mean
     harmonic of the complex-exponential coefficients, and the energy fraction in the outer
-    n_edge harmonics of each side."""
+    n_edge harmonics of each side (default max(1, N // 10): the outer tenth of the band)."""
     c = exponential_coefficients(P)
     e = np.sum(np.abs(c) ** 2, axis=-1)  # (m, 2 N + 1)
     nh = (e.shape[-1] - 1) // 2
+    n_edge = max(1, nh // 10) if n_edge is None else n_edge
     k = np.arange(-nh, nh + 1)
     tot = e.sum(axis=-1)
     edge = (e[..., :n_edge].sum(axis=-1) + e[..., -n_edge:].sum(axis=-1)) / tot
@@ -208,6 +209,9 @@ def _spectrum(lam, P, H: HillOperator, floor: float, method: str, note: str, max
     norms = np.linalg.norm(P.reshape(len(lam), -1), axis=1)
     P = P / np.where(norms > 0, norms, 1.0)[:, None, None]
     ex, edge, vec, centred = _families(np.asarray(lam), P, H.omega, max_edge, dense=method == "dense")
+    if len(lam) and not len(ex):  # every eigenvector at the truncation edge: say so, claim nothing
+        note = (note + "; " if note else "") + "no eigenvector inside the harmonic band (too few harmonics)"
+        floor = 1.0
     T = 2.0 * np.pi / H.omega
     mu = np.exp(ex * T)
     order = np.argsort(-np.abs(mu), kind="stable")
@@ -276,7 +280,7 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
 
 
 def orbit_spectrum(residual, u: np.ndarray, omega: float, *, jacobian=None, n_eig: int = 40,
-                   dense_below: int = 600, period_rtol: float = 1e-4) -> tuple[FloquetSpectrum, int]:
+                   dense_below: int = 200, period_rtol: float = 1e-4) -> tuple[FloquetSpectrum, int]:
     """Floquet multipliers of the HBM solution u at omega over its minimal period.
 
     residual: hbm.harmonic.residual.HarmonicBalanceResidual; u: scaled unknowns (n_u,).

@@ -97,3 +97,16 @@ def test_nu_2_continuation_traces_the_nu_1_curve(rom):
     assert distance_to_polyline(pb, pa).max() < 5e-3
     assert distance_to_polyline(pa, pb).max() < 5e-3
     assert abs(b.le_amplitude.max() - a.le_amplitude.max()) < 1e-3 * a.le_amplitude.max()
+
+
+def test_scene_keys_subharmonic_and_stability():
+    from pipelines.scene import SceneError, parse_scene
+
+    s = parse_scene("[hbm]\nsubharmonic = 2\nstability = true\n")
+    assert s.hbm.subharmonic == 2 and s.hbm.stability is True
+    assert parse_scene("").hbm.subharmonic == 1
+    for bad, msg in (("subharmonic = 0", "subharmonic must be an integer >= 1"),
+                     ("subharmonic = 1.5", r"\[hbm\] subharmonic must be an integer"),
+                     ("stability = 1", r"\[hbm\] stability must be true or false")):
+        with pytest.raises(SceneError, match=msg):
+            parse_scene(f"[hbm]\n{bad}\n")

@@ -1,0 +1,82 @@
+"""compute_nfrc with stability: what on_point and the result carry, and a resumed run.
+
+Rotor 67 coarse ROM at N_h = 12, N_t = 256 over [1940, 2000] rad/s (DLFT): ~60 points, a few
+seconds. The verdicts themselves are checked against time integration and shooting in
+test_stability_rotor67.py and test_stability_hill.py; here the bookkeeping: every point
+handed on once, in order, with stability keys consistent with the result's arrays and
+with an own analysis of the point where it was analysed, and a bifurcation between two
+points exactly where the count changes.
+"""
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hbm.continuation.branch import Branch
+from hbm.harmonic.nfrc import compute_nfrc
+from hbm.harmonic.residual import build_residual
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from hbm.stability.bifurcation import KINDS, bifurcation_arrays
+from hbm.stability.monitor import StabilityOptions
+from hbm.stability.spectrum import orbit_spectrum
+from rom.model import load_rom
+
+ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+OPTS = HbmOptions(n_harmonics=12, n_time=256, omega_start=1940.0, omega_end=2000.0)
+KEYS = {"stable", "n_unstable", "stability_analysed", "leading_multipliers", "period_ratio"}
+
+
+@pytest.fixture(scope="module")
+def run():
+    rom = load_rom(ROM)
+    seen = []
+    r = compute_nfrc(rom, CasingOptions(), ContactOptions(), OPTS, "dlft", on_point=lambda p, ex: seen.append((p, ex)),
+                     stability=StabilityOptions(max_gap=4))
+    return rom, r, seen
+
+
+def test_every_point_handed_on_once_in_order_with_its_stability(run):
+    rom, r, seen = run
+    assert [p.index for p, _ in seen] == list(range(len(r.omega)))
+    for (p, ex), i in zip(seen, range(len(r.omega))):
+        assert KEYS <= set(ex)
+        assert ex["stable"] == r.stable[i] and ex["n_unstable"] == r.n_unstable[i]
+        assert ex["stable"] == (ex["n_unstable"] == 0)
+        assert np.shape(ex["leading_multipliers"]) == (4,) and ex["period_ratio"] == 2  # 2-lobe casing: T / 2
+        assert np.isnan(ex["leading_multipliers"]).all() != ex["stability_analysed"]
+    assert r.stability_analysed[0] and r.stability_analysed[-1]
+    assert 0 < r.n_stability_analyses <= len(r.omega) + 1 and r.stability_time > 0
+
+
+def test_analysed_points_match_an_own_analysis_and_changes_are_bifurcations(run):
+    rom, r, _ = run
+    res = build_residual(rom, CasingOptions(), ContactOptions(), OPTS, method="dlft")
+    for i in np.flatnonzero(r.stability_analysed)[::5]:
+        sp, g = orbit_spectrum(res, r.unknowns[i], r.omega[i])
+        assert sp.n_unstable == r.n_unstable[i] and g == 2
+        # the same computation, up to round-off: ARPACK's random start vector and the BLAS
+        # threads (one inside compute_nfrc) change it, amplified by the non-normal Hill
+        # pencil's eigenvalue condition (measured 4e-6 relative); 1e-4
+        assert np.allclose(sp.leading(4), r.leading_multipliers[i], rtol=1e-4, equal_nan=True)
+    changes = np.flatnonzero(np.diff(r.n_unstable) != 0)
+    located = sorted({b.index for b in r.bifurcations if b.kind != "fold"})
+    assert set(changes) <= set(located) | {b.index for b in r.bifurcations}
+    for b in r.bifurcations:
+        assert b.kind in KINDS and min(b.omega_bracket) - 1e-9 <= b.omega <= max(b.omega_bracket) + 1e-9
+    table = bifurcation_arrays(r.bifurcations)
+    assert {k: v[0].shape for k, v in table.items()} == {k: (len(r.bifurcations),) for k in table}
+    assert table["omega"][1] == "rad/s" and table["le_amplitude"][1] == "m"
+
+
+def test_resumed_run_keeps_the_old_points_and_goes_on_with_stability(run):
+    rom, r, _ = run
+    m0 = len(r.omega) // 2
+    old = Branch(omega=r.omega[:m0], x=r.unknowns[:m0], converged=r.converged[:m0], residual_norm=r.residual_norm[:m0],
+                 iterations=r.iterations[:m0], step=r.step[:m0], time=r.time[:m0])
+    seen = []
+    r2 = compute_nfrc(rom, CasingOptions(), ContactOptions(), OPTS, "dlft", resume=old,
+                      on_point=lambda p, ex: seen.append(p.index), stability=StabilityOptions(max_gap=4))
+    assert r2.status == r.status
+    assert seen == list(range(m0, len(r2.omega)))  # only the new points are handed on
+    assert np.all(r2.n_unstable[m0:] >= 0)
+    assert np.all(r2.n_unstable[:m0] == -1)  # a Branch carries no stability: unknown, not invented
