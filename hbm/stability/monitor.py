@@ -35,7 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from hbm.stability.bifurcation import (FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
+from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
                                       parabola_vertex, upper_half)
 from hbm.stability.hill import harmonic_period
 from hbm.stability.spectrum import FloquetSpectrum, orbit_spectrum
@@ -283,10 +283,16 @@ class StabilityMonitor:
             k = 0 if ss <= s[1] else 1
             frac = (ss - s[k]) / (s[k + 1] - s[k]) if s[k + 1] > s[k] else 0.0
             n0, n2 = self._counts[trio[0][0]][0], self._counts[trio[2][0]][0]
+            # the fold's real multiplier +1 may have been located (as a branch point) before the
+            # turn was seen (it needs the point after the turn): it is the fold's
+            near = [x for x in self.bifurcations if x.kind == BRANCH_POINT and x.index in (trio[0][0], trio[1][0])]
+            if near:
+                self.bifurcations.remove(near[0])
             self.bifurcations.append(Bifurcation(
                 kind=FOLD, omega=ww, le_amplitude=aa, index=int(trio[k][0]), fraction=float(frac),
                 omega_bracket=(float(w[k]), float(w[k + 1])), multiplier=complex(1.0),
-                direction=int(np.sign(n2 - n0)), period_ratio=int(self._counts[trio[1][0]][1])))
+                direction=near[0].direction if near else int(np.sign(n2 - n0)),
+                period_ratio=int(self._counts[trio[1][0]][1])))
 
 
 def unknown_stability(extras: dict, options: StabilityOptions = StabilityOptions()) -> dict:

@@ -10,15 +10,18 @@ representative kept for each family is the member whose eigenvector's harmonic c
 k_bar = sum_k k |c_k|^2 / sum_k |c_k|^2 (complex-exponential coefficients c_k, k = -N..N)
 is nearest 0 (|k_bar| <= 1/2), which is the member farthest from both truncation edges.
 
-Why this and not the smallest |Im lam| (Moore 2005): Moore's rule assumes that the member
-with |Im lam| <= w / 2 is accurate, i.e. that the eigenvector of that member is centred.
-It is not for modes far above w: the blade's 2B, 1T and the ROM's constraint modes
-(up to 2e6 rad/s against w = 800..4000 rad/s) have their |Im| <= w / 2 member's
-eigenvector centred at |k| = omega_j / w, near or beyond the truncation edge, where the
-eigenvalue is wrong. Measured on the rotor 67 ROM (DLFT, N_h = 10, Omega = 2000 rad/s,
-dense Hill matrix): Moore's rule reports an exponent with Re = +2.66 1/s (an unstable orbit),
-the centred rule -1.93 1/s (stable), and the centred rule's verdict is the one time
-integration confirms (hbm/stability tests).
+Why this and not the smallest |Im lam| (Moore 2005): Moore's rule takes the member with
+|Im lam| <= w / 2 as the accurate one, which holds only when that member's eigenvector is
+centred, i.e. for modes below ~w / 2. The blade's 2B, 1T and the ROM's constraint modes
+(up to 2e6 rad/s against w = 800..4000 rad/s) have that member's eigenvector centred at
+|k| ~ omega_j / w, near or beyond the truncation edge, where the truncation moves the
+eigenvalue. Measured on the rotor 67 ROM (DLFT, Omega = 2000 rad/s, N_h = 10, dense Hill
+matrix): the members with |Im| <= w / 2 include exponents with Re = +4.1 and +2.7 1/s
+(k_bar = 1.9 and 3.1) whose centred family members have Re = -1.9 and below: Moore's rule
+counts the orbit unstable by these truncation artefacts alone; and at N_h = 20 (RL,
+Omega = 1969 rad/s) one family has Re = +3.8 1/s on its member nearest 0 (k_bar = -1.1)
+and -1.5 1/s on its centred member. Against shooting (tests/hbm/test_stability_hill.py)
+the centred rule reproduces the multipliers to 1e-12 (Duffing) and 1e-5 (RL obstacle).
 
 Two ways to compute the spectrum:
 - dense: every eigenvalue of the linearised quadratic problem (small operators, tests);
