@@ -22,7 +22,7 @@ from hbm.stability.spectrum import orbit_spectrum
 from rom.model import load_rom
 
 ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
-OPTS = HbmOptions(n_harmonics=12, n_time=256, omega_start=1940.0, omega_end=2000.0)
+OPTS = HbmOptions(n_harmonics=12, n_time=256, omega_min=1940.0, omega_max=2000.0)
 KEYS = {"stable", "n_unstable", "stability_analysed", "leading_multipliers", "period_ratio"}
 
 

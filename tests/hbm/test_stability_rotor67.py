@@ -26,7 +26,7 @@ ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 def verdicts():
     rom = load_rom(ROM)
     casing, contact = CasingOptions(), ContactOptions()
-    opts = HbmOptions(n_harmonics=40, n_time=1024, omega_start=1960.0, omega_end=2000.0)
+    opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1960.0, omega_max=2000.0)
     r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)
     assert r.status == "reached omega_min"
     res = build_residual(rom, casing, contact, opts, method="dlft")
