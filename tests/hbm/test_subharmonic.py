@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from hbm.continuation.newton import NewtonOptions
 from hbm.harmonic.nfrc import compute_nfrc
 from hbm.harmonic.residual import build_residual
 from hbm.harmonic.solver import HbmSolver
