@@ -191,9 +191,22 @@ class BranchStore:
         self._h5.flush()
         self.n_points = m + 1
 
-    def finalize(self, status: str, detail: str = "") -> Path:
+    def finalize(self, status: str, detail: str = "", tables: dict | None = None) -> Path:
         """Record why the branch stopped, mark complete, add the datasets' checksums
-        (pipelines.artifacts.verify), rename to NAME.h5; returns that path."""
+        (pipelines.artifacts.verify), rename to NAME.h5; returns that path.
+
+        tables: {group: {name: (array, unit)}}, whole-branch data written with it (e.g. the
+        bifurcations located along the branch), each dataset with its unit.
+        """
+        for group, arrays in (tables or {}).items():
+            if group in self._h5:
+                del self._h5[group]
+            g = self._h5.create_group(group)
+            for name, (value, unit) in arrays.items():
+                value = np.asarray(value)
+                if value.dtype == object:  # text columns (e.g. a bifurcation's kind)
+                    value = np.array([str(v) for v in value], dtype=h5py.string_dtype())
+                g.create_dataset(name, data=value).attrs["unit"] = unit
         self._h5.attrs["status"] = status
         self._h5.attrs["detail"] = detail
         self._h5.attrs["complete"] = 1

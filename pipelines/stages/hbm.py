@@ -71,7 +71,12 @@ def _run_method(ctx: Context, rom, output: Output) -> None:
     if store is None:  # not even a start point: still record why, in a complete file
         BranchStore.create(final, result.unknowns.shape[-1] if result.unknowns.ndim == 2 else 0,
                            attrs=attrs, units=EXTRA_UNITS).close()
-    BranchStore.reopen(part).finalize(result.status)
+    tables = {}
+    if scene.hbm.stability:  # the bifurcations located along the branch
+        from hbm.stability.bifurcation import bifurcation_arrays
+
+        tables["bifurcations"] = bifurcation_arrays(result.bifurcations)
+    BranchStore.reopen(part).finalize(result.status, tables=tables)
     ok = int(result.converged.sum())
     ctx.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
             f"status: {result.status}")
