@@ -83,8 +83,8 @@ def render_modes(ctx: Context, n_modes: int | None = None) -> list:
     return paths
 
 
-MODES = Figure("modes", files=mode_files, depends=("render", "name"), inputs=lambda s: (MESH.file, FEM.file),
-               draw=render_modes)
+MODES = Figure("modes", files=mode_files, depends=("render.n_modes", "render.scale", "render.window", "name"),
+               inputs=lambda s: (MESH.file, FEM.file), draw=render_modes)
 
 
 def write_modes_vtu(ctx: Context) -> None:

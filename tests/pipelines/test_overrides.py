@@ -1,4 +1,5 @@
-"""A cheap coarse rotor 67 scene through every stage (mesh -> validation), then:
+"""A cheap coarse rotor 67 scene through every stage (from the session's coarse run to the
+ROM, tests/pipelines/conftest.py), then:
 `--set` overrides rerun exactly the stages that depend on the key (asserted from the run's
 own report), a misspelt key is refused and writes nothing, `show` round-trips, and the
 ParaView files of the run read back with the fields the artifacts hold."""
@@ -40,8 +41,8 @@ hbm_instants = 8
 """
 
 
-def _scene_text() -> str:
-    text = (ROOT / "scenes" / "rotor67_coarse.toml").read_text().replace("../../shared", str(ROOT.parent / "shared"))
+def _scene_text(coarse_scene: Path) -> str:
+    text = coarse_scene.read_text()
     for section in ("[hbm]", "[ti]", "[render]"):  # replaced by CHEAP's
         start = text.index(section)
         nxt = text.find("\n[", start + 1)
@@ -52,11 +53,11 @@ def _scene_text() -> str:
 
 
 @pytest.fixture(scope="module")
-def base(tmp_path_factory):
+def base(tmp_path_factory, coarse_run):
     d = tmp_path_factory.mktemp("overrides")
     scene = d / "scene.toml"
-    scene.write_text(_scene_text())
-    out = d / "base"
+    scene.write_text(_scene_text(coarse_run[0]))
+    out = _copy(coarse_run[1], d / "base")  # its mesh and fem are this scene's too
     progress = run_scene(load_scene(scene), out)
     assert [r.stage for r in progress.records if not r.stage.startswith("figure")] == list(STAGES)
     return scene, out
