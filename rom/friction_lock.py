@@ -48,7 +48,7 @@ class FrictionLock:
     mu_node: np.ndarray = field(metadata={"unit": "1"})
     mu_set: float = field(metadata={"unit": "1"})
     set_nodes: np.ndarray = field(metadata={"unit": "1"})
-    exact: bool = True
+    exact: bool = field(default=True, metadata={"unit": "1"})
 
     def radial_compliance(self, mu: float) -> np.ndarray:
         """A(mu) = G_rr + s mu G_rtheta, (n_b, n_b), m/N: r = -A lam."""
