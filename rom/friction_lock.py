@@ -80,7 +80,8 @@ class FrictionLock:
         bad = np.flatnonzero(self.dragged_in(mu))
         if len(bad):
             out.append(f"friction mu = {mu:g} drags contact node(s) {', '.join(map(str, bad))} into the casing "
-                       f"(G_rr + s mu G_rt < 0; s = {self.rotation:+d}): expect the blade to lock on the casing")
+                       f"(G_rr + s mu G_rt < 0; s = {self.rotation:+d}): once pressed there, the tip can stay locked "
+                       "on the casing")
         elif mu >= self.mu_set:
             out.append(f"friction mu = {mu:g} >= mu_set = {self.mu_set:.3g}: the contact set's compliance with "
                        f"friction is not a P-matrix; several nodes in contact can wedge the blade into the casing")
