@@ -145,7 +145,8 @@ def draw_panels(panels, png, omega_range, half):
             handles += ax.plot(om, np.where(ok, 1e3 * amp, np.nan), lw=1.2, label=label)
         if ti is not None:
             handles += _scatter_classes(ax, ti[0], 1e3 * np.asarray(ti[1]), ti[2], size=14)
-        handles.append(ax.axhline(1e3 * half, color="0.5", ls=":", lw=1.0, label="(c + p) / 2: LE following the casing"))
+        handles.append(ax.axhline(1e3 * half, color="0.5", ls=":", lw=1.0,
+                                  label="(c + p) / 2: LE following the casing"))
         ax.set_xlim(*omega_range)
         ax.set_ylim(bottom=0.0)
         ax.set_xlabel("angular speed \u03a9 (rad/s)")

@@ -36,10 +36,11 @@ class FrictionLock:
     `radial_compliance`).
 
     rotation: sense of rotation s, +1 or -1. compliance_rr: G[r_j, r_k], (n_b, n_b), m/N.
-    compliance_rtheta: G[r_j, theta_k], (n_b, n_b), m/N. mu_node: per node, the friction coefficient above which it is dragged
-    into the casing, (n_b,), 1 (inf: never). mu_set: the same for the whole contact set
-    (P-matrix test), 1 (inf: never). set_nodes: the nodes whose principal minor vanishes
-    first at mu_set, (n_b,) 0/1. exact: whether every subset was tested (n_b <= 12).
+    compliance_rtheta: G[r_j, theta_k], (n_b, n_b), m/N. mu_node: per node, the friction
+    coefficient above which it is dragged into the casing, (n_b,), 1 (inf: never). mu_set:
+    the same for the whole contact set (P-matrix test), 1 (inf: never). set_nodes: the
+    nodes whose principal minor vanishes first at mu_set, (n_b,) 0/1. exact: whether every
+    subset was tested (n_b <= 12).
     """
 
     rotation: int = field(metadata={"unit": "1"})
