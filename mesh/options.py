@@ -5,6 +5,9 @@ from dataclasses import dataclass
 
 KNOWN_FORMATS = ("rotor67", "rotor37")
 KNOWN_UNITS = {"ft": 0.3048, "in": 0.0254, "cm": 0.01, "mm": 0.001, "m": 1.0}
+#: Senses of rotation: right-hand rule about the rotation axis (z), or the sense in which
+#: the blade's leading edge leads (derived from the contact nodes' angles).
+ROTATIONS = ("+", "-", "le-leads")
 
 
 DEFAULT_GEOMETRY = "../../shared/data/rotor67/rotor67geometry.dat"
@@ -31,6 +34,13 @@ class BladeOptions:
         of the file, "hub" = the nodes of the boundary faces that face the axis.
     contact_nodes: node ids as numbered in the mesh file, leading edge first (mesh only);
         None: [mesh] n_boundary nodes along the tip face, as for the tables.
+    rotation: sense of rotation, one of ROTATIONS: "+" or "-" (right-hand rule about the
+      rotation axis (z of the product's frame; a mesh file's `axis`, turned onto z by a proper
+      rotation): "+" turns the blade towards +theta), or
+      "le-leads" (the default: the sense in which the leading edge is ahead of the trailing
+      edge, as a compressor or fan blade turns; from the contact nodes' angles, see
+      rom.rotation.rotation_sign). It decides where each contact node meets the casing
+      lobes (eq. 28) and the direction of the sliding friction (eqs. 29-30).
     """
 
     geometry: str | None = None
@@ -42,6 +52,7 @@ class BladeOptions:
     axis: str = "z"
     root: str = "boundary"
     contact_nodes: tuple[int, ...] | None = None
+    rotation: str = "le-leads"
 
     def __post_init__(self):
         if self.mesh is not None and self.geometry is not None:
@@ -77,6 +88,9 @@ class BladeOptions:
             raise ValueError(f"unknown geometry format '{self.format}'; known: {', '.join(KNOWN_FORMATS)}")
         if self.units not in KNOWN_UNITS:
             raise ValueError(f"unknown length unit '{self.units}'; known: {', '.join(KNOWN_UNITS)}")
+        if self.rotation not in ROTATIONS:
+            raise ValueError(f"unknown rotation '{self.rotation}'; known: {', '.join(repr(r) for r in ROTATIONS)} "
+                             "(right-hand rule about the rotation axis, or the sense in which the LE leads)")
         if not 1 <= self.hub_section < self.tip_section:
             raise ValueError(f"need 1 <= hub_section < tip_section, got {self.hub_section}, {self.tip_section}")
 

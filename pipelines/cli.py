@@ -1,5 +1,6 @@
-"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes]`,
-`bladerub render SCENE.toml --out DIR`.
+"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes]
+[--set SECTION.KEY=VALUE ...]`, `bladerub show SCENE.toml [--set ...]` (the resolved scene,
+every default written out), `bladerub render SCENE.toml --out DIR`.
 
 Every failure is one line on standard error, and the exit code says which kind:
 0 done; 2 nothing was computed (a bad scene, table or artifact, an unusable or busy output
@@ -27,12 +28,13 @@ from pathlib import Path  # noqa: E402
 
 from pipelines.artifacts import ArtifactError  # noqa: E402
 from pipelines.errors import RunError  # noqa: E402
-from pipelines.scene import SceneError, load_scene, scene_warnings  # noqa: E402
+from pipelines.scene import SceneError, load_scene, resolved_toml, scene_warnings  # noqa: E402
 
 
 def _command(args, *extra: str) -> str:
     """The command line to give again to go on (no --force: what this run finished is kept)."""
-    words = ["bladerub", args.command, str(args.scene), "--out", str(args.out), *extra]
+    sets = [w for item in getattr(args, "set", []) for w in ("--set", item)]
+    words = ["bladerub", args.command, str(args.scene), "--out", str(args.out), *sets, *extra]
     return " ".join(shlex.quote(w) for w in words)
 
 
@@ -41,7 +43,7 @@ def _cmd_run(args) -> int:
     from pipelines.runner import run_scene
     from pipelines.stages import STAGES
 
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, args.set)
     progress = Progress(quiet=args.quiet)
     for text in scene_warnings(scene):
         progress.warn(text)
@@ -54,11 +56,18 @@ def _cmd_run(args) -> int:
     return 0
 
 
+def _cmd_show(args) -> int:
+    scene = load_scene(args.scene, args.set)
+    header = f"# {scene.path} resolved" + "".join(f" --set {o}" for o in args.set)
+    print(resolved_toml(scene, header), end="")
+    return 0
+
+
 def _cmd_render(args) -> int:
     from pipelines.progress import Progress
     from pipelines.runner import render_modes
 
-    scene = load_scene(args.scene)
+    scene = load_scene(args.scene, args.set)
     for p in render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True),
                           command=_command(args)):
         print(p)
@@ -160,6 +169,13 @@ def main(argv: list[str] | None = None) -> int:
     ren.add_argument("--out", type=Path, required=True)
     ren.add_argument("--modes", type=int, default=None, help="number of modes (default: the scene's)")
     ren.set_defaults(func=_cmd_render)
+    show = sub.add_parser("show", help="print the resolved scene (every key, defaults and --set included) as TOML")
+    show.add_argument("scene", type=Path, help="scene file (TOML)")
+    show.set_defaults(func=_cmd_show)
+    for p in (run, show, ren):
+        p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                       help="override a scene value (repeatable), validated like the file: "
+                            "--set material.E=110e9 --set contact.mu=0.1")
     args = parser.parse_args(argv)
     if not _FORK_HOOK:
         os.register_at_fork(after_in_child=_silent_forked_child)

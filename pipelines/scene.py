@@ -1,10 +1,15 @@
-"""Scenes: a TOML file -> one frozen, validated `Scene`.
+"""Scenes: a TOML file (plus command-line overrides) -> one frozen, validated `Scene`.
 
 Every configurable number of the pipeline lives in a frozen dataclass owned by the
 package that uses it (`mesh.options`, `fem.material`, ...). This module is the one
 place that maps TOML sections onto those dataclasses; the dataclass defaults are the
 scene defaults. Unknown sections or keys are errors that name the key (and the
 closest known one), so a misspelt key never silently falls back to a default.
+
+Overrides (`bladerub run SCENE --set material.E=110e9`) are merged into the file's
+tables before validation, so they are checked exactly as the file is; a scene with
+overrides carries the fully resolved TOML (`resolved_toml`) as its text, which is what
+its artifacts record.
 """
 from __future__ import annotations
 
@@ -181,13 +186,64 @@ def _build_section(name: str, cls: type, table: dict):
         raise SceneError(f"[{name}]: {exc}") from exc
 
 
-def parse_scene(text: str, path: Path | str = Path("scene.toml")) -> Scene:
-    """Parse scene TOML text. Raises SceneError naming the offending section or key."""
+def parse_override(item: str) -> tuple[str, str, object]:
+    """"section.key=value" (or "name=value") -> (section, key, value).
+
+    The value is read as a TOML value (110e9, 0.1, true, "dlft", ["dlft", "rl"]); text that
+    is not one (omega_min, le-leads, +) is taken as a string, so strings need no quotes on a
+    command line. Raises SceneError naming the item.
+    """
+    if "=" not in item:
+        raise SceneError(f"--set {item!r}: expected SECTION.KEY=VALUE, e.g. material.E=110e9")
+    lhs, raw = (part.strip() for part in item.split("=", 1))
+    if lhs == "name":
+        section, key = "", "name"
+    else:
+        section, dot, key = lhs.partition(".")
+        if not dot or not section or not key or "." in key:
+            raise SceneError(f"--set {item!r}: expected SECTION.KEY=VALUE, e.g. material.E=110e9")
+        if section not in SECTIONS:
+            raise SceneError(f"--set {item!r}: unknown section [{section}]{_suggest(section, SECTIONS)}; "
+                             f"known sections: {', '.join(SECTIONS)}")
+        fields = {f.name for f in dataclasses.fields(SECTIONS[section]) if f.init}
+        if key not in fields and (section, key) not in RENAMED:
+            raise SceneError(f"--set {item!r}: unknown key '{key}' in [{section}]{_suggest(key, fields)}; "
+                             f"known keys: {', '.join(sorted(fields))}")
+    if not raw:
+        raise SceneError(f"--set {item!r}: no value after '='")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return section, key, value
+
+
+def _merge_overrides(data: dict, overrides) -> dict:
+    for item in overrides:
+        section, key, value = parse_override(item)
+        if not section:
+            data[key] = value
+            continue
+        table = data.setdefault(section, {})
+        if not isinstance(table, dict):
+            raise SceneError(f"[{section}] must be a table")
+        table[key] = value
+    return data
+
+
+def parse_scene(text: str, path: Path | str = Path("scene.toml"), overrides=()) -> Scene:
+    """Parse scene TOML text, with "section.key=value" overrides applied over it.
+
+    Raises SceneError naming the offending section, key or override. With overrides, the
+    Scene's text is the resolved TOML (every value, the overrides included).
+    """
     path = Path(path).resolve()
     try:
         data = tomllib.loads(text)
     except tomllib.TOMLDecodeError as exc:
         raise SceneError(f"{path}: not valid TOML: {exc}") from exc
+    overrides = tuple(overrides)
+    data = _merge_overrides(data, overrides)
     name = data.pop("name", path.stem)
     if not isinstance(name, str):
         raise SceneError("top-level 'name' must be a string")
@@ -195,9 +251,25 @@ def parse_scene(text: str, path: Path | str = Path("scene.toml")) -> Scene:
         if key not in SECTIONS:
             raise SceneError(f"unknown section [{key}]{_suggest(key, SECTIONS)} in {path}; "
                              f"known sections: {', '.join(SECTIONS)}")
-    parts = {sec: _build_section(sec, cls, data.get(sec, {})) for sec, cls in SECTIONS.items()}
+    parts = {}
+    for sec, cls in SECTIONS.items():
+        try:
+            parts[sec] = _build_section(sec, cls, data.get(sec, {}))
+        except SceneError as exc:
+            given = [o for o in overrides if o.split("=", 1)[0].strip().startswith(f"{sec}.")]
+            if given:  # say where the value came from when the command line set keys of this section
+                raise SceneError(f"{exc} (command line: {', '.join('--set ' + o for o in given)})") from exc
+            raise
     scene = Scene(name=name, path=path, text=text, **parts)
-    _check_combinations(scene)
+    try:
+        _check_combinations(scene)
+    except SceneError as exc:
+        if overrides:
+            raise SceneError(f"{exc} (command line: {', '.join('--set ' + o for o in overrides)})") from exc
+        raise
+    if overrides:
+        header = f"# {path.name} with " + " ".join(f"--set {o}" for o in overrides)
+        scene = dataclasses.replace(scene, text=resolved_toml(scene, header))
     return scene
 
 
@@ -231,9 +303,39 @@ def scene_warnings(scene: Scene) -> list[str]:
     return out
 
 
-def load_scene(path: Path | str) -> Scene:
-    """Read and parse a scene file."""
+def load_scene(path: Path | str, overrides=()) -> Scene:
+    """Read and parse a scene file, with "section.key=value" overrides (see parse_override)."""
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"scene file not found: {path}")
-    return parse_scene(path.read_text(), path)
+    return parse_scene(path.read_text(), path, overrides)
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, (int, float)):
+        return repr(v)  # Python's repr of a float is a TOML float (1e-07, 108000000000.0, inf)
+    if isinstance(v, (str, Path)):
+        return json.dumps(str(v), ensure_ascii=False)  # JSON string escapes are TOML's
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {v!r}")
+
+
+def resolved_toml(scene: Scene, header: str = "") -> str:
+    """The scene with every key written out (defaults included), as TOML text that
+    parse_scene reads back to the same values. Keys whose value is None (unset optional
+    keys) are left out: TOML has no null, and leaving them out means the same thing."""
+    lines = [header] if header else []
+    lines.append(f"name = {_toml_value(scene.name)}")
+    for section, cls in SECTIONS.items():
+        obj = getattr(scene, section)
+        lines.append(f"\n[{section}]")
+        for f in dataclasses.fields(cls):
+            value = getattr(obj, f.name)
+            if f.init and value is not None:
+                lines.append(f"{f.name} = {_toml_value(value)}")
+            elif f.init:
+                lines.append(f"# {f.name}: unset")
+    return "\n".join(lines) + "\n"

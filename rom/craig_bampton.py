@@ -9,8 +9,10 @@ from __future__ import annotations
 
 import numpy as np
 
+from rom.friction_lock import friction_lock
 from rom.model import RomModel, modal_damping
 from rom.options import RomOptions
+from rom.rotation import rotation_sign
 
 
 def _ritz_bound_frequencies(Kr: np.ndarray, Mr: np.ndarray) -> np.ndarray:
@@ -20,7 +22,8 @@ def _ritz_bound_frequencies(Kr: np.ndarray, Mr: np.ndarray) -> np.ndarray:
     return np.sqrt(np.clip(w2, 0.0, None))
 
 
-def build_craig_bampton(fem, mesh, options: RomOptions = RomOptions(), store_recovery: bool = True) -> RomModel:
+def build_craig_bampton(fem, mesh, options: RomOptions = RomOptions(), store_recovery: bool = True,
+                        rotation: str | int = "le-leads") -> RomModel:
     """Reduce a FEM result to the 3 n_b + eta dof Craig-Bampton model.
 
     fem: fem.analysis.FemResult (K, M, node_dofs, frequencies and, normally, the interface
@@ -29,6 +32,8 @@ def build_craig_bampton(fem, mesh, options: RomOptions = RomOptions(), store_rec
         second factorisation of K).
     mesh: mesh.model.BladeMesh (boundary nodes, rho, theta, frames).
     store_recovery: keep the (3 n_nodes, n) float32 full-field recovery matrix.
+    rotation: the scene's [blade] rotation ("+", "-", "le-leads") or a sign; stored as the
+        sign s (rom.rotation.rotation_sign), with the friction-lock table it decides.
     """
     from fem.interface import boundary_dofs_of
 
@@ -81,8 +86,10 @@ def build_craig_bampton(fem, mesh, options: RomOptions = RomOptions(), store_rec
         free = fem.node_dofs.ravel() >= 0  # node-major x, y, z rows; free dof are node-major too
         recovery[free] = T
     xyz = np.asarray(mesh.boundary_xyz, dtype=np.float64)
+    sign = rotation_sign(rotation, mesh.boundary_theta)
     return RomModel(K=Kr, M=Mr, C=C, rho=np.asarray(mesh.boundary_rho, dtype=np.float64),
                     theta=np.asarray(mesh.boundary_theta, dtype=np.float64), xyz=xyz, frames=frames,
                     node_index=nb_nodes, fixed_interface_frequencies=np.asarray(wfi, dtype=np.float64),
                     frequencies=w, full_frequencies=np.asarray(fem.frequencies, dtype=np.float64),
-                    damping_ratios=ratios, recovery=recovery)
+                    damping_ratios=ratios, rotation=sign, friction_lock=friction_lock(Kr, nb, sign),
+                    recovery=recovery)

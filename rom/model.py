@@ -5,6 +5,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rom.friction_lock import FrictionLock
+
 
 @dataclass(frozen=True)
 class RomModel:
@@ -23,6 +25,10 @@ class RomModel:
     fixed_interface_frequencies: (eta,), rad/s. frequencies: ROM eigenfrequencies, (n,), rad/s.
     full_frequencies: the full model's first eigenfrequencies, rad/s (for comparison).
     damping_ratios: modal damping ratio of each ROM mode, (n,).
+    rotation: sense of rotation s = +1 or -1 (right-hand rule about z): node j sits at the
+        absolute angle s Omega t + theta_j and its tip moves at s rho_j Omega along e_theta
+        (rom.rotation). The nonlinear stages take it from here and never assume it.
+    friction_lock: the static friction-lock table (rom.friction_lock), None when not computed.
     recovery: full-field displacement of each ROM dof, (3 n_nodes, n), m per unit of the
         ROM dof (global x, y, z, node-major); None when not stored.
     """
@@ -39,7 +45,14 @@ class RomModel:
     frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
     full_frequencies: np.ndarray = field(metadata={"unit": "rad/s"})
     damping_ratios: np.ndarray = field(metadata={"unit": "1"})
+    rotation: int = field(metadata={"unit": "1"})
+    friction_lock: FrictionLock | None = None
     recovery: np.ndarray | None = field(default=None, metadata={"unit": "m"})
+
+    def __post_init__(self):
+        if self.rotation not in (1, -1):
+            raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {self.rotation!r}")
+        object.__setattr__(self, "rotation", int(self.rotation))
 
     @property
     def n_boundary(self) -> int:
@@ -88,7 +101,11 @@ def load_rom(path, with_recovery: bool = False) -> RomModel:
         for f in dataclasses.fields(RomModel):
             if f.name == "recovery" and not with_recovery:
                 continue
-            if f.name in h5:
+            if f.name == "friction_lock" and f.name in h5:
+                g = h5[f.name]
+                kw[f.name] = FrictionLock(**{k: g[k][()] if k in g else g.attrs[k] for k in
+                                             (ff.name for ff in dataclasses.fields(FrictionLock))})
+            elif f.name in h5:
                 kw[f.name] = h5[f.name][()]
             elif f.default is dataclasses.MISSING:
                 raise ValueError(f"{path} is not a ROM file: dataset '{f.name}' is missing")

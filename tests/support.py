@@ -6,8 +6,9 @@ import numpy as np
 from rom.model import RomModel, modal_damping
 
 
-def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0) -> RomModel:
-    """A 39-dof stand-in with the RomModel layout and rotor-67-like orders of magnitude.
+def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0, rotation: int = 1) -> RomModel:
+    """A 39-dof stand-in with the RomModel layout and rotor-67-like orders of magnitude
+    (rotation: its sense s, +1 or -1).
 
     Not a blade: K, M come from prescribed eigenfrequencies and random M-orthonormal
     shapes, so tests written against it exercise the shapes and code paths only.
@@ -33,7 +34,8 @@ def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0) -> RomMod
                        np.tile([0.0, 0.0, 1.0], (n_boundary, 1))], 1)
     return RomModel(K=K, M=M, C=C, rho=rho, theta=theta, xyz=xyz, frames=frames,
                     node_index=np.arange(n_boundary), fixed_interface_frequencies=w[3 * n_boundary:],
-                    frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios)
+                    frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios,
+                    rotation=rotation)
 
 
 # The shared data folder beside the repository (CI clones main with ../shared beside it):

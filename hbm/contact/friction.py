@@ -1,8 +1,9 @@
 """Permanent sliding Coulomb friction at the blade tip, eqs. (29)-(30).
 
-The casing is fixed; the tip slides with relative velocity (v_theta + rho Omega, v_z).
-Friction enters eq. (1) as f_nl = mu lam s (opposing sliding), with s the unit sliding
-direction and lam >= 0 the normal force, N.
+The casing is fixed; the blade turns at s Omega about z (s = +1 or -1, the sense of
+rotation, right-hand rule: RomModel.rotation), so the tip slides on it with relative velocity
+(v_theta + s rho Omega, v_z). Friction enters eq. (1) as f_nl = mu lam e (opposing
+sliding), with e the unit sliding direction and lam >= 0 the normal force, N.
 """
 from __future__ import annotations
 
@@ -26,14 +27,18 @@ class SlidingDirection:
     ds_z_dvz: np.ndarray
 
 
-def slide_direction(v_theta: np.ndarray, v_z: np.ndarray, rho: np.ndarray, omega: float) -> SlidingDirection:
+def slide_direction(v_theta: np.ndarray, v_z: np.ndarray, rho: np.ndarray, omega: float,
+                    rotation: int) -> SlidingDirection:
     """Sliding direction of eqs. (29)-(30).
 
     v_theta, v_z: vibration velocities, (..., n_b), m/s. rho: node radii, (n_b,), m.
-    omega: rotation speed Omega, rad/s. The blade speed rho Omega (~100 m/s) keeps the
-    relative speed far from 0; a floor of 1e-12 m/s guards the division anyway.
+    omega: rotation speed Omega > 0, rad/s. rotation: s = +1 or -1; the blade speed is
+    s rho Omega. The blade speed (~100 m/s) keeps the relative speed far from 0; a floor of
+    1e-12 m/s guards the division anyway. The derivatives do not depend on s.
     """
-    vt = v_theta + rho * omega
+    if rotation not in (1, -1):
+        raise ValueError(f"rotation must be +1 or -1, got {rotation!r}")
+    vt = v_theta + rotation * rho * omega
     n2 = vt * vt + v_z * v_z
     n = np.sqrt(np.maximum(n2, 1e-24))
     n3 = n * n * n

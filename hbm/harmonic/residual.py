@@ -14,6 +14,11 @@ continuation's arc-length metric, which owns it.
 Equation (internal-force form of eq. 1): M x'' + C x' + K x + f_nl(x, x', Omega) = f_ext,
 f_nl = +lam on the radial dof (lam >= 0 compressive, see hbm.contact.normal) and +mu lam s on
 (theta, z) (see hbm.contact.friction).
+
+Sense of rotation: the ROM's `rotation` s = +1 or -1. Node j sits at the absolute angle
+s tau + theta_j (tau = Omega t), so it meets the casing d(s tau + theta_j) =
+d(tau + s theta_j) (the lobe profile of eq. 28 is even about each lobe centre), and the
+tip slides at (v_theta + s rho_j Omega, v_z).
 """
 from __future__ import annotations
 
@@ -76,9 +81,13 @@ class HarmonicBalanceResidual:
         self.model = CondensedModel(rom.K, rom.M, rom.C, rom.nonlinear_dofs, self.basis, forcing)
         self.rho = np.asarray(rom.rho, dtype=float)
         self.theta = np.asarray(rom.theta, dtype=float)
+        self.rotation = int(rom.rotation)
+        if self.rotation not in (1, -1):
+            raise ValueError(f"the ROM's rotation must be +1 or -1, got {rom.rotation!r}")
         # distance(tau) -> (len(tau), n_b), m, tau the casing angle Omega t: the casing of
-        # eq. (28) unless another obstacle is given; sampled at tau = nu (basis angle)
-        self._distance = distance or (lambda tau: casing_distance(tau, self.theta, casing))
+        # eq. (28) unless another obstacle is given; d(s tau + theta_j) = d(tau + s theta_j)
+        # since d is even about 0 (module docstring); sampled at tau = nu (basis angle)
+        self._distance = distance or (lambda tau: casing_distance(tau, self.rotation * self.theta, casing))
         self.distance = self._distance(self.nu * self.basis.tau)  # (N_t, n_b), m
         self.obstacle_scale = 1.0
         self.alpha = float(alpha if alpha is not None else 1.0 / max(casing.clearance, 1e-5))
@@ -132,7 +141,7 @@ class HarmonicBalanceResidual:
         force = np.zeros(disp.shape)
         force[..., 0] = lam
         if self.friction:
-            s = slide_direction(vel[..., 1], vel[..., 2], self.rho, omega)
+            s = slide_direction(vel[..., 1], vel[..., 2], self.rho, omega, self.rotation)
             mu = self.contact.mu
             force[..., 1] = mu * lam * s.s_theta
             force[..., 2] = mu * lam * s.s_z
@@ -177,8 +186,8 @@ class HarmonicBalanceResidual:
         dF[..., 0] = dlam
         if self.friction:
             s, mu, lam, v = smp.aux["slide"], self.contact.mu, smp.lam, smp.velocity
-            # v = omega dx/dtau so dv/domega = v / omega; the sliding speed also has rho
-            dvt = v[..., 1] / omega + self.rho
+            # v = omega dx/dtau so dv/domega = v / omega; the sliding speed also has s rho
+            dvt = v[..., 1] / omega + self.rotation * self.rho
             dvz = v[..., 2] / omega
             dF[..., 1] = mu * (dlam * s.s_theta + lam * (s.ds_theta_dvtheta * dvt + s.ds_theta_dvz * dvz))
             dF[..., 2] = mu * (dlam * s.s_z + lam * (s.ds_theta_dvz * dvt + s.ds_z_dvz * dvz))
@@ -241,6 +250,6 @@ class HarmonicBalanceResidual:
 def build_residual(rom, casing: CasingOptions, contact: ContactOptions, hbm_options: HbmOptions,
                    method: str = "dlft", forcing: HarmonicForcing | None = None, **kw) -> HarmonicBalanceResidual:
     """The HBM residual callable residual(u, omega) -> (R, dR_du, dR_domega); see
-    HarmonicBalanceResidual. rom: a RomModel (or anything with K, M, C, rho, theta,
+    HarmonicBalanceResidual. rom: a RomModel (or anything with K, M, C, rho, theta, rotation,
     n_boundary, nonlinear_dofs)."""
     return HarmonicBalanceResidual(rom, casing, contact, hbm_options, method=method, forcing=forcing, **kw)

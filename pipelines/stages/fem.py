@@ -83,8 +83,27 @@ def render_modes(ctx: Context, n_modes: int | None = None) -> list:
     return paths
 
 
-MODES = Figure("modes", files=mode_files, depends=("render", "name"), inputs=lambda s: (MESH.file, FEM.file),
-               draw=render_modes)
+MODES = Figure("modes", files=mode_files, depends=("render.n_modes", "render.scale", "render.window", "name"),
+               inputs=lambda s: (MESH.file, FEM.file), draw=render_modes)
+
+
+def write_modes_vtu(ctx: Context) -> None:
+    """figures/modes.vtu: the first render.n_modes mode shapes for ParaView (pipelines.vtu)."""
+    import h5py
+
+    from pipelines.vtu import write_mode_shapes
+
+    n = ctx.scene.render.n_modes
+    with h5py.File(ctx.out / MESH.file, "r") as h5:
+        nodes, cells = h5["nodes"][()], h5["cells"][()]
+    with h5py.File(ctx.out / FEM.file, "r") as h5:  # only the shapes, not K, M and the interface basis
+        modes, freqs = h5["modes"][:n], h5["frequencies_hz"][:n]
+    path = write_mode_shapes(ctx.out / "figures" / "modes.vtu", nodes, cells, modes, freqs)
+    ctx.log(f"  {len(modes)} mode shapes -> {path}")
+
+
+MODES_VTU = Figure("modes_vtu", files=lambda s: ("modes.vtu",) if s.render.n_modes else (),
+                   depends=("render.n_modes",), inputs=lambda s: (MESH.file, FEM.file), draw=write_modes_vtu)
 
 STAGE = Stage("fem", depends=("material", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
-              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES,), estimate=_estimate)
+              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES, MODES_VTU), estimate=_estimate)

@@ -10,7 +10,7 @@ import time
 
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
-from pipelines.stages.rom import read_rom
+from pipelines.stages.rom import read_rom, warn_friction_lock
 
 #: Units of the per-point extras that compute_nfrc hands over (hbm.harmonic.nfrc.nfrc_extras).
 EXTRA_UNITS = {"le_amplitude": "m", "le_max": "m", "harmonics": "m"}
@@ -31,6 +31,7 @@ def _outputs(scene) -> tuple[Output, ...]:
 
 def _compute(ctx: Context, outputs) -> None:
     rom = read_rom(ctx.out)
+    warn_friction_lock(ctx, rom)
     for output in outputs:
         _run_method(ctx, rom, output)
 
@@ -114,6 +115,89 @@ def draw_nfrc(ctx: Context) -> None:
 NFRC_FIGURE = Figure("nfrc", files=lambda scene: ("nfrc.png",), depends=("hbm.omega_min", "hbm.omega_max"),
                      inputs=_nfrc_inputs, draw=draw_nfrc)
 
+
+def _instants_stem(scene) -> str:
+    return f"hbm_{scene.hbm.methods[0]}"
+
+
+def _instants_files(scene) -> tuple[str, ...]:
+    n = scene.render.hbm_instants
+    if not scene.hbm.methods or n == 0:
+        return ()
+    stem = _instants_stem(scene)
+    return (f"{stem}.pvd",) + tuple(f"{stem}/{stem}_{i:03d}.vtu" for i in range(n))
+
+
+def chosen_point(stored, omega: float | None) -> int:
+    """Index of the NFRC point written: the converged point nearest to omega, or the one of
+    largest LE amplitude when omega is None. Raises ArtifactError without a converged point."""
+    import numpy as np
+
+    b = stored.branch
+    ok = np.asarray(b.converged, bool)
+    if not ok.any():
+        raise art.ArtifactError("the NFRC has no converged point to write")
+    if omega is None:
+        return int(np.argmax(np.where(ok, stored.extras["le_amplitude"], -np.inf)))
+    return int(np.argmin(np.where(ok, np.abs(b.omega - omega), np.inf)))
+
+
+def full_field_instants(rom, res, u, omega: float, n_instants: int):
+    """Full-field displacement at n_instants evenly spaced over one period of an HBM solution.
+
+    rom: RomModel with its recovery matrix (3 n_nodes, n). res: the HBM residual of that
+    solution (its harmonics and linear-dof recovery). u: the point's unknowns; omega, rad/s.
+    Returns (t (N,), s; displacement (N, n_nodes, 3), m).
+    """
+    import numpy as np
+
+    from hbm.harmonic.fourier import FourierBasis
+
+    nh = res.basis.n_harmonics
+    per = -(-(2 * nh + 2) // n_instants)  # a basis fine enough for N_h, sampled every `per`
+    basis = FourierBasis(nh, per * n_instants)
+    x = basis.to_time(res.expand_harmonics(u, omega))[::per]  # (N, n) ROM dof, m
+    field = np.asarray(rom.recovery, dtype=np.float64) @ x.T  # (3 n_nodes, N)
+    return basis.tau[::per] / omega, field.T.reshape(n_instants, -1, 3)
+
+
+def write_hbm_vtu(ctx: Context) -> None:
+    """figures/hbm_METHOD.pvd and hbm_METHOD/*.vtu: the blade's displacement over one period
+    of one NFRC point (render.hbm_omega, or the largest amplitude), recovered from the ROM."""
+    import h5py
+
+    from hbm.harmonic.residual import build_residual
+    from pipelines.branch_store import load_branch
+    from pipelines.stages.mesh import MESH
+    from pipelines.vtu import write_time_series
+
+    scene, out = ctx.scene, ctx.out
+    method = scene.hbm.methods[0]
+    if not (out / nfrc_output(method).file).is_file():
+        return  # no NFRC yet (its stage failed or was not run): drawn once it exists
+    stored = load_branch(out / nfrc_output(method).file)
+    i = chosen_point(stored, scene.render.hbm_omega)
+    u, omega = stored.branch.x[i], float(stored.branch.omega[i])
+    rom = read_rom(out, with_recovery=True)
+    if rom.recovery is None:
+        raise art.ArtifactError(f"{out / 'rom.h5'} has no recovery matrix: cannot write full-field displacements")
+    res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
+    t, disp = full_field_instants(rom, res, u, omega, scene.render.hbm_instants)
+    with h5py.File(out / MESH.file, "r") as h5:
+        nodes, cells = h5["nodes"][()], h5["cells"][()]
+    amp = float(stored.extras["le_amplitude"][i])
+    note = (f"{scene.name}: {method.upper()}-HBM NFRC point {i}, Omega = {omega:.6g} rad/s, LE amplitude "
+            f"{amp:.6g} m; displacement in m over one period, recovered from the ROM")
+    path = write_time_series(out / "figures", _instants_stem(scene), nodes, cells, t, disp, note)
+    ctx.log(f"  {method.upper()}-HBM point {i} (Omega = {omega:.1f} rad/s, LE amplitude {1e3 * amp:.3f} mm): "
+            f"{len(t)} instants -> {path}")
+
+
+HBM_VTU = Figure("hbm_vtu", files=_instants_files, depends=("render.hbm_instants", "render.hbm_omega", "hbm.methods"),
+                 inputs=lambda scene: tuple(nfrc_output(m).file for m in scene.hbm.methods[:1]) + ("mesh.h5", "rom.h5"),
+                 draw=write_hbm_vtu)
+
+
 def _estimate(scene, out, outputs) -> Estimate:
     """Unknowns n_u = (2 N_h + 1) 3 n_b per point. Memory: the worst case is the dense
     fallback at a singular start (hbm.continuation.arclength.tangent: the SVD of the dense
@@ -137,4 +221,4 @@ def _estimate(scene, out, outputs) -> Estimate:
 
 # hbm~methods: adding or removing a treatment leaves the other's NFRC current
 STAGE = Stage("hbm", depends=("casing", "contact.mu", "contact.epsilon", "hbm~methods"), upstream=("rom",),
-              outputs=_outputs, compute=_compute, figures=(NFRC_FIGURE,), estimate=_estimate)
+              outputs=_outputs, compute=_compute, figures=(NFRC_FIGURE, HBM_VTU), estimate=_estimate)

@@ -22,16 +22,32 @@ def read_rom(out, with_recovery: bool = False):
     return load_rom(path, with_recovery=with_recovery)
 
 
+def warn_friction_lock(ctx: Context, rom) -> None:
+    """Log the friction-lock warnings of the ROM's table for the scene's mu (the stages that
+    use mu call this: the table in rom.h5 does not depend on mu)."""
+    if rom.friction_lock is not None:
+        for line in rom.friction_lock.warnings(ctx.scene.contact.mu):
+            ctx.log("  WARNING: " + line)
+
+
 def _compute(ctx: Context, outputs) -> None:
     from rom.craig_bampton import build_craig_bampton
 
-    rom = build_craig_bampton(read_fem(ctx.out), read_mesh(ctx.out), ctx.scene.rom)
+    scene = ctx.scene
+    rom = build_craig_bampton(read_fem(ctx.out), read_mesh(ctx.out), scene.rom, rotation=scene.blade.rotation)
     art.write_artifact(ctx.out / ROM.file, rom, **ctx.provenance(ROM, "rom"))
     k = min(6, len(rom.full_frequencies))
     err = (rom.frequencies[:k] - rom.full_frequencies[:k]) / rom.full_frequencies[:k]
     ctx.log(f"  {rom.n_dof} dof ({3 * rom.n_boundary} boundary + {rom.n_dof - 3 * rom.n_boundary} modal)")
     ctx.log("  ROM frequencies, Hz:  " + " ".join(f"{f:.2f}" for f in rom.frequencies[:k] / (2 * np.pi)))
     ctx.log("  error vs full model:  " + " ".join(f"{100 * e:+.3f}%" for e in err))
+    how = "(le-leads: the LE leads)" if scene.blade.rotation == "le-leads" else "(stated in the scene)"
+    ctx.log(f"  rotation: s = {rom.rotation:+d} {how}")
+    # the table in rom.h5 does not depend on mu (changing mu must not rerun the ROM); the
+    # verdict for the scene's mu is printed here and again by the stages that use mu
+    for line in rom.friction_lock.report(scene.contact.mu):
+        ctx.log("  " + line)
+    warn_friction_lock(ctx, rom)
 
 
 def _estimate(scene, out, outputs) -> Estimate | None:
@@ -44,5 +60,6 @@ def _estimate(scene, out, outputs) -> Estimate | None:
                     disk=3 * n * n_rom * 4.0, advice="coarsen [mesh] element_size")
 
 
-STAGE = Stage("rom", depends=("rom",), upstream=("fem", "mesh"), outputs=lambda scene: (ROM,), compute=_compute,
-              estimate=_estimate)
+# blade.rotation: the ROM carries the sense of rotation (and its friction-lock table)
+STAGE = Stage("rom", depends=("rom", "blade.rotation"), upstream=("fem", "mesh"), outputs=lambda scene: (ROM,),
+              compute=_compute, estimate=_estimate)

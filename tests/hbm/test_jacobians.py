@@ -29,14 +29,16 @@ def _fd(res, u, om):
     return J, dw
 
 
-CASES = [("dlft", dict(mu=0.0)), ("dlft", dict(mu=0.15)), ("rl", dict(lanczos=True, mu=0.0)),
-         ("rl", dict(lanczos=False, mu=0.0)), ("rl", dict(lanczos=True, mu=0.15)),
-         ("rl", dict(lanczos=False, mu=0.15))]
+CASES = [("dlft", dict(mu=0.0), 1), ("dlft", dict(mu=0.15), 1), ("rl", dict(lanczos=True, mu=0.0), 1),
+         ("rl", dict(lanczos=False, mu=0.0), 1), ("rl", dict(lanczos=True, mu=0.15), 1),
+         ("rl", dict(lanczos=False, mu=0.15), 1),
+         # the other sense of rotation: the sliding speed's s rho Omega enters dR/domega
+         ("dlft", dict(mu=0.15), -1), ("rl", dict(lanczos=True, mu=0.15), -1)]
 
 
-@pytest.mark.parametrize("method,kw", CASES)
-def test_jacobian_matches_finite_differences(method, kw):
-    rom = standin_rom()
+@pytest.mark.parametrize("method,kw,rotation", CASES)
+def test_jacobian_matches_finite_differences(method, kw, rotation):
+    rom = standin_rom(rotation=rotation)
     f = np.zeros(rom.n_dof)
     f[[0, 30]] = [50.0, 20.0]  # forcing on a boundary and a modal dof: dR/domega has a force part
     res = build_residual(rom, CasingOptions(), ContactOptions(**kw), HbmOptions(n_harmonics=5, n_time=64),

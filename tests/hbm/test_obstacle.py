@@ -84,7 +84,7 @@ def _model(method: str):
         Km = np.array([[KAPPA, 0, 0, -KAPPA], [0, 1, 0, 0], [0, 0, 1, 0], [-KAPPA, 0, 0, K + KAPPA]], float)
         Mm, Cm = np.diag([0.0, 0, 0, M]), np.diag([0.0, 0, 0, C])
         fdof = 3
-    rom = SimpleNamespace(K=Km, M=Mm, C=Cm, rho=np.array([0.25]), theta=np.array([0.0]), n_boundary=1,
+    rom = SimpleNamespace(K=Km, M=Mm, C=Cm, rho=np.array([0.25]), theta=np.array([0.0]), rotation=1, n_boundary=1,
                           nonlinear_dofs=np.arange(3))
     f = np.zeros(Km.shape[0])
     f[fdof] = F

@@ -12,7 +12,7 @@ from pipelines import artifacts as art
 from pipelines.cli import main
 from pipelines.progress import Progress
 from pipelines.runner import run_scene
-from pipelines.scene import load_scene
+from pipelines.scene import load_scene, parse_scene
 from support import fresh_copy
 
 TINY = """
@@ -118,10 +118,6 @@ def test_penalty_stiffness_reruns_rl_only(tiny, tmp_path):
     assert "contact.kappa" in rec["hbm"][1] and "nfrc_dlft" not in rec["hbm"][1]
 
 
-def test_friction_reruns_both_treatments_and_the_sweep(tiny, tmp_path):
-    rec, changed = _changed(tiny, tmp_path, "mu = 0.15", "mu = 0.1")
-    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5"}
-    assert rec["mesh"][0] == rec["fem"][0] == rec["rom"][0] == "reused"
 
 
 def test_the_nfrc_figure_reads_the_sweep_back(tiny):
@@ -181,3 +177,124 @@ def test_a_missing_field_is_a_clear_error(tiny, tmp_path):
     with pytest.raises(ValueError, match="dataset 'K' is missing"):
         load_rom(out / "rom.h5")
     assert np.isfinite(art.read_attrs(out / "rom.h5").get("n_lobes", 0.0))  # attributes still readable
+
+
+# -- overrides from the command line (--set) and the resolved scene (show) -------------------
+
+def test_friction_set_on_the_command_line_reruns_both_treatments_and_the_sweep(tiny, tmp_path, capsys):
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    before = {p.name: p.read_bytes() for p in out.glob("*.h5")}
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--set", "contact.mu=0.1"]) == 0
+    printed = capsys.readouterr().out
+    after = {p.name: p.read_bytes() for p in out.glob("*.h5")}
+    assert {k for k in before if before[k] != after[k]} == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5"}
+    for s in ("mesh", "fem", "rom"):
+        assert f"[{s}] up to date" in printed, printed
+    for s in ("hbm", "ti", "validation"):  # validation depends on the whole [contact] section
+        assert f"[{s}] running (" in printed and "contact" in printed.split(f"[{s}] running (")[1].split("\n")[0]
+    # the artifacts made by this run carry the resolved scene with the override
+    text = art.read_attrs(out / "nfrc_dlft.h5")["scene"]
+    assert "--set contact.mu=0.1" in text and parse_scene(text).contact.mu == 0.1
+    assert "--set" not in art.read_attrs(out / "rom.h5")["scene"]  # reused, not rewritten
+
+
+def test_set_young_modulus_reruns_from_the_fem_on(tiny, tmp_path):
+    from pipelines.runner import plan
+
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    sets = ["material.E=110e9"]
+    rec = _records_with(scene, out, sets, until="rom")  # the stages after the ROM: checked below
+    assert (rec["mesh"][0], rec["fem"][0], rec["rom"][0]) == ("reused", "computed", "computed")
+    assert "material" in rec["fem"][1]
+    # what the runner would do next: every later output is out of date through the new ROM
+    for step in plan(load_scene(scene, sets), out, ("hbm", "ti", "validation")):
+        assert step.todo == step.outputs and "rom.h5" in step.why, (step.stage.name, step.why)
+    assert all(a == "reused" for a, _ in _records_with(scene, out, sets, until="rom").values())
+    # same mesh and density, stiffer material: every frequency scales with sqrt(E)
+    with h5py.File(base / "fem.h5") as a, h5py.File(out / "fem.h5") as b:
+        ratio = b["frequencies"][:6] / a["frequencies"][:6]
+    np.testing.assert_allclose(ratio, np.sqrt(110e9 / 108e9), rtol=1e-8)
+
+
+def _records_with(scene_path, out, overrides, **kw):
+    progress = Progress(quiet=True)
+    run_scene(load_scene(scene_path, overrides), out, progress=progress, **kw)
+    return {r.stage: (r.action, r.why) for r in progress.records}
+
+
+@pytest.mark.parametrize("item, message", [
+    ("contact.muu=0.1", "unknown key 'muu' in [contact] (did you mean 'mu'?)"),
+    ("material.E=stiff", "[material] E must be a number, got 'stiff'"),
+    ("material.nu=0.5", "Poisson's ratio nu must lie in"),
+    ("contakt.mu=0.1", "unknown section [contakt] (did you mean 'contact'?)"),
+    ("mu=0.1", "expected SECTION.KEY=VALUE"),
+])
+def test_a_bad_override_is_refused_and_nothing_is_written(tiny, tmp_path, capsys, item, message):
+    scene, out = tiny
+    before = {p: p.stat().st_mtime_ns for p in out.rglob("*")}
+    fresh = tmp_path / "never"
+    for d in (out, fresh):
+        assert main(["run", str(scene), "--out", str(d), "--set", item]) == 2
+        assert message in capsys.readouterr().err
+    assert not fresh.exists()
+    assert before == {p: p.stat().st_mtime_ns for p in out.rglob("*")}
+
+
+def test_show_prints_a_scene_that_parses_back_to_the_same(tiny, capsys):
+    from pipelines.scene import SECTIONS
+
+    scene, _ = tiny
+    sets = ["contact.mu=0.2", "hbm.start=omega_min", "blade.rotation=-", 'hbm.methods=["rl"]']
+    assert main(["show", str(scene), *sum((["--set", s] for s in sets), [])]) == 0
+    text = capsys.readouterr().out
+    shown, expected = parse_scene(text, scene), load_scene(scene, sets)
+    for section in SECTIONS:
+        assert getattr(shown, section) == getattr(expected, section), section
+    assert (shown.contact.mu, shown.hbm.start, shown.blade.rotation, shown.hbm.methods) == \
+        (0.2, "omega_min", "-", ("rl",))
+    assert "max_points = 4000" in text and 'ordering = "metis"' in text  # defaults written out
+
+
+# -- ParaView files ----------------------------------------------------------------------------
+
+def test_paraview_files_hold_the_modes_and_the_nfrc_point(tiny):
+    import xml.etree.ElementTree as ET
+
+    import meshio
+
+    from pipelines.branch_store import load_branch
+    from pipelines.stages.hbm import chosen_point
+    from pipelines.vtu import mode_name
+
+    _, out = tiny
+    with h5py.File(out / "mesh.h5") as h5:
+        nodes, bnodes, frames = h5["nodes"][()], h5["boundary_node_index"][()], h5["boundary_frames"][()]
+    with h5py.File(out / "fem.h5") as h5:
+        modes, freqs = h5["modes"][:2], h5["frequencies_hz"][:2]
+    m = meshio.read(out / "figures" / "modes.vtu")
+    np.testing.assert_array_equal(m.points, nodes)
+    assert m.cells[0].type == "tetra10" and len(m.point_data) == 2
+    for j in range(2):  # float32 in the file
+        np.testing.assert_allclose(m.point_data[mode_name(j, freqs[j])], modes[j], rtol=0,
+                                   atol=1e-6 * abs(modes[j]).max())
+    # the HBM instants: at the contact nodes the recovered full field is the NFRC's own
+    # boundary solution (its stored harmonics, synthesised here) in each node's frame
+    stored = load_branch(out / "nfrc_dlft.h5")
+    i = chosen_point(stored, None)
+    omega, xb = stored.branch.omega[i], stored.extras["harmonics"][i]  # (2 N_h + 1, 27), m
+    entries = ET.parse(out / "figures" / "hbm_dlft.pvd").getroot().findall("./Collection/DataSet")
+    assert len(entries) == 16 and len(list((out / "figures" / "hbm_dlft").glob("*.vtu"))) == 16
+    k = np.arange(1, (xb.shape[0] - 1) // 2 + 1)
+    for e in entries:
+        vtu = meshio.read(out / "figures" / e.get("file"))
+        np.testing.assert_array_equal(vtu.points, nodes)
+        tau = omega * float(e.get("timestep"))
+        local = xb[0] + np.cos(k * tau) @ xb[1::2] + np.sin(k * tau) @ xb[2::2]  # (27,) r, theta, z per node
+        expected = np.einsum("jlx,jl->jx", frames, local.reshape(-1, 3))  # global x, y, z
+        # the recovery matrix and the file hold float32 (relative round-off 6e-8; at a contact
+        # node the recovery is the node's frame, the fixed-interface modes vanish there): 1e-6
+        np.testing.assert_allclose(vtu.point_data["displacement"][bnodes], expected, rtol=0,
+                                   atol=1e-6 * abs(expected).max())

@@ -43,7 +43,7 @@ def fem(mesh):
 
 @pytest.fixture(scope="module")
 def rom(fem, mesh):
-    return build_craig_bampton(fem, mesh, RomOptions())
+    return build_craig_bampton(fem, mesh, RomOptions(), rotation="+")  # a box: its tip nodes span no angle
 
 
 def test_layout(rom, mesh):
@@ -72,7 +72,8 @@ def test_rom_frequencies_bound_full_from_above_within_half_percent(rom, fem):
 def test_adding_fixed_interface_modes_never_raises_frequencies(fem, mesh):
     prev = None
     for eta in range(0, 13):
-        w = build_craig_bampton(fem, mesh, RomOptions(n_fixed_modes=eta), store_recovery=False).frequencies[:6]
+        w = build_craig_bampton(fem, mesh, RomOptions(n_fixed_modes=eta), store_recovery=False,
+                                rotation="+").frequencies[:6]
         if prev is not None:  # nested bases: each ROM space contains the previous one
             # 1e-8: round-off of the projection T^T K T (its entries cancel down to the 1B
             # stiffness), measured ~1e-10 relative; a real violation would be >> 1e-6
@@ -114,4 +115,25 @@ def test_boundary_node_on_root_raises(fem, mesh):
     bad = mesh.boundary_node_index.copy()
     bad[0] = mesh.root_facets[0, 0]
     with pytest.raises(ValueError, match="clamped root"):
-        build_craig_bampton(fem, dataclasses.replace(mesh, boundary_node_index=bad), RomOptions())
+        build_craig_bampton(fem, dataclasses.replace(mesh, boundary_node_index=bad), RomOptions(), rotation="+")
+
+
+def test_friction_lock_compliance_is_the_full_models(rom, fem, mesh):
+    # The friction-lock table's static compliance G at the contact nodes (local r, theta, z)
+    # against direct sparse solves of the full model: K u = unit local force at node j,
+    # read in node i's frame. Craig-Bampton's constraint modes make the static condensation
+    # exact, so the two agree to the solves' round-off (1e-8 of the largest entry).
+    F = mesh.boundary_frames
+    nb = len(mesh.boundary_node_index)
+    lu = sla.splu(fem.K.tocsc())
+    dofs = fem.node_dofs[mesh.boundary_node_index]  # (n_b, 3) free dof of each node (x, y, z)
+    rhs = np.zeros((fem.K.shape[0], 3 * nb))
+    for j in range(nb):
+        for k in range(3):
+            rhs[dofs[j], 3 * j + k] = F[j, k]  # unit force along e_k of node j, global components
+    u = lu.solve(rhs)
+    G = np.einsum("ilx,ixc->ilc", F, u[dofs]).reshape(3 * nb, 3 * nb)
+    lock = rom.friction_lock
+    scale = abs(G).max()
+    np.testing.assert_allclose(lock.compliance_rr, G[0::3, 0::3], rtol=0, atol=1e-8 * scale)
+    np.testing.assert_allclose(lock.compliance_rtheta, G[0::3, 1::3], rtol=0, atol=1e-8 * scale)

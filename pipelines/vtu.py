@@ -1,0 +1,89 @@
+"""ParaView output: the blade's quadratic mesh with displacement fields as VTU files
+(meshio's writer, binary and zlib-compressed), time series as a PVD collection.
+
+Node order. The mesh keeps gmsh's tet10 ordering (mesh.model.BladeMesh: vertices, then
+the mid-edge nodes of edges 01, 12, 20, 30, 32, 31); VTK's quadratic tetrahedron
+(vtkQuadraticTetra) takes edges 01, 12, 20, 30, 31, 32: the last two are swapped. A file
+written with gmsh's order opens in ParaView without complaint but draws (and
+interpolates) every cell wrongly, so the cells are reordered here.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+from pipelines import artifacts as art
+
+#: gmsh tet10 -> VTK tet10: VTK node k is gmsh node GMSH_TO_VTK_TET10[k].
+GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
+
+
+def write_vtu(path, nodes: np.ndarray, cells: np.ndarray, point_data: dict) -> Path:
+    """Write the tet10 mesh with point fields to a VTU file, atomically.
+
+    nodes: (n, 3), m. cells: (n_cells, 10), 0-based, gmsh tet10 ordering.
+    point_data: {name: (n, 3) vectors or (n,) scalars}, SI units (displacements in m).
+    (meshio 5's VTU writer drops field data, so what describes a file goes in its array
+    names or in the PVD collection.)
+    """
+    import meshio
+
+    cells = np.asarray(cells)
+    if cells.ndim != 2 or cells.shape[1] != 10:
+        raise ValueError(f"cells must be (n_cells, 10) tet10, got shape {cells.shape}")
+    mesh = meshio.Mesh(np.asarray(nodes, dtype=float), [("tetra10", cells[:, GMSH_TO_VTK_TET10])],
+                       point_data={k: np.asarray(v) for k, v in point_data.items()})
+    path = Path(path)
+    with art.atomic_output(path) as tmp:
+        meshio.write(tmp, mesh, file_format="vtu")
+    return path
+
+
+def write_pvd(path, entries, comment: str = "") -> Path:
+    """A ParaView collection: entries [(time in s, VTU file)], files relative to `path`'s
+    folder; comment: a line of text kept in the file (what the series shows)."""
+    path = Path(path)
+    lines = ['<?xml version="1.0"?>'] + ([f"<!-- {comment.replace('--', '- -')} -->"] if comment else []) + [
+             '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
+    for t, f in entries:
+        rel = Path(f).relative_to(path.parent) if Path(f).is_absolute() else Path(f)
+        lines.append(f'    <DataSet timestep="{float(t):.9e}" group="" part="0" file={quoteattr(rel.as_posix())}/>')
+    lines += ["  </Collection>", "</VTKFile>", ""]
+    with art.atomic_output(path) as tmp:
+        tmp.write_text("\n".join(lines))
+    return path
+
+
+def mode_name(j: int, frequency_hz: float) -> str:
+    """The point-array name of mode j (0-based) in modes.vtu: "mode_01 (439.04 Hz)"."""
+    return f"mode_{j + 1:02d} ({frequency_hz:.2f} Hz)"
+
+
+def write_mode_shapes(path, nodes, cells, modes: np.ndarray, frequencies_hz: np.ndarray) -> Path:
+    """The first mode shapes as point vectors of one VTU, named by mode_name.
+
+    modes: (k, n, 3) mass-normalised shapes at the nodes, kg^-1/2, float32 in the file (any
+    normalisation: the shape is what ParaView's Warp By Vector shows). frequencies_hz: (k,).
+    """
+    modes = np.asarray(modes)
+    data = {mode_name(j, f): modes[j].astype(np.float32) for j, f in enumerate(frequencies_hz[:modes.shape[0]])}
+    return write_vtu(path, nodes, cells, data)
+
+
+def write_time_series(folder, stem: str, nodes, cells, times: np.ndarray, displacement: np.ndarray,
+                      comment: str = "") -> Path:
+    """Displacement snapshots as folder/stem/stem_000.vtu ... and folder/stem.pvd.
+
+    times: (N,), s (in the PVD). displacement: (N, n, 3), m (point vectors "displacement",
+    float32 in the files). comment: kept in the PVD. Returns the PVD path.
+    """
+    folder = Path(folder)
+    sub = folder / stem
+    sub.mkdir(parents=True, exist_ok=True)
+    entries = []
+    for i, t in enumerate(np.asarray(times, dtype=float)):
+        f = write_vtu(sub / f"{stem}_{i:03d}.vtu", nodes, cells, {"displacement": displacement[i].astype(np.float32)})
+        entries.append((t, f.relative_to(folder)))
+    return write_pvd(folder / f"{stem}.pvd", entries, comment)

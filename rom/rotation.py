@@ -1,0 +1,35 @@
+"""The sense of rotation of a blade, as the sign s = +1 or -1 the nonlinear stages use.
+
+The blade turns about the rotation axis z at angular speed s Omega (Omega > 0): node j is
+at the absolute angle s Omega t + theta_j, and the tip moves at s rho_j Omega along e_theta
+(right-hand rule about z). A sign, not a guess: the ROM carries it (RomModel.rotation).
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def rotation_sign(rotation: str | int, theta: np.ndarray) -> int:
+    """s = +1 or -1 for a scene's [blade] rotation.
+
+    rotation: "+", "-", "le-leads", or already a sign (+1, -1).
+    theta: angles of the contact nodes, LE (first) to TE (last), (n_b,), rad.
+    "le-leads": the sense in which the leading edge leads, i.e. the blade turns towards the
+    side where the LE is ahead of the TE: s = -sign(theta_TE - theta_LE) (rotor 67's table:
+    theta_TE - theta_LE = +0.33 rad, so s = -1). Raises ValueError when the contact nodes
+    span no angle (the sense cannot be derived; state "+" or "-").
+    """
+    if isinstance(rotation, (int, np.integer)) and rotation in (1, -1):
+        return int(rotation)
+    if rotation == "+":
+        return 1
+    if rotation == "-":
+        return -1
+    if rotation != "le-leads":
+        raise ValueError(f"unknown rotation {rotation!r}; known: '+', '-', 'le-leads'")
+    theta = np.asarray(theta, dtype=float)
+    span = float(theta[-1] - theta[0]) if len(theta) > 1 else 0.0
+    if not abs(span) > 1e-9:
+        raise ValueError(f"rotation = 'le-leads' needs the contact nodes to span an angle (theta_TE - theta_LE "
+                         f"= {span:.3g} rad): write rotation = '+' or '-' in [blade]")
+    return -1 if span > 0 else 1

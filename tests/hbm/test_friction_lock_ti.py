@@ -1,0 +1,86 @@
+"""The static friction-lock check (rom.friction_lock) against time integration.
+
+A two-node toy ROM with a written-down compliance G turns slowly past a two-lobe casing:
+each lobe indents one node at a time (the nodes are a radian apart, a lobe 0.15 rad wide),
+slowly enough (lobe passage 3 ms, toy periods < 0.08 ms, 20 % damping) for the response to
+be quasi-static. The two nodes have tangential couplings of opposite signs (G_rtheta = +6
+and -6 against G_rr = 4, 1e-8 m/N), so in either sense of rotation friction pushes one
+node into the casing and the other away. The time integration knows nothing of G (it
+integrates K = G^-1, M, C).
+
+- At a lobe centre the node sits at r = -p, so its multiplier is the static one,
+  lam = p / (G_rr + s mu G_rtheta): raised by friction that pushes the node into the
+  casing, lowered by friction that pushes it away.
+- Above mu_j = G_rr / |G_rtheta| (= 2/3) the check says friction drags node j into the
+  casing faster than the normal force pushes it back: the node cannot leave the casing,
+  and the time integration shows it locked on it after the lobe has passed (in contact at
+  r > 0, where below mu_j it has let go).
+"""
+import math
+
+import numpy as np
+import pytest
+
+from hbm.options import CasingOptions
+from hbm.ti.march import Recording, march, modal_system
+from rom.friction_lock import friction_lock
+from rom.model import modal_damping
+
+G = 1e-8 * np.array([
+    [4.0, 6.0, 0.5, 1.0, 0.2, 0.0],
+    [6.0, 12.0, 0.0, 0.4, 0.3, 0.0],
+    [0.5, 0.0, 5.0, 0.0, 0.0, 0.1],
+    [1.0, 0.4, 0.0, 4.0, -6.0, 0.2],
+    [0.2, 0.3, 0.0, -6.0, 12.0, 0.0],
+    [0.0, 0.0, 0.1, 0.2, 0.0, 6.0],
+])  # m/N, local (r, theta, z) of node 0 then node 1
+RHO = np.array([0.25, 0.25])
+THETA = np.array([0.0, 1.0])
+OMEGA = 50.0  # rad/s: the lobe passes a node in ~0.15 / 50 = 3 ms
+CASING = CasingOptions()
+
+
+def _march(s: int, mu: float, node: int, after: float = 0.0):
+    """March the toy from rest to `after` s past `node`'s lobe centre; returns
+    (lam, N; r, m) of the node there."""
+    K = np.linalg.inv(G)
+    M = 1e-3 * np.eye(6)  # kg: toy frequencies 1e5-1e6 rad/s
+    C, _ = modal_damping(K, M, np.full(6, 0.2))
+    system = modal_system(K, M, C, RHO, s * THETA)  # TODO(rotation): the kernel's own sense
+    dt = 0.2 * 2.0 / system.omega.max()
+    # casing angle tau + s theta_j at the lobe centre pi / 2 (mod pi)
+    t = ((math.pi / 2 - s * THETA[node]) % math.pi) / OMEGA + after
+    n = int(round(t / dt))
+    rec = Recording(start=n, stride=1, n_samples=1, dofs=np.array([3 * node]), force_nodes=np.array([node]))
+    m = march(system, CASING, mu, OMEGA, np.zeros(6), np.zeros(6), dt, n + 1, rec)
+    assert m.active_set_failures == 0
+    return float(m.normal_force[0, 0]), float(m.displacement[0, 0])
+
+
+@pytest.mark.parametrize("s", [1])
+@pytest.mark.parametrize("node", [0, 1])
+def test_lobe_force_is_the_static_one_friction_raises_or_lowers_it(s, node):
+    lock = friction_lock(np.linalg.inv(G), 2, s)
+    lam0, r0 = _march(s, 0.0, node)
+    lam, r = _march(s, 0.3, node)
+    assert r0 == pytest.approx(-CASING.penetration, rel=1e-3) and r == pytest.approx(-CASING.penetration, rel=1e-3)
+    # quasi-static to 1 %: inertia (1e-3 kg x ~1e2 m/s^2) and damping forces are < 1e-4 of
+    # lam; measured agreement ~1e-4
+    assert lam0 == pytest.approx(CASING.penetration / lock.compliance_rr[node, node], rel=1e-2)
+    assert lam == pytest.approx(CASING.penetration / lock.radial_compliance(0.3)[node, node], rel=1e-2)
+    into = s * lock.compliance_rtheta[node, node] < 0  # the check: friction drags the node outwards
+    assert (lam > 1.1 * lam0) if into else (lam < 0.9 * lam0)
+
+
+@pytest.mark.parametrize("s", [1])
+@pytest.mark.parametrize("mu", [0.6, 0.7])
+def test_node_the_check_calls_locked_stays_on_the_casing(s, mu):
+    lock = friction_lock(np.linalg.inv(G), 2, s)
+    node = 1 if s == 1 else 0  # the node whose friction drags it outwards
+    assert lock.mu_node[node] == pytest.approx(2.0 / 3.0)
+    # 3 ms (one lobe width) past the centre the casing is back out at d = 2.1e-4 m
+    lam, r = _march(s, mu, node, after=CASING.width / OMEGA)
+    if lock.dragged_in(mu)[node]:
+        assert lam > 0 and r > 1e-4  # still pressed on the receding casing: locked
+    else:
+        assert lam == 0 and abs(r) < 1e-6  # released, back at rest
