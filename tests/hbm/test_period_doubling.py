@@ -82,7 +82,7 @@ def _pd_multiplier(y0, w):
 @pytest.fixture(scope="module")
 def branch():
     rom = SimpleNamespace(K=np.eye(3), M=np.diag([1.0, 0.0, 0.0]), C=np.diag([C, 0.0, 0.0]), rho=np.array([0.25]),
-                          theta=np.array([0.0]), n_boundary=1, nonlinear_dofs=np.arange(3))
+                          theta=np.array([0.0]), rotation=1, n_boundary=1, nonlinear_dofs=np.arange(3))
     res = build_residual(rom, CasingOptions(), ContactOptions(kappa=KAPPA, gamma=GAMMA, epsilon=3.0, mu=0.0,
                                                               lanczos=False),
                          HbmOptions(n_harmonics=30, n_time=512), method="rl", forcing=HarmonicForcing(np.array([F, 0, 0]), 1),

@@ -115,7 +115,7 @@ def _contact_rhs(t, y):
 def contact_branch():
     nh, nt = 48, 1024
     rom = SimpleNamespace(K=np.diag([K_C, 1.0, 1.0]), M=np.diag([M_C, 0.0, 0.0]), C=np.diag([C_C, 0.0, 0.0]),
-                          rho=np.array([0.25]), theta=np.array([0.0]), n_boundary=1, nonlinear_dofs=np.arange(3))
+                          rho=np.array([0.25]), theta=np.array([0.0]), rotation=1, n_boundary=1, nonlinear_dofs=np.arange(3))
     f = np.array([F_C, 0.0, 0.0])
     contact = ContactOptions(kappa=KAPPA_C, gamma=GAMMA_C, epsilon=3.0, mu=0.0, lanczos=False)
     res = build_residual(rom, CasingOptions(), contact, HbmOptions(n_harmonics=nh, n_time=nt), method="rl",
