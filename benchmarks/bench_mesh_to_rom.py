@@ -108,6 +108,9 @@ def main(argv=None):
     from rom.craig_bampton import build_craig_bampton
     from rom.options import RomOptions
 
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()  # event times: the factorisation's analysis vs numeric phase, the solves
     comm = world()
     rank, size = (comm.rank, comm.size) if comm is not None else (0, 1)
     say = print if rank == 0 else (lambda *a, **k: None)
@@ -128,6 +131,9 @@ def main(argv=None):
     wall["assembly"] = time.perf_counter() - t
     timings: dict = {}
     fem = solve_system(system, FemOptions(), mesh.boundary_node_index, timings)
+    events = {k: PETSc.Log.Event(e).getPerfInfo() for k, e in
+              (("analysis", "MatCholFctrSym"), ("numeric", "MatCholFctrNum"), ("solve", "MatMatSolve"),
+               ("matmult", "MatMatMultNum"))}
     for k in ("factorisation", "modes", "interface", "gather"):
         if k in timings:
             wall[{"modes": "full modes", "interface": "interface basis",
@@ -162,6 +168,11 @@ def main(argv=None):
     print(f"{'total mesh -> ROM':<24}{total:9.1f}")
     print("peak memory per rank, GB: " + " ".join(f"{m / 1024:.2f}" for m in peaks)
           + "; CPU per rank, s: " + " ".join(f"{c:.0f}" for c in cpus))
+    e = events
+    print(f"inside (rank 0, PETSc events): factorisation = analysis {e['analysis']['time']:.1f} s (ordering, "
+          f"sequential) + numeric {e['numeric']['time']:.1f} s; {e['solve']['count']} block solves "
+          f"{e['solve']['time']:.1f} s; distributed sparse products {e['matmult']['time']:.1f} s "
+          f"({e['matmult']['count']})")
     print("cores allowed / BLAS threads per rank: " + " ".join(f"{c}/{t}" for c, t in cores))
     if rhs is not None:
         print(f"RHS comparison (second factorisation {rhs[0]:.1f} s): 14 right-hand sides in one block solve "
