@@ -1,4 +1,9 @@
-"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE]`, `bladerub render ...`."""
+"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE]`, `bladerub render ...`.
+
+`mpirun -n N bladerub run ...` runs the FEM stage distributed over N ranks and shares the
+time-integration sweep's speeds among them; rank 0 does the rest and all the talking
+(pipelines.parallel).
+"""
 from __future__ import annotations
 
 import argparse
@@ -13,8 +18,10 @@ def _cmd_run(args) -> int:
     from pipelines.progress import Progress
     from pipelines.runner import run_scene
 
+    from pipelines.parallel import is_root, world
+
     scene = load_scene(args.scene)
-    progress = Progress(quiet=args.quiet)
+    progress = Progress(quiet=args.quiet or not is_root(world()))
     try:
         run_scene(scene, Path(args.out), until=args.until, force=args.force, progress=progress)
     finally:
@@ -26,9 +33,13 @@ def _cmd_render(args) -> int:
     from pipelines.progress import Progress
     from pipelines.runner import render_modes
 
+    from pipelines.parallel import is_root, world
+
     scene = load_scene(args.scene)
-    for p in render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True)):
-        print(p)
+    paths = render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True))
+    if is_root(world()):
+        for p in paths:
+            print(p)
     return 0
 
 
@@ -50,10 +61,13 @@ def main(argv: list[str] | None = None) -> int:
     ren.add_argument("--modes", type=int, default=None, help="number of modes (default: the scene's)")
     ren.set_defaults(func=_cmd_render)
     args = parser.parse_args(argv)
+    from pipelines.parallel import RankFailed, is_root, world
+
     try:
         return args.func(args)
-    except (SceneError, ArtifactError, ValueError, FileNotFoundError) as exc:
-        print(f"bladerub: error: {exc}", file=sys.stderr)
+    except (SceneError, ArtifactError, ValueError, FileNotFoundError, RankFailed) as exc:
+        if is_root(world()):  # under MPI every rank has the error: rank 0 says it once
+            print(f"bladerub: error: {exc}", file=sys.stderr)
         return 2
 
 

@@ -5,6 +5,10 @@ An output is current when its file carries the inputs hash of exactly what it de
 artifact, which inputs changed, or --force. Figures are checked last, against
 figures/manifest.json: a figure whose file is missing or whose inputs changed is redrawn
 from the artifacts, nothing is recomputed for it.
+
+Under `mpirun -n N` rank 0 decides what is current, talks, draws and writes every file;
+the stages marked `distributed` (fem, ti) compute on all ranks, the others on rank 0
+while the rest wait (pipelines.parallel).
 """
 from __future__ import annotations
 
@@ -13,6 +17,7 @@ import json
 from pathlib import Path
 
 from pipelines import artifacts as art
+from pipelines.parallel import is_root, on_all, on_root, world
 from pipelines.progress import Progress
 from pipelines.stages import REGISTRY, STAGES
 from pipelines.stages.base import Context, Figure, Output, Stage
@@ -69,26 +74,36 @@ def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
     """Run the scene's stages in order up to `until`, then bring the figures up to date.
 
     Returns the Progress, whose `records` hold one StageRecord per stage.
+    Under an MPI launcher the call is collective (see the module docstring); the other
+    ranks' default Progress is quiet.
     """
     if until not in STAGES:
         raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
+    comm = world()
     out = Path(out)
     out.mkdir(parents=True, exist_ok=True)
-    progress = progress or Progress()
+    progress = progress or Progress(quiet=not is_root(comm))
     ran = []
     for name in STAGES[: STAGES.index(until) + 1]:
         stage = REGISTRY[name]
         ran.append(stage)
         ctx = Context(scene, out, progress)
-        todo, reasons = [], []
-        for o in stage.outputs(scene):
-            inputs = inputs_of(scene, out, stage, o)
-            h = _digest(inputs)
-            why = "forced (--force)" if force else _why_stale(out / o.file, inputs, h)
-            ctx.hashes[o.file], ctx.inputs[o.file] = h, inputs
-            if why is not None:
-                todo.append(o)
-                reasons.append(why if len(stage.outputs(scene)) == 1 else f"{o.file}: {why}")
+
+        def plan(stage=stage, ctx=ctx):
+            todo, reasons = [], []
+            for o in stage.outputs(scene):
+                inputs = inputs_of(scene, out, stage, o)
+                h = _digest(inputs)
+                why = "forced (--force)" if force else _why_stale(out / o.file, inputs, h)
+                ctx.hashes[o.file], ctx.inputs[o.file] = h, inputs
+                if why is not None:
+                    todo.append(o.file)
+                    reasons.append(why if len(stage.outputs(scene)) == 1 else f"{o.file}: {why}")
+            return todo, reasons, ctx.hashes, ctx.inputs
+
+        # decided on rank 0 alone (another rank could read a file while rank 0 writes it)
+        todo, reasons, ctx.hashes, ctx.inputs = on_root(comm, plan)
+        todo = [o for o in stage.outputs(scene) if o.file in todo]
         with progress.stage(name) as record:
             if not todo:
                 record.action, record.why = "reused", "up to date"
@@ -96,9 +111,10 @@ def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
                 continue
             record.why = "; ".join(reasons)
             progress.log(f"[{name}] running ({record.why}) ...")
-            stage.compute(ctx, tuple(todo))
+            compute = on_all if stage.distributed else on_root
+            compute(comm, lambda stage=stage, ctx=ctx, todo=todo: stage.compute(ctx, tuple(todo)))
             progress.log(f"[{name}] done -> {', '.join(o.file for o in todo)}")
-    update_figures(scene, out, ran, progress)
+    on_root(comm, lambda: update_figures(scene, out, ran, progress))
     return progress
 
 
@@ -140,13 +156,17 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
 
 
 def render_modes(scene, out: Path, n_modes: int | None = None, progress: Progress | None = None) -> list:
-    """`bladerub render`: the mode-shape pictures of an existing fem.h5."""
+    """`bladerub render`: the mode-shape pictures of an existing fem.h5 (rank 0 under MPI)."""
     from pipelines.stages.fem import FEM, render_modes as draw
     from pipelines.stages.mesh import MESH
 
     out = Path(out)
-    for f in (MESH.file, FEM.file):
-        if not (out / f).is_file():
-            raise art.ArtifactError(f"{out / f} not found: run `bladerub run {scene.path} --out {out} "
-                                    f"--until fem` first")
-    return draw(Context(scene, out, progress or Progress()), n_modes)
+
+    def render():
+        for f in (MESH.file, FEM.file):
+            if not (out / f).is_file():
+                raise art.ArtifactError(f"{out / f} not found: run `bladerub run {scene.path} --out {out} "
+                                        f"--until fem` first")
+        return draw(Context(scene, out, progress or Progress()), n_modes)
+
+    return on_root(world(), render)

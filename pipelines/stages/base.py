@@ -48,7 +48,9 @@ class Stage:
     upstream: stages whose artifacts it reads. outputs(scene): its Outputs.
     compute(ctx, outputs): computes and writes the given (not current) outputs.
     files(scene): input files that enter the hash by content, {label: path}.
-    figures: the Figures drawn from its artifacts."""
+    figures: the Figures drawn from its artifacts.
+    distributed: under `mpirun -n N` (pipelines.parallel), compute runs on every rank and
+        writes on rank 0 only; otherwise it runs on rank 0 alone while the others wait."""
 
     name: str
     depends: tuple[str, ...]
@@ -57,6 +59,7 @@ class Stage:
     compute: Callable[["Context", tuple[Output, ...]], None]
     files: Callable[[object], dict] = lambda scene: {}
     figures: tuple[Figure, ...] = ()
+    distributed: bool = False
 
 
 @dataclass

@@ -14,17 +14,24 @@ TI = Output("ti.h5")
 
 
 def _compute(ctx: Context, outputs) -> None:
+    """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
+    rank 0 writes ti.h5."""
     from hbm.ti.sweep import sweep
+    from pipelines.parallel import on_root, world
 
     scene = ctx.scene
     rom = read_rom(ctx.out)
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
         result = sweep(rom, scene.casing, scene.contact, scene.ti)
         update(completed=scene.ti.n_omega)
-    art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
-    counts = np.bincount(result.period_class.astype(int), minlength=4)
-    ctx.log(f"  {len(result.omega)} speeds; classes 2W/W/sub/none: {counts[:4].tolist()}; "
-            f"median {np.median(result.cpu_time):.1f} s per speed")
+
+    def write():
+        art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
+        counts = np.bincount(result.period_class.astype(int), minlength=4)
+        ctx.log(f"  {len(result.omega)} speeds; classes 2W/W/sub/none: {counts[:4].tolist()}; "
+                f"median {np.median(result.cpu_time):.1f} s per speed")
+
+    on_root(world(), write)
 
 
 @dataclass(frozen=True)
@@ -52,4 +59,4 @@ SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",), depends
 
 # only mu of [contact]: the sweep's contact is exact (Lagrange multipliers), not DLFT or RL
 STAGE = Stage("ti", depends=("casing", "contact.mu", "ti"), upstream=("rom",), outputs=lambda scene: (TI,),
-              compute=_compute, figures=(SWEEP_FIGURE,))
+              compute=_compute, figures=(SWEEP_FIGURE,), distributed=True)
