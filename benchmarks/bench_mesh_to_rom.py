@@ -104,7 +104,7 @@ def main(argv=None):
     from fem.material import Material
     from fem.options import FemOptions
     from pipelines import artifacts as art
-    from pipelines.parallel import world
+    from pipelines.parallel import on_root, world
     from rom.craig_bampton import build_craig_bampton
     from rom.options import RomOptions
 
@@ -117,10 +117,9 @@ def main(argv=None):
     wall: dict[str, float] = {}
 
     t0 = time.perf_counter()
-    mesh, what = make_mesh(args) if rank == 0 else (None, None)
+    # the other ranks wait idle (a blocking MPI wait would spin a core), as in the pipeline
+    mesh, what = on_root(comm, lambda: make_mesh(args))
     wall["mesh (rank 0)"] = time.perf_counter() - t0
-    if comm is not None:
-        mesh, what = comm.bcast((mesh, what), root=0)
     say(f"{what}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10; {size} rank(s)", flush=True)
 
     t = time.perf_counter()
