@@ -142,15 +142,19 @@ def main(argv=None):
         system.destroy()
     del system
 
-    rom = None
-    if rank == 0:
+    built = {}
+
+    def finish():  # rank 0, the others wait idle
         with tempfile.TemporaryDirectory(dir=args.tmp) as tmp:
             t = time.perf_counter()
             art.write_artifact(Path(tmp) / "fem.h5", fem, stage="fem")
             wall["write fem.h5 (rank 0)"] = time.perf_counter() - t
         t = time.perf_counter()
-        rom = build_craig_bampton(fem, mesh, RomOptions())
+        built["rom"] = build_craig_bampton(fem, mesh, RomOptions())
         wall["ROM (rank 0)"] = time.perf_counter() - t
+
+    on_root(comm, finish)
+    rom = built.get("rom")
     total = time.perf_counter() - t0
     peaks = comm.gather(peak_mb(), root=0) if comm is not None else [peak_mb()]
     cores = comm.gather(cores_and_threads(), root=0) if comm is not None else [cores_and_threads()]
