@@ -1,18 +1,26 @@
 """Mesh -> FEM -> Craig-Bampton ROM: wall time per step, peak memory, frequencies, ROM error.
 
-    .venv/bin/python benchmarks/bench_mesh_to_rom.py [--scene coarse|default] [--box SIZE]
+    .venv/bin/python benchmarks/bench_mesh_to_rom.py [--scene coarse|default] [--box SIZE] [--rhs]
+    mpirun -n 2 .venv/bin/python benchmarks/bench_mesh_to_rom.py ...      (the FEM stage on 2 ranks)
 
 --scene: the rotor 67 blade meshed by mesh.blade.mesh_blade with scenes/rotor67_coarse.toml
 (coarse) or scenes/rotor67.toml (default, about 200 000 nodes).
 --box SIZE: instead of the blade, a 0.2 x 0.1 x 0.01 m box of tet10 with edge SIZE m
 (0.0019 gives ~220 000 nodes, ~655 000 dof), clamped at x = 0.
-Peak memory is ru_maxrss of this process and its children (they are not added: max of the two).
+--rhs: after the run, factorise K again and time one block solve of 14 right-hand sides
+(MatMatSolve, what the FEM stage uses) against 14 single solves (a KSP loop).
+Under mpirun (more than one rank) rank 0 meshes, all ranks assemble, factorise and solve
+(fem.analysis, as `mpirun -n N bladerub run`), rank 0 gathers, writes fem.h5 and builds
+the ROM, exactly the stages' split; one rank (no mpirun, or mpirun -n 1) is the serial path.
+Peak memory is ru_maxrss of each rank (this process; children, such as none here, would
+count as their own max). CPU is user + system time of each rank.
 """
 from __future__ import annotations
 
 import argparse
 import resource
 import sys
+import tempfile
 import time
 from pathlib import Path
 
@@ -35,6 +43,17 @@ def cpu_s() -> float:
     return r.ru_utime + r.ru_stime
 
 
+def cores_and_threads() -> tuple[int, int]:
+    """(cores this process may run on, BLAS threads): mpirun binds each rank to a core by
+    default (Open MPI, 2 ranks or fewer), and OpenBLAS sizes its pool from that."""
+    import os
+
+    from threadpoolctl import threadpool_info
+
+    blas = [p["num_threads"] for p in threadpool_info() if p.get("user_api") == "blas"]
+    return len(os.sched_getaffinity(0)), max(blas, default=0)
+
+
 def make_mesh(args):
     if args.box:
         sys.path.insert(0, str(ROOT / "tests" / "fem"))
@@ -49,44 +68,118 @@ def make_mesh(args):
     return mesh_blade(scene.blade, mopt, scene.resolve(scene.blade.geometry)), f"rotor 67, scene {args.scene}"
 
 
+def compare_rhs(system, n_rhs: int = 14) -> tuple[float, float, float]:
+    """Seconds of (factorisation, one block solve of n_rhs columns, n_rhs single solves)."""
+    from fem.cholesky import CholeskyFactor
+    from fem.distributed import Local
+
+    layout = getattr(system, "layout", None) or Local(system.n_free)
+    B = layout.take(np.random.default_rng(1).standard_normal((system.n_free, n_rhs)))
+    t = time.perf_counter()
+    factor = CholeskyFactor(system.K)
+    t_fact = time.perf_counter() - t
+    try:
+        t = time.perf_counter()
+        X1 = factor.solve(B)
+        t_block = time.perf_counter() - t
+        t = time.perf_counter()
+        X2 = factor.solve_columns(B)
+        t_loop = time.perf_counter() - t
+    finally:
+        factor.destroy()
+    assert np.allclose(X1, X2, rtol=1e-10, atol=1e-12 * np.abs(X1).max())
+    return t_fact, t_block, t_loop
+
+
 def main(argv=None):
     p = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     p.add_argument("--scene", choices=("coarse", "default"), default="coarse")
     p.add_argument("--box", type=float, default=None)
+    p.add_argument("--rhs", action="store_true", help="also time a block solve against a loop of single solves")
+    p.add_argument("--tmp", type=Path, default=None, help="folder for the timed fem.h5 write (default: a temp dir)")
     args = p.parse_args(argv)
 
     from fem.analysis import solve_system
-    from fem.assembly import assemble_system
+    from fem.assembly import assemble_distributed, assemble_system
     from fem.material import Material
     from fem.options import FemOptions
+    from pipelines import artifacts as art
+    from pipelines.parallel import on_root, world
     from rom.craig_bampton import build_craig_bampton
     from rom.options import RomOptions
 
+    from petsc4py import PETSc
+
+    PETSc.Log.begin()  # event times: the factorisation's analysis vs numeric phase, the solves
+    comm = world()
+    rank, size = (comm.rank, comm.size) if comm is not None else (0, 1)
+    say = print if rank == 0 else (lambda *a, **k: None)
+    wall: dict[str, float] = {}
+
     t0 = time.perf_counter()
-    mesh, what = make_mesh(args)
-    c_mesh = cpu_s()
-    t_mesh = time.perf_counter() - t0
-    print(f"{what}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10, mesh {t_mesh:.1f} s (CPU {c_mesh:.1f} s), peak {peak_mb():.0f} MB",
-          flush=True)
-    t, c = time.perf_counter(), cpu_s()
-    system = assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, Material())
-    t_asm = time.perf_counter() - t
-    print(f"assembly: {system.n_free} free dof, nnz(K) {system.K.nnz}, {t_asm:.1f} s (CPU {cpu_s() - c:.1f} s), "
-          f"peak {peak_mb():.0f} MB",
-          flush=True)
-    c = cpu_s()
-    timings = {}
+    # the other ranks wait idle (a blocking MPI wait would spin a core), as in the pipeline
+    mesh, what = on_root(comm, lambda: make_mesh(args))
+    wall["mesh (rank 0)"] = time.perf_counter() - t0
+    say(f"{what}: {mesh.n_nodes} nodes, {len(mesh.cells)} tet10; {size} rank(s)", flush=True)
+
+    t = time.perf_counter()
+    if comm is None:
+        system = assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, Material())
+    else:
+        system = assemble_distributed(mesh.nodes, mesh.cells, mesh.root_facets, Material(), comm)
+    wall["assembly"] = time.perf_counter() - t
+    timings: dict = {}
     fem = solve_system(system, FemOptions(), mesh.boundary_node_index, timings)
-    print(f"factorisation {timings['factorisation']:.1f} s, full modes {timings['modes']:.1f} s "
-          f"({timings['modes_block_solves']} block solves), constraint + fixed-interface modes "
-          f"{timings['interface']:.1f} s ({timings.get('interface_block_solves', 0)} block solves); "
-          f"CPU {cpu_s() - c:.1f} s; peak {peak_mb():.0f} MB", flush=True)
-    t, c = time.perf_counter(), cpu_s()
-    rom = build_craig_bampton(fem, mesh, RomOptions())
-    t_rom = time.perf_counter() - t
+    events = {k: PETSc.Log.Event(e).getPerfInfo() for k, e in
+              (("analysis", "MatCholFctrSym"), ("numeric", "MatCholFctrNum"), ("solve", "MatMatSolve"),
+               ("matmult", "MatMatMultNum"))}
+    for k in ("factorisation", "modes", "interface", "gather"):
+        if k in timings:
+            wall[{"modes": "full modes", "interface": "interface basis",
+                  "gather": "gather to rank 0"}.get(k, k)] = timings[k]
+    rhs = compare_rhs(system) if args.rhs else None
+    if comm is not None:
+        system.destroy()
+    del system
+
+    built = {}
+
+    def finish():  # rank 0, the others wait idle
+        with tempfile.TemporaryDirectory(dir=args.tmp) as tmp:
+            t = time.perf_counter()
+            art.write_artifact(Path(tmp) / "fem.h5", fem, stage="fem")
+            wall["write fem.h5 (rank 0)"] = time.perf_counter() - t
+        t = time.perf_counter()
+        built["rom"] = build_craig_bampton(fem, mesh, RomOptions())
+        wall["ROM (rank 0)"] = time.perf_counter() - t
+
+    on_root(comm, finish)
+    rom = built.get("rom")
     total = time.perf_counter() - t0
-    print(f"ROM build {t_rom:.1f} s (CPU {cpu_s() - c:.1f} s); total mesh -> ROM {total:.1f} s "
-          f"({total / 60:.2f} min), CPU {cpu_s():.1f} s; peak memory {peak_mb() / 1024:.2f} GB", flush=True)
+    peaks = comm.gather(peak_mb(), root=0) if comm is not None else [peak_mb()]
+    cores = comm.gather(cores_and_threads(), root=0) if comm is not None else [cores_and_threads()]
+    cpus = comm.gather(cpu_s(), root=0) if comm is not None else [cpu_s()]
+    if rank != 0:
+        return
+
+    n_free = fem.K.shape[0]
+    print(f"{n_free} free dof, nnz(K) {fem.K.nnz}; block solves: modes {timings['modes_block_solves']}, "
+          f"interface {timings.get('interface_block_solves', 0)}")
+    print(f"{'step':<24}{'wall s':>9}")
+    for k, v in wall.items():
+        print(f"{k:<24}{v:9.1f}")
+    print(f"{'total mesh -> ROM':<24}{total:9.1f}")
+    print("peak memory per rank, GB: " + " ".join(f"{m / 1024:.2f}" for m in peaks)
+          + "; CPU per rank, s: " + " ".join(f"{c:.0f}" for c in cpus))
+    e = events
+    print(f"inside (rank 0, PETSc events): factorisation = analysis {e['analysis']['time']:.1f} s (ordering, "
+          f"sequential) + numeric {e['numeric']['time']:.1f} s; {e['solve']['count']} block solves "
+          f"{e['solve']['time']:.1f} s; distributed sparse products {e['matmult']['time']:.1f} s "
+          f"({e['matmult']['count']})")
+    print("cores allowed / BLAS threads per rank: " + " ".join(f"{c}/{t}" for c, t in cores))
+    if rhs is not None:
+        print(f"RHS comparison (second factorisation {rhs[0]:.1f} s): 14 right-hand sides in one block solve "
+              f"{rhs[1]:.2f} s, as 14 single solves {rhs[2]:.2f} s")
     print(f"{'mode':>4} {'full Hz':>12} {'ROM Hz':>12} {'full rad/s':>12} {'ROM rad/s':>12} {'ROM err':>10}")
     for k in range(6):
         wf, wr = fem.frequencies[k], rom.frequencies[k]

@@ -47,21 +47,27 @@ class FemResult:
         return FemSystem(K=self.K, M=self.M, node_dofs=self.node_dofs)
 
 
-def solve_system(system: FemSystem, options: FemOptions, boundary_node_index: np.ndarray | None,
-                 timings: dict | None = None) -> FemResult:
+def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | None,
+                 timings: dict | None = None) -> FemResult | None:
     """Modes and interface basis of an assembled system (one factorisation of K).
 
+    system: fem.assembly.FemSystem (all on this process), or DistributedSystem: then the
+        call is collective over its ranks, K is factorised by MUMPS in parallel, and the
+        result comes back whole, in the serial numbering, on rank 0 (None on the others).
     boundary_node_index: (n_b,) mesh nodes for the Craig-Bampton basis; None or empty skips it.
     timings: if a dict, receives wall times in s of 'factorisation', 'modes', 'interface'
-        and the block-solve counts 'modes_block_solves', 'interface_block_solves'.
+        (and 'gather' under MPI) and the block-solve counts 'modes_block_solves',
+        'interface_block_solves'.
     """
     import time
 
+    from fem.assembly import DistributedSystem
     from fem.cholesky import CholeskyFactor
     from fem.interface import boundary_dofs_of, compute_interface_basis
     from fem.modes import compute_modes
 
     timings = {} if timings is None else timings
+    layout = system.layout if isinstance(system, DistributedSystem) else None
     K, M = system.K, system.M
     want_basis = boundary_node_index is not None and len(boundary_node_index) > 0
     bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
@@ -70,13 +76,13 @@ def solve_system(system: FemSystem, options: FemOptions, boundary_node_index: np
     timings["factorisation"] = time.perf_counter() - t
     try:
         t = time.perf_counter()
-        modal = compute_modes(K, M, options.n_modes, factor=factor, tol=options.tol)
+        modal = compute_modes(K, M, options.n_modes, factor=factor, tol=options.tol, layout=layout)
         timings["modes"] = time.perf_counter() - t
         timings["modes_block_solves"] = modal.n_solves
         t = time.perf_counter()
         if want_basis:
             basis = compute_interface_basis(K, M, bd, options.n_fixed_interface_modes, factor,
-                                            start=modal.vectors, tol=options.tol)
+                                            start=modal.vectors, tol=options.tol, layout=layout)
             psi, phi, wfi = basis.constraint_modes, basis.fixed_interface_modes, basis.fixed_interface_frequencies
             timings["interface_block_solves"] = basis.n_solves
         else:
@@ -84,8 +90,20 @@ def solve_system(system: FemSystem, options: FemOptions, boundary_node_index: np
         timings["interface"] = time.perf_counter() - t
     finally:
         factor.destroy()
+    vectors = modal.vectors
+    if layout is not None:
+        # everything to rank 0, in the serial numbering the row blocks already use
+        t = time.perf_counter()
+        vectors = layout.gather(vectors)
+        if want_basis:
+            psi, phi = layout.gather(psi), layout.gather(phi)
+        system = system.gather()
+        timings["gather"] = time.perf_counter() - t
+        if system is None:
+            return None
+        K, M = system.K, system.M
     return FemResult(K=K, M=M, node_dofs=system.node_dofs, frequencies=modal.frequencies,
-                     frequencies_hz=modal.frequencies_hz, modes=system.to_nodal(modal.vectors),
+                     frequencies_hz=modal.frequencies_hz, modes=system.to_nodal(vectors),
                      residuals=modal.residuals,
                      boundary_node_index=np.asarray(boundary_node_index if want_basis else [], dtype=np.int64),
                      boundary_dofs=bd, constraint_modes=psi, fixed_interface_modes=phi,
@@ -93,16 +111,29 @@ def solve_system(system: FemSystem, options: FemOptions, boundary_node_index: np
 
 
 def analyse_blade(mesh, material: Material, options: FemOptions = FemOptions(),
-                  timings: dict | None = None) -> FemResult:
+                  timings: dict | None = None, comm=None) -> FemResult | None:
     """The FEM stage on a mesh.model.BladeMesh: assemble (root clamped), factorise K once,
     compute the full-model modes and the interface basis of mesh.boundary_node_index.
 
-    timings: if a dict, receives wall times in s of 'assembly', 'factorisation', 'modes', 'interface'.
+    timings: if a dict, receives wall times in s of 'assembly', 'factorisation', 'modes',
+        'interface' (and 'gather' under MPI).
+    comm: an mpi4py communicator of more than one rank to run distributed (collective:
+        every rank passes the same mesh; the result is returned on rank 0, None on the
+        others); None or a one-rank communicator: this process alone.
     """
     import time
 
     timings = {} if timings is None else timings
     t = time.perf_counter()
-    system = assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, material)
+    if comm is None or comm.size == 1:
+        system = assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, material)
+        timings["assembly"] = time.perf_counter() - t
+        return solve_system(system, options, mesh.boundary_node_index, timings)
+    from fem.assembly import assemble_distributed
+
+    system = assemble_distributed(mesh.nodes, mesh.cells, mesh.root_facets, material, comm)
     timings["assembly"] = time.perf_counter() - t
-    return solve_system(system, options, mesh.boundary_node_index, timings)
+    try:
+        return solve_system(system, options, mesh.boundary_node_index, timings)
+    finally:
+        system.destroy()

@@ -3,6 +3,8 @@
 dolfinx builds and assembles the P2 vector Lagrange system on the tet10 geometry; the
 result is handed on as scipy CSR matrices of the free (unclamped) dof, ordered node-major
 in mesh node order, so that later stages need neither dolfinx nor its dof numbering.
+Under MPI (`assemble_distributed`) the same matrices stay spread over the ranks, in the
+same numbering, for the distributed factorisation.
 """
 from __future__ import annotations
 
@@ -100,35 +102,24 @@ def _restrict(A: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
     return out
 
 
-def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray,
-                    material: Material) -> FemSystem:
-    """Assemble K and M of linear elasticity on a tet10 mesh with all root-facet nodes clamped.
-
-    nodes: (n, 3), m. cells: (n_cells, 10) tet10 in gmsh node ordering.
-    root_facets: (n_root, 6) tri6 (gmsh ordering) of the clamped face; every node on them
-    has its 3 dof removed. material: E (Pa), nu, rho (kg/m^3).
-    Serial (COMM_SELF): the matrices are returned whole to this process.
-    """
+def _dolfinx_problem(nodes: np.ndarray, cells: np.ndarray, material: Material, comm):
+    """dolfinx mesh on `comm` (rank 0 gives all cells, the partitioner distributes them),
+    the compiled K and M forms, and (node (k,), block (k,)): the dolfinx global block dof
+    of the mesh nodes whose dof this rank owns (repeated once per cell; every node is
+    owned by exactly one rank)."""
     import ufl
-    from mpi4py import MPI
     from dolfinx import fem, mesh as dmesh
     # perm_gmsh, not dolfinx.io.gmshio: that imports gmsh, and importing gmsh sets SIGINT to
     # its default action for the whole process (Ctrl-C would then kill a run without a word)
     from dolfinx.cpp.io import perm_gmsh
-    from dolfinx.fem.petsc import assemble_matrix
-
-    nodes = np.ascontiguousarray(nodes, dtype=np.float64)
-    cells = np.asarray(cells, dtype=np.int64)
-    root_facets = np.asarray(root_facets, dtype=np.int64) if root_facets is not None else None
-    _check_mesh(nodes, cells, root_facets)
-    if not isinstance(material, Material):
-        raise TypeError(f"material must be a fem.material.Material, got {type(material).__name__}")
 
     # gmsh tet10 (edges 01,12,20,30,32,31) -> dolfinx local ordering
     perm = perm_gmsh(dmesh.CellType.tetrahedron, 10)
     domain = ufl.Mesh(ufl.VectorElement(ufl.FiniteElement("Lagrange", ufl.tetrahedron, 2,
                                                           variant="equispaced")))
-    msh = dmesh.create_mesh(MPI.COMM_SELF, cells[:, perm], nodes, domain)
+    if comm.rank != 0:  # all cells come from rank 0; the others join with empty arrays
+        cells, nodes = np.empty((0, 10), dtype=np.int64), np.empty((0, 3))
+    msh = dmesh.create_mesh(comm, cells[:, perm], nodes, domain)
 
     V = fem.VectorFunctionSpace(msh, ("Lagrange", 2))
     lmbda, mu = material.lame
@@ -141,29 +132,136 @@ def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarra
     a_m = material.rho * ufl.inner(u, v) * ufl.dx
 
     # Mesh node -> dolfinx block dof. The P2 space and the P2 coordinate element share the
-    # local (basix) ordering, so cell-wise the geometry dofs and the space's dofs coincide.
-    nc = msh.topology.index_map(3).size_local
-    gdofs = msh.geometry.dofmap.array.reshape(nc, 10)
-    vdofs = V.dofmap.list.array.reshape(nc, 10)
+    # local (basix) ordering, so cell-wise the geometry dofs and the space's dofs coincide;
+    # input_global_indices maps dolfinx's geometry nodes back to the input (mesh) numbering.
+    gdofs = msh.geometry.dofmap.array
+    vdofs = V.dofmap.list.array
     input_index = np.asarray(msh.geometry.input_global_indices, dtype=np.int64)
-    block = np.empty(len(nodes), dtype=np.int64)
-    block[input_index[gdofs.ravel()]] = vdofs.ravel()
+    imap = V.dofmap.index_map
+    owned = vdofs < imap.size_local  # a node is owned by exactly one rank
+    node = input_index[gdofs[owned]]
+    block = imap.local_to_global(vdofs[owned].astype(np.int32)).astype(np.int64)
+    return (fem.form(a_k), fem.form(a_m)), node, block
 
-    clamped = np.zeros(len(nodes), dtype=bool)
+
+def _clamp(n_nodes: int, root_facets: np.ndarray) -> np.ndarray:
+    """node_dofs (n_nodes, 3): node-major free-dof numbering, -1 on the root-facet nodes."""
+    clamped = np.zeros(n_nodes, dtype=bool)
     clamped[root_facets.ravel()] = True
-    node_dofs = np.full((len(nodes), 3), -1, dtype=np.int64)
-    n_free_nodes = int((~clamped).sum())
-    node_dofs[~clamped] = np.arange(3 * n_free_nodes).reshape(-1, 3)
+    node_dofs = np.full((n_nodes, 3), -1, dtype=np.int64)
+    node_dofs[~clamped] = np.arange(3 * int((~clamped).sum())).reshape(-1, 3)
+    return node_dofs
+
+
+def _checked(nodes, cells, root_facets, material):
+    nodes = np.ascontiguousarray(nodes, dtype=np.float64)
+    cells = np.asarray(cells, dtype=np.int64)
+    root_facets = np.asarray(root_facets, dtype=np.int64) if root_facets is not None else None
+    _check_mesh(nodes, cells, root_facets)
+    if not isinstance(material, Material):
+        raise TypeError(f"material must be a fem.material.Material, got {type(material).__name__}")
+    return nodes, cells, root_facets
+
+
+def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray,
+                    material: Material) -> FemSystem:
+    """Assemble K and M of linear elasticity on a tet10 mesh with all root-facet nodes clamped.
+
+    nodes: (n, 3), m. cells: (n_cells, 10) tet10 in gmsh node ordering.
+    root_facets: (n_root, 6) tri6 (gmsh ordering) of the clamped face; every node on them
+    has its 3 dof removed. material: E (Pa), nu, rho (kg/m^3).
+    Serial (COMM_SELF): the matrices are returned whole to this process.
+    """
+    from mpi4py import MPI
+    from dolfinx.fem.petsc import assemble_matrix
+
+    nodes, cells, root_facets = _checked(nodes, cells, root_facets, material)
+    forms, node, blk = _dolfinx_problem(nodes, cells, material, MPI.COMM_SELF)
+    block = np.empty(len(nodes), dtype=np.int64)
+    block[node] = blk
+    node_dofs = _clamp(len(nodes), root_facets)
+    free = node_dofs[:, 0] >= 0
     # dolfinx dof (blocked, bs = 3) of each free dof, in the node-major order above
-    order = (3 * block[~clamped, None] + np.arange(3)).ravel()
+    order = (3 * block[free, None] + np.arange(3)).ravel()
 
     mats = []
-    for a in (a_k, a_m):
-        A = assemble_matrix(fem.form(a))
+    for a in forms:
+        A = assemble_matrix(a)
         A.assemble()
         mats.append(_restrict(_to_scipy(A), order))
     K, M = mats
     return FemSystem(K=K, M=M, node_dofs=node_dofs)
+
+
+@dataclass(frozen=True)
+class DistributedSystem:
+    """K and M of the clamped blade spread over the ranks of an MPI communicator.
+
+    K, M: fem.distributed.DistributedMatrix, (n_free, n_free) globally, N/m and kg, in the
+        serial free-dof numbering (the node_dofs of FemSystem), rows split over the ranks
+        as `layout` says.
+    node_dofs: (n_nodes, 3), the same on every rank and equal to the serial one.
+    layout: fem.distributed.Distributed.
+    """
+
+    K: object = field(metadata={"unit": "N/m"})
+    M: object = field(metadata={"unit": "kg"})
+    node_dofs: np.ndarray = field(metadata={"unit": "1"})
+    layout: object = None
+
+    @property
+    def n_free(self) -> int:
+        return int(self.K.shape[0])
+
+    def gather(self) -> FemSystem | None:
+        """The whole system as scipy CSR on rank 0 (what `assemble_system` returns there);
+        None on the other ranks. Collective."""
+        K, M = self.K.gather_csr(), self.M.gather_csr()
+        return FemSystem(K=K, M=M, node_dofs=self.node_dofs) if K is not None else None
+
+    def destroy(self) -> None:
+        self.K.destroy()
+        self.M.destroy()
+
+
+def assemble_distributed(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray,
+                         material: Material, comm) -> DistributedSystem:
+    """`assemble_system` on the ranks of `comm` (collective; every rank passes the same mesh).
+
+    dolfinx partitions the mesh (rank 0's cells, distributed by its default partitioner)
+    and assembles K and M in its own dof numbering; they are then permuted, free dof only,
+    into the serial numbering with a contiguous block of free nodes per rank (one
+    PETSc MatCreateSubMatrix each, which moves the rows between ranks).
+    """
+    from petsc4py import PETSc
+    from dolfinx.fem.petsc import assemble_matrix
+
+    from fem.distributed import Distributed, DistributedMatrix
+
+    nodes, cells, root_facets = _checked(nodes, cells, root_facets, material)
+    forms, node, blk = _dolfinx_problem(nodes, cells, material, comm)
+    # every rank learns the dolfinx block of every node (n_nodes integers)
+    block = np.full(len(nodes), -1, dtype=np.int64)
+    for n_, b_ in comm.allgather((node, blk)):
+        block[n_] = b_
+    if (block < 0).any():
+        raise RuntimeError(f"{int((block < 0).sum())} mesh nodes got no dof in the distributed mesh")
+    node_dofs = _clamp(len(nodes), root_facets)
+    free_nodes = np.flatnonzero(node_dofs[:, 0] >= 0)
+    lo = len(free_nodes) * comm.rank // comm.size
+    hi = len(free_nodes) * (comm.rank + 1) // comm.size
+    layout = Distributed(comm, 3 * len(free_nodes), 3 * lo, 3 * hi)
+    rows = (3 * block[free_nodes[lo:hi], None] + np.arange(3)).ravel().astype(PETSc.IntType)
+    index = PETSc.IS().createGeneral(rows, comm=comm)
+    mats = []
+    for a in forms:
+        A = assemble_matrix(a)
+        A.assemble()
+        mats.append(DistributedMatrix(A.createSubMatrix(index, index), layout))
+        A.destroy()
+    index.destroy()
+    K, M = mats
+    return DistributedSystem(K=K, M=M, node_dofs=node_dofs, layout=layout)
 
 
 def assemble_blade(mesh, material: Material) -> FemSystem:

@@ -17,31 +17,47 @@ ORDERINGS = {"metis": 5, "scotch": 3, "pord": 4, "amd": 0}
 
 
 class CholeskyFactor:
-    """LDL^T (MUMPS, symmetric positive definite) of a scipy sparse matrix.
+    """LDL^T (MUMPS, symmetric positive definite) of a sparse matrix.
 
-    `solve(B)` with B (n,) or (n, k) returns A^{-1} B in the same shape (float64).
+    A: a scipy sparse matrix (this process only), or a fem.distributed.DistributedMatrix
+    (factorised in parallel by MUMPS on the matrix's communicator).
+    `solve(B)` with B (n,) or (n, k) returns A^{-1} B in the same shape (float64); for a
+    distributed A, B and the result are this rank's row block (n_local rows), and the call
+    is collective.
     """
 
-    def __init__(self, A: sp.spmatrix, ordering: str = "metis"):
+    def __init__(self, A, ordering: str = "metis"):
         from petsc4py import PETSc
+
+        from fem.distributed import DistributedMatrix
 
         if ordering not in ORDERINGS:
             raise ValueError(f"unknown ordering '{ordering}'; known: {', '.join(ORDERINGS)}")
-        A = sp.csr_matrix(A)
-        n = A.shape[0]
-        if A.shape != (n, n):
-            raise ValueError(f"matrix must be square, got shape {A.shape}")
-        self.n = n
-        # MUMPS reads only the upper triangle of a symmetric matrix: hand it just that (SBAIJ),
-        # half the memory of a full AIJ copy.
-        U = sp.triu(A, format="csr")
-        U.sort_indices()
-        self._A = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
-                                          U.indices.astype(PETSc.IntType), U.data), comm=PETSc.COMM_SELF)
-        self._A.assemble()
-        del U
-        ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-        ksp.setOperators(self._A)
+        if isinstance(A, DistributedMatrix):  # distributed: MUMPS reads the upper triangle of the AIJ rows
+            self.n = int(A.shape[0])
+            self.n_local = A.layout.n_local
+            comm = A.petsc.comm
+            self._A = None
+            mat = A.petsc
+        else:
+            A = sp.csr_matrix(A)
+            n = A.shape[0]
+            if A.shape != (n, n):
+                raise ValueError(f"matrix must be square, got shape {A.shape}")
+            self.n = self.n_local = n
+            comm = PETSc.COMM_SELF
+            # MUMPS reads only the upper triangle of a symmetric matrix: hand it just that
+            # (SBAIJ), half the memory of a full AIJ copy.
+            U = sp.triu(A, format="csr")
+            U.sort_indices()
+            self._A = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
+                                              U.indices.astype(PETSc.IntType), U.data), comm=comm)
+            self._A.assemble()
+            del U
+            mat = self._A
+        self._comm = comm
+        ksp = PETSc.KSP().create(comm)
+        ksp.setOperators(mat)
         ksp.setType("preonly")
         pc = ksp.getPC()
         pc.setType("cholesky")
@@ -63,13 +79,18 @@ class CholeskyFactor:
         self.factor_flops = float(F.getMumpsRinfog(3))
 
     def solve(self, B: np.ndarray) -> np.ndarray:
+        """A^{-1} B for B (n_local,) or (n_local, k): all k columns in one MUMPS solve
+        (MatMatSolve; under MPI the block is centralised on rank 0 for MUMPS and the
+        solution scattered back)."""
         from petsc4py import PETSc
 
         B = np.asarray(B, dtype=np.float64)
-        if B.shape[0] != self.n:
-            raise ValueError(f"right-hand side has {B.shape[0]} rows, factor is {self.n} x {self.n}")
+        if B.shape[0] != self.n_local:
+            raise ValueError(f"right-hand side has {B.shape[0]} rows, factor has {self.n_local} here "
+                             f"({self.n} x {self.n} in all)")
+        sizes = (self.n_local, self.n)
         if B.ndim == 1:
-            b = PETSc.Vec().createWithArray(np.ascontiguousarray(B), comm=PETSc.COMM_SELF)
+            b = PETSc.Vec().createWithArray(np.ascontiguousarray(B), size=sizes, comm=self._comm)
             x = b.duplicate()
             self._ksp.solve(b, x)
             return x.getArray().copy()
@@ -78,15 +99,21 @@ class CholeskyFactor:
             return np.zeros_like(B)
         # PETSc dense matrices are column-major: a Fortran-ordered buffer is used in place
         Bf = np.asfortranarray(B)
-        X = np.empty((self.n, k), dtype=np.float64, order="F")
-        Bm = PETSc.Mat().createDense((self.n, k), array=Bf, comm=PETSc.COMM_SELF)
-        Xm = PETSc.Mat().createDense((self.n, k), array=X, comm=PETSc.COMM_SELF)
+        X = np.empty((self.n_local, k), dtype=np.float64, order="F")
+        Bm = PETSc.Mat().createDense((sizes, (None, k)), array=Bf, comm=self._comm)
+        Xm = PETSc.Mat().createDense((sizes, (None, k)), array=X, comm=self._comm)
         self._F.matSolve(Bm, Xm)
         Bm.destroy()
         Xm.destroy()
         return X
 
+    def solve_columns(self, B: np.ndarray) -> np.ndarray:
+        """The same as `solve` for B (n_local, k), one KSP solve per column: the alternative
+        to the block solve, kept for benchmarks/bench_mesh_to_rom.py --mpi to compare."""
+        return np.column_stack([self.solve(np.ascontiguousarray(b)) for b in np.asarray(B).T])
+
     def destroy(self) -> None:
         """Free the factor (several GB on the default blade) now rather than at garbage collection."""
         for obj in (self._ksp, self._A):
-            obj.destroy()
+            if obj is not None:
+                obj.destroy()

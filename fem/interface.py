@@ -53,7 +53,8 @@ def boundary_dofs_of(node_dofs: np.ndarray, nodes: np.ndarray) -> np.ndarray:
 
 
 def compute_interface_basis(K: sp.spmatrix, M: sp.spmatrix, boundary_dofs: np.ndarray, n_fixed_modes: int,
-                            factor, start: np.ndarray | None = None, tol: float = 1e-10) -> InterfaceBasis:
+                            factor, start: np.ndarray | None = None, tol: float = 1e-10,
+                            layout=None) -> InterfaceBasis:
     """Constraint modes and the first `n_fixed_modes` fixed-interface modes.
 
     K, M: (n_free, n_free). boundary_dofs: (n_bd,) free-dof indices.
@@ -61,31 +62,39 @@ def compute_interface_basis(K: sp.spmatrix, M: sp.spmatrix, boundary_dofs: np.nd
     start: optional (n_free, k) start block for the fixed-interface eigen-solve (the
         full-model modes; on the blade they save no block step over a random start, the
         fixed-interface modes differ too much, but they cost nothing).
+    layout: fem.distributed.Distributed when K, M, the factor, `start` and the returned
+        modes are this rank's rows (boundary_dofs stay global); None: all on this process.
     """
+    from fem.distributed import Local
+
     n = K.shape[0]
+    layout = Local(n) if layout is None else layout
     bd = np.asarray(boundary_dofs, dtype=np.int64)
-    E = np.zeros((n, len(bd)))
-    E[bd, np.arange(len(bd))] = 1.0
+    mine, bd_loc = layout.local_rows(bd)  # this rank's boundary rows and their columns
+    E = np.zeros((layout.n_local, len(bd)))
+    E[bd_loc, mine] = 1.0
     U = factor.solve(E)
     del E
-    D = U[bd]
+    D = layout.rows(U, bd)
     # U D^{-1} as (D^{-T} U^T)^T; D = (K^{-1})_bb is a small (3 n_b)^2 SPD compliance block
     Psi = np.linalg.solve(D, U.T).T
     del U
-    Psi[bd] = np.eye(len(bd))  # exact by construction; remove round-off
+    Psi[bd_loc] = np.eye(len(bd))[mine]  # exact by construction; remove round-off
 
     def apply_inverse_ii(B):
         B = B.copy()
-        B[bd] = 0.0
+        B[bd_loc] = 0.0
         Y = factor.solve(B)
-        Y -= Psi @ Y[bd]
-        Y[bd] = 0.0
+        Y -= Psi @ layout.rows(Y, bd)
+        Y[bd_loc] = 0.0
         return Y
 
     if n_fixed_modes == 0:
         return InterfaceBasis(boundary_dofs=bd, constraint_modes=Psi,
-                              fixed_interface_modes=np.zeros((n, 0)), fixed_interface_frequencies=np.zeros(0))
-    r = solve_eigenproblem(K, M, n_fixed_modes, apply_inverse_ii, fixed=bd, tol=tol, start=start)
+                              fixed_interface_modes=np.zeros((layout.n_local, 0)),
+                              fixed_interface_frequencies=np.zeros(0))
+    r = solve_eigenproblem(K, M, n_fixed_modes, apply_inverse_ii, fixed=bd_loc, tol=tol, start=start,
+                           layout=layout)
     return InterfaceBasis(boundary_dofs=bd, constraint_modes=Psi, fixed_interface_modes=r.vectors,
                           fixed_interface_frequencies=np.sqrt(np.clip(r.eigenvalues, 0.0, None)),
                           n_solves=1 + r.n_solves)

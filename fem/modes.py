@@ -24,7 +24,8 @@ import scipy.sparse as sp
 
 @dataclass(frozen=True)
 class EigenResult:
-    """eigenvalues: (k,) w^2, rad^2/s^2, ascending. vectors: (n, k), M-orthonormal (kg^-1/2).
+    """eigenvalues: (k,) w^2, rad^2/s^2, ascending. vectors: (n, k), M-orthonormal (kg^-1/2),
+    each signed so that r^T x > 0 for a fixed random r (see solve_eigenproblem).
     residuals: (k,) ||K x - lam M x|| / ||K x||. n_solves: block solves used."""
 
     eigenvalues: np.ndarray = field(metadata={"unit": "rad^2/s^2"})
@@ -48,7 +49,7 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
                        apply_inverse: Callable[[np.ndarray], np.ndarray], *,
                        fixed: np.ndarray | None = None, block_size: int | None = None,
                        tol: float = 1e-10, max_steps: int = 40, seed: int = 0,
-                       start: np.ndarray | None = None) -> EigenResult:
+                       start: np.ndarray | None = None, layout=None) -> EigenResult:
     """Lowest `n_modes` eigenpairs of K x = lam M x (K, M: (n, n) SPD sparse).
 
     apply_inverse(B): (n, k) -> K^{-1} B, or the constrained inverse when `fixed` is given.
@@ -58,10 +59,19 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
     tol: bound on the relative change of every wanted Ritz value in the last block step.
     start: (n, k) start block (e.g. modes of a nearby problem); random columns fill it up
         to block_size.
+    layout: fem.distributed.Distributed when K, M (DistributedMatrix), the blocks of
+        apply_inverse, `start`, `fixed` (local row numbers) and the returned vectors are
+        this rank's rows; None: everything on this process. The random start block is
+        drawn for all n rows whatever the layout, so every rank count runs the same
+        iteration.
     """
+    from fem.distributed import Local
+
     n = K.shape[0]
     if not 1 <= n_modes < n:
         raise ValueError(f"n_modes must be in 1..{n - 1}, got {n_modes}")
+    layout = Local(n) if layout is None else layout
+    n_loc = layout.n_local
     b = block_size or max(n_modes + 2, 6)
     rng = np.random.default_rng(seed)
 
@@ -74,19 +84,19 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         # against the basis (classical Gram-Schmidt twice: once loses orthogonality, twice
         # is enough), then within the block, dropping directions already in the basis
         for _ in range(2):
-            W = W - V @ (MV.T @ W)
+            W = W - V @ layout.dot(MV, W)
         MW = M @ W
-        G = W.T @ MW
+        G = layout.dot(W, MW)
         s, U = np.linalg.eigh(0.5 * (G + G.T))
         keep = s > 1e-12 * s.max()
         T = U[:, keep] / np.sqrt(s[keep])
         return W @ T, MW @ T
 
-    X0 = rng.standard_normal((n, b))
+    X0 = layout.take(rng.standard_normal((n, b)))
     if start is not None:
         k0 = min(start.shape[1], b)
         X0[:, :k0] = start[:, :k0]
-    W, MW = m_orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n, 0)), np.empty((n, 0)))
+    W, MW = m_orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n_loc, 0)), np.empty((n_loc, 0)))
     del X0
     # Basis V, M V and A V (A = K^{-1} M, constrained) in preallocated buffers that grow
     # rarely: appending with hstack would copy all three at each step (~1 GB each on the
@@ -96,7 +106,7 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
     # steps are typical on the blade, 16 leave room). Row-major buffers would have every
     # page touched by the first block (measured: +1.2 GB peak on the 655k-dof box).
     cap = 16 * b
-    Vb, MVb, Zb = (np.empty((n, cap), order="F") for _ in range(3))
+    Vb, MVb, Zb = (np.empty((n_loc, cap), order="F") for _ in range(3))
     m = 0
     H, Gm = np.zeros((0, 0)), np.zeros((0, 0))
     n_solves = 1
@@ -105,7 +115,7 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         k_new = W.shape[1]
         if m + k_new > cap:
             cap = 2 * cap
-            Vb, MVb, Zb = (np.asfortranarray(np.hstack([B[:, :m], np.empty((n, cap - m))]))
+            Vb, MVb, Zb = (np.asfortranarray(np.hstack([B[:, :m], np.empty((n_loc, cap - m))]))
                            for B in (Vb, MVb, Zb))
         Vb[:, m:m + k_new], MVb[:, m:m + k_new] = W, MW
         Zb[:, m:m + k_new] = apply_inverse(MW)
@@ -117,7 +127,7 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         # eps * lam_max / lam_1, ~1e-7 on a thin blade); V^T M K^{-1} M V does not.
         # Only the new columns are computed (n m b flop, not n m^2): H = V^T M K^{-1} M V is
         # symmetric, so its new rows are the new columns transposed.
-        Hc, Gc = MV.T @ Z[:, m - k_new:], MV.T @ V[:, m - k_new:]
+        Hc, Gc = layout.dot(MV, Z[:, m - k_new:]), layout.dot(MV, V[:, m - k_new:])
         H, Gm = _grow(H, Hc), _grow(Gm, Gc)
         theta, Y = scipy.linalg.eigh(H, Gm)
         theta, Y = theta[::-1], Y[:, ::-1]
@@ -125,12 +135,18 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         lam = 1.0 / theta[:k]
         change = np.abs(lam - lam_old[:k]) / lam if len(lam_old) >= k else np.full(k, np.inf)
         lam_old = lam
-        if k == n_modes and np.all(change < tol):
+        if layout.agree(bool(k == n_modes and np.all(change < tol))):
             X = V @ Y[:, :k]
             del Vb, MVb, Zb, V, MV, Z
+            # An eigenvector's sign is arbitrary, and eigh may flip it for a round-off change
+            # of H (seen between 1 and 2 MPI ranks): fix it by r^T x > 0 for a fixed random
+            # r, which no round-off flips (|r^T x| ~ ||x||), so that every rank count, BLAS
+            # and machine stores the same modes and the same ROM coupling blocks.
+            r = layout.take(np.random.default_rng(seed + 1).standard_normal((n, 1)))
+            X *= np.where(layout.dot(r, X)[0] < 0, -1.0, 1.0)
             KX = K @ X
             R = restrict(KX - (M @ X) * lam)
-            res = np.linalg.norm(R, axis=0) / np.linalg.norm(restrict(KX), axis=0)
+            res = layout.column_norms(R) / layout.column_norms(restrict(KX))
             return EigenResult(eigenvalues=lam, vectors=X, residuals=res, n_solves=n_solves)
         # next Krylov block: A applied to the newest block
         W, MW = m_orthonormalise(Zb[:, m - k_new:m].copy(), V, MV)
@@ -156,16 +172,17 @@ class ModalResult:
 
 
 def compute_modes(K: sp.spmatrix, M: sp.spmatrix, n_modes: int, factor=None,
-                  tol: float = 1e-10) -> ModalResult:
+                  tol: float = 1e-10, layout=None) -> ModalResult:
     """First `n_modes` eigenpairs of the free-dof system (K, M: (n_free, n_free)).
 
     factor: a fem.cholesky.CholeskyFactor of K to reuse; made (and kept by nobody) if None.
+    layout: see solve_eigenproblem (vectors are then this rank's rows).
     """
     from fem.cholesky import CholeskyFactor
 
     if factor is None:
         factor = CholeskyFactor(K)
-    r = solve_eigenproblem(K, M, n_modes, factor.solve, tol=tol)
+    r = solve_eigenproblem(K, M, n_modes, factor.solve, tol=tol, layout=layout)
     w = np.sqrt(np.clip(r.eigenvalues, 0.0, None))
     return ModalResult(frequencies=w, frequencies_hz=w / (2 * np.pi), vectors=r.vectors, residuals=r.residuals,
                        n_solves=r.n_solves)

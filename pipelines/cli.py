@@ -7,6 +7,10 @@ Every failure is one line on standard error, and the exit code says which kind:
 folder, a run refused as too large for the machine or the disk, a stage asked for before the
 one it needs); 1 a stage failed while computing (e.g. a write on a full disk; the line says
 what was kept); 130 interrupted by Ctrl-C (the line says what was kept and how to go on).
+
+`mpirun -n N bladerub run ...` runs the FEM stage distributed over N ranks and shares the
+time-integration sweep's speeds among them; rank 0 does the rest and all the talking
+(pipelines.parallel).
 """
 from __future__ import annotations
 
@@ -43,8 +47,10 @@ def _cmd_run(args) -> int:
     from pipelines.runner import run_scene
     from pipelines.stages import STAGES
 
+    from pipelines.parallel import is_root, world
+
     scene = load_scene(args.scene, args.set)
-    progress = Progress(quiet=args.quiet)
+    progress = Progress(quiet=args.quiet or not is_root(world()))
     for text in scene_warnings(scene):
         progress.warn(text)
     extra = ([] if args.until == STAGES[-1] else ["--until", args.until]) + (["--yes"] if args.yes else [])
@@ -67,10 +73,14 @@ def _cmd_render(args) -> int:
     from pipelines.progress import Progress
     from pipelines.runner import render_modes
 
+    from pipelines.parallel import is_root, world
+
     scene = load_scene(args.scene, args.set)
-    for p in render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True),
-                          command=_command(args)):
-        print(p)
+    paths = render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True),
+                         command=_command(args))
+    if is_root(world()):
+        for p in paths:
+            print(p)
     return 0
 
 
@@ -190,6 +200,8 @@ def main(argv: list[str] | None = None) -> int:
     if interactive:
         signal.signal(signal.SIGINT, _stop_children)
         ctrl_c = _CtrlC()
+    from pipelines.parallel import RankFailed, is_root, world
+
     try:
         return args.func(args)
     except RunError as exc:
@@ -197,8 +209,9 @@ def main(argv: list[str] | None = None) -> int:
             ctrl_c.reported = True
         print(f"bladerub: {'error: ' if exc.exit_code != 130 else ''}{exc}", file=sys.stderr)
         return exc.exit_code
-    except (SceneError, ArtifactError, ValueError, FileNotFoundError) as exc:
-        print(f"bladerub: error: {exc}", file=sys.stderr)
+    except (SceneError, ArtifactError, ValueError, FileNotFoundError, RankFailed) as exc:
+        if is_root(world()):  # under MPI every rank has the error: rank 0 says it once
+            print(f"bladerub: error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         if ctrl_c is not None:

@@ -16,6 +16,10 @@ Figures are checked last, against figures/manifest.json (inputs hash and file ch
 figure whose file is missing, damaged or outdated is redrawn from the artifacts.
 Ctrl-C ends the run with pipelines.errors.Interrupted (what was kept, how to resume); a
 write that fails ends it with StageFailed; each is one line from the CLI.
+
+Under `mpirun -n N` rank 0 prepares, locks and plans the folder, decides what is current,
+talks, draws and writes every file; the stages marked `distributed` (fem, ti) compute on
+all ranks, the others on rank 0 while the rest wait (pipelines.parallel).
 """
 from __future__ import annotations
 
@@ -29,6 +33,7 @@ from pathlib import Path
 from pipelines import artifacts as art
 from pipelines import folder
 from pipelines.errors import Interrupted, Refused, StageFailed
+from pipelines.parallel import is_root, on_all, on_root, world
 from pipelines.progress import Progress
 from pipelines.stages import REGISTRY, STAGES
 from pipelines.stages.base import Context, Figure, Output, Stage
@@ -166,33 +171,55 @@ def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
     command line, shown to a second run in the same folder and in the resume hint.
     Returns the Progress, whose `records` hold one StageRecord per stage. Raises
     pipelines.errors.RunError subclasses for what the user can act on (one line each).
+    Under an MPI launcher the call is collective (module docstring): rank 0 plans and holds
+    the folder's lock; the other ranks get the plan and a quiet default Progress.
     """
-    from pipelines import guard
+    from contextlib import ExitStack
 
     if until not in STAGES:
         raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
-    progress = progress or Progress()
-    out = folder.prepare(Path(out))
+    comm = world()
+    progress = progress or Progress(quiet=not is_root(comm))
+    out = on_root(comm, lambda: folder.prepare(Path(out)))
     command = command or f"bladerub run {scene.path} --out {out} --until {until}"
     names = STAGES[: STAGES.index(until) + 1]
-    with folder.hold(out, command):
-        removed = folder.remove_orphans(out)
-        if removed:
-            progress.log(f"[folder] removed {len(removed)} temporary file(s) left by a run that was killed: "
-                         + ", ".join(f"{n} ({b / 1e6:.1f} MB)" for n, b in removed))
-        expected = expected_inputs(scene, names)
-        # first by inputs hash alone (milliseconds): a run too large for the machine is refused
-        # before a large artifact is read to verify it; then the checksums, which may add work
-        quick = plan(scene, out, names, force, expected, verify=False)
-        _check_paths(out, quick)
-        disk = guard.check_run(scene, out, quick, progress, yes=yes)
-        steps = plan(scene, out, names, force, expected)
-        damaged = [Step(s.stage, s.outputs, tuple(o for o in s.todo if o not in q.todo), s.why)
-                   for s, q in zip(steps, quick) if len(s.todo) > len(q.todo)]
-        _check_paths(out, damaged)
-        guard.check_run(scene, out, damaged, progress, yes=yes, disk=disk)
-        _execute(scene, out, steps, expected, progress, command)
+    expected = expected_inputs(scene, names)
+    with ExitStack() as lock:
+        def hold() -> None:  # rank 0 holds the folder for the whole run
+            lock.enter_context(folder.hold(out, command))
+
+        on_root(comm, hold)
+        # stages hold functions (not picklable): rank 0 sends each one's outputs to compute
+        todo = on_root(comm, lambda: [(s.why, [o.file for o in s.todo])
+                                      for s in _plan_checked(scene, out, names, force, expected, progress, yes)])
+        steps = []
+        for name, (why, files) in zip(names, todo):
+            outputs = REGISTRY[name].outputs(scene)
+            steps.append(Step(REGISTRY[name], outputs, tuple(o for o in outputs if o.file in files), why))
+        _execute(scene, out, steps, expected, progress, command, comm)
     return progress
+
+
+def _plan_checked(scene, out: Path, names, force: bool, expected: dict, progress: Progress,
+                  yes: bool) -> list[Step]:
+    """The run's plan, once the folder, the paths, the memory and the disk are checked."""
+    from pipelines import guard
+
+    removed = folder.remove_orphans(out)
+    if removed:
+        progress.log(f"[folder] removed {len(removed)} temporary file(s) left by a run that was killed: "
+                     + ", ".join(f"{n} ({b / 1e6:.1f} MB)" for n, b in removed))
+    # first by inputs hash alone (milliseconds): a run too large for the machine is refused
+    # before a large artifact is read to verify it; then the checksums, which may add work
+    quick = plan(scene, out, names, force, expected, verify=False)
+    _check_paths(out, quick)
+    disk = guard.check_run(scene, out, quick, progress, yes=yes)
+    steps = plan(scene, out, names, force, expected)
+    damaged = [Step(s.stage, s.outputs, tuple(o for o in s.todo if o not in q.todo), s.why)
+               for s, q in zip(steps, quick) if len(s.todo) > len(q.todo)]
+    _check_paths(out, damaged)
+    guard.check_run(scene, out, damaged, progress, yes=yes, disk=disk)
+    return steps
 
 
 def _check_paths(out: Path, steps) -> None:
@@ -207,7 +234,7 @@ def _check_paths(out: Path, steps) -> None:
         raise folder.FolderError(f"{figures} is not a folder: the run draws its figures there; move it away")
 
 
-def _execute(scene, out: Path, steps, expected: dict, progress: Progress, command: str) -> None:
+def _execute(scene, out: Path, steps, expected: dict, progress: Progress, command: str, comm=None) -> None:
     global _describe
     done = {o.file for s in steps for o in s.outputs if o not in s.todo}
     where, since = "planning", time.time()
@@ -232,11 +259,12 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
                     continue
                 record.why = s.why
                 progress.log(f"[{s.stage.name}] running ({s.why}) ...")
-                s.stage.compute(ctx, s.todo)
+                compute = on_all if s.stage.distributed else on_root
+                compute(comm, lambda s=s, ctx=ctx: s.stage.compute(ctx, s.todo))
                 done.update(o.file for o in s.todo)
                 progress.log(f"[{s.stage.name}] done -> {', '.join(o.file for o in s.todo)}")
         where = "the figures"
-        update_figures(scene, out, [s.stage for s in steps], progress)
+        on_root(comm, lambda: update_figures(scene, out, [s.stage for s in steps], progress))
     except KeyboardInterrupt:
         raise Interrupted(describe()) from None
     except OSError as exc:
@@ -299,10 +327,14 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
 
 def render_modes(scene, out: Path, n_modes: int | None = None, progress: Progress | None = None,
                  command: str = "") -> list:
-    """`bladerub render`: the mode-shape pictures of an existing, current fem.h5."""
+    """`bladerub render`: the mode-shape pictures of an existing, current fem.h5 (rank 0
+    under MPI)."""
+    return on_root(world(), lambda: _render(scene, Path(out), n_modes, progress, command))
+
+
+def _render(scene, out: Path, n_modes, progress, command: str) -> list:
     from pipelines.stages.fem import render_modes as draw
 
-    out = Path(out)
     if not out.exists():
         raise Refused(f"no output folder {out}: run `bladerub run {scene.path} --out {out} --until fem` first")
     out = folder.prepare(out)

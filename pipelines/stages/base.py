@@ -66,7 +66,9 @@ class Stage:
     files(scene): input files that enter the hash by content, {label: path}.
     figures: the Figures drawn from its artifacts.
     estimate(scene, out, outputs): an Estimate of computing those outputs (None: cheap or
-    unknown), for the size guard; `out` may hold current upstream artifacts to count from."""
+    unknown), for the size guard; `out` may hold current upstream artifacts to count from.
+    distributed: under `mpirun -n N` (pipelines.parallel), compute runs on every rank and
+        writes on rank 0 only; otherwise it runs on rank 0 alone while the others wait."""
 
     name: str
     depends: tuple[str, ...]
@@ -76,6 +78,7 @@ class Stage:
     files: Callable[[object], dict] = lambda scene: {}
     figures: tuple[Figure, ...] = ()
     estimate: Callable[[object, Path, tuple[Output, ...]], "Estimate | None"] = lambda scene, out, outputs: None
+    distributed: bool = False
 
 
 @dataclass

@@ -25,18 +25,29 @@ def _options(scene):
 
 
 def _compute(ctx: Context, outputs) -> None:
+    """Distributed under `mpirun -n N`: every rank reads mesh.h5, the ranks assemble and
+    factorise together (fem.analysis), rank 0 gets the result in the serial numbering and
+    writes fem.h5, the same file as one process writes."""
     from fem.analysis import analyse_blade
+    from pipelines.parallel import on_root, world
 
+    comm = world()
     mesh = read_mesh(ctx.out)
     timings: dict = {}
     with ctx.progress.step("fem", None) as update:
-        update("assembly, Cholesky factorisation, modes, interface basis")
-        result = analyse_blade(mesh, ctx.scene.material, _options(ctx.scene), timings=timings)
-    prov = ctx.provenance(FEM, "fem")
-    prov["extra_attrs"].update({f"time_{k}_s": v for k, v in timings.items()})
-    art.write_artifact(ctx.out / FEM.file, result, **prov)
-    ctx.log(f"  {result.K.shape[0]} free dof; " + ", ".join(f"{k} {v:.1f} s" for k, v in timings.items()))
-    ctx.log("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
+        ranks = f" on {comm.size} MPI ranks" if comm is not None else ""
+        update(f"assembly, Cholesky factorisation, modes, interface basis{ranks}")
+        result = analyse_blade(mesh, ctx.scene.material, _options(ctx.scene), timings=timings, comm=comm)
+
+    def write():
+        prov = ctx.provenance(FEM, "fem")
+        prov["extra_attrs"].update({f"time_{k}_s": v for k, v in timings.items()})
+        art.write_artifact(ctx.out / FEM.file, result, **prov)
+        ctx.log(f"  {result.K.shape[0]} free dof{ranks}; "
+                + ", ".join(f"{k} {v:.1f} s" if isinstance(v, float) else f"{k} {v}" for k, v in timings.items()))
+        ctx.log("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
+
+    on_root(comm, write)
 
 
 def fem_bytes(scene, nodes: float) -> float:
@@ -106,4 +117,5 @@ MODES_VTU = Figure("modes_vtu", files=lambda s: ("modes.vtu",) if s.render.n_mod
                    depends=("render.n_modes",), inputs=lambda s: (MESH.file, FEM.file), draw=write_modes_vtu)
 
 STAGE = Stage("fem", depends=("material", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
-              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES, MODES_VTU), estimate=_estimate)
+              outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES, MODES_VTU), estimate=_estimate,
+              distributed=True)

@@ -23,7 +23,10 @@ def require_supported_sense(rom) -> None:
 
 
 def _compute(ctx: Context, outputs) -> None:
+    """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
+    rank 0 writes ti.h5."""
     from hbm.ti.sweep import sweep
+    from pipelines.parallel import on_root, world
 
     scene = ctx.scene
     rom = read_rom(ctx.out)
@@ -32,10 +35,14 @@ def _compute(ctx: Context, outputs) -> None:
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
         result = sweep(rom, scene.casing, scene.contact, scene.ti)
         update(completed=scene.ti.n_omega)
-    art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
-    counts = np.bincount(result.period_class.astype(int), minlength=4)
-    ctx.log(f"  {len(result.omega)} speeds; classes 2W/W/sub/none: {counts[:4].tolist()}; "
-            f"median {np.median(result.cpu_time):.1f} s per speed")
+
+    def write():
+        art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
+        counts = np.bincount(result.period_class.astype(int), minlength=4)
+        ctx.log(f"  {len(result.omega)} speeds; classes 2W/W/sub/none: {counts[:4].tolist()}; "
+                f"median {np.median(result.cpu_time):.1f} s per speed")
+
+    on_root(world(), write)
 
 
 @dataclass(frozen=True)
@@ -76,4 +83,4 @@ def _estimate(scene, out, outputs) -> Estimate:
 
 # only mu of [contact]: the sweep's contact is exact (Lagrange multipliers), not DLFT or RL
 STAGE = Stage("ti", depends=("casing", "contact.mu", "ti"), upstream=("rom",), outputs=lambda scene: (TI,),
-              compute=_compute, figures=(SWEEP_FIGURE,), estimate=_estimate)
+              compute=_compute, figures=(SWEEP_FIGURE,), estimate=_estimate, distributed=True)
