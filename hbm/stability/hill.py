@@ -138,6 +138,41 @@ class HillOperator:
                     Y[k][:, r + 2] += np.einsum("tij,jt->it", T[:, 4], vt) + np.einsum("tij,jt->it", T[:, 5], vz)
         return tuple(Y[k].reshape(shape) for k in which)
 
+    def tail(self, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
+        """L1 P1 + L2 P2 for coefficients P1, P2 (n_c, n) (or flat (n_c n,)), N; P1's shape.
+
+        The same sum as `terms(P1, (1,))` + `terms(P2, (2,))` in one pass (the contact's g is
+        linear in the two): the product that shift-invert Arnoldi on the linearised pencil
+        asks for at every step (hbm.stability.spectrum.arnoldi_spectrum).
+        """
+        shape = np.shape(P1)
+        P1 = np.asarray(P1).reshape(self.n_c, self.n)
+        P2 = np.asarray(P2).reshape(self.n_c, self.n)
+        D, w = self.basis.derivative_matrix, self.omega
+        Y = P1 @ self.C.T + (2.0 * w * (D @ P1) + P2) @ self.M.T
+        if len(self.nodes):
+            if self.g_z:
+                self._add_normal(Y, -self.g_z * Y[:, 3 * self.nodes])
+            if self.friction:  # sliding velocity: the identity part of (lam + omega D) p
+                self._add_sliding(Y, P1)
+        return Y.reshape(shape)
+
+    def _add_normal(self, Y: np.ndarray, g: np.ndarray) -> None:
+        """Y[:, rows (r, theta, z)[:n_q] of each contact node] += T_q g, g (n_c, n_t)."""
+        r = 3 * self.nodes
+        nq = 3 if self.friction else 1
+        F = (self.products[:, :nq] @ g.T[:, None, :, None])[..., 0]  # (n_t, n_q, n_c)
+        for q in range(nq):
+            Y[:, r + q] += F[:, q].T
+
+    def _add_sliding(self, Y: np.ndarray, V: np.ndarray) -> None:
+        """Y[:, theta and z rows of each contact node] += the sliding terms of the velocity V (n_c, n)."""
+        r = 3 * self.nodes
+        T = self.products
+        vt, vz = V[:, r + 1].T[:, :, None], V[:, r + 2].T[:, :, None]  # (n_t, n_c, 1)
+        Y[:, r + 1] += (T[:, 3] @ vt + T[:, 4] @ vz)[..., 0].T
+        Y[:, r + 2] += (T[:, 4] @ vt + T[:, 5] @ vz)[..., 0].T
+
     # -- dense form ---------------------------------------------------------------------------
     @cached_property
     def products(self) -> np.ndarray:
@@ -213,13 +248,17 @@ def restrict(H: HillOperator, g: int) -> HillOperator:
 
 class HillSolver:
     """H(0)^-1 (the HBM Jacobian on all dof, unscaled) by a dense LU of its condensation on
-    the boundary dof and exact per-harmonic elimination of the others.
+    the dof of the nodes in contact and exact per-harmonic elimination of the others.
 
-    The condensed matrix ((2 N_h + 1) n_r square, n_r = 3 n_b) is the HbmJacobian's dense
-    form, factorised once (0.05 s at N_h = 20, n_r = 27); each solve then costs two
-    triangular solves and the linear dof's 12 x 12 blocks, about 1 ms: shift-invert Arnoldi
-    needs a few hundred of them, accurate to round-off (GMRES solves would need ~10 times
-    longer each for that accuracy).
+    The contact acts on the (r, theta, z) dof of the n_t nodes in contact only; every other
+    dof (the modal ones and the boundary nodes out of contact) enters linearly, so it is
+    eliminated exactly harmonic by harmonic (complex (n - 3 n_t)-square blocks). The
+    condensed matrix ((2 N_h + 1) 3 n_t square) is the HbmJacobian's dense form on those
+    dof, factorised once: (3 n_t / n_r)^3 of the LU on all n_r = 3 n_b boundary dof (0.47
+    with 7 of the 9 rotor 67 nodes in contact), and each solve (two triangular solves, about
+    1 ms at N_h = 20) (3 n_t / n_r)^2 of it. Shift-invert Arnoldi needs ~100 solves per
+    analysis, accurate to round-off (GMRES solves would need ~10 times longer each for that
+    accuracy). Without contact the boundary dof H.nl are kept (the linear HBM's own form).
     __call__(b): b (n_c, n) or flat -> H(0)^-1 b, same shape.
     """
 
@@ -228,13 +267,19 @@ class HillSolver:
 
         self.H = H
         n = H.n
-        self.nl = np.arange(n) if H.nl is None else np.asarray(H.nl)
+        nodes = np.asarray(H.nodes, dtype=int)
+        if len(nodes):  # node j's dof are 3 j .. 3 j + 2 (HillOperator's layout)
+            self.nl = (3 * nodes[:, None] + np.arange(3)).reshape(-1)
+            cnodes = np.arange(len(nodes))  # their place in the condensed dof
+        else:
+            self.nl = np.arange(n) if H.nl is None else np.asarray(H.nl)
+            cnodes = nodes
         self.li = np.setdiff1d(np.arange(n), self.nl)
         model = CondensedModel(H.K, H.M, H.C, self.nl, H.basis)
         op = model.operator(H.omega)
-        J = HbmJacobian(op=op, scale=1.0, nodes=H.nodes, weights=H.weights, basis=H.basis, sigma=H.sigma,
+        J = HbmJacobian(op=op, scale=1.0, nodes=cnodes, weights=H.weights, basis=H.basis, sigma=H.sigma,
                         g_eps=H.g_eps, g_z=H.g_z)
-        self.lu = sla.lu_factor(J.toarray(), check_finite=False)
+        self.lu = sla.lu_factor(J.toarray(), check_finite=False, overwrite_a=True)
         if not np.all(np.isfinite(self.lu[0])) or np.any(np.diag(self.lu[0]) == 0.0):
             from hbm.linalg.errors import SingularMatrixError
             raise SingularMatrixError("Hill operator at lam = 0: singular condensed matrix")
@@ -244,39 +289,61 @@ class HillSolver:
             Kll, Mll, Cll = (A[np.ix_(li, li)] for A in (H.K, H.M, H.C))
             self.Zll0 = np.linalg.inv(Kll)
             self.Zll = np.linalg.inv(Kll - k * k * Mll + 1j * k * Cll)  # (N_h, n_l, n_l)
+            self._Zll_conj = self.Zll.conj()
+            # the linear couplings between the two dof sets (the contact acts on nl only):
+            # (lin P)[:, rows] = P K[rows, cols]^T + omega (D P) C^T + omega^2 (D^2 P) M^T
+            self._nl_li = [A[np.ix_(self.nl, li)].T.copy() for A in (H.K, H.C, H.M)]
+            self._li_nl = [A[np.ix_(li, self.nl)].T.copy() for A in (H.K, H.C, H.M)]
+            pos = np.full(n, -1)
+            pos[self.nl] = np.arange(len(self.nl))
+            self._r_nl = pos[3 * np.asarray(H.nodes, dtype=int)]  # radial rows of the contact nodes in nl
 
     def _ll_inverse(self, B: np.ndarray) -> np.ndarray:
-        """Z_ll^-1 B on the linear dof, B (n_c, n_l) in the real basis (real or complex)."""
+        """Z_ll^-1 B on the eliminated dof, B (n_c, n_l) in the real basis (real or complex)."""
         out = np.empty(B.shape, dtype=complex)
         out[0] = B[0] @ self.Zll0.T
         cp = B[1::2] - 1j * B[2::2]  # e^{+ik tau} part, times 2
         cm = B[1::2] + 1j * B[2::2]  # e^{-ik tau} part (conjugate blocks)
-        yp = np.einsum("kij,kj->ki", self.Zll, cp)
-        ym = np.einsum("kij,kj->ki", self.Zll.conj(), cm)
+        yp = (self.Zll @ cp[..., None])[..., 0]
+        ym = (self._Zll_conj @ cm[..., None])[..., 0]
         out[1::2] = 0.5 * (yp + ym)
         out[2::2] = 0.5j * (yp - ym)
         return out if np.iscomplexobj(B) else out.real
 
+    def _coupling(self, X: np.ndarray, blocks) -> np.ndarray:
+        """The linear part of H(0) from one dof set to the other: X K^T + w (D X) C^T + w^2 (D^2 X) M^T."""
+        D, w = self.H.basis.derivative_matrix, self.H.omega
+        DX = D @ X
+        K, C, M = blocks
+        return X @ K + w * (DX @ C) + (w * w) * ((D @ DX) @ M)
+
     def __call__(self, b: np.ndarray) -> np.ndarray:
+        """H(0)^-1 b. With y = Z_ll^-1 b_l on the linear dof: x_n = J_c^-1 (b_n - H_nl y)
+        (J_c the condensed matrix, LU), x_l = y - Z_ll^-1 H_ln x_n. H_ln is linear (the
+        contact acts on rows nl only); H_nl y adds, for DLFT, the contact through (Z y)_r."""
         import scipy.linalg as sla
 
         H, nl, li = self.H, self.nl, self.li
         shape = np.shape(b)
         B = np.asarray(b).reshape(H.n_c, H.n)
-        X = np.zeros(B.shape, dtype=np.result_type(B, float))
+        X = np.empty(B.shape, dtype=np.result_type(B, float))
         rhs = B[:, nl]
         if len(li):
-            Y = np.zeros_like(X)
-            Y[:, li] = self._ll_inverse(B[:, li])
-            rhs = rhs - H.terms(Y, (0,))[0][:, nl]
+            Y = self._ll_inverse(B[:, li])
+            C = self._coupling(Y, self._nl_li)  # (n_c, n_r): rows nl of H(0) [0, y]
+            if len(H.nodes) and H.g_z:  # DLFT's g = g_eps p_r - g_z (H_lin p)_r: p_r = 0 here
+                Cf = np.zeros((H.n_c, H.n), dtype=C.dtype)
+                Cf[:, nl] = C
+                H._add_normal(Cf, -H.g_z * C[:, self._r_nl])
+                C = Cf[:, nl]
+            rhs = rhs - C
         flat = rhs.reshape(-1)
         if np.iscomplexobj(flat):
             xn = sla.lu_solve(self.lu, flat.real, check_finite=False) + 1j * sla.lu_solve(self.lu, flat.imag, check_finite=False)
         else:
             xn = sla.lu_solve(self.lu, flat, check_finite=False)
-        X[:, nl] = xn.reshape(H.n_c, len(nl))
+        xn = xn.reshape(H.n_c, len(nl))
+        X[:, nl] = xn
         if len(li):
-            Xn = np.zeros_like(X)
-            Xn[:, nl] = X[:, nl]
-            X[:, li] = Y[:, li] - self._ll_inverse(H.terms(Xn, (0,))[0][:, li])
+            X[:, li] = Y - self._ll_inverse(self._coupling(xn, self._li_nl))
         return X.reshape(shape)

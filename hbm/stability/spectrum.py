@@ -258,10 +258,7 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
     k = min(n_eig, 2 * n - 2)
 
     def op(z):
-        z1, z2 = z[:n], z[n:]
-        t1, = H.terms(z1, (1,))
-        t2, = H.terms(z2, (2,))
-        return np.concatenate([-S(t1 + t2), z1])
+        return np.concatenate([-S(H.tail(z[:n], z[n:])), z[:n]])
 
     A = spla.LinearOperator((2 * n, 2 * n), matvec=op, dtype=float)
     note = ""
