@@ -69,8 +69,9 @@ class HbmOptions:
       almost every point: 2911 points instead of 338 for RL at N_h = 10, same peaks).
     tolerance: Newton's test on the scaled residual ||R|| (R ~ H_r / (k_ref / alpha)).
     stability: Floquet stability of every point and the bifurcations of the branch
-      (Hill's method, hbm.stability). Off by default: it adds 2.6 to 2.8 times the NFRC
-      time on rotor 67 (hbm.stability.monitor; the 25 % target of issue 11 is not met).
+      (Hill's method, hbm.stability). Off by default: it adds 1.5 to 2.3 times the NFRC's
+      own time on rotor 67 (RL, DLFT; ~320-480 analyses of ~0.2 s CPU each, see
+      hbm.stability.monitor; the 25 % target of issue 11 is not met).
     subharmonic: nu, the HBM's fundamental is omega = Omega / nu (nu = 1: the casing's
       period; nu = 2 holds the period-doubled orbits). The continuation parameter stays
       Omega.

@@ -1,0 +1,97 @@
+"""Benchmark of one Floquet analysis (hbm.stability.spectrum.orbit_spectrum) at points of an NFRC.
+
+Usage:
+  .venv/bin/python benchmarks/bench_stability.py [--rom tests/data/rotor67_coarse_rom.h5]
+      [--methods dlft rl] [--points 12] [--nh 40] [--nt 1024] [--omega-min 1800] [--omega-max 2000]
+
+Computes the NFRC over [omega_min, omega_max] without stability (one BLAS thread, as
+compute_nfrc), then analyses `points` of its points spread along it, twice each, and prints
+per method: the NFRC's time per point, and per analysis the median wall and CPU (process)
+time, the share of its parts (the LU of H(0), the ~100 shift-invert solves, the rest:
+ARPACK and the family selection), the nodes in contact, and the analysis' cost in NFRC
+points. CPU time is the figure to compare between runs on a shared machine: wall time
+there also counts the waits for a core.
+"""
+from __future__ import annotations
+
+import argparse
+import statistics
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+from threadpoolctl import threadpool_limits
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from hbm.harmonic.nfrc import compute_nfrc  # noqa: E402
+from hbm.harmonic.residual import build_residual  # noqa: E402
+from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
+from hbm.stability import hill  # noqa: E402
+from hbm.stability.spectrum import orbit_spectrum  # noqa: E402
+from rom.model import load_rom  # noqa: E402
+
+
+class _Timed:
+    """Wraps a callable and sums the CPU time spent in it."""
+
+    def __init__(self, f):
+        self.f, self.cpu, self.calls = f, 0.0, 0
+
+    def __call__(self, *a, **k):
+        t = time.process_time()
+        try:
+            return self.f(*a, **k)
+        finally:
+            self.cpu += time.process_time() - t
+            self.calls += 1
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--rom", default=str(ROOT / "tests" / "data" / "rotor67_coarse_rom.h5"))
+    ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    ap.add_argument("--points", type=int, default=12)
+    ap.add_argument("--nh", type=int, default=40)
+    ap.add_argument("--nt", type=int, default=1024)
+    ap.add_argument("--omega-min", type=float, default=1800.0)
+    ap.add_argument("--omega-max", type=float, default=2000.0)
+    a = ap.parse_args()
+    rom = load_rom(a.rom)
+    opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
+    print(f"ROM {a.rom}, N_h = {a.nh}, N_t = {a.nt}, Omega in [{a.omega_min:g}, {a.omega_max:g}] rad/s\n")
+    print("| method | NFRC s / point (wall, CPU) | analysis wall (s) | analysis CPU (s) | LU | solves | rest "
+          "| solves / analysis | nodes in contact | analysis / NFRC point (CPU) |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for m in a.methods:
+        c0 = time.process_time()
+        r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
+        per_point = (r.wall_time / len(r.omega), (time.process_time() - c0) / len(r.omega))
+        res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=m)
+        init, call = hill.HillSolver.__init__, hill.HillSolver.__call__
+        t_init, t_call = _Timed(init), _Timed(call)
+        hill.HillSolver.__init__ = lambda self, *x, **k: t_init(self, *x, **k)
+        hill.HillSolver.__call__ = lambda self, *x, **k: t_call(self, *x, **k)
+        walls, cpus, nodes = [], [], []
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):
+                for i in np.linspace(0, len(r.omega) - 1, a.points).astype(int):
+                    for _ in range(2):
+                        w0, c0 = time.perf_counter(), time.process_time()
+                        orbit_spectrum(res, r.unknowns[i], float(r.omega[i]))
+                        walls.append(time.perf_counter() - w0)
+                        cpus.append(time.process_time() - c0)
+                    nodes.append(len(res(r.unknowns[i], float(r.omega[i]))[1].nodes))
+        finally:
+            hill.HillSolver.__init__, hill.HillSolver.__call__ = init, call
+        tot = sum(cpus)
+        print(f"| {m} | {per_point[0]:.3f}, {per_point[1]:.3f} | {statistics.median(walls):.3f} | "
+              f"{statistics.median(cpus):.3f} | {t_init.cpu / tot:.0%} | {t_call.cpu / tot:.0%} | "
+              f"{1 - (t_init.cpu + t_call.cpu) / tot:.0%} | {t_call.calls / len(cpus):.0f} | "
+              f"{min(nodes)}-{max(nodes)} of 9 | {statistics.median(cpus) / per_point[1]:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
