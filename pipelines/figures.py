@@ -14,12 +14,16 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
-#: Periodicity classes of a time-integration point (codes written by the TI stage).
+from hbm.ti.periodicity import PeriodClass  # noqa: E402
+
+#: Marker, colour and label (a template of n_l, the number of lobes) of each periodicity
+#: class of a time-integration point; hbm.ti.periodicity.PeriodClass codes.
 PERIODICITY = {
-    0: ("\u03c9 = 2\u03a9", "o", "#111111"),
-    1: ("\u03c9 = \u03a9", "^", "#1f77b4"),
-    2: ("subharmonic (\u03c9 < \u03a9)", "s", "#2ca02c"),
-    3: ("no periodicity or \u03c9 < \u03a9/10", "D", "#9a9a9a"),
+    PeriodClass.CASING: ("\u03c9 = {n}\u03a9", "o", "#111111"),
+    PeriodClass.REVOLUTION: ("\u03c9 = \u03a9", "^", "#1f77b4"),
+    PeriodClass.SUPERHARMONIC: ("\u03a9 < \u03c9 < {n}\u03a9", "v", "#d62728"),
+    PeriodClass.SUBHARMONIC: ("subharmonic (\u03c9 < \u03a9)", "s", "#2ca02c"),
+    PeriodClass.NONE: ("no periodicity or \u03c9 < \u03a9/10", "D", "#9a9a9a"),
 }
 _LENGTH = {"m": 1.0, "mm": 1e3, "um": 1e6}
 FIGSIZE = (7.0, 4.5)  # inches
@@ -34,17 +38,26 @@ def _save(fig, out_png) -> Path:
     return out_png
 
 
-def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18):
-    """Markers per periodicity class; `faded` greys out all but the 2Ω-periodic ones (Fig. 6)."""
+def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_lobes=2):
+    """Markers per periodicity class; `faded` greys out all but the casing-periodic ones
+    (ω = n_l Ω, Fig. 6). Only the classes present get a legend entry, except ω = n_l Ω and
+    ω = Ω, always listed (the paper's legend)."""
     omega, amplitude, classes = (np.asarray(a).ravel() for a in (omega, amplitude, classes))
+    unknown = set(np.unique(classes).tolist()) - {int(c) for c in PERIODICITY}
+    if unknown:
+        raise ValueError(f"unknown periodicity class codes {sorted(unknown)}; known: "
+                         f"{', '.join(f'{int(c)} ({c.name})' for c in PeriodClass)}")
     handles = []
     for code, (label, marker, colour) in PERIODICITY.items():
         pick = classes == code
-        if faded and code != 0:
+        if not pick.any() and code not in (PeriodClass.CASING, PeriodClass.REVOLUTION):
+            continue
+        if faded and code != PeriodClass.CASING:
             colour = "#b8b8b8"
         ax.scatter(omega[pick], amplitude[pick], s=size, marker=marker, color=colour,
                    edgecolors="none", zorder=3)
-        handles.append(Line2D([], [], ls="none", marker=marker, color=colour, label=f"TI: {label}"))
+        handles.append(Line2D([], [], ls="none", marker=marker, color=colour,
+                              label=f"TI: {label.format(n=n_lobes)}"))
     return handles
 
 
@@ -61,16 +74,17 @@ def _amplitude_axes(ax, omega_range, unit: str, title: str | None) -> None:
 
 
 def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0),
-              unit: str = "mm", title: str | None = None, fade_other_classes: bool = True) -> Path:
+              unit: str = "mm", title: str | None = None, fade_other_classes: bool = True,
+              n_lobes: int = 2) -> Path:
     """Nonlinear frequency response curves (paper Fig. 6): LE radial amplitude vs Ω.
 
     curves: {label: (omega (m,) rad/s, amplitude (m,) m, converged (m,) bool or None)}, one
     line per method, drawn in the order of the points (a continuation path); points not
     converged break the line and are marked with a small grey cross. Labels containing
     "isola" are dashed. ti_points: optional (omega (p,) rad/s, amplitude (p,) m, classes (p,)
-    int, codes of PERIODICITY) drawn as markers shaped by class; as in the paper, all but the
-    2Ω-periodic ones are grey unless fade_other_classes is False.
-    unit: "m", "mm" or "um" for the amplitude axis.
+    int, PeriodClass codes) drawn as markers shaped by class; as in the paper, all but the
+    casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is False.
+    unit: "m", "mm" or "um" for the amplitude axis. n_lobes: n_l, for the class labels.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
@@ -90,22 +104,25 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
         handles.append(Line2D([], [], ls="none", marker="x", color="0.55", label="not converged"))
     if ti_points is not None:
         o, a, c = ti_points
-        handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=fade_other_classes)
+        handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=fade_other_classes,
+                                    n_lobes=n_lobes)
     _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
     return _save(fig, out_png)
 
 
 def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 2000.0),
-                  unit: str = "mm", title: str | None = None) -> Path:
+                  unit: str = "mm", title: str | None = None, n_lobes: int = 2) -> Path:
     """Time-integration sweep (paper Fig. 5): one marker per simulated Ω, shaped and
     coloured by periodicity class.
 
-    omega: (p,) rad/s; amplitude: (p,) m (LE radial amplitude); classes: (p,) int codes
-    of PERIODICITY (0: ω = 2Ω, 1: ω = Ω, 2: subharmonic, 3: none or ω < Ω/10).
+    omega: (p,) rad/s; amplitude: (p,) m (LE radial amplitude); classes: (p,) int
+    PeriodClass codes (ω = n_l Ω, ω = Ω, Ω < ω < n_l Ω, subharmonic, none or ω < Ω/10).
+    n_lobes: n_l, for the class labels.
     """
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22)
+    handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22,
+                               n_lobes=n_lobes)
     _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=[Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
                               label=h.get_label()[4:]) for h in handles],

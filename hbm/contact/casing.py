@@ -1,9 +1,34 @@
-"""Rigid ovalised casing, eq. (28) of the reference paper."""
+"""Rigid ovalised casing, eq. (28) of the reference paper: the one casing law of the project.
+
+The law is written once, in `lobe_coordinate` and `gap_at`, with operations that numpy
+vectorises (arrays of any shape) and that numba compiles (scalars): the harmonic balance
+calls `casing_distance` on arrays, the time-integration kernel (hbm.ti.kernel) compiles the
+same two functions with numba.njit. Neither this module nor the HBM needs numba.
+"""
 from __future__ import annotations
+
+import math
 
 import numpy as np
 
 from hbm.options import CasingOptions
+
+
+def lobe_coordinate(x, n_lobes, width):
+    """Signed distance to the nearest lobe centre in lobe widths, z = phi / w, -.
+
+    x: tau + theta_j, the casing angle seen by node j, rad (array or scalar).
+    phi = (x mod 2 pi / n_l) - pi / n_l: the lobe centre is at x = pi / n_l modulo 2 pi / n_l.
+    The modulo is x - P floor(x / P), P = 2 pi / n_l: round-off may give phi = +pi / n_l
+    instead of -pi / n_l at exact multiples of P, where both are the same point between lobes.
+    """
+    period = 2.0 * math.pi / n_lobes
+    return (x - period * np.floor(x / period) - math.pi / n_lobes) / width
+
+
+def gap_at(z, clearance, penetration):
+    """d = c - (c + p) exp(-z^2), m: radial distance to the casing at lobe coordinate z (array or scalar)."""
+    return clearance - (clearance + penetration) * np.exp(-(z * z))
 
 
 def casing_distance(tau: np.ndarray, theta: np.ndarray, casing: CasingOptions) -> np.ndarray:
@@ -15,7 +40,6 @@ def casing_distance(tau: np.ndarray, theta: np.ndarray, casing: CasingOptions) -
     (the phase written in the paper is garbled; this is the intended one: the lobe centre
     is at tau + theta_j = pi / n_l modulo 2 pi / n_l, where d = -p).
     """
-    c, p, w, n = casing.clearance, casing.penetration, casing.width, casing.n_lobes
-    period = 2.0 * np.pi / n
-    phi = np.mod(np.asarray(tau)[..., None] + np.asarray(theta), period) - np.pi / n
-    return c - (c + p) * np.exp(-(phi / w) ** 2)
+    x = np.asarray(tau, dtype=float)[..., None] + np.asarray(theta, dtype=float)
+    z = lobe_coordinate(x, casing.n_lobes, casing.width)
+    return gap_at(z, casing.clearance, casing.penetration)

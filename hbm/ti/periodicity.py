@@ -9,32 +9,44 @@ subharmonic (nu = p / 2), and no repeat up to nu = max_order is "no periodicity"
 """
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass
 
 import numpy as np
 
-#: Class codes (the markers of Fig. 5).
-CASING = 0        # omega = n_l Omega, the casing's own period (2 Omega for two lobes)
-REVOLUTION = 1    # omega = Omega
-SUBHARMONIC = 2   # omega < Omega, omega = Omega / nu
-NONE = 3          # no period found with nu <= max_order (quasi-periodic, chaotic, omega < Omega / max_order)
-SUPERHARMONIC = 4 # Omega < omega < n_l Omega (possible only with n_l > 2 lobes)
 
-CLASS_NAMES = {CASING: "casing period", REVOLUTION: "omega = Omega", SUBHARMONIC: "subharmonic",
-               NONE: "no periodicity", SUPERHARMONIC: "Omega < omega < n_l Omega"}
+class PeriodClass(enum.IntEnum):
+    """Periodicity class of a steady response (the markers of Fig. 5).
+
+    An IntEnum: the integer codes are what artifacts store (SweepResult.period_class).
+    """
+
+    CASING = 0         # omega = n_l Omega, the casing's own period (2 Omega for two lobes)
+    REVOLUTION = 1     # omega = Omega
+    SUBHARMONIC = 2    # omega < Omega, omega = Omega / nu
+    NONE = 3           # no period with nu <= max_order (quasi-periodic, chaotic, omega < Omega / max_order)
+    SUPERHARMONIC = 4  # Omega < omega < n_l Omega (reachable only with n_l > 2 lobes, e.g. p = 2 of 3)
+
+    def label(self, n_lobes: int = 2, max_order: float = 10.0) -> str:
+        """Plain-text name, e.g. 'omega = 2 Omega' for CASING with two lobes."""
+        return {PeriodClass.CASING: f"omega = {n_lobes} Omega" if n_lobes > 1 else "omega = Omega",
+                PeriodClass.REVOLUTION: "omega = Omega",
+                PeriodClass.SUBHARMONIC: "subharmonic (omega < Omega)",
+                PeriodClass.NONE: f"no periodicity or omega < Omega / {max_order:g}",
+                PeriodClass.SUPERHARMONIC: f"Omega < omega < {n_lobes} Omega"}[self]
 
 
 @dataclass(frozen=True)
 class Periodicity:
     """Classification of one signal.
 
-    code: one of CASING, REVOLUTION, SUBHARMONIC, NONE, SUPERHARMONIC.
+    code: the PeriodClass.
     period: p, the period in casing periods (0 when NONE). order: nu = Omega / omega = p / n_l,
     - (nan when NONE). mismatch: max |y_{k+p} - y_k| / range for the accepted p, or the
     smallest one over all tried p when NONE, -.
     """
 
-    code: int
+    code: PeriodClass
     period: int
     order: float
     mismatch: float
@@ -64,7 +76,7 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
     rng = y.max(axis=0) - y.min(axis=0) if scale is None else np.broadcast_to(np.asarray(scale, float), y.shape[1:])
     keep = rng > 0.0
     if not keep.any():
-        return Periodicity(code=CASING, period=1, order=1.0 / n_lobes, mismatch=0.0)
+        return Periodicity(code=PeriodClass.CASING, period=1, order=1.0 / n_lobes, mismatch=0.0)
     y = y[:, keep] / rng[keep]
     p_max = min(int(np.floor(max_order * n_lobes + 1e-9)), (n_sec - 1) // 2)
     best = np.inf
@@ -73,12 +85,12 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
         best = min(best, mis)
         if mis <= rtol:
             return Periodicity(code=_code(p, n_lobes), period=p, order=p / n_lobes, mismatch=mis)
-    return Periodicity(code=NONE, period=0, order=float("nan"), mismatch=best)
+    return Periodicity(code=PeriodClass.NONE, period=0, order=float("nan"), mismatch=best)
 
 
-def _code(p: int, n_lobes: int) -> int:
+def _code(p: int, n_lobes: int) -> PeriodClass:
     if p == 1:
-        return CASING
+        return PeriodClass.CASING
     if p == n_lobes:
-        return REVOLUTION
-    return SUBHARMONIC if p > n_lobes else SUPERHARMONIC
+        return PeriodClass.REVOLUTION
+    return PeriodClass.SUBHARMONIC if p > n_lobes else PeriodClass.SUPERHARMONIC

@@ -1,16 +1,20 @@
 """Time-integration frequency sweep (section 3.1 and Fig. 5 of the reference paper).
 
-For each rotation speed Omega: n_revolutions revolutions from null initial conditions, the
-last n_keep kept for the leading-edge (LE) amplitude, the periodicity class and the
-downsampled LE/TE signals. Points run in parallel: over MPI ranks when launched under
-mpirun (communicator size > 1), otherwise over a local process pool (all cores by default).
+For each rotation speed Omega: at most n_revolutions revolutions from null initial
+conditions, the last n_keep kept for the leading-edge (LE) amplitude, the periodicity class
+and the downsampled LE/TE signals. The march stops earlier once the response has provably
+settled on a periodic orbit (hbm.ti.settle: the window's remaining transient is below
+settle_rtol); the window is then the last n_keep revolutions marched. Points run in
+parallel: over MPI ranks when launched under mpirun (communicator size > 1), otherwise over a
+local process pool (all cores by default).
 
 The time step is shrunk from dt to dt_eff = T / N <= dt, N the smallest multiple of
-lcm(n_lobes, samples_per_revolution) with N >= T / dt: revolutions, casing periods and
-output samples then fall on steps, so no signal needs interpolation, and dt_eff stays stable.
+lcm(n_l SUBSECTIONS, samples_per_revolution) with N >= T / dt: revolutions, casing periods,
+the settle test's instants and output samples then fall on steps, so no signal needs
+interpolation, and dt_eff stays stable.
 
-Amplitude: (max - min) / 2 of the LE radial displacement over the kept window (same as the
-HBM side); max |r| is stored too.
+Amplitude: (max - min) / 2 of the LE radial displacement over every step of the kept window
+(same as the HBM side); max |r| is stored too.
 """
 from __future__ import annotations
 
@@ -18,13 +22,19 @@ import math
 import os
 import sys
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.ti.periodicity import classify_period
-from hbm.ti.march import ModalSystem, Recording, check_time_step, march, rom_modal_system
+from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
+from hbm.ti.settle import SUBSECTIONS, settle_test
+
+#: Steps between two settle tests (rounded up to whole revolutions): one test costs about
+#: as much as 1e4 steps (classifier and differences on the window), so testing every
+#: 3e4 steps or more keeps its cost below a few per cent (every revolution at dt = 1e-7).
+_SETTLE_CHECK_STEPS = 30_000
 
 
 @dataclass(frozen=True)
@@ -45,6 +55,8 @@ class SpeedResponse:
     sections: np.ndarray = field(metadata={"unit": "m"})
     contact_fraction: float = field(metadata={"unit": "1"})
     max_penetration: float = field(metadata={"unit": "m"})
+    revolutions: int = field(metadata={"unit": "1"})
+    transient_bound: float = field(metadata={"unit": "1"})
     cpu_time: float = field(metadata={"unit": "s"})
 
 
@@ -55,8 +67,9 @@ class SweepResult:
     omega: Omega, (n_omega,), rad/s.
     amplitude: (max - min) / 2 of the LE radial displacement over the kept window, (n_omega,), m.
     max_abs: max |r| of the LE over the kept window, (n_omega,), m.
-    period_class: hbm.ti.periodicity code (0: omega = n_l Omega (2 Omega), 1: omega = Omega,
-        2: subharmonic, 3: none / omega < Omega / max_order), (n_omega,).
+    period_class: hbm.ti.periodicity.PeriodClass code (0: omega = n_l Omega (2 Omega), 1: omega
+        = Omega, 2: subharmonic, 3: none / omega < Omega / max_order, 4: Omega < omega < n_l Omega),
+        (n_omega,).
     period: period in casing periods p (0 when none), (n_omega,). order: nu = Omega / omega
         = p / n_l (nan when none), (n_omega,), -. mismatch: section mismatch of the accepted
         period relative to the range (the best one when none), (n_omega,), -.
@@ -68,7 +81,12 @@ class SweepResult:
     sections: radial displacement of every contact node at each casing period of the kept
         window (Poincare sections), (n_omega, n_keep n_l + 1, n_b), m.
     contact_fraction: share of the steps with at least one node in contact, (n_omega,), -.
-    max_penetration: largest r_j - d_j after the contact correction, (n_omega,), m (round-off).
+    max_penetration: largest r_j - d_j after the contact correction, (n_omega,), m (round-off;
+        -inf when no node ever came near the casing).
+    revolutions: revolutions marched, n_revolutions unless the march settled earlier, (n_omega,).
+    transient_bound: bound on the transient left in the window, relative to each node's range
+        (hbm.ti.settle), (n_omega,), -; <= settle_rtol where the march stopped early, inf where
+        no period was found.
     cpu_time: wall time of each point in its worker, (n_omega,), s.
     """
 
@@ -86,6 +104,8 @@ class SweepResult:
     sections: np.ndarray = field(metadata={"unit": "m"})
     contact_fraction: np.ndarray = field(metadata={"unit": "1"})
     max_penetration: np.ndarray = field(metadata={"unit": "m"})
+    revolutions: np.ndarray = field(metadata={"unit": "1"})
+    transient_bound: np.ndarray = field(metadata={"unit": "1"})
     cpu_time: np.ndarray = field(metadata={"unit": "s"})
 
 
@@ -97,40 +117,81 @@ def steps_per_revolution(omega: float, dt: float, multiple: int) -> int:
 
 def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float,
              options: TimeIntegrationOptions) -> SpeedResponse:
-    """One point of the sweep: n_revolutions from rest at rotation speed omega (rad/s)."""
+    """One point of the sweep: from rest at rotation speed omega (rad/s) until settled or
+    n_revolutions. system: the full ModalSystem (or the scheme's, see scheme_system)."""
     t_start = time.perf_counter()
-    n_l, spr = casing.n_lobes, options.samples_per_revolution
-    n_rev = steps_per_revolution(omega, options.dt, math.lcm(n_l, spr))
+    system = scheme_system(system, options.scheme, options.massless_cutoff)
+    n_l, spr, n_keep = casing.n_lobes, options.samples_per_revolution, options.n_keep
+    n_rev = steps_per_revolution(omega, options.dt, math.lcm(n_l * SUBSECTIONS, spr))
     dt = 2.0 * math.pi / (omega * n_rev)
     nb = system.n_boundary
-    rec = Recording(start=(options.n_revolutions - options.n_keep) * n_rev or 1, stride=n_rev // spr,
-                    n_samples=options.n_keep * spr, dofs=np.array([0, 3 * (nb - 1)]),
-                    force_nodes=np.array([0, nb - 1]), section_stride=n_rev // n_l)
+    n_max = options.n_revolutions
+    sub_stride = n_rev // (n_l * SUBSECTIONS)
+    # every revolution from the first is recorded: where the window ends is known only at the end.
+    # Recording positions count from step n_rev: sample i at n_rev + i stride, extreme block b
+    # covers steps (b + 1) n_rev .. (b + 2) n_rev - 1 (revolution b + 1 and its end point).
+    rec = Recording(start=n_rev, stride=n_rev // spr, n_samples=(n_max - 1) * spr + 1,
+                    dofs=np.array([0, 3 * (nb - 1)]), force_nodes=np.array([0, nb - 1]),
+                    section_stride=sub_stride, extreme_stride=n_rev)
     zero = np.zeros(system.n_dof)
-    m = march(system, casing, mu, omega, zero, zero, dt, options.n_revolutions * n_rev, rec)
-    # mismatch relative to each node's range over every step of the window
-    per = classify_period(m.sections, n_lobes=n_l, rtol=options.periodicity_rtol, max_order=options.max_order,
-                          scale=m.radial_max - m.radial_min)
+    marcher = Marcher(system, casing, mu, omega, zero, zero, dt, n_max * n_rev, rec)
+    decay_time = system.slowest_decay_time()
+    every = max(1, math.ceil(_SETTLE_CHECK_STEPS / n_rev))
+    revs = 0
+    verdict = None
+    while revs < n_max:
+        step = min(every, n_max - revs) if revs >= n_keep + 1 else n_keep + 1 - revs
+        marcher.advance(step * n_rev)
+        revs += step
+        if revs >= n_max or (options.stop_when_settled and revs > n_keep + 1):
+            verdict = _settle(marcher, revs, n_rev, n_l, n_keep, omega, decay_time, options)
+            if verdict.settled:
+                break
+    return _response(marcher, verdict, revs, n_rev, spr, n_l, n_keep, omega, t_start)
+
+
+def _settle(marcher: Marcher, revs: int, n_rev: int, n_l: int, n_keep: int, omega: float, decay_time: float,
+            options: TimeIntegrationOptions):
+    """The settle test on the window of the last n_keep of `revs` revolutions."""
+    n_sub = (revs - 1) * n_l * SUBSECTIONS + 1  # sub-sections recorded up to the end of revolution revs
+    return settle_test(marcher.out_sec[:n_sub], marcher.out_ext[:revs], n_l, n_keep, omega, decay_time,
+                       options.periodicity_rtol, options.max_order, options.settle_rtol)
+
+
+def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: int, n_keep: int, omega: float,
+              t_start: float) -> SpeedResponse:
+    """SpeedResponse of the window of the last n_keep of `revs` revolutions."""
+    m = marcher.result()
+    w0 = revs - n_keep - 1  # extreme block and sample revolution where the window starts
+    ext = m.extremes[w0:revs]  # n_keep + 1 blocks: the window's steps (w0 + 1) n_rev .. revs n_rev
+    rmax, rmin = ext[:, 0].max(axis=0), ext[:, 1].min(axis=0)
+    per = verdict.periodicity
+    samples = slice(w0 * spr, (w0 + n_keep) * spr)
+    n_sub = (revs - 1) * n_l * SUBSECTIONS + 1
+    sections = m.sections[n_sub - 1 - n_keep * n_l * SUBSECTIONS:n_sub:SUBSECTIONS]
     return SpeedResponse(
-        omega=float(omega), amplitude=0.5 * float(m.radial_max[0] - m.radial_min[0]),
-        max_abs=float(max(m.radial_max[0], -m.radial_min[0])), period_class=per.code, period=per.period,
-        order=per.order, mismatch=per.mismatch, dt=dt, times=m.times, displacement=m.displacement,
-        normal_force=m.normal_force, sections=m.sections,
-        contact_fraction=m.contact_steps / (options.n_revolutions * n_rev),
-        max_penetration=m.max_penetration, cpu_time=time.perf_counter() - t_start)
+        omega=float(omega), amplitude=0.5 * float(rmax[0] - rmin[0]), max_abs=float(max(rmax[0], -rmin[0])),
+        period_class=int(per.code), period=per.period, order=per.order, mismatch=per.mismatch, dt=m.dt,
+        times=m.times[samples], displacement=m.displacement[samples], normal_force=m.normal_force[samples],
+        sections=sections, contact_fraction=m.contact_steps / (revs * n_rev), max_penetration=m.max_penetration,
+        revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start)
 
 
 def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,
-          omegas: np.ndarray | None = None, workers: int | None = None) -> SweepResult:
+          omegas: np.ndarray | None = None, workers: int | None = None,
+          on_point: Callable[[int, int], None] | None = None) -> SweepResult:
     """Time-integration sweep over rotation speeds.
 
-    rom: rom.model.RomModel (or a ModalSystem). omegas: rotation speeds, (n_omega,), rad/s;
-    default: the grid of ti_options. workers: local processes (default: all usable cores;
-    ignored under MPI, where each rank takes every size-th point and all ranks get the result).
-    Raises ValueError when ti_options.dt exceeds the stability limit.
+    rom: rom.model.RomModel (or a ModalSystem, full or already massless). omegas: rotation
+    speeds, (n_omega,), rad/s; default: the grid of ti_options. workers: local processes
+    (default: all usable cores; ignored under MPI, where each rank takes every size-th point
+    and all ranks get the result). on_point(done, total): called in this process after each
+    point (under MPI: with this rank's own counts), e.g. to show progress.
+    Raises ValueError when ti_options.dt exceeds the scheme's stability limit.
     """
     system = rom if isinstance(rom, ModalSystem) else rom_modal_system(rom)
-    check_time_step(system, ti_options.dt)
+    system = scheme_system(system, ti_options.scheme, ti_options.massless_cutoff)
+    check_time_step(system, ti_options.dt, contact.mu)
     if omegas is None:
         omegas = np.linspace(ti_options.omega_min, ti_options.omega_max, ti_options.n_omega)
     omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
@@ -138,15 +199,22 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
         raise ValueError("rotation speeds must be > 0 rad/s")
     mu = contact.mu
     comm = _mpi_world()
+    progress = on_point or (lambda done, total: None)
     if comm is not None:
-        mine = [(i, simulate(system, casing, mu, omegas[i], ti_options))
-                for i in range(comm.rank, len(omegas), comm.size)]
-        points = dict(p for part in comm.allgather(mine) for p in part)
+        mine = list(range(comm.rank, len(omegas), comm.size))
+        local = []
+        for k, i in enumerate(mine):
+            local.append((i, simulate(system, casing, mu, omegas[i], ti_options)))
+            progress(k + 1, len(mine))
+        points = dict(p for part in comm.allgather(local) for p in part)
     else:
         n_workers = workers or len(os.sched_getaffinity(0))
         order = np.argsort(omegas)  # slowest points (low Omega, most steps) first
+        points = {}
         if n_workers <= 1 or len(omegas) == 1:
-            points = {i: simulate(system, casing, mu, omegas[i], ti_options) for i in order}
+            for i in order:
+                points[i] = simulate(system, casing, mu, omegas[i], ti_options)
+                progress(len(points), len(omegas))
         else:
             import concurrent.futures
             import multiprocessing
@@ -155,7 +223,9 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
             ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
             with concurrent.futures.ProcessPoolExecutor(min(n_workers, len(omegas)), mp_context=ctx) as pool:
                 futures = {pool.submit(simulate, system, casing, mu, omegas[i], ti_options): i for i in order}
-                points = {futures[f]: f.result() for f in concurrent.futures.as_completed(futures)}
+                for f in concurrent.futures.as_completed(futures):
+                    points[futures[f]] = f.result()
+                    progress(len(points), len(omegas))
     rows = [points[i] for i in range(len(omegas))]
     return _stack(rows)
 

@@ -25,6 +25,7 @@ def require_supported_sense(rom) -> None:
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
     rank 0 writes ti.h5."""
+    from hbm.ti.periodicity import PeriodClass
     from hbm.ti.sweep import sweep
     from pipelines.parallel import on_root, world
 
@@ -38,9 +39,11 @@ def _compute(ctx: Context, outputs) -> None:
 
     def write():
         art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
-        counts = np.bincount(result.period_class.astype(int), minlength=4)
-        ctx.log(f"  {len(result.omega)} speeds; classes 2W/W/sub/none: {counts[:4].tolist()}; "
-                f"median {np.median(result.cpu_time):.1f} s per speed")
+        n_l = scene.casing.n_lobes
+        counts = np.bincount(result.period_class.astype(int), minlength=len(PeriodClass))
+        ctx.log(f"  {len(result.omega)} speeds; classes: "
+                + ", ".join(f"{c.label(n_l, scene.ti.max_order)} {counts[c]}" for c in PeriodClass if counts[c])
+                + f"; median {np.median(result.cpu_time):.1f} s per speed")
 
     on_root(world(), write)
 
@@ -62,10 +65,11 @@ def draw_sweep(ctx: Context) -> None:
 
     s = read_sweep(ctx.out)
     plot_ti_sweep(s.omega, s.amplitude, s.period_class, ctx.out / "figures" / "ti_sweep.png",
-                  omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max))
+                  omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max), n_lobes=ctx.scene.casing.n_lobes)
 
 
-SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",), depends=("ti.omega_min", "ti.omega_max"),
+SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),
+                      depends=("ti.omega_min", "ti.omega_max", "casing.n_lobes"),
                       inputs=lambda scene: (TI.file,), draw=draw_sweep)
 
 def _estimate(scene, out, outputs) -> Estimate:

@@ -7,7 +7,9 @@ come out right, and noise of twice the tolerance must destroy the period.
 import numpy as np
 import pytest
 
-from hbm.ti.periodicity import CASING, NONE, REVOLUTION, SUBHARMONIC, SUPERHARMONIC, classify_period
+from hbm.ti.periodicity import PeriodClass, classify_period
+
+CASING, REVOLUTION, SUBHARMONIC, NONE, SUPERHARMONIC = PeriodClass
 
 OMEGA = 1234.0
 RTOL = 1e-2

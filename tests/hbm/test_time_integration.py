@@ -11,7 +11,7 @@ import pytest
 
 from hbm.contact.casing import casing_distance
 from hbm.options import CasingOptions
-from hbm.ti.march import Recording, critical_time_step, march, modal_system, rom_modal_system
+from hbm.ti.march import Recording, critical_time_step, march, massless_system, modal_system, rom_modal_system
 from support import standin_rom
 
 
@@ -273,3 +273,174 @@ def test_time_step_just_below_the_limit_stays_bounded():
     # discrete amplitude of the mode at w dt = 1.98 is x0 / sqrt(1 - (w dt / 2)^2) ~ 7 x0
     assert np.abs(x[n // 2:]).max() <= 1.01 * np.abs(x[:n // 2]).max()
     assert np.isfinite(x).all()
+
+
+def test_more_than_twelve_contact_nodes_match_the_physical_coordinate_reference():
+    """14 contact nodes take the kernel's general path (the 12-accumulator fast path stops at
+    12): against the same numpy reference as above, with the same tolerances and reasons."""
+    rom = standin_rom(n_boundary=14, n_modes=6)
+    s = rom_modal_system(rom)
+    cas = CasingOptions()
+    Om, dt, n = 1500.0, 2e-6, 500
+    rng = np.random.default_rng(2)
+    nd, nb = rom.n_dof, 14
+    x0 = np.zeros(nd)
+    x0[0:3 * nb:3] = 3e-4
+    x0[1:3 * nb:3] = 1e-5 * rng.standard_normal(nb)
+    v0 = 0.05 * rng.standard_normal(nd)
+    xr, lr = reference_march(rom.K, rom.M, rom.C, rom.rho, rom.theta, cas, 0.15, Om, x0, v0, dt, n)
+    m = march(s, cas, 0.15, Om, x0, v0, dt, n, record_all(n, np.arange(nd), np.arange(nb)))
+    assert (lr > 0).sum(axis=1).max() >= 3 and (lr[:, 12:] > 0).any()  # nodes beyond the 12th in contact
+    assert np.abs(m.displacement - xr).max() <= 1e-8 * np.abs(xr).max()
+    assert np.abs(m.normal_force[:-1] - lr[1:]).max() <= 1e-6 * np.abs(lr).max()
+    assert m.normal_force.min() >= 0.0 and m.active_set_failures == 0
+
+
+def test_non_modal_damping_matches_an_ode_solver_without_contact():
+    """A 4-dof chain with a dashpot between two masses only (C not diagonal in the modes):
+    the kernel lags the off-diagonal modal damping (backward-difference velocity), a first-
+    order error c dt / m = 2.5e-4 of the damping force per step; scipy's solve_ivp (RK45 at
+    rtol 1e-10) is the reference. Over 10 periods of the slowest mode the response agrees
+    to 1e-3 of its size, and it visibly differs from the same march with the off-diagonal
+    damping dropped (which tests that the coupling is there at all)."""
+    from scipy.integrate import solve_ivp
+
+    k, m = 1e4, 1.0
+    K = k * np.array([[2.0, -1, 0, 0], [-1, 2, -1, 0], [0, -1, 2, -1], [0, 0, -1, 1]])
+    M = m * np.eye(4)
+    C = np.zeros((4, 4))
+    C[0, 0] = C[3, 3] = 5.0
+    C[0, 3] = C[3, 0] = -5.0  # dashpot between dof 0 and 3
+    s = modal_system(K, M, C, [0.25], [0.0])
+    assert not s.is_modally_damped
+    dt = 5e-5
+    T = 2 * np.pi / s.omega.min()
+    n = int(10 * T / dt)
+    x0 = np.array([1e-3, 0.0, -5e-4, 2e-4])
+    v0 = np.array([0.0, 0.05, 0.0, -0.02])
+    mch = march(s, flat_wall(1.0), 0.0, 0.0, x0, v0, dt, n, record_all(n, [0, 1, 2, 3]))
+    Minv = np.linalg.inv(M)
+    sol = solve_ivp(lambda t, y: np.concatenate([y[4:], -Minv @ (K @ y[:4] + C @ y[4:])]), (0.0, n * dt),
+                    np.concatenate([x0, v0]), t_eval=mch.times, rtol=1e-10, atol=1e-14, method="RK45")
+    ref = sol.y[:4].T
+    err = np.abs(mch.displacement - ref).max() / np.abs(ref).max()
+    assert err <= 1e-3
+    modal_only = march(modal_system(K, M, s.phi_t_m.T @ np.diag(np.diag(s.damping)) @ s.phi_t_m, [0.25], [0.0]),
+                       flat_wall(1.0), 0.0, 0.0, x0, v0, dt, n, record_all(n, [0, 1, 2, 3]))
+    assert np.abs(modal_only.displacement - ref).max() / np.abs(ref).max() > 30 * err
+
+
+# ----------------------------------------------------------------------------------------
+# Massless boundary (hbm.ti.march.massless_system)
+# ----------------------------------------------------------------------------------------
+def bilinear_parent(k=1e4, m=1.0, k_b=3e4, m_b=1e-9, k_t=2e5, k_z=3e5):
+    """A contact node (r, theta, z) of tiny mass m_b tied by a spring k_b (radial) to a mass m
+    on a spring k to ground: dof (r, theta, z, u). Its modes: sqrt(k / m) (the node follows
+    the mass) and three at sqrt(k_. / m_b) (the node's own), which the massless model drops."""
+    K = np.zeros((4, 4))
+    K[0, 0], K[1, 1], K[2, 2] = k_b, k_t, k_z
+    K[0, 3] = K[3, 0] = -k_b
+    K[3, 3] = k + k_b
+    M = np.diag([m_b, m_b, m_b, m])
+    return K, M
+
+
+def bilinear_exact(t, V, g, k, m, k_b):
+    """Exact motion of the massless-node limit thrown from u = 0 at speed V towards a wall at g:
+    free u = (V / w1) sin(w1 t) until u = g; then the node rests on the wall, the mass swings on
+    k + k_b about u_e = k_b g / (k + k_b) (lam = k_b (u - g) >= 0) until u = g again; free
+    again (elastic: it leaves with the speed it came). Returns (u, r, lam) on t (one bounce)."""
+    w1, w2 = math.sqrt(k / m), math.sqrt((k + k_b) / m)
+    t1 = math.asin(g * w1 / V) / w1
+    v1 = math.sqrt(V ** 2 - (w1 * g) ** 2)
+    ue = k_b * g / (k + k_b)
+    # in contact: u - ue = (g - ue) cos(w2 s) + v1 / w2 sin(w2 s) = A cos(w2 s - phi); back at g at s2
+    A, phi = math.hypot(g - ue, v1 / w2), math.atan2(v1 / w2, g - ue)
+    s2 = 2 * phi / w2
+    s = t - t1
+    u = np.where(t < t1, V / w1 * np.sin(w1 * t), ue + A * np.cos(w2 * s - phi))
+    after = s > s2
+    u = np.where(after, g * np.cos(w1 * (s - s2)) - v1 / w1 * np.sin(w1 * (s - s2)), u)
+    contact = (t >= t1) & ~after
+    return u, np.where(contact, g, u), np.where(contact, k_b * (u - g), 0.0), t1 + s2
+
+
+def test_massless_impact_follows_the_exact_bilinear_oscillator():
+    """The massless scheme on the node-spring-mass system: the node never enters the wall,
+    lam >= 0, and the mass follows the exact piecewise-linear solution. The contact force is
+    continuous (it grows from 0 as the mass compresses k_b), so central differences keep
+    their second order: |u - u_exact| <= (w2 dt)^2 V / w1 (1e-6 V / w1 here), measured 9e-8;
+    the parent's node mass perturbs the kept mode by m_b / m = 1e-9."""
+    k, m, k_b, g, V = 1e4, 1.0, 3e4, 1e-3, 0.3
+    K, M = bilinear_parent(k, m, k_b)
+    full = modal_system(K, M, np.zeros((4, 4)), [0.25], [0.0])
+    s = massless_system(full, cutoff=1e3)  # keeps sqrt(k / m) = 100 rad/s, drops the node's modes
+    assert s.n_modes == 1 and s.is_massless
+    w2 = math.sqrt((k + k_b) / m)
+    dt = 1e-3 / w2
+    n = int(0.04 / dt)
+    m_ = march(s, flat_wall(g), 0.0, 0.0, np.zeros(4), np.array([V, 0, 0, V]), dt, n, record_all(n, [0, 3]))
+    u_ex, r_ex, lam_ex, t_out = bilinear_exact(m_.times, V, g, k, m, k_b)
+    assert m_.times[-1] > t_out + 0.005  # the bounce is over and the mass is free again
+    scale = V / math.sqrt(k / m)
+    assert np.abs(m_.displacement[:, 1] - u_ex).max() <= (w2 * dt) ** 2 * scale
+    assert np.abs(m_.displacement[:, 0] - r_ex).max() <= (w2 * dt) ** 2 * scale
+    assert m_.displacement[:, 0].max() <= g * (1 + 1e-15) and m_.max_penetration <= 1e-15 * g
+    assert m_.min_multiplier >= 0.0 and m_.normal_force.min() >= 0.0
+    # lam = k_b (u - g): the same second-order error, times k_b (measured 2e-7 k_b g)
+    assert np.abs(m_.normal_force[:, 0] - lam_ex).max() <= k_b * (w2 * dt) ** 2 * scale
+    # elastic: the mass leaves the wall with the speed it came with (energy 1/2 m V^2 kept)
+    u = m_.displacement[m_.times > t_out + 1e-3, 1]
+    E = 0.5 * k * u[1:-1] ** 2 + 0.5 * m * ((u[2:] - u[:-2]) / (2 * dt)) ** 2
+    assert np.abs(E / (0.5 * m * V ** 2) - 1).max() <= 1e-6  # (w1 dt)^2 = 6e-9 plus the bounce's O(dt^2)
+
+
+def test_massless_contact_conserves_the_energy_of_a_two_mass_interior():
+    """Node-spring-mass-spring-mass: repeated bounces off the wall. The massless model is
+    conservative (the contact force is that of the spring k_b between the mass and the wall),
+    so its energy 1/2 v^T M v + 1/2 x^T K x + 1/2 lam^2 / k_b (the compressed spring) stays
+    at its initial value up to central differences' O((w dt)^2) oscillation (w dt = 2e-3:
+    1e-5; tolerance 1e-4), no penetration, lam >= 0, many contact steps."""
+    k, m, k_b, k2, m2, g = 1e4, 1.0, 3e4, 2e4, 0.5, 5e-4
+    K4, M4 = bilinear_parent(k, m, k_b)
+    K = np.zeros((5, 5))
+    K[:4, :4] = K4
+    K[3, 3] += k2
+    K[3, 4] = K[4, 3] = -k2
+    K[4, 4] = k2
+    M = np.diag(np.concatenate([np.diag(M4), [m2]]))
+    s = massless_system(modal_system(K, M, np.zeros((5, 5)), [0.25], [0.0]), cutoff=1e4)
+    assert s.n_modes == 2
+    w_c = 2.0 / critical_time_step(s)  # the in-contact frequency bounds the step
+    dt = 2e-3 / w_c
+    n = int(0.2 / dt)
+    x0 = np.zeros(5)
+    v0 = np.array([0.2, 0, 0, 0.2, -0.1])
+    mch = march(s, flat_wall(g), 0.0, 0.0, x0, v0, dt, n, record_all(n, [0, 1, 2, 3, 4]))
+    x = mch.displacement
+    lam = mch.normal_force[:, 0]
+    # u, u2 and their centred velocities; the node's static position is not a state
+    u = x[:, 3:]
+    v = (u[2:] - u[:-2]) / (2 * dt)
+    Kin = K[3:, 3:].copy()
+    Kin[0, 0] = k + k2  # the mass sees k to ground and k2; k_b is the wall spring below
+    E = (0.5 * np.einsum("ti,ij,tj->t", v, M[3:, 3:], v) + 0.5 * np.einsum("ti,ij,tj->t", u[1:-1], Kin, u[1:-1])
+         + 0.5 * k_b * (u[1:-1, 0] - x[1:-1, 0]) ** 2)
+    E0 = 0.5 * (m * 0.2 ** 2 + m2 * 0.1 ** 2)
+    assert mch.contact_steps > 1000
+    assert np.abs(E / E0 - 1).max() <= 1e-4
+    assert x[:, 0].max() <= g * (1 + 1e-15) and lam.min() >= 0.0 and mch.min_multiplier >= 0.0
+    # the multiplier is the force of the wall spring at the same step (massless: a static balance)
+    assert np.abs(lam - k_b * (u[:, 0] - x[:, 0])).max() <= 1e-6 * np.abs(lam).max()
+
+
+def test_massless_time_step_limit_includes_the_contact_stiffness():
+    """In contact the massless node pins the mass to the wall through k_b: the kept mode's
+    frequency rises from sqrt(k / m) to sqrt((k + k_b) / m), and that is the limit."""
+    k, m, k_b = 1e4, 1.0, 3e4
+    K, M = bilinear_parent(k, m, k_b)
+    s = massless_system(modal_system(K, M, np.zeros((4, 4)), [0.25], [0.0]), cutoff=1e3)
+    assert critical_time_step(s) == pytest.approx(2.0 / math.sqrt((k + k_b) / m), rel=1e-6)
+    rec = record_all(1, [0])
+    with pytest.raises(ValueError, match="dt_crit"):
+        march(s, flat_wall(1e-3), 0.0, 0.0, np.zeros(4), np.zeros(4), 1.01 * critical_time_step(s), 1, rec)

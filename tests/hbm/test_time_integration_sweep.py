@@ -18,7 +18,7 @@ import pytest
 from hbm.harmonic.fourier import FourierBasis
 from hbm.contact.casing import casing_distance
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.ti.periodicity import CASING
+from hbm.ti.periodicity import PeriodClass
 from hbm.ti.sweep import sweep
 from hbm.ti.march import modal_system
 from hbm.ti.validation import validate_against_hbm
@@ -92,7 +92,7 @@ def test_sweep_from_rest_locks_onto_the_casing():
     opts = TimeIntegrationOptions(dt=2e-6, n_revolutions=10, n_keep=4, samples_per_revolution=256)
     res = sweep(system, CAS, ContactOptions(mu=MU), opts, omegas=np.array([100.0, 150.0]), workers=1)
     np.testing.assert_allclose(res.amplitude, CAS.penetration / 2, rtol=1e-6)
-    assert (res.period_class == CASING).all() and (res.period == 1).all()
+    assert (res.period_class == PeriodClass.CASING).all() and (res.period == 1).all()
     np.testing.assert_allclose(res.max_abs, CAS.penetration, rtol=1e-6)
     assert (res.dt <= 2e-6).all() and res.max_penetration.max() <= 1e-18
     assert res.times.shape == (2, 4 * 256) and res.displacement.shape == (2, 1024, 2)
