@@ -131,7 +131,7 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
     # Recording positions count from step n_rev: sample i at n_rev + i stride, extreme block b
     # covers steps (b + 1) n_rev .. (b + 2) n_rev - 1 (revolution b + 1 and its end point).
     rec = Recording(start=n_rev, stride=n_rev // spr, n_samples=(n_max - 1) * spr + 1,
-                    dofs=np.array([0, 3 * (nb - 1)]), force_nodes=np.array([0, nb - 1]),
+                    dofs=np.array([0, 3 * (nb - 1)]), force_nodes=np.arange(nb),
                     section_stride=sub_stride, extreme_stride=n_rev)
     zero = np.zeros(system.n_dof)
     marcher = Marcher(system, casing, mu, omega, zero, zero, dt, n_max * n_rev, rec)
@@ -144,18 +144,20 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
         marcher.advance(step * n_rev)
         revs += step
         if revs >= n_max or (options.stop_when_settled and revs > n_keep + 1):
-            verdict = _settle(marcher, revs, n_rev, n_l, n_keep, omega, decay_time, options)
+            verdict = _settle(marcher, revs, n_l, n_keep, omega, decay_time, options)
             if verdict.settled:
                 break
     return _response(marcher, verdict, revs, n_rev, spr, n_l, n_keep, omega, t_start)
 
 
-def _settle(marcher: Marcher, revs: int, n_rev: int, n_l: int, n_keep: int, omega: float, decay_time: float,
+def _settle(marcher: Marcher, revs: int, n_l: int, n_keep: int, omega: float, decay_time: float,
             options: TimeIntegrationOptions):
     """The settle test on the window of the last n_keep of `revs` revolutions."""
+    spr = options.samples_per_revolution
     n_sub = (revs - 1) * n_l * SUBSECTIONS + 1  # sub-sections recorded up to the end of revolution revs
-    return settle_test(marcher.out_sec[:n_sub], marcher.out_ext[:revs], n_l, n_keep, omega, decay_time,
-                       options.periodicity_rtol, options.max_order, options.settle_rtol)
+    n_f = (revs - 1) * spr  # force samples whose block is complete (the next one straddles the end)
+    return settle_test(marcher.out_sec[:n_sub], marcher.out_ext[:revs], marcher.out_f[:n_f, :, 0], spr, n_l,
+                       n_keep, omega, decay_time, options.periodicity_rtol, options.max_order, options.settle_rtol)
 
 
 def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: int, n_keep: int, omega: float,
@@ -172,7 +174,8 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
     return SpeedResponse(
         omega=float(omega), amplitude=0.5 * float(rmax[0] - rmin[0]), max_abs=float(max(rmax[0], -rmin[0])),
         period_class=int(per.code), period=per.period, order=per.order, mismatch=per.mismatch, dt=m.dt,
-        times=m.times[samples], displacement=m.displacement[samples], normal_force=m.normal_force[samples],
+        times=m.times[samples], displacement=m.displacement[samples],
+        normal_force=m.normal_force[samples][:, [0, -1]],
         sections=sections, contact_fraction=m.contact_steps / (revs * n_rev), max_penetration=m.max_penetration,
         revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start)
 

@@ -11,6 +11,12 @@ forced by -mu lam(t), solved harmonic by harmonic. Coefficients are exact to rou
 N_h = 100 (the Gaussian's spectrum decays as exp(-(k w)^2 / 4), e^-56 at k = 100).
 """
 import math
+import os
+import shutil
+import subprocess
+import sys
+from dataclasses import fields, replace
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,10 +26,14 @@ from hbm.contact.casing import casing_distance
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
 from hbm.ti.periodicity import PeriodClass
 from hbm.ti.sweep import sweep
-from hbm.ti.march import modal_system
+from hbm.ti.march import modal_system, rom_modal_system
 from hbm.ti.validation import validate_against_hbm
 from rom.model import modal_damping
 from support import standin_rom
+
+#: The MPI sweep (tests/hbm/mpi_sweep.py runs it under mpirun; the test runs it serially).
+MPI_OPTIONS = TimeIntegrationOptions(dt=1e-6, n_revolutions=6, n_keep=2, samples_per_revolution=64)
+MPI_OMEGAS = np.array([1900.0, 1500.0, 1700.0])
 
 CAS = CasingOptions(clearance=0.0, penetration=1e-4, width=0.15, n_lobes=2)
 W_R, W_T, W_Z, XI, MU, RHO, THETA = 3000.0, 750.0, 1234.5, 1e-3, 0.15, 0.25, 0.2
@@ -90,7 +100,13 @@ def test_sweep_from_rest_locks_onto_the_casing():
     the lobe centre falls on a step: steps per revolution are a multiple of 256)."""
     *_, system = following_system()
     opts = TimeIntegrationOptions(dt=2e-6, n_revolutions=10, n_keep=4, samples_per_revolution=256)
-    res = sweep(system, CAS, ContactOptions(mu=MU), opts, omegas=np.array([100.0, 150.0]), workers=1)
+    calls = []
+    res = sweep(system, CAS, ContactOptions(mu=MU), opts, omegas=np.array([100.0, 150.0]), workers=1,
+                on_point=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 2), (2, 2)]
+    # the radial motion and the force are periodic from the first step: the first settle test
+    # (after n_keep + 2 or n_keep + 3 revolutions, one of history for the lag) stops the march
+    assert (res.revolutions < opts.n_revolutions).all() and (res.transient_bound <= opts.settle_rtol).all()
     np.testing.assert_allclose(res.amplitude, CAS.penetration / 2, rtol=1e-6)
     assert (res.period_class == PeriodClass.CASING).all() and (res.period == 1).all()
     np.testing.assert_allclose(res.max_abs, CAS.penetration, rtol=1e-6)
@@ -102,20 +118,78 @@ def test_sweep_from_rest_locks_onto_the_casing():
     assert res.normal_force[0, :, 0].mean() == pytest.approx(lam.mean(), rel=1e-3)
 
 
+def impact_system(xi=0.01):
+    """One node on stiff springs (w_r = 2000 rad/s) under lobes that dip below it (c = p =
+    1e-4 m): every lobe knocks it inward, it rings down until the next. A periodic orbit of
+    the casing's period, reached from rest through a transient of a few revolutions."""
+    K = np.diag([2000.0 ** 2, 3000.0 ** 2, 3500.0 ** 2])
+    C, _ = modal_damping(K, np.eye(3), np.full(3, xi))
+    return modal_system(K, np.eye(3), C, [RHO], [THETA]), CasingOptions(clearance=1e-4, penetration=1e-4,
+                                                                        width=0.3, n_lobes=2)
+
+
+def test_early_stop_reports_what_the_full_run_reports():
+    """Stopped once settled, the points have the class and the LE amplitude of 200 revolutions
+    from rest to 1e-6: the settle bound guarantees 1e-4 (settle_rtol) at the slowest free
+    decay, the impacts make the actual transient die much faster. Both systems have a known
+    periodic steady state: the casing itself (following system), and the impact orbit."""
+    following = following_system()[-1]
+    impacts, cas_i = impact_system()
+    for system, cas, om, dt in ((following, CAS, [100.0], 2e-6), (impacts, cas_i, [300.0, 700.0], 1e-6)):
+        opts = TimeIntegrationOptions(dt=dt, n_revolutions=200, n_keep=20)
+        early = sweep(system, cas, ContactOptions(mu=MU), opts, omegas=np.array(om), workers=1)
+        full = sweep(system, cas, ContactOptions(mu=MU), replace(opts, stop_when_settled=False), omegas=np.array(om),
+                     workers=1)
+        assert (early.revolutions < 50).all() and (full.revolutions == 200).all()
+        assert (early.contact_fraction > 0).all()
+        np.testing.assert_array_equal(early.period_class, full.period_class)
+        np.testing.assert_array_equal(early.period, full.period)
+        np.testing.assert_allclose(early.amplitude, full.amplitude, rtol=1e-6)
+        np.testing.assert_allclose(early.max_abs, full.max_abs, rtol=1e-6)
+
+
 def test_sweep_workers_and_serial_agree_on_the_standin_rom():
     rom = standin_rom()
     opts = TimeIntegrationOptions(dt=1e-6, n_revolutions=8, n_keep=2, samples_per_revolution=64)
     om = np.array([1900.0, 1500.0, 1700.0])
     a = sweep(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=1)
-    b = sweep(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=2)
+    calls = []
+    b = sweep(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=2,
+              on_point=lambda done, total: calls.append((done, total)))
+    assert calls == [(1, 3), (2, 3), (3, 3)]
     np.testing.assert_array_equal(a.omega, om)
-    for name in ("amplitude", "max_abs", "period_class", "displacement", "normal_force", "sections"):
+    for name in ("amplitude", "max_abs", "period_class", "displacement", "normal_force", "sections", "revolutions"):
         np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
     # amplitude is (max - min) / 2 over every step of the window: at least the samples' half range
     half = 0.5 * np.ptp(a.displacement[:, :, 0], axis=1)
     assert (a.amplitude >= half).all()
     assert (a.max_abs >= np.abs(a.displacement[:, :, 0]).max(axis=1)).all()
     assert (a.contact_fraction > 0).all() and a.max_penetration.max() <= 1e-15
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
+def test_mpi_sweep_equals_the_serial_one(tmp_path):
+    """`mpirun -n 2` splits the points over two ranks (hbm.ti.sweep._mpi_world); every rank
+    gets the whole result, equal to the serial sweep's to the bit (same points, same code).
+    Both start from the same ModalSystem arrays: the eigen-decomposition itself differs at
+    round-off with the BLAS thread count, which mpirun's process binding changes."""
+    pytest.importorskip("mpi4py")
+    system = rom_modal_system(standin_rom())
+    np.savez(tmp_path / "system.npz", **{f.name: getattr(system, f.name) for f in fields(system)
+                                         if getattr(system, f.name) is not None})
+    out = tmp_path / "mpi.npz"
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
+    cmd = ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else [])
+    run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_sweep.py")),
+                                str(tmp_path / "system.npz"), str(out)],
+                         env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    got = np.load(out)
+    serial = sweep(system, CasingOptions(), ContactOptions(), MPI_OPTIONS, omegas=MPI_OMEGAS, workers=1)
+    assert list(got["ranks"]) == [2, 2]  # both ranks saw a communicator of size 2
+    for name in ("omega", "amplitude", "period_class", "revolutions", "displacement", "normal_force", "sections"):
+        np.testing.assert_array_equal(got[name], getattr(serial, name))
 
 
 def test_sweep_refuses_an_unstable_time_step():
