@@ -20,10 +20,12 @@ def lobe_coordinate(x, n_lobes, width):
     x: tau + theta_j, the casing angle seen by node j, rad (array or scalar).
     phi = (x mod 2 pi / n_l) - pi / n_l: the lobe centre is at x = pi / n_l modulo 2 pi / n_l.
     The modulo is x - P floor(x / P), P = 2 pi / n_l: round-off may give phi = +pi / n_l
-    instead of -pi / n_l at exact multiples of P, where both are the same point between lobes.
+    instead of -pi / n_l at exact multiples of P, where both are the same point between lobes
+    (d differs there by (c + p) exp(-(pi / (n_l w))^2), 1e-52 m for the default casing).
     """
     period = 2.0 * math.pi / n_lobes
-    return (x - period * np.floor(x / period) - math.pi / n_lobes) / width
+    # reciprocals, not divisions: the kernel evaluates this for every node at every step
+    return (x - period * np.floor(x * (n_lobes / (2.0 * math.pi))) - math.pi / n_lobes) * (1.0 / width)
 
 
 def gap_at(z, clearance, penetration):

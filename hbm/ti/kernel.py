@@ -103,27 +103,24 @@ def _predict_general(c1, c2, s, coff, has_coff, dt, q, qm, qn, prT, rh, vel):
 
 
 @njit(cache=True, fastmath=_FAST, inline="always")
-def _find_penetrations(tau, theta, rh, cas, bound, fac, z, d, exact, active):
+def _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active):
     """Mark the nodes with rh_j >= d_j(tau); return (any penetration, any node near the casing).
 
-    The casing law (exp) is evaluated only for the nodes that a cheap test cannot rule out:
-    e^{-z^2} <= 1 / (1 + z^2 + z^4 / 2), so d_j >= c - (c + p) / (1 + z^2 + z^4 / 2) when
-    c + p >= 0, and a node with (c - r_j)(1 + z^2 + z^4 / 2) > (c + p) + margin is free. The test
-    uses its own z (multiplications by reciprocals instead of the law's divisions): the two
-    differ by round-off, which the margin (bound[4]: 1e-12 (|c| + |p|), far above round-off and
-    far below any physical gap) covers. With c + p < 0 every node is evaluated.
-    bound = (1 / period, period, pi / n_l, 1 / w, margin); fac_j = 1 + z^2 + z^4 / 2 is kept
-    for the same test after the contact correction. Only nodes near the casing (exact_j
-    True) get d_j; the others are certainly free and their d_j is stale."""
+    z_j comes from the casing law (lobe_coordinate) for every node; the exponential (gap_at)
+    only for the nodes a cheap test cannot rule out: e^{-z^2} <= 1 / fac, fac = 1 + z^2 + z^4 / 2,
+    so d_j >= c - (c + p) / fac when c + p >= 0, and a node with (c - r_j) fac_j > c + p + margin
+    is free (margin = 1e-12 (|c| + |p|) m: far above round-off, far below any physical gap).
+    With c + p < 0 every node is evaluated. Only nodes near the casing (exact_j) get d_j; the
+    others are certainly free and their d_j is stale. fac_j is kept for the same test after
+    the contact correction."""
     clearance, penetration, width, n_lobes = cas
-    inv_period, period, centre, inv_w, margin = bound
     cpp = clearance + penetration
     nb = theta.shape[0]
     near = False
     for j in range(nb):
-        x = tau + theta[j]
-        zb = (x - period * np.floor(x * inv_period) - centre) * inv_w
-        z2 = zb * zb
+        zj = lobe_coordinate(tau + theta[j], n_lobes, width)
+        z[j] = zj
+        z2 = zj * zj
         f = 1.0 + z2 * (1.0 + 0.5 * z2)
         fac[j] = f
         free = (clearance - rh[j]) * f > cpp + margin and cpp >= 0.0
@@ -134,9 +131,7 @@ def _find_penetrations(tau, theta, rh, cas, bound, fac, z, d, exact, active):
         for j in range(nb):
             active[j] = False
             if exact[j]:
-                zj = lobe_coordinate(tau + theta[j], n_lobes, width)
-                z[j] = zj
-                d[j] = gap_at(zj, clearance, penetration)
+                d[j] = gap_at(z[j], clearance, penetration)
                 if rh[j] >= d[j]:
                     active[j] = True
                     any_pen = True
@@ -144,21 +139,74 @@ def _find_penetrations(tau, theta, rh, cas, bound, fac, z, d, exact, active):
 
 
 @njit(cache=True, fastmath=_FAST, inline="always")
-def _sliding_direction(j, qn, qb, vscale, pt, pz, rho_om):
-    """Unit sliding direction (s_theta, s_z) of node j: relative velocity (v_theta + rho Omega,
-    v_z) with v = (phi_t, phi_z) (qn - qb) vscale; (0, 0) when it vanishes."""
-    vt = 0.0
-    vz = 0.0
+def _tangential_velocities(qn, qb, ptT, pzT, vt, vz):
+    """vt = ptT^T (qn - qb), vz = pzT^T (qn - qb): the theta and z displacement increments of
+    every node in one pass over the modes (ptT, pzT: (n, n_bp), padded to 12 columns when
+    n_b <= 12: 24 scalar accumulators, as in _predict_fast; a loop per node is 2-3 times slower)."""
+    if ptT.shape[1] != FAST_NODES:
+        for j in range(vt.shape[0]):
+            vt[j] = 0.0
+            vz[j] = 0.0
+        for k in range(qn.shape[0]):
+            dq = qn[k] - qb[k]
+            for j in range(vt.shape[0]):
+                vt[j] += ptT[k, j] * dq
+                vz[j] += pzT[k, j] * dq
+        return
+    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = 0.0
+    b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = b8 = b9 = b10 = b11 = 0.0
     for k in range(qn.shape[0]):
         dq = qn[k] - qb[k]
-        vt += pt[j, k] * dq
-        vz += pz[j, k] * dq
-    vt = vt * vscale + rho_om
-    vz = vz * vscale
-    nrm = math.sqrt(vt * vt + vz * vz)
-    if nrm > 1e-12:
-        return vt / nrm, vz / nrm
-    return 0.0, 0.0
+        p = ptT[k]
+        a0 += p[0] * dq
+        a1 += p[1] * dq
+        a2 += p[2] * dq
+        a3 += p[3] * dq
+        a4 += p[4] * dq
+        a5 += p[5] * dq
+        a6 += p[6] * dq
+        a7 += p[7] * dq
+        a8 += p[8] * dq
+        a9 += p[9] * dq
+        a10 += p[10] * dq
+        a11 += p[11] * dq
+        p = pzT[k]
+        b0 += p[0] * dq
+        b1 += p[1] * dq
+        b2 += p[2] * dq
+        b3 += p[3] * dq
+        b4 += p[4] * dq
+        b5 += p[5] * dq
+        b6 += p[6] * dq
+        b7 += p[7] * dq
+        b8 += p[8] * dq
+        b9 += p[9] * dq
+        b10 += p[10] * dq
+        b11 += p[11] * dq
+    vt[0] = a0
+    vt[1] = a1
+    vt[2] = a2
+    vt[3] = a3
+    vt[4] = a4
+    vt[5] = a5
+    vt[6] = a6
+    vt[7] = a7
+    vt[8] = a8
+    vt[9] = a9
+    vt[10] = a10
+    vt[11] = a11
+    vz[0] = b0
+    vz[1] = b1
+    vz[2] = b2
+    vz[3] = b3
+    vz[4] = b4
+    vz[5] = b5
+    vz[6] = b6
+    vz[7] = b7
+    vz[8] = b8
+    vz[9] = b9
+    vz[10] = b10
+    vz[11] = b11
 
 
 @njit(cache=True, inline="always")
@@ -192,89 +240,13 @@ def _solve_small(A, b, m):
 
 
 @njit(cache=True, fastmath=_FAST, inline="always")
-def _solve_contact(tau, rh, d, z, fac, exact, active, A_rr, A_rt, A_rz, mu, cas, margin, theta, slide, lam,
-                   st, sz, has_dir, idx, Acol, Am, bm):
-    """Active-set solution of the contact LCP on the nodes marked `active` (the prediction's
-    penetrations, a good first guess): drop the most negative multiplier, add the inactive
-    node pushed furthest beyond the casing, until neither exists (at most 4 n_b + 4 passes).
-
-    slide = (qn, qb, vscale, pt, pz, rho, Om): what the sliding directions need. On return
-    lam (n_b,) holds the multipliers (0 off the active set), st, sz the sliding directions
-    of the active nodes, idx[:m] the active nodes, Acol[:, j] the column of A for node j
-    (friction included). Returns (m, converged)."""
-    qn, qb, vscale, pt, pz, rho, om = slide
-    clearance, penetration, width, n_lobes = cas
-    cpp_margin = clearance + penetration + margin
-    nb = d.shape[0]
-    for j in range(nb):
-        has_dir[j] = False
-        lam[j] = 0.0
-    m = 0
-    for _ in range(4 * nb + 4):
-        m = 0
-        for j in range(nb):
-            if active[j]:
-                idx[m] = j
-                m += 1
-                if not has_dir[j]:
-                    has_dir[j] = True
-                    if mu != 0.0:
-                        st[j], sz[j] = _sliding_direction(j, qn, qb, vscale, pt, pz, rho[j] * om)
-                    else:
-                        st[j] = 0.0
-                        sz[j] = 0.0
-                    for i in range(nb):
-                        Acol[i, j] = A_rr[i, j] + mu * (A_rt[i, j] * st[j] + A_rz[i, j] * sz[j])
-        for a in range(m):
-            i = idx[a]
-            for b in range(m):
-                Am[a, b] = Acol[i, idx[b]]
-            bm[a] = rh[i] - d[i]
-        _solve_small(Am, bm, m)
-        worst = -1
-        wval = 0.0
-        for a in range(m):
-            if bm[a] < wval:
-                wval = bm[a]
-                worst = idx[a]
-        if worst >= 0:  # drop the most negative multiplier and re-solve
-            active[worst] = False
-            continue
-        worst = -1
-        wval = 0.0
-        for i in range(nb):
-            if not active[i]:
-                r_i = rh[i]
-                for b in range(m):
-                    r_i -= Acol[i, idx[b]] * bm[b]
-                if not exact[i] and not ((clearance - r_i) * fac[i] > cpp_margin and cpp_margin >= margin):
-                    # ruled free before the correction, maybe not after: evaluate the casing
-                    z[i] = lobe_coordinate(tau + theta[i], n_lobes, width)
-                    d[i] = gap_at(z[i], clearance, penetration)
-                    exact[i] = True
-                if not exact[i]:
-                    continue
-                if r_i - d[i] > wval:
-                    wval = r_i - d[i]
-                    worst = i
-        if worst >= 0:  # an inactive node is pushed beyond the casing: add it
-            active[worst] = True
-            continue
-        for a in range(m):
-            lam[idx[a]] = bm[a]
-        return m, True
-    for a in range(m):  # not converged: keep the last iterate, clipped to lam >= 0
-        lam[idx[a]] = max(bm[a], 0.0)
-    return m, False
-
-
-@njit(cache=True, fastmath=_FAST, inline="always")
-def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, a_rr, a_rt, a_rz):
+def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, Acol):
     """q_n -= s phi_b^T g lam and rh -= A lam: the contact and friction forces lam_j (e_r + mu s_j)
-    of the m nodes idx[:m] moved into the modal update (A = Phi_r S Phi_b^T g).
-    pr, pt, pz: radial, theta and z rows of phi, (n_b, n) each (contiguous rows: the mode loop vectorises)."""
+    of the m nodes idx[:m] moved into the modal update. pr, pt, pz: radial, theta and z rows
+    of phi, (n_b, n) each (contiguous rows: the mode loop vectorises); Acol[:, j]: column j of
+    the modal update's compliance A = Phi_r S Phi_b^T g with node j's friction direction."""
     n = qn.shape[0]
-    nb = a_rr.shape[0]
+    nb = Acol.shape[0]
     for b in range(m):
         j = idx[b]
         lj = lam[j]
@@ -286,7 +258,7 @@ def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, a_rr, a_rt, a_
         acc = rh[i]
         for b in range(m):
             j = idx[b]
-            acc -= (a_rr[i, j] + mu * (a_rt[i, j] * st[j] + a_rz[i, j] * sz[j])) * lam[j]
+            acc -= Acol[i, j] * lam[j]
         rh[i] = acc
 
 
@@ -305,8 +277,9 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     """Advance the march by n_steps from the state at step step0 (see the module docstring).
 
     lin = (c1, c2, s, coff): the modal recurrence, (n,) each and (n, n).
-    bnd = (prT, pr, pt, pz): radial rows transposed (n, n_bp) (padded to 12 columns when
-        n_b <= 12), and the radial, theta and z rows (n_b, n).
+    bnd = (prT, pr, pt, pz, ptT, pzT): radial rows transposed (n, n_bp) (padded to 12
+        columns when n_b <= 12), the radial, theta and z rows (n_b, n), and the theta and z
+        rows transposed (n, n_bp), padded alike.
     comp = (a_rr, a_rt, a_rz, g_rr, g_rt, g_rz): (n_b, n_b) each; a = Phi_r S Phi^T (the
         modal update's compliance), g = the static boundary compliance (massless scheme).
     geo = (rho, theta), (n_b,) each, m and rad. cas = (c, p, w, n_l) of eq. (28).
@@ -319,11 +292,16 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     out_x (n_samples, n_x), out_f (n_samples, n_f, 3), out_sec (n_sec, n_b),
     out_ext (n_blocks, 2, n_b): radial max and min per block; stats = [max penetration,
     min multiplier], counts = [contact steps, active-set failures]: accumulated in place.
+
+    The active-set loop and the recording stay in this function: as separate functions
+    (numba-inlined) they cost 10 to 20 % of a step; the pieces split out cost nothing
+    measurable.
     """
     c1, c2, s, coff = lin
-    prT, pr, pt, pz = bnd
+    prT, pr, pt, pz, ptT, pzT = bnd
     a_rr, a_rt, a_rz, g_rr, g_rt, g_rz = comp
     rho, theta = geo
+    clearance, penetration, width, n_lobes = cas
     mu, om, dt, has_coff, massless, step0, n_steps = par
     q_state, qm_state, lam_prev, st_prev, sz_prev, idx_prev, m_prev = state
     start, stride, n_out, sec_stride, ext_stride = rec
@@ -339,24 +317,26 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     qn = np.zeros(n)
     rh = np.zeros(prT.shape[1])
     vel = np.zeros(n)
+    vt = np.zeros(prT.shape[1])
+    vz = np.zeros(prT.shape[1])
     d = np.zeros(nb)
     z = np.zeros(nb)
     fac = np.zeros(nb)
     exact = np.zeros(nb, dtype=np.bool_)
     active = np.zeros(nb, dtype=np.bool_)
-    has_dir = np.zeros(nb, dtype=np.bool_)
     lam = np.zeros(nb)
     st = np.zeros(nb)
     sz = np.zeros(nb)
     idx = np.zeros(nb, dtype=np.int64)
     Acol = np.zeros((nb, nb))
+    Acol_prev = np.zeros((nb, nb))
     Am = np.zeros((nb, nb))
     bm = np.zeros(nb)
+    # the LCP's compliance: the modal update's (Carpenter) or the static boundary's (massless)
     A_rr, A_rt, A_rz = (g_rr, g_rt, g_rz) if massless else (a_rr, a_rt, a_rz)
-    vscale = 1.0 / dt if massless else 0.5 / dt
-    clearance, penetration, width, n_lobes = cas
+    vscale = 1.0 / dt if massless else 0.5 / dt  # backward or centred difference
     margin = 1e-12 * (abs(clearance) + abs(penetration))
-    bound = (n_lobes / (2.0 * math.pi), 2.0 * math.pi / n_lobes, math.pi / n_lobes, 1.0 / width, margin)
+    cpp_margin = clearance + penetration + margin
     max_pen = stats[0]
     min_lam = stats[1]
     n_contact = counts[0]
@@ -374,13 +354,8 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     # force block b averages the multipliers of steps sf + b stride .. sf + (b + 1) stride - 1
     sf = start - stride // 2
     fshift = 0 if massless else 1  # lam computed at step m1 belongs to step m1 (massless) or m1 - 1
-    f0 = first - fshift
-    if f0 >= sf:
-        f_block = (f0 - sf) // stride
-        f_next = sf + (f_block + 1) * stride
-    else:
-        f_block = -1 - (sf - f0 - 1) // stride
-        f_next = sf + (f_block + 1) * stride
+    f_block = (first - fshift - sf) // stride  # floor division: negative before the first block
+    f_next = sf + (f_block + 1) * stride
     for it in range(n_steps):
         m1 = step0 + it + 1  # the step being computed
         tau = om * (m1 * dt)
@@ -388,19 +363,82 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
             _predict_fast(c1, c2, q, qm, qn, prT, rh)
         else:
             _predict_general(c1, c2, s, coff, has_coff, dt, q, qm, qn, prT, rh, vel)
-        if massless and m_prev[0] > 0:
-            _apply_forces(qn, rh, lam_prev, st_prev, sz_prev, idx_prev, m_prev[0], mu, s, pr, pt, pz,
-                          a_rr, a_rt, a_rz)
+        if massless and m_prev[0] > 0:  # the static contact forces of the previous step
+            _apply_forces(qn, rh, lam_prev, st_prev, sz_prev, idx_prev, m_prev[0], mu, s, pr, pt, pz, Acol_prev)
             m_prev[0] = 0
-        any_pen, near = _find_penetrations(tau, theta, rh, cas, bound, fac, z, d, exact, active)
+        any_pen, near = _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active)
         m = 0
         if any_pen:
             n_contact += 1
-            m, ok = _solve_contact(tau, rh, d, z, fac, exact, active, A_rr, A_rt, A_rz, mu, cas, margin, theta,
-                                   (qn, q if massless else qm, vscale, pt, pz, rho, om),
-                                   lam, st, sz, has_dir, idx, Acol, Am, bm)
-            if not ok:
+            qb = q if massless else qm
+            if mu != 0.0:
+                _tangential_velocities(qn, qb, ptT, pzT, vt, vz)
+            for j in range(nb):
+                st[j] = 0.0
+                sz[j] = 0.0
+            # Active set from the prediction's penetrations (a good first guess): drop the
+            # most negative multiplier, add the inactive node pushed furthest beyond the
+            # casing, until neither exists (at most 4 n_b + 4 passes).
+            converged = False
+            for _ in range(4 * nb + 4):
+                m = 0
+                for j in range(nb):
+                    if active[j]:
+                        idx[m] = j
+                        m += 1
+                        if st[j] == 0.0 and sz[j] == 0.0:  # first time active in this step
+                            if mu != 0.0:  # unit sliding direction (v_theta + rho Omega, v_z) / |.|
+                                vtj = vt[j] * vscale + rho[j] * om
+                                vzj = vz[j] * vscale
+                                nrm = math.sqrt(vtj * vtj + vzj * vzj)
+                                if nrm > 1e-12:
+                                    st[j] = vtj / nrm
+                                    sz[j] = vzj / nrm
+                            for i in range(nb):
+                                Acol[i, j] = A_rr[i, j] + mu * (A_rt[i, j] * st[j] + A_rz[i, j] * sz[j])
+                for a in range(m):
+                    i = idx[a]
+                    for b in range(m):
+                        Am[a, b] = Acol[i, idx[b]]
+                    bm[a] = rh[i] - d[i]
+                _solve_small(Am, bm, m)
+                worst = -1
+                wval = 0.0
+                for a in range(m):
+                    if bm[a] < wval:
+                        wval = bm[a]
+                        worst = idx[a]
+                if worst >= 0:  # drop the most negative multiplier and re-solve
+                    active[worst] = False
+                    continue
+                for j in range(nb):
+                    lam[j] = 0.0
+                for a in range(m):
+                    lam[idx[a]] = bm[a]
+                worst = -1
+                wval = 0.0
+                for i in range(nb):
+                    if not active[i]:
+                        r_i = rh[i]
+                        for b in range(m):
+                            r_i -= Acol[i, idx[b]] * bm[b]
+                        if not exact[i]:
+                            if (clearance - r_i) * fac[i] > cpp_margin and cpp_margin >= margin:
+                                continue  # still certainly free after the correction
+                            d[i] = gap_at(z[i], clearance, penetration)
+                            exact[i] = True
+                        if r_i - d[i] > wval:
+                            wval = r_i - d[i]
+                            worst = i
+                if worst >= 0:  # an inactive node is pushed beyond the casing: add it
+                    active[worst] = True
+                    continue
+                converged = True
+                break
+            if not converged:
                 n_fail += 1
+                for a in range(m):  # keep the last iterate, clipped to lam >= 0
+                    lam[idx[a]] = max(bm[a], 0.0)
             if massless:  # r_m = Phi_r q_m - G lam_m; the forces reach the modes at m + 1
                 for i in range(nb):
                     acc = rh[i]
@@ -413,9 +451,23 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                     lam_prev[j] = lam[j]
                     st_prev[j] = st[j]
                     sz_prev[j] = sz[j]
+                    for i in range(nb):
+                        Acol_prev[i, j] = a_rr[i, j] + mu * (a_rt[i, j] * st[j] + a_rz[i, j] * sz[j])
                 m_prev[0] = m
-            else:
-                _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, a_rr, a_rt, a_rz)
+            else:  # forward increment: q_m -= s phi_b^T g lam and rh -= A lam (_apply_forces, by hand:
+                # numba's inlining of it here costs 10 % of a contact step)
+                for b in range(m):
+                    j = idx[b]
+                    lj = lam[j]
+                    ft = mu * st[j] * lj
+                    fz = mu * sz[j] * lj
+                    for k in range(n):
+                        qn[k] -= s[k] * (pr[j, k] * lj + pt[j, k] * ft + pz[j, k] * fz)
+                for i in range(nb):
+                    acc = rh[i]
+                    for b in range(m):
+                        acc -= Acol[i, idx[b]] * lam[idx[b]]
+                    rh[i] = acc
             for b in range(m):
                 if lam[idx[b]] < min_lam:
                     min_lam = lam[idx[b]]
@@ -434,7 +486,8 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                     out_f[f_block, a, 0] += lam[j] * inv_stride
                     out_f[f_block, a, 1] -= mu * st[j] * lam[j] * inv_stride
                     out_f[f_block, a, 2] -= mu * sz[j] * lam[j] * inv_stride
-        # record the state at step m1
+        # record the state at step m1: radial extremes of its block, the sampled dof (massless:
+        # with the static response to this step's forces) and the Poincare section
         if m1 >= start:
             if ext_stride > 0 and m1 == e_next + ext_stride:
                 e_block += 1
@@ -445,23 +498,24 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                         out_ext[e_block, 0, j] = rh[j]
                     if rh[j] < out_ext[e_block, 1, j]:
                         out_ext[e_block, 1, j] = rh[j]
-            if m1 == x_next and x_block < n_out:
-                for a in range(nx):
-                    acc = 0.0
-                    for k in range(n):
-                        acc += rec_rows[a, k] * qn[k]
-                    if massless:
-                        for b in range(m):
-                            j = idx[b]
-                            lj = lam[j]
-                            acc -= lj * (rec_frows[a, 3 * j] + mu * (st[j] * rec_frows[a, 3 * j + 1]
-                                                                     + sz[j] * rec_frows[a, 3 * j + 2]))
-                    out_x[x_block, a] = acc
+            if m1 == x_next:
+                if x_block < n_out:
+                    for a in range(nx):
+                        acc = 0.0
+                        for k in range(n):
+                            acc += rec_rows[a, k] * qn[k]
+                        if massless:
+                            for b in range(m):
+                                j = idx[b]
+                                acc -= lam[j] * (rec_frows[a, 3 * j] + mu * (st[j] * rec_frows[a, 3 * j + 1]
+                                                                             + sz[j] * rec_frows[a, 3 * j + 2]))
+                        out_x[x_block, a] = acc
                 x_block += 1
                 x_next += stride
-            if m1 == s_next and s_block < n_sec:
-                for j in range(nb):
-                    out_sec[s_block, j] = rh[j]
+            if m1 == s_next:
+                if s_block < n_sec:
+                    for j in range(nb):
+                        out_sec[s_block, j] = rh[j]
                 s_block += 1
                 s_next += sec_stride
         # rotate the state

@@ -342,7 +342,7 @@ class Marcher:
         else:
             comp = comp + tuple(np.zeros((nb, nb)) for _ in range(3))
         self._lin = (c1, c2, s, coff)
-        self._bnd = (_padded_columns(pr.T), pr, pt, pz)
+        self._bnd = (_padded_columns(pr.T), pr, pt, pz, _padded_columns(pt.T), _padded_columns(pz.T))
         self._comp = comp
         self._geo = (system.rho.astype(float), system.theta.astype(float))
         self._cas = (float(casing.clearance), float(casing.penetration), float(casing.width), int(casing.n_lobes))
