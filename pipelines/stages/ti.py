@@ -34,8 +34,7 @@ def _compute(ctx: Context, outputs) -> None:
     require_supported_sense(rom)
     warn_friction_lock(ctx, rom)
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
-        result = sweep(rom, scene.casing, scene.contact, scene.ti)
-        update(completed=scene.ti.n_omega)
+        result = sweep(rom, scene.casing, scene.contact, scene.ti, on_point=lambda done, total: update(completed=done))
 
     def write():
         art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
