@@ -5,8 +5,8 @@ The march starts at the instant of the period where the orbit is farthest from t
 (largest min_j (d_j - r_j)): started inside a contact phase, the first step of the
 Lagrange-multiplier scheme removes the HBM orbit's small penetration (DLFT's Gibbs ripple,
 RL's penalty) in one step, an impulse of penetration / dt that throws the blade off any
-orbit. The casing angle is shifted accordingly (theta_j + Omega t0): the same problem
-started at t0.
+orbit. The casing angle is shifted accordingly (theta_j + s Omega t0, s the sense of
+rotation): the same problem started at t0.
 """
 from __future__ import annotations
 
@@ -65,7 +65,8 @@ def march_from_orbit(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, 
     # start where the orbit is farthest from contact
     fine = FourierBasis(nh, max(4 * samples_per_period, 2 * nh + 2))
     r = fine.to_time(c[:, 0:3 * nb:3])  # (N_t, n_b)
-    d = casing_distance(subharmonic * fine.tau, system.theta, casing)
+    sense = system.rotation
+    d = casing_distance(subharmonic * fine.tau, sense * system.theta, casing)  # node j at s tau + theta_j
     margin = (d - r).min(axis=1)
     i0 = int(np.argmax(margin))
     t0 = fine.tau[i0] / w
@@ -73,7 +74,8 @@ def march_from_orbit(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, 
     ph = k * w * t0
     x0 = c[0] + (c[1::2] * np.cos(ph) + c[2::2] * np.sin(ph)).sum(axis=0)
     v0 = (k * w * (-c[1::2] * np.sin(ph) + c[2::2] * np.cos(ph))).sum(axis=0)
-    shifted = replace(system, theta=system.theta + omega * t0)
+    # the march's casing angle tau + s theta_j, started at t0: s theta_j -> s theta_j + Omega t0
+    shifted = replace(system, theta=system.theta + sense * omega * t0)
     stride = n_per // samples_per_period
     cols = [0, 3 * (nb - 1)]
     rec = Recording(start=stride, stride=stride, n_samples=n_periods * samples_per_period,

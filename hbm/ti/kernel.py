@@ -282,7 +282,9 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
         rows transposed (n, n_bp), padded alike.
     comp = (a_rr, a_rt, a_rz, g_rr, g_rt, g_rz): (n_b, n_b) each; a = Phi_r S Phi^T (the
         modal update's compliance), g = the static boundary compliance (massless scheme).
-    geo = (rho, theta), (n_b,) each, m and rad. cas = (c, p, w, n_l) of eq. (28).
+    geo = (s rho, s theta), (n_b,) each, m and rad, s = +1 or -1 the sense of rotation: node j
+        meets the casing at tau + s theta_j and slides at v_theta + s rho_j Omega (see hbm.ti.march).
+        cas = (c, p, w, n_l) of eq. (28).
     par = (mu, Omega, dt, has_coff, massless, step0, n_steps).
     state = (q, qm, lam_prev, st_prev, sz_prev, idx_prev, m_prev): q_{step0}, q_{step0-1} (n,)
         and the massless scheme's pending forces; all updated in place (m_prev: (1,) int).
@@ -300,7 +302,7 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     c1, c2, s, coff = lin
     prT, pr, pt, pz, ptT, pzT = bnd
     a_rr, a_rt, a_rz, g_rr, g_rt, g_rz = comp
-    rho, theta = geo
+    rho, theta = geo  # signed by the sense of rotation
     clearance, penetration, width, n_lobes = cas
     mu, om, dt, has_coff, massless, step0, n_steps = par
     q_state, qm_state, lam_prev, st_prev, sz_prev, idx_prev, m_prev = state
@@ -387,7 +389,7 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                         idx[m] = j
                         m += 1
                         if st[j] == 0.0 and sz[j] == 0.0:  # first time active in this step
-                            if mu != 0.0:  # unit sliding direction (v_theta + rho Omega, v_z) / |.|
+                            if mu != 0.0:  # unit sliding direction (v_theta + s rho Omega, v_z) / |.|
                                 vtj = vt[j] * vscale + rho[j] * om
                                 vzj = vz[j] * vscale
                                 nrm = math.sqrt(vtj * vtj + vzj * vzj)

@@ -17,7 +17,10 @@ Two contact schemes share one compiled loop (hbm.ti.kernel):
 
 Sliding Coulomb friction (eqs. 29-30 of the reference paper) acts on the (theta, z) dof of
 contacting nodes with magnitude mu lam_j, opposed to the relative velocity
-(v_theta + rho_j Omega, v_z). Convention (as hbm.contact): lam >= 0 is the compressive normal
+(v_theta + s rho_j Omega, v_z), s = +1 or -1 the sense of rotation (ModalSystem.rotation).
+Node j meets the casing at the absolute angle s Omega t + theta_j; eq. (28)'s casing is even
+(its lobe centres pi / n_l + k 2 pi / n_l are symmetric about 0), so d(s tau + theta_j) =
+d(tau + s theta_j), the angle the kernel evaluates (as hbm.harmonic.residual). Convention (as hbm.contact): lam >= 0 is the compressive normal
 force, N; the force on the blade is -lam e_r - mu lam s with s the unit sliding direction.
 
 The ROM is integrated in its M-orthonormal eigenbasis x = Phi q: with modal damping the
@@ -52,6 +55,8 @@ class ModalSystem:
     residual: None (every mode kept: the boundary carries mass), or the massless boundary's
         static response of every dof to unit forces on the 3 n_b boundary dof that the
         dropped modes carried, (n, 3 n_b), m/N: x = phi q + residual f_b.
+    rotation: sense of rotation s = +1 or -1 (rom.model.RomModel.rotation): node j sits at
+        the absolute angle s Omega t + theta_j and the tip slides at s rho_j Omega.
     """
 
     omega: np.ndarray = field(metadata={"unit": "rad/s"})
@@ -61,6 +66,12 @@ class ModalSystem:
     rho: np.ndarray = field(metadata={"unit": "m"})
     theta: np.ndarray = field(metadata={"unit": "rad"})
     residual: np.ndarray | None = field(default=None, metadata={"unit": "m/N"})
+    rotation: int = field(default=1, metadata={"unit": "1"})
+
+    def __post_init__(self):
+        if self.rotation not in (1, -1):
+            raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {self.rotation!r}")
+        object.__setattr__(self, "rotation", int(self.rotation))
 
     @property
     def n_boundary(self) -> int:
@@ -99,11 +110,13 @@ class ModalSystem:
         return math.inf if slowest <= 0.0 else 1.0 / slowest
 
 
-def modal_system(K: np.ndarray, M: np.ndarray, C: np.ndarray, rho: np.ndarray, theta: np.ndarray) -> ModalSystem:
+def modal_system(K: np.ndarray, M: np.ndarray, C: np.ndarray, rho: np.ndarray, theta: np.ndarray,
+                 rotation: int = 1) -> ModalSystem:
     """Eigen-decompose (K, M) and project C.
 
     K: (n, n), N/m. M: (n, n), kg. C: (n, n), N s/m. rho, theta: (n_b,), m and rad, with
     3 n_b <= n: dof 3j, 3j+1, 3j+2 are the (r, theta, z) dof of contact node j.
+    rotation: s = +1 or -1, the sense of rotation.
     """
     import scipy.linalg
 
@@ -117,12 +130,12 @@ def modal_system(K: np.ndarray, M: np.ndarray, C: np.ndarray, rho: np.ndarray, t
         raise ValueError(f"model must be positive definite (clamped); smallest w^2 = {w2.min():.3e} rad^2/s^2")
     phi_t_m = phi.T @ M
     return ModalSystem(omega=np.sqrt(w2), phi=phi, phi_t_m=phi_t_m, damping=phi.T @ C @ phi,
-                       rho=rho, theta=theta)
+                       rho=rho, theta=theta, rotation=rotation)
 
 
 def rom_modal_system(rom) -> ModalSystem:
-    """ModalSystem of a rom.model.RomModel (K, M, C, rho, theta)."""
-    return modal_system(rom.K, rom.M, rom.C, rom.rho, rom.theta)
+    """ModalSystem of a rom.model.RomModel (K, M, C, rho, theta, rotation)."""
+    return modal_system(rom.K, rom.M, rom.C, rom.rho, rom.theta, rom.rotation)
 
 
 def massless_system(system: ModalSystem, cutoff: float) -> ModalSystem:
@@ -154,7 +167,7 @@ def massless_system(system: ModalSystem, cutoff: float) -> ModalSystem:
     return ModalSystem(omega=system.omega[keep], phi=np.ascontiguousarray(system.phi[:, keep]),
                        phi_t_m=np.ascontiguousarray(system.phi_t_m[keep]),
                        damping=np.ascontiguousarray(system.damping[np.ix_(keep, keep)]),
-                       rho=system.rho, theta=system.theta, residual=residual)
+                       rho=system.rho, theta=system.theta, residual=residual, rotation=system.rotation)
 
 
 def scheme_system(system: ModalSystem, scheme: str, cutoff: float) -> ModalSystem:
@@ -344,7 +357,9 @@ class Marcher:
         self._lin = (c1, c2, s, coff)
         self._bnd = (_padded_columns(pr.T), pr, pt, pz, _padded_columns(pt.T), _padded_columns(pz.T))
         self._comp = comp
-        self._geo = (system.rho.astype(float), system.theta.astype(float))
+        # the sense enters as s rho (blade speed s rho Omega) and s theta (casing at tau + s theta_j)
+        sense = float(system.rotation)
+        self._geo = (sense * system.rho.astype(float), sense * system.theta.astype(float))
         self._cas = (float(casing.clearance), float(casing.penetration), float(casing.width), int(casing.n_lobes))
         self._mu, self._omega = float(mu), float(omega)
         self._has_coff = not system.is_modally_damped

@@ -13,15 +13,6 @@ from pipelines.stages.rom import read_rom, warn_friction_lock
 TI = Output("ti.h5")
 
 
-def require_supported_sense(rom) -> None:
-    """The time-integration kernel still turns every blade towards +theta (s = +1); refuse
-    a ROM that turns the other way rather than march it the wrong way. (Temporary: lifted
-    when the kernel takes the ROM's rotation.)"""
-    if rom.rotation != 1:
-        raise ValueError("the time integration does not take the sense of rotation yet: this ROM turns "
-                         "towards -theta (rotation s = -1); run with --until hbm, or --set blade.rotation=+")
-
-
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
     rank 0 writes ti.h5."""
@@ -31,7 +22,6 @@ def _compute(ctx: Context, outputs) -> None:
 
     scene = ctx.scene
     rom = read_rom(ctx.out)
-    require_supported_sense(rom)
     warn_friction_lock(ctx, rom)
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
         result = sweep(rom, scene.casing, scene.contact, scene.ti, on_point=lambda done, total: update(completed=done))

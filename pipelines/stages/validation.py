@@ -37,9 +37,6 @@ def _compute(ctx: Context, outputs) -> None:
     amp = np.where(b.converged, stored.extras["le_amplitude"], -np.inf)
     i = int(np.argmax(amp))
     rom = read_rom(ctx.out)
-    from pipelines.stages.ti import require_supported_sense
-
-    require_supported_sense(rom)
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     u, omega = b.x[i], float(b.omega[i])
     with ctx.progress.step("validation", None) as update:

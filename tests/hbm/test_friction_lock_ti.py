@@ -46,7 +46,7 @@ def _march(s: int, mu: float, node: int, after: float = 0.0):
     K = np.linalg.inv(G)
     M = 1e-3 * np.eye(6)  # kg: toy frequencies 1e5-1e6 rad/s
     C, _ = modal_damping(K, M, np.full(6, 0.2))
-    system = modal_system(K, M, C, RHO, s * THETA)  # TODO(rotation): the kernel's own sense
+    system = modal_system(K, M, C, RHO, THETA, rotation=s)
     dt = 0.2 * 2.0 / system.omega.max()
     # casing angle tau + s theta_j at the lobe centre pi / 2 (mod pi)
     t = ((math.pi / 2 - s * THETA[node]) % math.pi) / OMEGA + after
@@ -57,7 +57,7 @@ def _march(s: int, mu: float, node: int, after: float = 0.0):
     return float(m.normal_force[0, 0]), float(m.displacement[0, 0])
 
 
-@pytest.mark.parametrize("s", [1])
+@pytest.mark.parametrize("s", [1, -1])
 @pytest.mark.parametrize("node", [0, 1])
 def test_lobe_force_is_the_static_one_friction_raises_or_lowers_it(s, node):
     lock = friction_lock(np.linalg.inv(G), 2, s)
@@ -72,7 +72,7 @@ def test_lobe_force_is_the_static_one_friction_raises_or_lowers_it(s, node):
     assert (lam > 1.1 * lam0) if into else (lam < 0.9 * lam0)
 
 
-@pytest.mark.parametrize("s", [1])
+@pytest.mark.parametrize("s", [1, -1])
 @pytest.mark.parametrize("mu", [0.6, 0.7])
 def test_node_the_check_calls_locked_stays_on_the_casing(s, mu):
     lock = friction_lock(np.linalg.inv(G), 2, s)
