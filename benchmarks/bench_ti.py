@@ -1,9 +1,12 @@
 """Time-integration speed and accuracy (prints markdown tables).
 
     .venv/bin/python benchmarks/bench_ti.py [--rom ROM.h5|standin] [--repeat 3] [--full-sweep]
+        [--schemes carpenter,massless] [--massless-dt 1e-6] [--no-early-stop]
 
-1. Time per Omega point on one core: 200 revolutions at dt = 1e-7 s from rest (median of
-   --repeat runs, CPU time of this process, so that other users' load counts less).
+1. Time per Omega point on one core, per scheme: from rest until settled or 200 revolutions
+   ([ti] defaults; --no-early-stop: always 200), Carpenter at dt = 1e-7 s, massless at
+   --massless-dt (median of --repeat runs, CPU time of this process, so that other users'
+   load counts less); ns per step, share of steps in contact, revolutions marched.
 2. Speed against error: LE amplitude at a few Omega for dt in {4e-7, 2e-7, 1e-7, 5e-8}; the
    error is taken against dt = 5e-8 (responses can be chaotic: a difference there is a
    different trajectory, not a discretisation error).
@@ -17,6 +20,8 @@ import statistics
 import sys
 import time
 from pathlib import Path
+
+from dataclasses import replace
 
 import numpy as np
 
@@ -44,52 +49,58 @@ def main():
     ap.add_argument("--omegas", default="400,1000,2000")
     ap.add_argument("--full-sweep", action="store_true")
     ap.add_argument("--skip-dt", action="store_true")
+    ap.add_argument("--schemes", default="carpenter", help="comma-separated, among carpenter, massless")
+    ap.add_argument("--massless-dt", type=float, default=1e-6, help="time step of the massless scheme, s")
+    ap.add_argument("--no-early-stop", action="store_true", help="always n_revolutions (the old behaviour)")
+    ap.add_argument("--sweep-points", type=int, default=None, help="--full-sweep on this many speeds of the grid")
     a = ap.parse_args()
     rom, label = load_rom(a.rom)
     system = rom_modal_system(rom)
     cas, con = CasingOptions(), ContactOptions()
-    opts = TimeIntegrationOptions()
+    opts = TimeIntegrationOptions(stop_when_settled=not a.no_early_stop)
+    schemes = a.schemes.split(",")
     omegas = [float(w) for w in a.omegas.split(",")]
     simulate(system, cas, con.mu, 2000.0, TimeIntegrationOptions(n_revolutions=2, n_keep=1))  # JIT / cache
     print(f"ROM: {label}; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}\n")
-    print("| Omega (rad/s) | steps | CPU time per point (s), median | ns/step | contact steps | LE amplitude (m) | class |")
-    print("|---|---|---|---|---|---|---|")
-    per_point = {}
-    for w in omegas:
-        ts, r = [], None
-        for _ in range(a.repeat):
-            t0 = time.process_time()
-            r = simulate(system, cas, con.mu, w, opts)
-            ts.append(time.process_time() - t0)
-        steps = round(opts.n_revolutions * 2 * np.pi / (w * r.dt))
-        med = statistics.median(ts)
-        per_point[w] = med
-        print(f"| {w:.0f} | {steps:.3e} | {med:.2f} | {1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | "
-              f"{r.amplitude:.4e} | {r.period_class} |")
-    # cost of a point ~ steps ~ 1 / Omega: average over the default grid from the measured ns/step
-    grid = np.linspace(opts.omega_min, opts.omega_max, opts.n_omega)
-    ns = statistics.median(1e9 * per_point[w] * w / (opts.n_revolutions * 2 * np.pi / 1e-7) for w in omegas)
-    total = (ns * 1e-9 * opts.n_revolutions * 2 * np.pi / (grid * 1e-7)).sum()
-    print(f"\nExtrapolated (not measured): mean {total / len(grid):.2f} s per point over the {len(grid)}-point grid, "
-          f"{total:.0f} s CPU for the sweep, {total / 2 / 60:.1f} min on 2 free cores.\n")
+    print("| scheme | Omega (rad/s) | dt (s) | steps | CPU time per point (s), median | ns/step | contact steps "
+          "| revolutions | LE amplitude (m) | class |")
+    print("|---|---|---|---|---|---|---|---|---|---|")
+    for scheme in schemes:
+        sopts = replace(opts, scheme=scheme, dt=a.massless_dt if scheme == "massless" else opts.dt)
+        for w in omegas:
+            ts, r = [], None
+            for _ in range(a.repeat):
+                t0 = time.process_time()
+                r = simulate(system, cas, con.mu, w, sopts)
+                ts.append(time.process_time() - t0)
+            steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
+            med = statistics.median(ts)
+            print(f"| {scheme} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | {1e9 * med / steps:.0f} | "
+                  f"{r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | {r.period_class} |", flush=True)
+    print()
     if not a.skip_dt:
-        dts = [4e-7, 2e-7, 1e-7, 5e-8]
-        print("| Omega (rad/s) | dt (s) | CPU time (s) | LE amplitude (m) | vs dt = 5e-8 | class |")
-        print("|---|---|---|---|---|---|")
+        # error against Carpenter at dt = 5e-8 for every scheme (the massless one is another model)
+        runs = [("carpenter", dt) for dt in (4e-7, 2e-7, 1e-7, 5e-8)]
+        if "massless" in schemes:
+            runs += [("massless", dt) for dt in (5e-6, 2e-6, 1e-6, 1e-7)]
+        print("| Omega (rad/s) | scheme | dt (s) | CPU time (s) | revolutions | LE amplitude (m) "
+              "| vs Carpenter dt = 5e-8 | class |")
+        print("|---|---|---|---|---|---|---|---|")
         for w in omegas:
             res = {}
-            for dt in dts:
+            for scheme, dt in runs:
                 t0 = time.process_time()
-                r = simulate(system, cas, con.mu, w, TimeIntegrationOptions(dt=dt))
-                res[dt] = (time.process_time() - t0, r)
-            ref = res[5e-8][1].amplitude
-            for dt in dts:
-                t, r = res[dt]
-                print(f"| {w:.0f} | {dt:.0e} | {t:.2f} | {r.amplitude:.5e} | {abs(r.amplitude - ref) / ref:.2e} | "
-                      f"{r.period_class} |")
+                r = simulate(system, cas, con.mu, w, replace(opts, scheme=scheme, dt=dt))
+                res[scheme, dt] = (time.process_time() - t0, r)
+            ref = res["carpenter", 5e-8][1].amplitude
+            for scheme, dt in runs:
+                t, r = res[scheme, dt]
+                print(f"| {w:.0f} | {scheme} | {dt:.0e} | {t:.2f} | {r.revolutions} | {r.amplitude:.5e} | "
+                      f"{abs(r.amplitude - ref) / ref:.2e} | {r.period_class} |", flush=True)
     if a.full_sweep:
         t0 = time.perf_counter()
-        s = sweep(system, cas, con, opts)
+        grid = np.linspace(opts.omega_min, opts.omega_max, a.sweep_points or opts.n_omega)
+        s = sweep(system, cas, con, opts, omegas=grid)
         wall = time.perf_counter() - t0
         print(f"\nFull sweep: {len(s.omega)} points in {wall:.0f} s wall ({wall / 60:.1f} min), "
               f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super)")

@@ -118,6 +118,25 @@ def test_sweep_from_rest_locks_onto_the_casing():
     assert res.normal_force[0, :, 0].mean() == pytest.approx(lam.mean(), rel=1e-3)
 
 
+def test_amplitude_is_half_the_peak_to_peak_of_the_le_radial_displacement():
+    """The LE amplitude convention, the HBM's (hbm.harmonic.nfrc: (max - min) / 2), on a
+    signal known at every step. With theta = 0 the node meets the lobe centre at tau = pi / 2
+    and the point between lobes at tau = 0, both on steps (steps per revolution are a
+    multiple of 256), and it follows the casing exactly (r = d to round-off at every step):
+    max r = d(0) = -p e^{-(pi / (2 w))^2} (~ -1e-48 p), min r = d(pi / 2) = -p. Half the
+    peak-to-peak is p (1 - e^{-(pi / (2 w))^2}) / 2, which no other convention gives (max |r|
+    = p, the peak about the mean ~ 0.7 p, the RMS ~ 0.4 p). 1e-12: round-off of r = d."""
+    *_, shifted = following_system()
+    system = replace(shifted, theta=np.array([0.0]))
+    opts = TimeIntegrationOptions(dt=2e-6, n_revolutions=10, n_keep=4, samples_per_revolution=256)
+    res = sweep(system, CAS, ContactOptions(mu=MU), opts, omegas=np.array([100.0]), workers=1)
+    d = casing_distance(np.array([0.0, np.pi / 2]), np.array([0.0]), CAS)[:, 0]
+    exact = 0.5 * (d[0] - d[1])
+    assert exact == pytest.approx(CAS.penetration / 2, rel=1e-40)
+    assert abs(res.amplitude[0] - exact) <= 1e-12 * exact
+    assert abs(res.max_abs[0] - CAS.penetration) <= 1e-12 * CAS.penetration
+
+
 def impact_system(xi=0.01):
     """One node on stiff springs (w_r = 2000 rad/s) under lobes that dip below it (c = p =
     1e-4 m): every lobe knocks it inward, it rings down until the next. A periodic orbit of
