@@ -170,6 +170,22 @@ def _datasets(h5: h5py.File) -> dict:
     return found
 
 
+def _content_bytes(ds: h5py.Dataset) -> np.ndarray:
+    """The bytes of a decoded dataset, (n,) uint8. Variable-length strings (object arrays)
+    are hashed by their text, each item prefixed by its length: the bytes of an object
+    array are pointers into this process's memory, different on every read."""
+    if not ds.size:
+        return np.zeros(0, np.uint8)
+    data = ds[()]
+    if ds.dtype.kind == "O":
+        parts = []
+        for item in np.asarray(data, dtype=object).reshape(-1):
+            b = item if isinstance(item, bytes) else str(item).encode()
+            parts += [len(b).to_bytes(8, "little"), b]
+        return np.frombuffer(b"".join(parts), np.uint8)
+    return np.ascontiguousarray(data).reshape(-1).view(np.uint8)
+
+
 def dataset_checksums(h5: h5py.File, names=None) -> dict:
     """{dataset path: checksum} of the datasets of an open file (all, or those named).
 
@@ -192,11 +208,11 @@ def dataset_checksums(h5: h5py.File, names=None) -> dict:
                 ds = found[name]
                 n = ds.id.get_storage_size()
                 offset = ds.id.get_offset() if ds.chunks is None else None
-                if offset is not None and n == ds.size * ds.dtype.itemsize:
+                if offset is not None and ds.dtype.kind != "O" and n == ds.size * ds.dtype.itemsize:
                     buf, start = views[0], offset
                 else:
-                    n = ds.size * ds.dtype.itemsize
-                    data = np.ascontiguousarray(ds[()]).reshape(-1) if ds.size else np.zeros(0, np.uint8)
+                    data = _content_bytes(ds)
+                    n = data.size
                     buf, start = memoryview(data).cast("B"), 0
                     views.append(buf)
                 jobs[name] = [(buf, start + k, min(_BLOCK, n - k)) for k in range(0, n, _BLOCK)]
