@@ -1,0 +1,72 @@
+"""Dynamical content of a periodic solution (section 3.4): which modes and which harmonics
+carry it.
+
+Modal contributions, eqs. (32)-(33): gamma_j(t) = Phi_j^T M x(t) with the ROM's own modes
+(eigenvectors of the ROM's K and M, mass-normalised), and ||gamma_j||_inf,rel =
+max_t |gamma_j| / sum_k max_t |gamma_k| over all n ROM modes, so that the contributions
+of one point sum to 1. The ROM's modes, not the full model's: the HBM solution lives in
+the ROM's n dof, where the ROM's modes are an exact basis (the contributions of all modes
+add up to the whole motion), and the Craig-Bampton ROM reproduces the full model's first
+modes (the ones that matter here, 1B, 2B, 1T, ...) to the accuracy the rom stage reports.
+The ROM is built without rotation effects, so these are the modes at rest.
+
+Harmonic contributions, eq. (34): |c_k| = sqrt(a_k^2 + b_k^2) of the leading-edge radial
+displacement, k = 0 .. N_h (|c_0| = |mean|), in m. In a subharmonic basis (nu > 1) the
+harmonic k oscillates at k Omega / nu.
+"""
+from __future__ import annotations
+
+import numpy as np
+import scipy.linalg as sla
+
+
+
+def rom_modes(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Eigenfrequencies (n,), rad/s, ascending, and mass-normalised mode shapes (n, n)
+    (column j: mode j, Phi^T M Phi = I) of K (n, n), N/m, and M (n, n), kg."""
+    lam, phi = sla.eigh(np.asarray(K, dtype=float), np.asarray(M, dtype=float))
+    return np.sqrt(np.maximum(lam, 0.0)), phi
+
+
+def modal_contributions(x: np.ndarray, M: np.ndarray, modes: np.ndarray) -> np.ndarray:
+    """Relative modal contributions of eqs. (32)-(33), (..., n_modes), summing to 1.
+
+    x: displacement of the ROM dof over one period, (..., N_t, n), m. M: (n, n), kg.
+    modes: mass-normalised mode shapes (n, n_modes) (rom_modes). A motion at rest gives 0.
+    """
+    gamma = np.asarray(x, dtype=float) @ (np.asarray(M, dtype=float) @ modes)  # eq. (32), (..., N_t, n_modes)
+    peak = np.abs(gamma).max(axis=-2)
+    total = peak.sum(axis=-1, keepdims=True)
+    return np.divide(peak, total, out=np.zeros_like(peak), where=total > 0)
+
+
+def harmonic_contributions(coeffs: np.ndarray) -> np.ndarray:
+    """|c_k| of eq. (34), k = 0 .. N_h, (N_h + 1, ...), same unit as coeffs.
+
+    coeffs: harmonics in eq. (5) order [c_0, a_1, b_1, ..., a_Nh, b_Nh], (2 N_h + 1, ...)."""
+    c = np.asarray(coeffs, dtype=float)
+    return np.concatenate([np.abs(c[:1]), np.hypot(c[1::2], c[2::2])], axis=0)
+
+
+def branch_content(residual, rom, unknowns: np.ndarray, omega: np.ndarray,
+                   modes: tuple[np.ndarray, np.ndarray] | None = None) -> dict:
+    """Modal and harmonic contributions at every point of a branch.
+
+    residual: the branch's HarmonicBalanceResidual (hbm.harmonic.residual). rom: RomModel
+    (K, M). unknowns: the points' unknowns, (m, n_u). omega: Omega of each point, (m,), rad/s.
+    modes: rom_modes(rom.K, rom.M) when already computed.
+    Returns {"modal_contribution": (m, n) relative contributions (eq. 33) of the n ROM modes
+    in ascending frequency, "harmonic_contribution": (m, N_h + 1) |c_k| of the LE radial
+    displacement, m (eq. 34), "mode_frequencies": (n,), rad/s}. The max over time is taken
+    on the residual's AFT grid (N_t samples per period).
+    """
+    freq, phi = rom_modes(rom.K, rom.M) if modes is None else modes
+    basis = residual.basis
+    u = np.asarray(unknowns, dtype=float).reshape(len(omega), -1)
+    modal = np.empty((len(u), phi.shape[1]))
+    harmonic = np.empty((len(u), basis.n_harmonics + 1))
+    for i, (ui, wi) in enumerate(zip(u, np.asarray(omega, dtype=float))):
+        full = residual.expand_harmonics(ui, float(wi))  # (2 N_h + 1, n), m
+        modal[i] = modal_contributions(basis.to_time(full), rom.M, phi)
+        harmonic[i] = harmonic_contributions(residual.to_coefficients(ui)[:, 0])
+    return {"modal_contribution": modal, "harmonic_contribution": harmonic, "mode_frequencies": freq}
