@@ -8,12 +8,15 @@ from __future__ import annotations
 
 import time
 
+import numpy as np
+
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
 from pipelines.stages.rom import read_rom, warn_friction_lock
 
 #: Units of the per-point extras that compute_nfrc hands over (hbm.harmonic.nfrc.nfrc_extras).
-EXTRA_UNITS = {"le_amplitude": "m", "le_max": "m", "harmonics": "m"}
+EXTRA_UNITS = {"le_amplitude": "m", "le_max": "m", "harmonics": "m", "modal_contribution": "1",
+               "harmonic_contribution": "m"}
 
 
 #: The contact keys each treatment reads beyond the common ones (mu, and epsilon, which RL's
@@ -54,13 +57,14 @@ def _run_method(ctx: Context, rom, output: Output) -> None:
         except (OSError, ValueError, KeyError) as exc:  # a run killed inside an HDF5 write
             resume, store = None, None
             ctx.progress.warn(f"{part.name} cannot be read ({art.first_line(exc)}): the {method} NFRC starts over")
+    content, mode_frequencies = _content_of(rom, scene, method)
     t0 = time.perf_counter()
     with ctx.progress.step(f"hbm {method}", None) as update:
         def on_point(point, extras):
             nonlocal store
             if store is None:
                 store = BranchStore.create(final, len(point.x), attrs=attrs, units=EXTRA_UNITS)
-            store.append(point, extras)
+            store.append(point, {**extras, **content(point)})
             update(f"\u03a9 = {point.omega:.1f} rad/s, {point.index + 1} points, ds = {point.step:.3g}")
 
         try:
@@ -72,7 +76,7 @@ def _run_method(ctx: Context, rom, output: Output) -> None:
     if store is None:  # not even a start point: still record why, in a complete file
         BranchStore.create(final, result.unknowns.shape[-1] if result.unknowns.ndim == 2 else 0,
                            attrs=attrs, units=EXTRA_UNITS).close()
-    tables = {}
+    tables = {"modes": {"frequencies": (mode_frequencies, "rad/s")}}
     if scene.hbm.stability:  # the bifurcations located along the branch
         from hbm.stability.bifurcation import bifurcation_arrays
 
@@ -81,6 +85,24 @@ def _run_method(ctx: Context, rom, output: Output) -> None:
     ok = int(result.converged.sum())
     ctx.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
             f"status: {result.status}")
+
+
+def _content_of(rom, scene, method: str):
+    """(content, frequencies): content(point) gives the point's modal and harmonic
+    contributions (hbm.harmonic.content, eqs. 32-34), the extras modal_contribution (n,) of
+    the ROM's n modes and harmonic_contribution (N_h + 1,), m; frequencies: those modes'
+    frequencies (n,), rad/s (the table modes/frequencies)."""
+    from hbm.harmonic.content import branch_content, rom_modes
+    from hbm.harmonic.residual import build_residual
+
+    res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
+    modes = rom_modes(rom.K, rom.M)
+
+    def content(point) -> dict:
+        c = branch_content(res, rom, np.asarray(point.x)[None], np.array([point.omega]), modes)
+        return {k: c[k][0] for k in ("modal_contribution", "harmonic_contribution")}
+
+    return content, modes[0]
 
 
 def _nfrc_inputs(scene) -> tuple[str, ...]:

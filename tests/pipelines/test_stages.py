@@ -298,3 +298,27 @@ def test_paraview_files_hold_the_modes_and_the_nfrc_point(tiny):
         # node the recovery is the node's frame, the fixed-interface modes vanish there): 1e-6
         np.testing.assert_allclose(vtu.point_data["displacement"][bnodes], expected, rtol=0,
                                    atol=1e-6 * abs(expected).max())
+
+
+def test_nfrc_files_carry_the_dynamical_content_of_every_point(tiny):
+    """Eqs. (32)-(34) per point: harmonic contributions are the |c_k| of the stored LE radial
+    harmonics, modal contributions of the ROM's modes sum to 1 and the file names the modes'
+    frequencies, which are the ROM's."""
+    from pipelines.branch_store import load_branch
+
+    _, out = tiny
+    stored = load_branch(out / "nfrc_rl.h5")
+    le = stored.extras["harmonics"][:, :, 0]  # (m, 2 N_h + 1), m
+    ref = np.concatenate([np.abs(le[:, :1]), np.hypot(le[:, 1::2], le[:, 2::2])], axis=1)
+    np.testing.assert_allclose(stored.extras["harmonic_contribution"], ref, rtol=1e-12, atol=1e-18)
+    mc = stored.extras["modal_contribution"]
+    np.testing.assert_allclose(mc[stored.branch.converged].sum(axis=1), 1.0, rtol=1e-12)
+    with h5py.File(out / "nfrc_rl.h5") as h5, h5py.File(out / "rom.h5") as rom:
+        f = h5["modes/frequencies"][()]
+        assert h5["modes/frequencies"].attrs["unit"] == "rad/s"
+        np.testing.assert_allclose(f[:6], np.sort(rom["frequencies"][()])[:6], rtol=1e-6)
+    # a two-lobe casing repeats every half revolution: the primary branch (omega = 2 Omega)
+    # has no odd harmonic; between 1900 and 2000 rad/s (2B / 4 = 1946 rad/s) it is 1B and 2B
+    h = stored.extras["harmonic_contribution"]
+    assert h[:, 1::2].max() < 1e-6 * h.max()  # to the Newton tolerance
+    assert np.all(mc[:, :2].sum(axis=1) > 0.85)
