@@ -89,6 +89,28 @@ def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np
     return out
 
 
+def rl_seeds(dlft) -> list[Seed]:
+    """RL's modal seeds from a DLFT search (hbm.isolas.search.IsolaSearch on the same ROM,
+    N_h and options): every distinct converged DLFT solution of a modal seed, on DLFT's
+    primary or not, origin suffixed " via DLFT".
+
+    Why: from eq. (31)'s raw seeds RL's stiff penalty (kappa = 1e9 N/m) makes Newton cost
+    3 to 6 s per seed on the coarse rotor 67 ROM at N_h = 40 (GMRES stalls, dense
+    fall-backs), against ~0.5 s for DLFT, and almost none converge; DLFT's solutions are
+    close to RL's wherever both laws have one (the same correction the NFRC's RL start uses,
+    hbm.harmonic.start). Those on DLFT's primary are kept: where RL's branch is cut off
+    from its primary, its piece lies next to DLFT's primary (the paper's Fig. 6, frames
+    i-iii). Not from DLFT: the time-integration seeds, which RL also gets.
+    """
+    c = dlft.corrections
+    out = []
+    for i in np.flatnonzero(c.converged & (c.same_as < 0)):
+        sd = dlft.seeds[i]
+        if sd.origin.startswith("modal"):
+            out.append(Seed(sd.omega, np.array(c.x[i]), f"{sd.origin} via DLFT"))
+    return out
+
+
 #: Periodicity classes of the time-integration points used as seeds: omega = n_l Omega and
 #: omega = Omega, both periodic over one revolution (the nu = 1 basis holds them)
 TI_CLASSES = (PeriodClass.CASING, PeriodClass.REVOLUTION)

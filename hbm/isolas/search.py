@@ -477,12 +477,23 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
 
     if comm is None:
         found, owner, n_cont, n_pts, cpu2 = branches_phase()
-    else:  # rank 0 continues, the others wait (idle) for its branches
-        value = branches_phase() if comm.rank == 0 else None
+    else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
+        value, error = None, None
+        if comm.rank == 0:
+            try:
+                value = branches_phase()
+            except BaseException as exc:  # noqa: BLE001 - relayed to the other ranks, then re-raised
+                error = exc
         req = comm.Ibarrier()
         while not req.Test():
             time.sleep(0.02)
-        found, owner, n_cont, n_pts, cpu2 = comm.bcast(value, root=0)
+        ok, payload = comm.bcast((error is None, value if error is None else f"{type(error).__name__}: {error}"),
+                                 root=0)
+        if error is not None:
+            raise error
+        if not ok:
+            raise RuntimeError(f"rank 0 failed while continuing the branches: {payload}")
+        found, owner, n_cont, n_pts, cpu2 = payload
     seed_branch = np.full(len(seeds), NOT_CONVERGED, np.int64)
     c = corrections
     for i in range(len(seeds)):

@@ -1,7 +1,8 @@
 """Stage isolas: the search for the branches the primary NFRC misses (isolas.h5).
 
 Per contact treatment: seeds from eq. (31) and from the periodic time-integration points
-(ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). Every branch is
+(ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). With both
+treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_seeds). Every branch is
 written to isolas.partial.h5 as soon as it is finished (and the seeds' corrections once
 done); an interrupted run of the same inputs resumes from them without recomputing. The
 final file is written atomically.
@@ -115,11 +116,11 @@ def _read_found(group):
 
 
 def _write_corrections(group, c) -> None:
-    cand = c.candidates()
+    kept = np.flatnonzero(c.converged & (c.same_as < 0))  # the distinct solutions (RL seeds from DLFT's)
     for name in ("converged", "iterations", "on_known", "same_as"):
         group.create_dataset(name, data=getattr(c, name)).attrs["unit"] = "1"
-    group.create_dataset("candidates", data=cand).attrs["unit"] = "1"
-    group.create_dataset("candidate_x", data=c.x[cand]).attrs["unit"] = "1"
+    group.create_dataset("kept", data=kept).attrs["unit"] = "1"
+    group.create_dataset("kept_x", data=c.x[kept]).attrs["unit"] = "1"
     group.attrs["cpu_time"] = float(c.cpu_time)
 
 
@@ -127,7 +128,7 @@ def _read_corrections(group):
     from hbm.isolas.search import Corrections
 
     conv = group["converged"][()].astype(bool)
-    cand, xc = group["candidates"][()], group["candidate_x"][()]
+    cand, xc = group["kept"][()], group["kept_x"][()]
     X = np.full((len(conv), xc.shape[1] if xc.ndim == 2 else 0), np.nan)
     X[cand] = xc
     return Corrections(conv, group["iterations"][()], group["on_known"][()], group["same_as"][()], X,
@@ -247,7 +248,8 @@ def _known(out, method: str):
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the seeds' Newton corrections are shared among the ranks, rank 0
     continues the branches and writes."""
-    from hbm.isolas.harmonic import HbmProblem, describe, dominant_harmonic, modal_seeds, search_options, ti_seeds
+    from hbm.isolas.harmonic import (HbmProblem, describe, dominant_harmonic, modal_seeds, rl_seeds, search_options,
+                                     ti_seeds)
     from hbm.isolas.search import search
     from pipelines.branch_store import partial_path
     from pipelines.parallel import is_root, on_root, world
@@ -270,11 +272,14 @@ def _compute(ctx: Context, outputs) -> None:
     opts = search_options(hbm, iso)
     final = out / ISOLAS.file
     partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
-    results = {}
-    for method in hbm.methods:
+    results = {}  # method -> (IsolaSearch, nu, status, cpu, wall), in hbm.methods' order when written
+    for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
         problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
         res, _ = problem()
-        seeds = modal_seeds(res, rom, iso, omegas)
+        if method == "rl" and "dlft" in results:
+            seeds = rl_seeds(results["dlft"][0])
+        else:
+            seeds = modal_seeds(res, rom, iso, omegas)
         if sweep is not None:
             seeds += ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes)
         known, bif = _known(out, method)
