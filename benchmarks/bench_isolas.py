@@ -81,7 +81,7 @@ def main():
         t_seeds = {}
 
         def on_progress(phase, done, total):
-            if phase == "seeds" and done == total:
+            if phase == "seeds" and (done == total or done % 500 < 120 and done > 0 and print(f"  [{time.perf_counter() - t0:.0f} s] seeds {done}/{total}", flush=True)):
                 t_seeds["wall"] = time.perf_counter() - t0
             if phase == "branches":
                 print(f"  [{time.perf_counter() - t0:.0f} s] branches: candidate {done}/{total}", flush=True)
