@@ -40,11 +40,15 @@ def test_layout(searched):
                 assert k in g.attrs, k
             s = g["seeds"]
             n = int(g.attrs["n_seeds"])
-            assert n >= 2  # the 2 modal seeds, plus the sweep's periodic points
+            assert n >= 1  # DLFT: the 2 modal seeds, RL: DLFT's solutions of them; plus the sweep's periodic points
             for k in ("omega", "origin", "converged", "branch"):
                 assert s[k].shape == (n,), k
             origins = [o.decode() for o in s["origin"][()]]
-            assert origins[:2] == ["modal j=1 k=2 A=0.001"] * 2
+            if method == "dlft":
+                assert origins[:2] == ["modal j=1 k=2 A=0.001"] * 2
+            else:  # RL's modal seeds: DLFT's converged ones (hbm.isolas.harmonic.rl_seeds)
+                modal = [o for o in origins if o.startswith("modal")]
+                assert modal == ["modal j=1 k=2 A=0.001 via DLFT"] * int(h5["dlft"]["seeds"]["converged"][:2].sum())
             assert int(s["converged"][()].sum()) == int(g.attrs["n_converged"])
             br = s["branch"][()]
             assert ((br >= -2) & (br < int(g.attrs["n_branches"]))).all()
@@ -60,6 +64,25 @@ def test_layout(searched):
         assert conv.all() and (br == -2).all(), (conv, br)
         for method in ("dlft", "rl"):
             assert len(found[method]) == int(h5[method].attrs["n_branches"])
+
+
+def test_the_sweep_keeps_the_boundary_state_and_seeds_from_it(searched):
+    """ti.h5 keeps every boundary dof over the last revolution (the LE radial one is the
+    last revolution of the LE signal), and DLFT's Newton from those states lands on the
+    primary NFRC at every periodic speed (the only solution there)."""
+    from pipelines.stages.ti import read_sweep
+
+    _, out = searched
+    sw = read_sweep(out)
+    assert sw.boundary.shape == (4, 64, 27)  # 4 speeds, 64 samples per revolution, 3 x 9 dof
+    np.testing.assert_array_equal(sw.boundary[:, :, 0], sw.displacement[:, -64:, 0])
+    np.testing.assert_array_equal(sw.boundary[:, :, -3], sw.displacement[:, -64:, 1])  # TE radial
+    with h5py.File(out / "isolas.h5") as h5:
+        s = h5["dlft"]["seeds"]
+        ti = np.array([o.decode().startswith("ti class") for o in s["origin"][()]])
+        periodic = np.isin(sw.period_class, (0, 1)).sum()
+        assert ti.sum() == periodic > 0
+        assert s["converged"][()][ti].all() and (s["branch"][()][ti] == -2).all()
 
 
 def test_branch_layout(searched):
