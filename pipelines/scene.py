@@ -24,6 +24,7 @@ from pathlib import Path
 
 from fem.material import Material
 from fem.options import FemOptions
+from hbm.isolas.options import IsolaOptions
 from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions
 from mesh.options import BladeOptions, MeshOptions
 from rom.options import RomOptions
@@ -44,6 +45,7 @@ SECTIONS: dict[str, type] = {
     "contact": ContactOptions,
     "hbm": HbmOptions,
     "ti": TimeIntegrationOptions,
+    "isolas": IsolaOptions,
     "render": RenderOptions,
     "limits": LimitOptions,
 }
@@ -65,6 +67,7 @@ class Scene:
     contact: ContactOptions
     hbm: HbmOptions
     ti: TimeIntegrationOptions
+    isolas: IsolaOptions
     render: RenderOptions
     limits: LimitOptions
 

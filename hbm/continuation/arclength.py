@@ -25,8 +25,9 @@ from typing import Callable, NamedTuple
 
 import numpy as np
 
-from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN,
-                                     STATUS_START_FAILED, STATUS_STEP_FLOOR, Branch, ContinuationPoint)
+from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_CRAWL, STATUS_MAX_POINTS, STATUS_OMEGA_MAX,
+                                     STATUS_OMEGA_MIN, STATUS_START_FAILED, STATUS_STEP_FLOOR, Branch,
+                                     ContinuationPoint)
 from hbm.continuation.newton import NewtonOptions, NewtonResult, Residual, newton_iterate, newton_solve
 from hbm.linalg.dense import DirectSolver
 from hbm.linalg.errors import SingularMatrixError
@@ -74,6 +75,10 @@ class ContinuationOptions:
       beyond the last: its error is O(ds^3) instead of O(ds^2), which saves about one
       Newton iteration per point on smooth parts; the secant still gives the direction
       for the max_turn_deg test, and the first steps use it).
+    crawl_points: end the branch (STATUS_CRAWL) after this many successive points taken
+      with a step below crawl_ratio ds_min; None (the default): never. A branch that
+      creeps along at the floor for long costs many corrections for little arc length
+      (searches over many branches, hbm.isolas, cap it).
     """
 
     omega_min: float
@@ -97,6 +102,8 @@ class ContinuationOptions:
     closed_loop_tol: float | None = 1e-2
     land_on_bounds: bool = True
     predictor: str = "secant"
+    crawl_points: int | None = None
+    crawl_ratio: float = 4.0
 
     def __post_init__(self):
         if not self.omega_min < self.omega_max:
@@ -117,6 +124,8 @@ class ContinuationOptions:
             raise ValueError(f"max_turn_deg must be in (0, 180], got {self.max_turn_deg}")
         if not 0 < self.turn_shrink_deg <= 180:
             raise ValueError(f"turn_shrink_deg must be in (0, 180], got {self.turn_shrink_deg}")
+        if self.crawl_points is not None and self.crawl_points < 1:
+            raise ValueError(f"crawl_points must be >= 1 or None, got {self.crawl_points}")
 
     def next_step(self, ds: float, iterations: int, turn_deg: float = 0.0) -> float:
         """Step after a correction that converged in `iterations` with step `ds` and turned
@@ -346,6 +355,7 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
 
     armed = any(far(p.x) for p in points)
+    crawl = 0  # successive points taken at a step below crawl_ratio ds_min
     trail = _Trail(n)
     for p in points:
         trail.add(p)
@@ -406,6 +416,7 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             return done(STATUS_OMEGA_MAX if bound == opt.omega_max else STATUS_OMEGA_MIN)
 
         trail.add(emit(x_new, w_new, True, rn, it, step, t0))
+        crawl = crawl + 1 if step < opt.crawl_ratio * opt.ds_min else 0
         armed = armed or far(x_new)
         crossed = (last.omega < ref_w <= w_new) or (last.omega > ref_w >= w_new)
         if armed and last.index >= 1 and crossed:  # eq. (26)-(27)
@@ -414,4 +425,7 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             if d_int < d_min:
                 return done(STATUS_CLOSED_LOOP, f"d_int={d_int:.3e} < {d_min:.3e} "
                                                 f"between points {last.index} and {last.index + 1}")
+        if opt.crawl_points is not None and crawl >= opt.crawl_points:
+            return done(f"{STATUS_CRAWL}: {crawl} successive points with ds < {opt.crawl_ratio:g} ds_min "
+                        f"near omega={w_new:.6g}")
         ds = opt.next_step(step, it, turn)

@@ -12,6 +12,7 @@ STATUS_CLOSED_LOOP = "closed loop"
 STATUS_MAX_POINTS = "max points reached"
 STATUS_STEP_FLOOR = "step below floor"  # followed by ": <why the last correction failed>"
 STATUS_START_FAILED = "start point did not converge"  # followed by ": <why>"
+STATUS_CRAWL = "crawled at the step floor"  # followed by ": <n> points ..."
 
 
 class ContinuationPoint(NamedTuple):

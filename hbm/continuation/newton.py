@@ -44,6 +44,8 @@ class NewtonOptions:
     max_iter: int = 12
     line_search: bool = False
     max_halvings: int = 8
+    stall_iterations: int | None = None
+    stall_factor: float = 0.1
 
     def __post_init__(self):
         if not (self.tol_residual > 0 and math.isfinite(self.tol_residual)):
@@ -54,6 +56,10 @@ class NewtonOptions:
             raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
         if self.max_halvings < 0:
             raise ValueError(f"max_halvings must be >= 0, got {self.max_halvings}")
+        if self.stall_iterations is not None and self.stall_iterations < 1:
+            raise ValueError(f"stall_iterations must be >= 1 or None, got {self.stall_iterations}")
+        if not 0 < self.stall_factor <= 1:
+            raise ValueError(f"stall_factor must be in (0, 1], got {self.stall_factor}")
 
 
 class NewtonResult(NamedTuple):
@@ -83,6 +89,8 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
     y = np.array(y0, dtype=float)
     step_norm = math.inf
     rn = math.nan
+    history = []
+    k = options.stall_iterations
     for it in range(options.max_iter + 1):
         rn, step = linearise(y)
         if not math.isfinite(rn):
@@ -90,6 +98,11 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
         step_ok = options.tol_step is None or (it > 0 and step_norm <= options.tol_step)
         if rn <= options.tol_residual and step_ok:
             return NewtonResult(y, True, rn, it, "")
+        history.append(rn)
+        if k is not None and len(history) > k and min(history[-k:]) > options.stall_factor * min(history[:-k]):
+            return NewtonResult(y, False, rn, it, f"stalled{where}: ||R|| {min(history[-k:]):.3e} after {k} more "
+                                                  f"iterations, not below {options.stall_factor:g} x "
+                                                  f"{min(history[:-k]):.3e}")
         if it == options.max_iter:
             break
         try:

@@ -58,6 +58,7 @@ class SpeedResponse:
     revolutions: int = field(metadata={"unit": "1"})
     transient_bound: float = field(metadata={"unit": "1"})
     cpu_time: float = field(metadata={"unit": "s"})
+    boundary: np.ndarray | None = field(default=None, metadata={"unit": "m"})
 
 
 @dataclass(frozen=True)
@@ -88,6 +89,11 @@ class SweepResult:
         (hbm.ti.settle), (n_omega,), -; <= settle_rtol where the march stopped early, inf where
         no period was found.
     cpu_time: wall time of each point in its worker, (n_omega,), s.
+    boundary: every boundary dof (r, theta, z of each contact node, node-major, the HBM's
+        order) over the last revolution of the window, samples_per_revolution samples from
+        a whole revolution (Omega t = 0 mod 2 pi), (n_omega, samples_per_revolution, 3 n_b),
+        m: the state an HBM solution can be started from (hbm.isolas); None in files written
+        before it was kept.
     """
 
     omega: np.ndarray = field(metadata={"unit": "rad/s"})
@@ -107,6 +113,7 @@ class SweepResult:
     revolutions: np.ndarray = field(metadata={"unit": "1"})
     transient_bound: np.ndarray = field(metadata={"unit": "1"})
     cpu_time: np.ndarray = field(metadata={"unit": "s"})
+    boundary: np.ndarray | None = field(default=None, metadata={"unit": "m"})
 
 
 def steps_per_revolution(omega: float, dt: float, multiple: int) -> int:
@@ -128,10 +135,13 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
     n_max = options.n_revolutions
     sub_stride = n_rev // (n_l * SUBSECTIONS)
     # every revolution from the first is recorded: where the window ends is known only at the end.
+    # All 3 n_b boundary dof are recorded (the last revolution seeds the isola search; LE and
+    # TE radial are dof 0 and 3 (n_b - 1)); at a sample per 1/spr revolution this costs
+    # nothing next to the steps.
     # Recording positions count from step n_rev: sample i at n_rev + i stride, extreme block b
     # covers steps (b + 1) n_rev .. (b + 2) n_rev - 1 (revolution b + 1 and its end point).
     rec = Recording(start=n_rev, stride=n_rev // spr, n_samples=(n_max - 1) * spr + 1,
-                    dofs=np.array([0, 3 * (nb - 1)]), force_nodes=np.arange(nb),
+                    dofs=np.arange(3 * nb), force_nodes=np.arange(nb),
                     section_stride=sub_stride, extreme_stride=n_rev)
     zero = np.zeros(system.n_dof)
     marcher = Marcher(system, casing, mu, omega, zero, zero, dt, n_max * n_rev, rec)
@@ -169,15 +179,18 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
     rmax, rmin = ext[:, 0].max(axis=0), ext[:, 1].min(axis=0)
     per = verdict.periodicity
     samples = slice(w0 * spr, (w0 + n_keep) * spr)
+    last = slice((w0 + n_keep - 1) * spr, (w0 + n_keep) * spr)
+    nb = m.displacement.shape[1] // 3
     n_sub = (revs - 1) * n_l * SUBSECTIONS + 1
     sections = m.sections[n_sub - 1 - n_keep * n_l * SUBSECTIONS:n_sub:SUBSECTIONS]
     return SpeedResponse(
         omega=float(omega), amplitude=0.5 * float(rmax[0] - rmin[0]), max_abs=float(max(rmax[0], -rmin[0])),
         period_class=int(per.code), period=per.period, order=per.order, mismatch=per.mismatch, dt=m.dt,
-        times=m.times[samples], displacement=m.displacement[samples],
+        times=m.times[samples], displacement=m.displacement[samples][:, [0, 3 * (nb - 1)]],
         normal_force=m.normal_force[samples][:, [0, -1]],
         sections=sections, contact_fraction=m.contact_steps / (revs * n_rev), max_penetration=m.max_penetration,
-        revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start)
+        revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start,
+        boundary=np.array(m.displacement[last]))
 
 
 def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,

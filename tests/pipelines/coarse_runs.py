@@ -8,9 +8,10 @@ from support import coarse_text
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: [hbm] and [ti] of a clone's scene: a short NFRC (~5 s per treatment) and a 4-speed sweep of
-#: 20 revolutions at dt = 4e-7 s (the coarse ROM's stability limit is 8.9e-7 s; the validation
-#: stage's 100 periods use the same dt); mesh, fem and rom do not depend on them.
+#: [hbm], [ti] and [isolas] of a clone's scene: a short NFRC (~5 s per treatment), a 4-speed
+#: sweep of 20 revolutions at dt = 4e-7 s (the coarse ROM's stability limit is 8.9e-7 s; the
+#: validation stage's 100 periods use the same dt) and an isola search from 2 modal seeds and
+#: the sweep's periodic points; mesh, fem and rom do not depend on them.
 SHORT = """[hbm]
 methods = ["dlft", "rl"]
 n_harmonics = 5
@@ -27,6 +28,12 @@ omega_max = 2000.0
 n_omega = 4
 samples_per_revolution = 64
 
+[isolas]
+n_modes = 1
+harmonics = [2]
+amplitudes = [1e-3]
+n_omega = 2
+
 """
 
 
@@ -36,7 +43,7 @@ def coarse_scene_text() -> str:
     return text[: text.index("[hbm]")] + SHORT + text[text.index("[render]"):]
 
 
-ARTIFACTS = ("mesh.h5", "fem.h5", "rom.h5", "nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5")
+ARTIFACTS = ("mesh.h5", "fem.h5", "rom.h5", "nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "isolas.h5", "validation.h5")
 
 
 def clone(src: Path, dst: Path, copy=(), link=True) -> Path:

@@ -29,6 +29,12 @@ n_keep = 5
 omega_min = 1900.0
 omega_max = 2000.0
 n_omega = 2
+
+[isolas]
+n_modes = 1
+harmonics = [2]
+amplitudes = [1e-3]
+n_omega = 2
 """
 
 
@@ -108,13 +114,13 @@ def test_render_settings_never_recompute_the_fem(tiny, tmp_path):
 
 def test_harmonics_rerun_the_hbm_but_never_the_sweep(tiny, tmp_path):
     rec, changed = _changed(tiny, tmp_path, "n_harmonics = 5", "n_harmonics = 4")
-    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5", "validation.h5"}
+    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5", "isolas.h5", "validation.h5"}
     assert rec["ti"] == ("reused", "up to date")
 
 
 def test_penalty_stiffness_reruns_rl_only(tiny, tmp_path):
     rec, changed = _changed(tiny, tmp_path, "kappa = 1e9", "kappa = 2e9")
-    assert changed == {"nfrc_rl.h5", "validation.h5"}
+    assert changed == {"nfrc_rl.h5", "isolas.h5", "validation.h5"}  # one isolas.h5 for both treatments
     assert "contact.kappa" in rec["hbm"][1] and "nfrc_dlft" not in rec["hbm"][1]
 
 
@@ -189,10 +195,11 @@ def test_friction_set_on_the_command_line_reruns_both_treatments_and_the_sweep(t
     assert main(["run", str(scene), "--out", str(out), "--set", "contact.mu=0.1"]) == 0
     printed = capsys.readouterr().out
     after = {p.name: p.read_bytes() for p in out.glob("*.h5")}
-    assert {k for k in before if before[k] != after[k]} == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5"}
+    assert {k for k in before if before[k] != after[k]} == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "isolas.h5",
+                                                           "validation.h5"}
     for s in ("mesh", "fem", "rom"):
         assert f"[{s}] up to date" in printed, printed
-    for s in ("hbm", "ti", "validation"):  # validation depends on the whole [contact] section
+    for s in ("hbm", "ti", "isolas", "validation"):  # isolas, validation: the whole [contact] section
         assert f"[{s}] running (" in printed and "contact" in printed.split(f"[{s}] running (")[1].split("\n")[0]
     # the artifacts made by this run carry the resolved scene with the override
     text = art.read_attrs(out / "nfrc_dlft.h5")["scene"]

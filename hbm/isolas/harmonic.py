@@ -1,0 +1,179 @@
+"""The isola search on the HBM residual of the rotor blade: problem factory, seeds, per-point data.
+
+Unknowns: the HBM's scaled condensed boundary harmonics u = alpha x~_r (eq. (5) order,
+hbm.harmonic.residual), so seeds are built as boundary harmonics in m and scaled with the
+residual's to_unknowns.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+
+import numpy as np
+import scipy.linalg as sla
+
+from hbm.continuation.newton import NewtonOptions
+from hbm.harmonic.nfrc import default_continuation, nfrc_extras
+from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
+from hbm.harmonic.solver import HbmSolver
+from hbm.isolas.options import IsolaOptions
+from hbm.isolas.search import SearchOptions, Seed
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from hbm.ti.periodicity import PeriodClass
+
+
+@dataclass(frozen=True)
+class HbmProblem:
+    """Picklable factory of (residual, solver) for hbm.isolas.search: the HBM residual of one
+    contact treatment and the NFRC's LinearSolver (GMRES on the structured Jacobian, atol a
+    tenth of Newton's tolerance, as compute_nfrc)."""
+
+    rom: object
+    casing: CasingOptions
+    contact: ContactOptions
+    hbm: HbmOptions
+    method: str
+
+    def __call__(self) -> tuple[HarmonicBalanceResidual, HbmSolver]:
+        res = build_residual(self.rom, self.casing, self.contact, self.hbm, method=self.method)
+        return res, HbmSolver(atol=0.1 * self.hbm.tolerance)
+
+
+def search_options(hbm: HbmOptions, iso: IsolaOptions) -> SearchOptions:
+    """The search's settings: the NFRC's continuation (hbm.harmonic.nfrc.default_continuation)
+    on the isolas' omega range, with max_points and crawl_points per half branch; the
+    seeds' Newton with backtracking and newton_iterations iterations, given up once three
+    iterations in a row fail to lower the best ||R|| tenfold (hbm.continuation.newton
+    stall_iterations: most seeds never converge; this makes them cost ~4 iterations)."""
+    lo, hi = iso.omega_range(hbm)
+    co = replace(default_continuation(hbm), omega_min=lo, omega_max=hi, max_points=iso.max_points,
+                 crawl_points=iso.crawl_points)
+    newton = NewtonOptions(tol_residual=hbm.tolerance, max_iter=iso.newton_iterations, line_search=True,
+                           max_halvings=4, stall_iterations=3, stall_factor=0.1)
+    return SearchOptions(tolerance=iso.tolerance, continuation=co, newton=newton, workers=iso.workers)
+
+
+def boundary_modes(rom, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
+    """The first n_modes modes of the ROM (K, M): (frequencies (n_modes,) rad/s, boundary
+    part (n_modes, 3 n_b)), each scaled to a largest radial displacement of 1 (m per unit)
+    over the contact nodes, its sign making that largest one positive."""
+    n = min(n_modes, rom.K.shape[0])
+    if n == 0:
+        return np.zeros(0), np.zeros((0, 3 * rom.n_boundary))
+    lam, phi = sla.eigh(rom.K, rom.M, subset_by_index=[0, n - 1])
+    b = phi[: 3 * rom.n_boundary].T.copy()  # (n, 3 n_b)
+    for j in range(n):
+        r = b[j, 0::3]
+        k = int(np.argmax(np.abs(r)))
+        b[j] /= r[k] if r[k] != 0 else np.abs(b[j]).max()
+    return np.sqrt(np.maximum(lam, 0.0)), b
+
+
+def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np.ndarray) -> list[Seed]:
+    """Eq. (31): x0(t) = A rho_tip Phi_j cos(k omega t) for every omega of the grid (rad/s),
+    mode j < n_modes, harmonic k of iso.harmonics within the residual's N_h (of the basis'
+    fundamental Omega / nu), amplitude A of iso.amplitudes (rho_tip: mean radius of the
+    contact nodes, m; Phi_j: boundary_modes). Origins read "modal j=2 k=4 A=3.2e-03" (j from 1)."""
+    _, phi = boundary_modes(rom, iso.n_modes)
+    rho_tip = float(np.mean(rom.rho))
+    nh = res.basis.n_harmonics
+    out = []
+    for w in omegas:
+        for j, shape in enumerate(phi):
+            for k in iso.harmonics:
+                if k > nh:
+                    continue
+                for a in iso.amplitudes:
+                    xr = np.zeros((res.n_c, res.n_r))
+                    xr[2 * k - 1] = a * rho_tip * shape  # the cosine of harmonic k, eq. (5) order
+                    out.append(Seed(float(w), res.to_unknowns(xr), f"modal j={j + 1} k={k} A={a:.2g}"))
+    return out
+
+
+def rl_seeds(dlft) -> list[Seed]:
+    """RL's modal seeds from a DLFT search (hbm.isolas.search.IsolaSearch on the same ROM,
+    N_h and options): every distinct converged DLFT solution of a modal seed, on DLFT's
+    primary or not, origin suffixed " via DLFT".
+
+    Why: from eq. (31)'s raw seeds RL's stiff penalty (kappa = 1e9 N/m) makes Newton cost
+    3 to 6 s per seed on the coarse rotor 67 ROM at N_h = 40 (GMRES stalls, dense
+    fall-backs), against ~0.5 s for DLFT, and almost none converge; DLFT's solutions are
+    close to RL's wherever both laws have one (the same correction the NFRC's RL start uses,
+    hbm.harmonic.start). Those on DLFT's primary are kept: where RL's branch is cut off
+    from its primary, its piece lies next to DLFT's primary (the paper's Fig. 6, frames
+    i-iii). Not from DLFT: the time-integration seeds, which RL also gets.
+    """
+    c = dlft.corrections
+    out = []
+    for i in np.flatnonzero(c.converged & (c.same_as < 0)):
+        sd = dlft.seeds[i]
+        if sd.origin.startswith("modal"):
+            out.append(Seed(sd.omega, np.array(c.x[i]), f"{sd.origin} via DLFT"))
+    return out
+
+
+#: Periodicity classes of the time-integration points used as seeds: omega = n_l Omega and
+#: omega = Omega, both periodic over one revolution (the nu = 1 basis holds them)
+TI_CLASSES = (PeriodClass.CASING, PeriodClass.REVOLUTION)
+
+
+def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, float], n_lobes: int) -> list[Seed]:
+    """A seed from every periodic time-integration point of class omega = n_l Omega or
+    omega = Omega within omega_range (rad/s): the harmonics of its boundary dof over its
+    last revolution (sweep.boundary, (n_omega, n_s, 3 n_b), m; samples from Omega t = 0),
+    least-squares fitted on the residual's N_h (of Omega / nu). [] when the sweep holds no
+    boundary states (a ti.h5 written before they were kept)."""
+    B = getattr(sweep, "boundary", None)
+    if B is None:
+        return []
+    B = np.asarray(B, dtype=float)
+    n_s = B.shape[1]
+    tau = 2 * np.pi * np.arange(n_s) / n_s / res.nu  # basis angle Omega t / nu of each sample
+    nh = min(res.basis.n_harmonics, (n_s - 1) // 2)
+    cols = [np.ones(n_s)]
+    for k in range(1, nh + 1):
+        cols += [np.cos(k * tau), np.sin(k * tau)]
+    E = np.column_stack(cols)  # (n_s, 2 nh + 1)
+    out = []
+    for i, (w, c) in enumerate(zip(sweep.omega, sweep.period_class)):
+        if int(c) not in TI_CLASSES or not omega_range[0] <= w <= omega_range[1] or res.nu != 1:
+            continue
+        coef = np.linalg.lstsq(E, B[i], rcond=None)[0]  # (2 nh + 1, 3 n_b)
+        xr = np.zeros((res.n_c, res.n_r))
+        xr[: len(coef)] = coef
+        label = PeriodClass(int(c)).label(n_lobes).replace(" ", "")
+        out.append(Seed(float(w), res.to_unknowns(xr), f"ti class {label} Omega={w:.6g}"))
+    return out
+
+
+def describe(res: HarmonicBalanceResidual, stability: bool):
+    """describe(omega (m,), u (m, n_u)) for hbm.isolas.search: le_amplitude (m,) m and
+    harmonics (m, 2 N_h + 1, 3 n_b) m (hbm.harmonic.nfrc.nfrc_extras); with stability,
+    stable (m,) bool and n_unstable (m,) int from the Floquet analysis of every point
+    (hbm.stability.spectrum.orbit_spectrum)."""
+    def run(omega, u):
+        ex = [nfrc_extras(res, x) for x in u]
+        out = {"le_amplitude": np.array([e["le_amplitude"] for e in ex]),
+               "harmonics": np.array([e["harmonics"] for e in ex])}
+        if stability:
+            from hbm.stability.spectrum import orbit_spectrum
+
+            n_un = []
+            for w, x in zip(omega, u):
+                spec, _ = orbit_spectrum(res, x, float(w))
+                n_un.append(spec.n_unstable)
+            out["n_unstable"] = np.array(n_un, dtype=np.int64)
+            out["stable"] = out["n_unstable"] == 0
+        return out
+
+    return run
+
+
+def dominant_harmonic(harmonics: np.ndarray) -> int:
+    """The harmonic k >= 1 (of the basis) with the largest mean amplitude of the LE radial
+    displacement over a branch's points; harmonics (m, 2 N_h + 1, 3 n_b), m."""
+    h = np.asarray(harmonics, dtype=float)
+    if h.ndim != 3 or h.shape[0] == 0:
+        return 0
+    r = h[:, :, 0]
+    amp = np.hypot(r[:, 1::2], r[:, 2::2])  # (m, N_h)
+    return int(np.argmax(np.nanmean(amp, axis=0))) + 1

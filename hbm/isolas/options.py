@@ -1,0 +1,84 @@
+"""Options of the isola search (scene section [isolas])."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class IsolaOptions:
+    """The isola search (hbm.isolas.search) on the HBM residual.
+
+    n_modes: modal seeds use the first n_modes modes Phi_j of the ROM (K, M), eq. (31).
+      Default 4: the paper's isolas respond on 1B, 2B, 1T and the 4th mode.
+    harmonics: the harmonics k of the seeds x0(t) = A Phi_j cos(k Omega t) (k <= N_h are
+      used). Default 1..10: the paper's engine orders (its isola 1 carries k = 4 and 10).
+    amplitudes: the dimensionless amplitudes A. A is the largest radial tip displacement
+      of the seed divided by the tip radius (the mean radius of the contact nodes): Phi_j is
+      scaled to a unit largest radial displacement over the contact nodes, then by A rho_tip.
+      Default a log grid over [1e-3, 1e-2] (three points): on rotor 67 (rho_tip = 0.243 m)
+      that is 0.24 to 2.4 mm, the LE amplitudes seen along the primary NFRC (0.3 to 2.4 mm,
+      Fig. 6), which is how the paper chose its range.
+    n_omega: points of the seeds' Omega grid (evenly spaced over the range). Default 41 (the
+      paper's 40 rad/s spacing over [400, 2000]).
+    omega_min, omega_max: range of the seeds and of the branches' continuation, rad/s;
+      None: the [hbm] range.
+    tolerance: a converged solution (u, Omega) lies on a known branch when its distance to
+      the branch's polyline in the continuation's scaled variables (u, the scaled unknowns
+      alpha x~ ~ 1 per clearance; Omega / 100 rad/s) is below this, or when Newton at that
+      Omega from the polyline's nearest point lands within tolerance / 100 of it. Default
+      1e-2: 1 % of the casing clearance (4 um) in the tip displacement at the same Omega.
+    max_points: most points of each half branch (each direction from a seed). Default 600:
+      the longest closed branch of the coarse rotor 67 search has ~300 points.
+    crawl_points: a half branch ends after this many successive points at a step below 4
+      ds_min (status "crawled at the step floor"): such stretches cost a correction per
+      ~1e-5 of arc length. Default 30.
+    newton_iterations: Newton iterations allowed per seed (with backtracking): most seeds
+      fail or converge fast; a cap keeps the failing ones cheap. Default 12.
+    ti_seeds: also seed from every periodic time-integration point (ti.h5) of class
+      omega = n_l Omega and omega = Omega.
+    workers: processes for the seeds' Newton corrections; None: every core this process
+      may use (os.sched_getaffinity). Under mpirun the ranks share the seeds instead.
+    """
+
+    n_modes: int = 4
+    harmonics: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
+    amplitudes: tuple[float, ...] = (1e-3, 3.1622776601683794e-3, 1e-2)
+    n_omega: int = 41
+    omega_min: float | None = None
+    omega_max: float | None = None
+    tolerance: float = 1e-2
+    max_points: int = 600
+    crawl_points: int = 30
+    newton_iterations: int = 12
+    ti_seeds: bool = True
+    workers: int | None = None
+
+    def __post_init__(self):
+        if self.n_modes < 0:
+            raise ValueError(f"n_modes must be >= 0, got {self.n_modes}")
+        if any(int(k) != k or k < 1 for k in self.harmonics):
+            raise ValueError(f"harmonics must be integers >= 1, got {list(self.harmonics)}")
+        if any(not (a > 0 and math.isfinite(a)) for a in self.amplitudes):
+            raise ValueError(f"amplitudes must be > 0, got {list(self.amplitudes)}")
+        if self.n_omega < 1:
+            raise ValueError(f"n_omega must be >= 1, got {self.n_omega}")
+        lo, hi = self.omega_min, self.omega_max
+        if (lo is not None and lo <= 0) or (hi is not None and hi <= 0) or (lo is not None and hi is not None
+                                                                            and not lo < hi):
+            raise ValueError(f"need 0 < omega_min < omega_max, got {lo}, {hi}")
+        if not self.tolerance > 0:
+            raise ValueError(f"tolerance must be > 0, got {self.tolerance}")
+        if self.max_points < 2:
+            raise ValueError(f"max_points must be >= 2, got {self.max_points}")
+        if self.crawl_points < 1:
+            raise ValueError(f"crawl_points must be >= 1, got {self.crawl_points}")
+        if self.newton_iterations < 1:
+            raise ValueError(f"newton_iterations must be >= 1, got {self.newton_iterations}")
+        if self.workers is not None and self.workers < 1:
+            raise ValueError(f"workers must be >= 1 or unset, got {self.workers}")
+
+    def omega_range(self, hbm) -> tuple[float, float]:
+        """(omega_min, omega_max), rad/s: these options' range, the [hbm] one where unset."""
+        return (self.omega_min if self.omega_min is not None else hbm.omega_min,
+                self.omega_max if self.omega_max is not None else hbm.omega_max)

@@ -1,0 +1,515 @@
+"""The isola search, generic over a residual R(x, omega) -> (R, dR_dx, dR_domega).
+
+Two phases:
+
+1. corrections: every seed (a guess x0 at a fixed omega) is corrected by Newton at that
+   omega (hbm.continuation.newton, backtracking, a capped number of iterations: most seeds
+   fail or land on the primary branch, and should cost little). A converged solution that
+   lies on a known branch (hbm.isolas.membership: polyline distance below the tolerance, or
+   Newton from the polyline's nearest point landing on it) is dropped at once; converged
+   solutions at the same omega closer than the tolerance are one. Seeds are independent:
+   they are spread over local processes (concurrent.futures, one task per omega) or over
+   the MPI ranks (each takes its share, then allgather).
+2. branches: each remaining solution, in seed order, unless it lies on a branch found so
+   far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
+   test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
+   half branch also ends when it meets a known or found branch. The halves are merged
+   into one branch and classified:
+     primary: it merges into (runs along) the primary NFRC;
+     bifurcated: it crosses another branch (a branch point), or passes through a located
+       bifurcation point of one;
+     isola: a closed loop, or both ends inside the omega range;
+     detached: otherwise (an end on the range's bound, never meeting the primary).
+   A half that merges into a branch found earlier makes the new one part of it: its seeds
+   go to that branch, its points are dropped. Seeds lying on a branch found later are
+   attributed to it and never continued.
+
+Resume: `search` takes the corrections and finished branches of an interrupted run of the
+same inputs and only computes what is missing; the result is the uninterrupted one.
+"""
+from __future__ import annotations
+
+import concurrent.futures
+import math
+import multiprocessing
+import os
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from typing import Callable
+
+import numpy as np
+
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
+from hbm.continuation.newton import NewtonOptions, NewtonResult, newton_iterate, newton_solve
+from hbm.isolas.membership import KnownBranch, polyline_distance
+
+#: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
+NOT_CONVERGED = -1
+ON_KNOWN = -2
+
+#: |cos| between a half branch's direction and the branch it meets above which it merges
+#: into (runs along) that branch rather than crossing it
+_PARALLEL_COS = 0.9
+
+
+@dataclass(frozen=True)
+class Seed:
+    """A start guess: omega, rad/s; x (n,) in the residual's unknowns; origin, in words
+    (e.g. "modal j=2 k=4 A=3.2e-03")."""
+
+    omega: float
+    x: np.ndarray
+    origin: str
+
+
+@dataclass(frozen=True)
+class SearchOptions:
+    """tolerance: the membership distance (scaled, see hbm.isolas.membership); Newton from
+    the polyline's nearest point must land within tolerance / 100 for a point closer than
+    refine_ratio times the local chord. continuation: the arc length's options (its omega
+    range is the search's; direction is set per half; max_points per half). newton: the
+    seeds' Newton rule (line search on). workers: local processes for the corrections
+    (None: every usable core)."""
+
+    tolerance: float
+    continuation: ContinuationOptions
+    newton: NewtonOptions
+    workers: int | None = None
+    refine_ratio: float = 0.5
+
+
+@dataclass(frozen=True)
+class Corrections:
+    """Phase 1, per seed (s seeds): converged (s,) bool; iterations (s,) int; on_known (s,)
+    int, index of the known branch it lies on (-1: none); same_as (s,) int, the seed it
+    duplicates at the same omega (-1: none); x (s, n), the corrected solution (nan where
+    not converged); cpu_time, s (summed over processes)."""
+
+    converged: np.ndarray
+    iterations: np.ndarray
+    on_known: np.ndarray
+    same_as: np.ndarray
+    x: np.ndarray
+    cpu_time: float = 0.0
+
+    def candidates(self) -> np.ndarray:
+        """Seeds to continue unless they lie on a branch found before them: converged, on
+        no known branch, not a duplicate."""
+        return np.flatnonzero(self.converged & (self.on_known < 0) & (self.same_as < 0))
+
+
+@dataclass(frozen=True, eq=False)
+class FoundBranch:
+    """A branch of the search, m points.
+
+    omega (m,) rad/s; x (m, n); converged (m,) bool (the halves' failed last points are
+    kept, marked). kind: "primary" | "bifurcated" | "isola" | "detached". closed: a closed
+    loop. status: how each half ended ("+: ...; -: ..."). start: the seed it was continued
+    from. seeds: the seeds attributed to it (start included). extras: per-point arrays of
+    the caller's `describe` (e.g. le_amplitude (m,)). n_points_computed: continuation points
+    computed for it. cpu_time, s.
+    """
+
+    omega: np.ndarray
+    x: np.ndarray
+    converged: np.ndarray
+    kind: str
+    closed: bool
+    status: str
+    start: int
+    seeds: tuple[int, ...]
+    extras: dict = field(default_factory=dict)
+    n_points_computed: int = 0
+    cpu_time: float = 0.0
+
+
+@dataclass(frozen=True)
+class IsolaSearch:
+    """Result: seeds; corrections (phase 1); branches (FoundBranch, in order found);
+    seed_branch (s,) int: the branch each seed lies on, NOT_CONVERGED, or ON_KNOWN;
+    n_continued: branches continued in this call (resumed ones not counted);
+    n_points_computed: continuation points computed in this call; cpu_time, wall_time, s."""
+
+    seeds: tuple[Seed, ...]
+    corrections: Corrections
+    branches: tuple[FoundBranch, ...]
+    seed_branch: np.ndarray
+    n_continued: int
+    n_points_computed: int
+    cpu_time: float
+    wall_time: float
+
+    @property
+    def n_converged(self) -> int:
+        return int(self.corrections.converged.sum())
+
+    @property
+    def n_distinct(self) -> int:
+        """Converged seeds that are no duplicate at their omega (on a known branch or not)."""
+        c = self.corrections
+        return int((c.converged & (c.same_as < 0)).sum())
+
+
+class _Joined(Exception):
+    """Raised from on_point: the half branch met branch `label` (merging: runs along it)."""
+
+    def __init__(self, label: str, index: int, merging: bool):
+        super().__init__(label)
+        self.label, self.index, self.merging = label, index, merging
+
+
+# -- phase 1: corrections ---------------------------------------------------------------------
+class _Corrector:
+    """Newton on one omega's seeds, with the membership test against the known branches."""
+
+    def __init__(self, factory, known, options: SearchOptions):
+        self.residual, self.solver = factory()
+        self.known, self.options = list(known), options
+
+    def __call__(self, items):
+        """items: [(seed index, omega, x0)] of one omega -> [(index, converged, iterations,
+        on_known, same_as, x or None)]."""
+        out = []
+        kept = []  # (index, x) of the distinct converged solutions at this omega
+        tol = self.options.tolerance
+        for i, w, x0 in items:
+            sol = correct_seed(self.residual, x0, w, self.options.newton, self.solver)
+            if not sol.converged or not np.all(np.isfinite(sol.x)):
+                out.append((i, False, sol.iterations, -1, -1, None))
+                continue
+            k = lies_on(self.residual, sol.x, w, self.known, self.options, self.solver)
+            same = next((j for j, xj in kept if np.linalg.norm(sol.x - xj) <= tol), -1)
+            if k < 0 and same < 0:
+                kept.append((i, sol.x))
+            out.append((i, True, sol.iterations, k, same, sol.x))
+        return out
+
+
+def correct_seed(residual, x0, omega: float, options: NewtonOptions, solver) -> NewtonResult:
+    """Newton at fixed omega from a seed (hbm.continuation.newton.newton_iterate), its line
+    search measuring ||R|| without the Jacobian where the residual takes jacobian=False."""
+    w = float(omega)
+
+    def linearise(x):
+        R, J, _ = residual(x, w)
+        R = np.asarray(R, dtype=float).reshape(-1)
+        return float(np.linalg.norm(R)), lambda: solver.factorize(J).solve(-R)
+
+    def merit(x):
+        try:
+            R = residual(x, w, jacobian=False)
+        except TypeError:  # a residual without the keyword
+            R = residual(x, w)[0]
+        return float(np.linalg.norm(R))
+
+    return newton_iterate(x0, linearise, options, merit=merit, where=f" at omega={w:.6g}")
+
+
+_WORKER: dict = {}
+
+
+def _init_worker(factory, known, options):
+    from threadpoolctl import threadpool_limits
+
+    _WORKER["limits"] = threadpool_limits(limits=1, user_api="blas")  # one process per core
+    _WORKER["corrector"] = _Corrector(factory, known, options)
+
+
+def _run_worker(items):
+    t = time.process_time()
+    return _WORKER["corrector"](items), time.process_time() - t
+
+
+def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
+                  on_progress: Callable[[int, int], None] | None = None) -> Corrections:
+    """Phase 1 on every seed. factory() -> (residual, LinearSolver): picklable (spawned
+    workers under MPI-initialised processes build their own). known: KnownBranch list.
+    comm: an MPI communicator (mpi4py) to share the omegas among ranks, or None for local
+    processes. on_progress(done, total): seeds done (this rank's under MPI)."""
+    s = len(seeds)
+    groups: dict = {}
+    for i, sd in enumerate(seeds):
+        groups.setdefault(float(sd.omega), []).append((i, float(sd.omega), np.asarray(sd.x, dtype=float)))
+    tasks = [groups[w] for w in sorted(groups)]
+    progress = on_progress or (lambda done, total: None)
+    rows, cpu = [], 0.0
+    if comm is not None:
+        mine = tasks[comm.rank::comm.size]
+        _init_worker(factory, known, options)
+        done = 0
+        for t in mine:
+            r, c = _run_worker(t)
+            rows += r
+            cpu += c
+            done += len(t)
+            progress(done, sum(len(m) for m in mine))
+        gathered = comm.allgather((rows, cpu))
+        rows = [r for part, _ in gathered for r in part]
+        cpu = sum(c for _, c in gathered)
+    else:
+        workers = min(options.workers or len(os.sched_getaffinity(0)), max(1, len(tasks)))
+        if workers <= 1:
+            _init_worker(factory, known, options)
+            for t in tasks:
+                r, c = _run_worker(t)
+                rows += r
+                cpu += c
+                progress(len(rows), s)
+        else:
+            # fork is cheapest (the residual is built once per worker from the inherited
+            # factory) but unsafe once MPI is initialised
+            ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
+                                                        initargs=(factory, known, options)) as pool:
+                for f in concurrent.futures.as_completed([pool.submit(_run_worker, t) for t in tasks]):
+                    r, c = f.result()
+                    rows += r
+                    cpu += c
+                    progress(len(rows), s)
+    n = len(np.asarray(seeds[0].x)) if s else 0
+    conv, its = np.zeros(s, bool), np.zeros(s, np.int64)
+    on_known, same = np.full(s, -1, np.int64), np.full(s, -1, np.int64)
+    X = np.full((s, n), np.nan)
+    for i, c, it, k, sm, x in rows:
+        conv[i], its[i], on_known[i], same[i] = c, it, k, sm
+        if x is not None:
+            X[i] = x
+    return Corrections(conv, its, on_known, same, X, cpu)
+
+
+def lies_on(residual, x, omega: float, branches, options: SearchOptions, solver=None) -> int:
+    """Index of the first branch (KnownBranch list) the solution (x, omega) lies on, -1 when
+    none: polyline distance (scaled: x / x_scale, omega / omega_scale) <= tolerance, or,
+    closer than refine_ratio times the nearest chord (the polyline cuts the curve's bends),
+    Newton at omega from the polyline's nearest point lands within tolerance / 100 of x."""
+    co = options.continuation
+    for k, b in enumerate(branches):
+        d, xn, wn = polyline_distance(x, omega, b, co.x_scale, co.omega_scale)
+        if d <= options.tolerance:
+            return k
+        if not math.isfinite(d) or len(b.omega) < 2:
+            continue
+        chord = _local_chord(b, xn, wn, co)
+        if d <= options.refine_ratio * chord:
+            sol = newton_solve(residual, xn, omega, options.newton, solver=solver)
+            if sol.converged and np.linalg.norm((sol.x - x) / co.x_scale) <= 0.01 * options.tolerance:
+                return k
+    return -1
+
+
+def _local_chord(b: KnownBranch, xn, wn, co) -> float:
+    """Length (scaled) of the polyline segment nearest to the point (xn, wn) on it."""
+    P = np.column_stack([b.x / co.x_scale, b.omega / co.omega_scale])
+    q = np.append(xn / co.x_scale, wn / co.omega_scale)
+    k = int(np.argmin(np.linalg.norm(P - q, axis=1)))
+    nb = [j for j in (k - 1, k + 1) if 0 <= j < len(P)]
+    return max(float(np.linalg.norm(P[j] - P[k])) for j in nb)
+
+
+# -- phase 2: branches -------------------------------------------------------------------------
+def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float):
+    """One half branch from (x0, w0): (Branch, joined) with joined = (label, index, merging)
+    when it stopped on meeting a branch of `others` [(label, index, KnownBranch)]."""
+    points = []
+
+    def on_point(p):
+        points.append(p)
+        if not p.converged or p.index == 0:
+            return
+        for label, idx, b in others:
+            d, xn, wn = polyline_distance(p.x, p.omega, b, opts.x_scale, opts.omega_scale)
+            if d <= tol:
+                raise _Joined(label, idx, _parallel(points, b, xn, wn, opts))
+
+    try:
+        br = continue_branch(residual, x0, w0, replace(opts, direction=direction), on_point=on_point, solver=solver)
+        return br, None
+    except _Joined as j:
+        return Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
+
+
+def _parallel(points, b: KnownBranch, xn, wn, opts) -> bool:
+    """Whether the half branch's last secant runs along b's segment near (xn, wn)."""
+    if len(points) < 2 or len(b.omega) < 2:
+        return True
+    sx, sw = opts.x_scale, opts.omega_scale
+    a = np.append((points[-1].x - points[-2].x) / sx, (points[-1].omega - points[-2].omega) / sw)
+    P = np.column_stack([b.x / sx, b.omega / sw])
+    k = int(np.argmin(np.linalg.norm(P - np.append(xn / sx, wn / sw), axis=1)))
+    k = min(k, len(P) - 2)
+    s = P[k + 1] - P[k]
+    na, ns = np.linalg.norm(a), np.linalg.norm(s)
+    return bool(na == 0 or ns == 0 or abs(a @ s) / (na * ns) > _PARALLEL_COS)
+
+
+def _merge(first: Branch, second: Branch | None):
+    """One branch from the halves: the second reversed, then the first (shared start)."""
+    if second is None or len(second) <= 1:
+        return first.omega, first.x, first.converged
+    return (np.concatenate([second.omega[::-1], first.omega[1:]]),
+            np.concatenate([second.x[::-1], first.x[1:]]),
+            np.concatenate([second.converged[::-1], first.converged[1:]]))
+
+
+def _at_bound(status: str) -> bool:
+    return status.startswith(STATUS_OMEGA_MIN) or status.startswith(STATUS_OMEGA_MAX)
+
+
+def _classify(halves, omega, x, bifurcation_points, options: SearchOptions):
+    """(kind, closed) of a merged branch from its halves [(Branch, joined)]."""
+    closed = any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves)
+    joined = [j for _, j in halves if j is not None]
+    if any(j[1] < 0 and j[2] for j in joined):  # merges into the primary
+        return "primary", closed
+    if any(not j[2] for j in joined):
+        return "bifurcated", closed
+    if bifurcation_points is not None and len(bifurcation_points.omega) and len(omega) > 1:
+        b = KnownBranch.of(omega, x, "new")
+        co = options.continuation
+        for w, xb in zip(bifurcation_points.omega, bifurcation_points.x):
+            if polyline_distance(xb, w, b, co.x_scale, co.omega_scale)[0] <= options.tolerance:
+                return "bifurcated", closed
+    if closed or not any(_at_bound(br.status) for br, _ in halves):
+        return "isola", closed
+    return "detached", closed
+
+
+def search(factory, seeds, known, options: SearchOptions, *, comm=None, corrections: Corrections | None = None,
+           branches=(), bifurcation_points: KnownBranch | None = None,
+           describe: Callable[[np.ndarray, np.ndarray], dict] | None = None,
+           on_corrections: Callable[[Corrections], None] | None = None,
+           on_branch: Callable[[int, FoundBranch], None] | None = None,
+           on_progress: Callable[[str, int, int], None] | None = None) -> IsolaSearch:
+    """The isola search (module doc).
+
+    factory() -> (residual, LinearSolver), picklable. seeds: Seed list (all x of one size
+    n). known: KnownBranch list (the primary NFRC(s)): index i of a known branch is
+    reported as ON_KNOWN. options: SearchOptions (continuation's omega range = the search's).
+    comm: MPI communicator (mpi4py) or None: phase 1 is shared among its ranks; phase 2
+      runs on rank 0 and its result is broadcast.
+    corrections, branches: what an interrupted run of the same inputs finished (resume):
+      phase 1 is skipped when corrections are given; the given branches are kept as they are
+      and their seeds never continued again.
+    bifurcation_points: located bifurcations of the known branches (omega (k,), x (k, n)):
+      a branch through one is "bifurcated".
+    describe(omega (m,), x (m, n)) -> {name: (m, ...) array}: per-point data of each branch.
+    on_corrections(c): called once phase 1 is done (not on resume); on_branch(index,
+      branch): called as each new branch is finished (to save it); on_progress(phase,
+      done, total): "seeds" or "branches".
+    """
+    t_wall = time.perf_counter()
+    seeds = tuple(seeds)
+    progress = on_progress or (lambda phase, done, total: None)
+    if corrections is None:
+        corrections = correct_seeds(factory, seeds, known, options, comm,
+                                    on_progress=lambda d, t: progress("seeds", d, t))
+        if on_corrections is not None and (comm is None or comm.rank == 0):
+            on_corrections(corrections)
+    cpu_phase1 = corrections.cpu_time
+
+    def branches_phase():
+        t_start = time.process_time()
+        residual, solver = factory()
+        found = list(branches)
+        owner = {}  # seed -> branch index
+        for b_i, b in enumerate(found):
+            for sd in b.seeds:
+                owner[sd] = b_i
+        cand = corrections.candidates()
+        n_cont, n_pts = 0, 0
+        co = options.continuation
+        for c_i, i in enumerate(cand):
+            progress("branches", c_i, len(cand))
+            i = int(i)
+            if i in owner:
+                continue
+            x0, w0 = corrections.x[i], float(seeds[i].omega)
+            polys = [KnownBranch.of(b.omega, b.x, f"branch {k}", b.converged) for k, b in enumerate(found)]
+            k = lies_on(residual, x0, w0, polys, options, solver)
+            if k >= 0:
+                owner[i] = k
+                found[k] = replace(found[k], seeds=found[k].seeds + (i,))
+                continue
+            t0 = time.process_time()
+            others = ([(f"known branch {j} ({b.label})", -1 - j, b) for j, b in enumerate(known)]
+                      + [(f"branch {j}", j, p) for j, p in enumerate(polys)])
+            first, j1 = _half(residual, solver, x0, w0, +1, co, others, options.tolerance)
+            halves = [(first, j1)]
+            second = None
+            if not first.status.startswith(STATUS_CLOSED_LOOP) and first.converged[0]:
+                second, j2 = _half(residual, solver, x0, w0, -1, co, others, options.tolerance)
+                halves.append((second, j2))
+            n_cont += 1
+            computed = len(first) + (len(second) - 1 if second is not None else 0)
+            n_pts += computed
+            merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
+            if merged_into:  # part of a branch found before: its seeds go there
+                k = merged_into[0]
+                owner[i] = k
+                found[k] = replace(found[k], seeds=found[k].seeds + (i,),
+                                   n_points_computed=found[k].n_points_computed + computed)
+                continue
+            omega, x, conv = _merge(first, second)
+            kind, closed = _classify(halves, omega, x, bifurcation_points, options)
+            status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
+            ok = np.asarray(conv, bool)
+            extras = describe(omega[ok], x[ok]) if describe is not None and ok.any() else {}
+            if extras:  # per-point data of the converged points, nan elsewhere
+                full = {}
+                for name, v in extras.items():
+                    v = np.asarray(v)
+                    arr = np.zeros((len(omega),) + v.shape[1:], dtype=v.dtype) if v.dtype.kind in "biu" \
+                        else np.full((len(omega),) + v.shape[1:], np.nan)
+                    arr[ok] = v
+                    full[name] = arr
+                extras = full
+            fb = FoundBranch(omega=omega, x=x, converged=conv, kind=kind, closed=closed, status=status, start=i,
+                             seeds=(i,), extras=extras, n_points_computed=computed,
+                             cpu_time=time.process_time() - t0)
+            found.append(fb)
+            owner[i] = len(found) - 1
+            if on_branch is not None:
+                on_branch(len(found) - 1, fb)
+        progress("branches", len(cand), len(cand))
+        return found, owner, n_cont, n_pts, time.process_time() - t_start
+
+    if comm is None:
+        found, owner, n_cont, n_pts, cpu2 = branches_phase()
+    else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
+        value, error = None, None
+        if comm.rank == 0:
+            try:
+                value = branches_phase()
+            except BaseException as exc:  # noqa: BLE001 - relayed to the other ranks, then re-raised
+                error = exc
+        req = comm.Ibarrier()
+        while not req.Test():
+            time.sleep(0.02)
+        ok, payload = comm.bcast((error is None, value if error is None else f"{type(error).__name__}: {error}"),
+                                 root=0)
+        if error is not None:
+            raise error
+        if not ok:
+            raise RuntimeError(f"rank 0 failed while continuing the branches: {payload}")
+        found, owner, n_cont, n_pts, cpu2 = payload
+    seed_branch = np.full(len(seeds), NOT_CONVERGED, np.int64)
+    c = corrections
+    for i in range(len(seeds)):
+        if not c.converged[i]:
+            continue
+        if c.on_known[i] >= 0:
+            seed_branch[i] = ON_KNOWN
+        elif c.same_as[i] >= 0:
+            rep = int(c.same_as[i])
+            seed_branch[i] = ON_KNOWN if c.on_known[rep] >= 0 else owner.get(rep, NOT_CONVERGED)
+        else:
+            seed_branch[i] = owner.get(i, NOT_CONVERGED)
+    for i in range(len(seeds)):  # duplicates join their representative's branch's seeds
+        k = int(seed_branch[i])
+        if k >= 0 and i not in found[k].seeds:
+            found[k] = replace(found[k], seeds=tuple(sorted(found[k].seeds + (i,))))
+    return IsolaSearch(seeds=seeds, corrections=c, branches=tuple(found), seed_branch=seed_branch,
+                       n_continued=n_cont, n_points_computed=n_pts, cpu_time=cpu_phase1 + cpu2,
+                       wall_time=time.perf_counter() - t_wall)

@@ -1,0 +1,347 @@
+"""Stage isolas: the search for the branches the primary NFRC misses (isolas.h5).
+
+Per contact treatment: seeds from eq. (31) and from the periodic time-integration points
+(ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). With both
+treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_seeds). Every branch is
+written to isolas.partial.h5 as soon as it is finished (and the seeds' corrections once
+done); an interrupted run of the same inputs resumes from them without recomputing. The
+final file is written atomically.
+
+Layout of isolas.h5 (root: the usual provenance attributes):
+  /<method>/ per treatment ("dlft", "rl"); attrs n_seeds, n_converged, n_distinct,
+      n_branches, cpu_time (s), wall_time (s), status (str)
+  /<method>/seeds/ omega (s,) rad/s; origin (s,) fixed-length ASCII; converged (s,) bool;
+      branch (s,) int (the branch it lies on; -1 not converged, -2 on the primary NFRC)
+  /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
+      le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; stable (m,)
+      bool and n_unstable (m,) int when [hbm] stability is on. attrs kind ("primary" |
+      "isola" | "bifurcated" | "detached"), closed (bool), status (str), subharmonic (nu),
+      seeds (int array), start (seed continued), n_points_computed, cpu_time (s)
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from pipelines import artifacts as art
+from pipelines.stages.base import Context, Estimate, Output, Stage
+from pipelines.stages.rom import read_rom
+
+ISOLAS = Output("isolas.h5")
+
+#: Units of the per-branch datasets
+_UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "harmonics": "m", "stable": "1",
+          "n_unstable": "1"}
+
+
+@dataclass(frozen=True, eq=False)
+class IsolaBranch:
+    """One branch of isolas.h5 (m points).
+
+    method: "dlft" | "rl"; index: its NNN. kind: "primary" | "isola" | "bifurcated" |
+    "detached"; closed; status (how each half ended); subharmonic: nu (basis Omega / nu);
+    seeds (k,) int: indices into the treatment's seeds. omega (m,) rad/s; x (m, n_u) scaled
+    unknowns; converged (m,) bool; le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m;
+    stable (m,) bool and n_unstable (m,) int, or None without stability.
+    """
+
+    method: str
+    index: int
+    kind: str
+    closed: bool
+    status: str
+    subharmonic: int
+    seeds: np.ndarray
+    omega: np.ndarray
+    x: np.ndarray
+    converged: np.ndarray
+    le_amplitude: np.ndarray
+    harmonics: np.ndarray
+    stable: np.ndarray | None = None
+    n_unstable: np.ndarray | None = None
+
+
+def _text(v) -> str:
+    return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def read_isolas(path) -> dict[str, list[IsolaBranch]]:
+    """{method: [IsolaBranch, ...]} of an isolas.h5 (branches in index order)."""
+    import h5py
+
+    out = {}
+    with h5py.File(path, "r") as h5:
+        for method in h5:
+            g = h5[method]
+            if not isinstance(g, h5py.Group) or "branches" not in g:
+                continue
+            rows = []
+            for name in sorted(g["branches"]):
+                b = g["branches"][name]
+                a = b.attrs
+                rows.append(IsolaBranch(
+                    method=method, index=int(name), kind=_text(a["kind"]), closed=bool(a["closed"]),
+                    status=_text(a["status"]), subharmonic=int(a["subharmonic"]),
+                    seeds=np.asarray(a["seeds"], dtype=np.int64).reshape(-1), omega=b["omega"][()], x=b["x"][()],
+                    converged=b["converged"][()].astype(bool), le_amplitude=b["le_amplitude"][()],
+                    harmonics=b["harmonics"][()], stable=b["stable"][()].astype(bool) if "stable" in b else None,
+                    n_unstable=b["n_unstable"][()] if "n_unstable" in b else None))
+            out[method] = rows
+    return out
+
+
+# -- writing ---------------------------------------------------------------------------------
+def _write_branch(group, fb, nu: int) -> None:
+    data = {"omega": fb.omega, "x": fb.x, "converged": np.asarray(fb.converged, bool)}
+    data.update({k: v for k, v in fb.extras.items() if k in _UNITS})
+    for name, v in data.items():
+        group.create_dataset(name, data=np.asarray(v)).attrs["unit"] = _UNITS[name]
+    a = group.attrs
+    a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
+    a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
+    a["start"], a["n_points_computed"], a["cpu_time"] = int(fb.start), int(fb.n_points_computed), float(fb.cpu_time)
+
+
+def _read_found(group):
+    from hbm.isolas.search import FoundBranch
+
+    a = group.attrs
+    extras = {k: group[k][()] for k in ("le_amplitude", "harmonics", "stable", "n_unstable") if k in group}
+    return FoundBranch(omega=group["omega"][()], x=group["x"][()], converged=group["converged"][()].astype(bool),
+                       kind=_text(a["kind"]), closed=bool(a["closed"]), status=_text(a["status"]),
+                       start=int(a["start"]), seeds=tuple(int(s) for s in np.asarray(a["seeds"]).reshape(-1)),
+                       extras=extras, n_points_computed=int(a["n_points_computed"]), cpu_time=float(a["cpu_time"]))
+
+
+def _write_corrections(group, c) -> None:
+    kept = np.flatnonzero(c.converged & (c.same_as < 0))  # the distinct solutions (RL seeds from DLFT's)
+    for name in ("converged", "iterations", "on_known", "same_as"):
+        group.create_dataset(name, data=getattr(c, name)).attrs["unit"] = "1"
+    group.create_dataset("kept", data=kept).attrs["unit"] = "1"
+    group.create_dataset("kept_x", data=c.x[kept]).attrs["unit"] = "1"
+    group.attrs["cpu_time"] = float(c.cpu_time)
+
+
+def _read_corrections(group):
+    from hbm.isolas.search import Corrections
+
+    conv = group["converged"][()].astype(bool)
+    cand, xc = group["kept"][()], group["kept_x"][()]
+    X = np.full((len(conv), xc.shape[1] if xc.ndim == 2 else 0), np.nan)
+    X[cand] = xc
+    return Corrections(conv, group["iterations"][()], group["on_known"][()], group["same_as"][()], X,
+                       float(group.attrs["cpu_time"]))
+
+
+class _Partial:
+    """isolas.partial.h5: the corrections and finished branches of each treatment, flushed as
+    they come (h5py, reopened per write so that a kill leaves at most the last one cut)."""
+
+    def __init__(self, path, inputs_hash: str):
+        self.path, self.hash = path, inputs_hash
+
+    def resume(self, method: str):
+        """(corrections or None, [FoundBranch]) of an interrupted run of these inputs."""
+        import h5py
+
+        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+            return None, []
+        try:
+            with h5py.File(self.path, "r") as h5:
+                if method not in h5 or "corrections" not in h5[method]:
+                    return None, []
+                g = h5[method]
+                c = _read_corrections(g["corrections"])
+                found = []
+                for k in range(int(g.attrs.get("n_branches", 0))):
+                    found.append(_read_found(g["branches"][f"{k:03d}"]))
+                return c, found
+        except (OSError, KeyError, ValueError):
+            return None, []
+
+    def _open(self):
+        import h5py
+
+        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+            h5 = h5py.File(self.path, "w")
+            h5.attrs["inputs_hash"] = self.hash
+            return h5
+        return h5py.File(self.path, "a")
+
+    def corrections(self, method: str, c) -> None:
+        with self._open() as h5:
+            if method in h5:
+                del h5[method]
+            g = h5.create_group(method)
+            _write_corrections(g.create_group("corrections"), c)
+            g.create_group("branches")
+            g.attrs["n_branches"] = 0
+
+    def branch(self, method: str, index: int, fb, nu: int) -> None:
+        with self._open() as h5:
+            g = h5[method]
+            name = f"{index:03d}"
+            if name in g["branches"]:
+                del g["branches"][name]
+            _write_branch(g["branches"].create_group(name), fb, nu)
+            g.attrs["n_branches"] = index + 1  # last: the branch counts once all of it is written
+
+
+def _write_final(path, results: dict, provenance: dict) -> None:
+    import h5py
+
+    with art.atomic_output(path) as tmp:
+        with h5py.File(tmp, "w") as h5:
+            h5.attrs["stage"] = provenance["stage"]
+            h5.attrs["units"] = art.UNITS_SI
+            h5.attrs["scene"] = provenance["scene_text"]
+            h5.attrs["inputs_hash"] = provenance["inputs_hash"]
+            h5.attrs["code_version"] = art.code_version()
+            h5.attrs["created"] = art.now()
+            for k, v in provenance["extra_attrs"].items():
+                h5.attrs[k] = v
+            for method, (res, nu, status, cpu, wall) in results.items():
+                g = h5.create_group(method)
+                g.attrs.update({"n_seeds": len(res.seeds), "n_converged": res.n_converged,
+                                "n_distinct": res.n_distinct, "n_branches": len(res.branches),
+                                "cpu_time": float(cpu), "wall_time": float(wall), "status": status})
+                s = g.create_group("seeds")
+                s.create_dataset("omega", data=np.array([sd.omega for sd in res.seeds], float)).attrs["unit"] = "rad/s"
+                # fixed-length ASCII: plain bytes, which the checksums read as they are
+                origins = [sd.origin.encode("ascii", "replace") for sd in res.seeds]
+                width = max([len(o) for o in origins] + [1])
+                s.create_dataset("origin", data=np.array(origins, dtype=f"S{width}")).attrs["unit"] = "-"
+                s.create_dataset("converged", data=res.corrections.converged).attrs["unit"] = "1"
+                s.create_dataset("branch", data=res.seed_branch).attrs["unit"] = "1"
+                b = g.create_group("branches")
+                for k, fb in enumerate(res.branches):
+                    _write_branch(b.create_group(f"{k:03d}"), fb, nu)
+        art.add_checksums(tmp)
+
+
+# -- the stage ---------------------------------------------------------------------------------
+def _known(out, method: str):
+    """(primary KnownBranch list, bifurcation points KnownBranch or None) from nfrc_METHOD.h5."""
+    import h5py
+
+    from hbm.isolas.membership import KnownBranch
+    from pipelines.branch_store import load_branch
+    from pipelines.stages.hbm import nfrc_output
+
+    path = out / nfrc_output(method).file
+    stored = load_branch(path)
+    b = stored.branch
+    primary = KnownBranch.of(b.omega, b.x, f"primary {method.upper()} NFRC", b.converged)
+    bif = None
+    with h5py.File(path, "r") as h5:
+        if "bifurcations" in h5 and len(h5["bifurcations/omega"]):
+            t = h5["bifurcations"]
+            idx, frac, om = t["index"][()], t["fraction"][()], t["omega"][()]
+            j = np.minimum(idx + 1, len(b.omega) - 1)
+            xb = b.x[idx] + frac[:, None] * (b.x[j] - b.x[idx])
+            bif = KnownBranch(om, xb, "bifurcations")
+    return [primary], bif
+
+
+def _compute(ctx: Context, outputs) -> None:
+    """Under `mpirun -n N` the seeds' Newton corrections are shared among the ranks, rank 0
+    continues the branches and writes."""
+    from hbm.isolas.harmonic import (HbmProblem, describe, dominant_harmonic, modal_seeds, rl_seeds, search_options,
+                                     ti_seeds)
+    from hbm.isolas.search import search
+    from pipelines.branch_store import partial_path
+    from pipelines.parallel import is_root, on_root, world
+
+    scene, out = ctx.scene, ctx.out
+    iso, hbm = scene.isolas, scene.hbm
+    comm = world()
+    root = is_root(comm)
+    rom = read_rom(out)
+    sweep = None
+    if iso.ti_seeds and (out / "ti.h5").is_file():
+        from pipelines.stages.ti import read_sweep
+
+        sweep = read_sweep(out)
+        if sweep.boundary is None and root:
+            ctx.progress.warn("ti.h5 holds no boundary states (written by an older version): no seeds from the "
+                              "time integration; rerun the ti stage (--force) to get them")
+    lo, hi = iso.omega_range(hbm)
+    omegas = np.linspace(lo, hi, iso.n_omega)
+    opts = search_options(hbm, iso)
+    final = out / ISOLAS.file
+    partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
+    results = {}  # method -> (IsolaSearch, nu, status, cpu, wall), in hbm.methods' order when written
+    for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
+        problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
+        res, _ = problem()
+        if method == "rl" and "dlft" in results:
+            seeds = rl_seeds(results["dlft"][0])
+        else:
+            seeds = modal_seeds(res, rom, iso, omegas)
+        if sweep is not None:
+            seeds += ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes)
+        known, bif = _known(out, method)
+        corrections, done = partial.resume(method) if root else (None, [])
+        if comm is not None:
+            corrections, done = comm.bcast((corrections, done), root=0)
+        if root and corrections is not None:
+            ctx.log(f"  {method}: resuming: seeds corrected, {len(done)} branches on disk")
+        t0 = time.perf_counter()
+        with ctx.progress.step(f"isolas {method}", len(seeds)) as update:
+            def on_progress(phase, d, total):
+                if phase == "seeds":
+                    update(f"seeds {d}/{total}", completed=d)
+                else:
+                    update(f"branches {d}/{total} candidates")
+
+            result = search(problem, seeds, known, opts, comm=comm, corrections=corrections, branches=done,
+                            bifurcation_points=bif, describe=describe(res, hbm.stability),
+                            on_corrections=lambda c, m=method: partial.corrections(m, c) if root else None,
+                            on_branch=lambda i, fb, m=method: partial.branch(m, i, fb, res.nu) if root else None,
+                            on_progress=on_progress)
+        wall = time.perf_counter() - t0
+        cpu = result.cpu_time + sum(b.cpu_time for b in done)
+        results[method] = (result, res.nu, "complete", cpu, wall)
+        if root:
+            kinds = {}
+            for b in result.branches:
+                kinds[b.kind] = kinds.get(b.kind, 0) + 1
+            ctx.log(f"  {method}: {len(seeds)} seeds, {result.n_converged} converged ({result.n_distinct} distinct), "
+                    f"{len(result.branches)} branches (" + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items()))
+                                                           or "none") + f"), CPU {cpu:.0f} s, wall {wall:.0f} s")
+            for k, b in enumerate(result.branches):
+                ok = b.converged
+                h = b.extras.get("harmonics")
+                dom = dominant_harmonic(h[ok]) if h is not None else 0
+                ctx.log(f"    branch {k:03d}: {b.kind}{' (closed)' if b.closed else ''}, Omega "
+                        f"{b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} rad/s, {int(ok.sum())} points, "
+                        f"dominant harmonic {dom}, {len(b.seeds)} seeds")
+
+    def write():
+        _write_final(final, results, ctx.provenance(ISOLAS, "isolas"))
+        partial.path.unlink(missing_ok=True)
+
+    on_root(comm, write)
+
+
+def _estimate(scene, out, outputs) -> Estimate:
+    """Seeds: n_modes x harmonics x amplitudes x n_omega per treatment, a Newton of ~4 to 12
+    iterations each (a continuation point's cost per iteration, see the hbm stage), over the
+    cores; then a few branches of up to 2 max_points points."""
+    import os
+
+    iso, h = scene.isolas, scene.hbm
+    n_c = 2 * h.n_harmonics + 1
+    per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9
+    n_seeds = iso.n_modes * len([k for k in iso.harmonics if k <= h.n_harmonics]) * len(iso.amplitudes) * iso.n_omega
+    cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
+    seconds = len(h.methods) * (n_seeds * 2 * per_point / cores + 5 * 2 * iso.max_points * per_point / 4)
+    return Estimate(size=f"{n_seeds} seeds per treatment", memory=0.3e9 * cores, seconds=seconds,
+                    disk=len(h.methods) * 10 * iso.max_points * n_c * 3 * scene.mesh.n_boundary * 8.0 * 2,
+                    advice="lower [isolas] n_omega, n_modes, harmonics or amplitudes")
+
+
+STAGE = Stage("isolas", depends=("isolas", "hbm", "casing", "contact"), upstream=("rom", "hbm", "ti"),
+              outputs=lambda scene: (ISOLAS,), compute=_compute, estimate=_estimate, distributed=True)

@@ -1,0 +1,157 @@
+"""The isola search (hbm.isolas.search) on a small system with a known isola.
+
+The system: x'' + c(x) x' + x = F cos(Omega t), c(x) = c1 - c3 x^2 + c5 x^4 (dimensionless
+time): a damping that falls, then rises again with amplitude (Habib et al., "Isolated
+resonances and nonlinear damping", Nonlinear Dyn. 2018). Its one-harmonic balance, x = a
+cos + b sin, has the equivalent damping c_eq(A) = c1 - c3 A^2 / 4 + c5 A^4 / 8 and the
+amplitude relation A^2 [(1 - Omega^2)^2 + Omega^2 c_eq(A)^2] = F^2. With F below the local
+maximum of A c_eq(A), a second, isolated family of large-amplitude solutions exists near
+Omega = 1, a closed curve in (Omega, A) that never meets the primary curve. It is checked
+here independently of the search: by the polynomial roots of the amplitude relation, and
+by time integration (scipy) from rest (lands on the primary) and from the isola's upper
+point (stays there).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import scipy.integrate as si
+
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.newton import NewtonOptions
+from hbm.isolas.membership import KnownBranch
+from hbm.isolas.search import ON_KNOWN, SearchOptions, Seed, search
+from hbm.linalg.dense import DirectSolver
+
+C1, C3, C5, F = 0.1, 0.18, 0.045, 0.05
+W_MIN, W_MAX = 0.8, 1.2
+
+
+class Oscillator:
+    """The one-harmonic HB residual R(x, omega), x = (a, b). Picklable (module level)."""
+
+    def __call__(self, x, w, jacobian=True):
+        a, b = x
+        A2 = a * a + b * b
+        c = C1 - C3 * A2 / 4 + C5 * A2 * A2 / 8
+        dc = -C3 / 4 + C5 * A2 / 4  # dc / d(A^2)
+        s = 1.0 - w * w
+        R = np.array([s * a + w * c * b - F, s * b - w * c * a])
+        if not jacobian:
+            return R
+        J = np.array([[s + w * b * dc * 2 * a, w * c + w * b * dc * 2 * b],
+                      [-w * c - w * a * dc * 2 * a, s - w * a * dc * 2 * b]])
+        dw = np.array([-2 * w * a + c * b, -2 * w * b - c * a])
+        return R, J, dw
+
+
+def factory():
+    return Oscillator(), DirectSolver()
+
+
+def amplitudes(w: float) -> np.ndarray:
+    """Every amplitude A > 0 of the one-harmonic balance at omega: real positive roots u =
+    A^2 of the quintic u [(1 - w^2)^2 + w^2 c_eq(u)^2] - F^2 (c_eq(u) = C1 - C3 u / 4 + C5 u^2 / 8)."""
+    ceq = np.polynomial.Polynomial([C1, -C3 / 4, C5 / 8])
+    p = np.polynomial.Polynomial([0, 1]) * ((1 - w * w) ** 2 + w * w * ceq ** 2) - F * F
+    r = p.roots()
+    u = np.sort(r[(abs(r.imag) < 1e-9) & (r.real > 0)].real)
+    return np.sqrt(u)
+
+
+def isola_range(n=4001):
+    """Omega range of the large-amplitude family (more than one root), from a fine grid."""
+    w = np.linspace(W_MIN, W_MAX, n)
+    multi = np.array([len(amplitudes(x)) > 1 for x in w])
+    return w[multi].min(), w[multi].max()
+
+
+def continuation():
+    return ContinuationOptions(omega_min=W_MIN, omega_max=W_MAX, ds=0.02, ds_min=1e-6, ds_max=0.1, x_scale=1.0,
+                               omega_scale=0.1, max_points=2000, closed_loop_tol=1e-3,
+                               newton=NewtonOptions(tol_residual=1e-10, max_iter=12), crawl_points=50)
+
+
+def options(workers=1):
+    return SearchOptions(tolerance=1e-2, continuation=continuation(),
+                         newton=NewtonOptions(tol_residual=1e-10, max_iter=20, line_search=True), workers=workers)
+
+
+def modal_seeds():
+    """Eq. (31)-type seeds, told nothing of the isola: A cos(Omega t) over an amplitude and
+    an omega grid spanning the range."""
+    return [Seed(w, np.array([a, 0.0]), f"modal k=1 A={a:.2g}")
+            for w in np.linspace(W_MIN, W_MAX, 41) for a in (0.1, 0.3, 1.0, 3.0)]
+
+
+@pytest.fixture(scope="module")
+def primary():
+    br = continue_branch(Oscillator(), np.array([F / (1 - W_MIN ** 2), 0.0]), W_MIN, continuation())
+    assert br.status.startswith("reached omega_max")
+    return KnownBranch.of(br.omega, br.x, "primary", br.converged)
+
+
+def test_the_isola_exists_independently_of_the_search():
+    # three amplitudes at Omega = 1: the primary's and the isola's two
+    A = amplitudes(1.0)
+    assert len(A) == 3 and A[0] < 0.95 < A[1]
+    # time integration: from rest to the primary, from the isola's upper point it stays
+    def rhs(t, y):
+        x, v = y
+        return [v, F * np.cos(t) - (C1 - C3 * x * x + C5 * x ** 4) * v - x]
+
+    T = 2 * np.pi
+    for x0, expect in ((0.0, A[0]), (A[2], A[2])):
+        sol = si.solve_ivp(rhs, (0, 100 * T), [x0, 0.0], t_eval=np.linspace(95 * T, 100 * T, 2001), rtol=1e-8,
+                           atol=1e-10)
+        amp = 0.5 * (sol.y[0].max() - sol.y[0].min())
+        assert amp == pytest.approx(expect, rel=0.05)  # one harmonic vs the exact orbit
+
+
+def test_the_search_finds_the_isola_once(primary):
+    res = search(factory, modal_seeds(), [primary], options(workers=2))
+    isolas = [b for b in res.branches if b.kind == "isola"]
+    assert len(isolas) == 1, [(b.kind, b.status) for b in res.branches]
+    b = isolas[0]
+    assert b.closed
+    assert all(k.kind != "primary" for k in res.branches)
+    ok = b.converged
+    A = np.hypot(b.x[ok, 0], b.x[ok, 1])
+    # every point solves the amplitude relation: one of the large roots at its omega
+    for w, a in zip(b.omega[ok], A):
+        roots = amplitudes(w)
+        assert np.min(np.abs(roots[1:] - a)) < 1e-6 * max(a, 1)
+    lo, hi = isola_range()
+    assert b.omega[ok].min() == pytest.approx(lo, abs=2e-4)
+    assert b.omega[ok].max() == pytest.approx(hi, abs=2e-4)
+    assert A.max() == pytest.approx(amplitudes(1.0)[2], rel=0.02)
+    # seeds: some land on the primary, some on the isola, none elsewhere
+    assert (res.seed_branch == ON_KNOWN).any()
+    idx = res.branches.index(b)
+    assert (res.seed_branch == idx).sum() >= 2
+    assert set(res.seed_branch) <= {-1, ON_KNOWN, idx}
+
+
+def test_an_interrupted_search_resumes_without_recomputing(primary):
+    seeds = modal_seeds()
+    # without the primary as known branch the search finds two: the primary and the isola
+    full = search(factory, seeds, [], options())
+    assert len(full.branches) == 2 and full.n_continued == 2
+    saved = {}
+
+    def stop(i, branch):
+        saved.setdefault("branches", []).append(branch)
+        raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        search(factory, seeds, [], options(), on_corrections=lambda c: saved.update(corrections=c), on_branch=stop)
+    assert len(saved["branches"]) == 1
+    again = search(factory, seeds, [], options(), corrections=saved["corrections"], branches=saved["branches"])
+    assert again.n_continued == 1  # the first branch is kept, not recomputed
+    assert again.n_points_computed == full.branches[1].n_points_computed
+    assert [b.kind for b in again.branches] == [b.kind for b in full.branches]
+    for a, b in zip(again.branches, full.branches):
+        np.testing.assert_allclose(a.omega, b.omega)
+        np.testing.assert_allclose(a.x, b.x)
+        assert a.seeds == b.seeds
+    np.testing.assert_array_equal(again.seed_branch, full.seed_branch)

@@ -1,0 +1,131 @@
+"""Stage isolas end to end on the coarse ROM, with a tiny seed grid (coarse_runs.SHORT).
+
+`bladerub run --until isolas` on a clone of the short NFRCs: runs the sweep (the seeds from
+its periodic points) and the search, writes isolas.h5 in the documented layout; a second
+run reuses it; an interrupted search resumes from isolas.partial.h5.
+"""
+import h5py
+import numpy as np
+import pytest
+
+from coarse_runs import clone
+from pipelines import artifacts as art
+from pipelines.cli import main
+from pipelines.progress import Progress
+from pipelines.runner import run_scene
+from pipelines.scene import load_scene
+from pipelines.stages.isolas import read_isolas
+
+
+@pytest.fixture(scope="module")
+def searched(coarse_nfrc, tmp_path_factory):
+    scene0, base = coarse_nfrc
+    out = tmp_path_factory.mktemp("isolas")
+    scene = clone(base, out, copy=("nfrc_dlft.h5", "nfrc_rl.h5"))
+    assert main(["run", str(scene), "--out", str(out), "--until", "isolas", "--quiet"]) == 0
+    return scene, out
+
+
+def test_layout(searched):
+    scene, out = searched
+    path = out / "isolas.h5"
+    assert art.verify(path) is None  # checksums hold (fixed-length origins)
+    attrs = art.read_attrs(path)
+    assert attrs["stage"] == "isolas" and attrs["inputs_hash"]
+    with h5py.File(path) as h5:
+        assert set(h5) == {"dlft", "rl"}
+        for method in ("dlft", "rl"):
+            g = h5[method]
+            for k in ("n_seeds", "n_converged", "n_distinct", "n_branches", "cpu_time", "wall_time", "status"):
+                assert k in g.attrs, k
+            s = g["seeds"]
+            n = int(g.attrs["n_seeds"])
+            assert n >= 1  # DLFT: the 2 modal seeds, RL: DLFT's solutions of them; plus the sweep's periodic points
+            for k in ("omega", "origin", "converged", "branch"):
+                assert s[k].shape == (n,), k
+            origins = [o.decode() for o in s["origin"][()]]
+            if method == "dlft":
+                assert origins[:2] == ["modal j=1 k=2 A=0.001"] * 2
+            else:  # RL's modal seeds: DLFT's converged ones (hbm.isolas.harmonic.rl_seeds)
+                modal = [o for o in origins if o.startswith("modal")]
+                assert modal == ["modal j=1 k=2 A=0.001 via DLFT"] * int(h5["dlft"]["seeds"]["converged"][:2].sum())
+            assert int(s["converged"][()].sum()) == int(g.attrs["n_converged"])
+            br = s["branch"][()]
+            assert ((br >= -2) & (br < int(g.attrs["n_branches"]))).all()
+            assert (br[~s["converged"][()]] == -1).all()
+            assert len(g["branches"]) == int(g.attrs["n_branches"])
+    # DLFT: the 2 modal seeds at 1900 and 2000 rad/s, 0.24 mm of 2nd harmonic of 1B, both
+    # converge on the primary NFRC and are recognised as such (RL's stiff penalty takes
+    # neither within the seeds' Newton budget)
+    found = read_isolas(path)
+    with h5py.File(path) as h5:
+        conv = h5["dlft"]["seeds"]["converged"][:2]
+        br = h5["dlft"]["seeds"]["branch"][:2]
+        assert conv.all() and (br == -2).all(), (conv, br)
+        for method in ("dlft", "rl"):
+            assert len(found[method]) == int(h5[method].attrs["n_branches"])
+
+
+def test_the_sweep_keeps_the_boundary_state_and_seeds_from_it(searched):
+    """ti.h5 keeps every boundary dof over the last revolution (the LE radial one is the
+    last revolution of the LE signal), one seed per periodic speed, and DLFT's Newton from
+    those states lands on the primary NFRC (the only solution there)."""
+    from pipelines.stages.ti import read_sweep
+
+    _, out = searched
+    sw = read_sweep(out)
+    assert sw.boundary.shape == (4, 64, 27)  # 4 speeds, 64 samples per revolution, 3 x 9 dof
+    np.testing.assert_array_equal(sw.boundary[:, :, 0], sw.displacement[:, -64:, 0])
+    np.testing.assert_array_equal(sw.boundary[:, :, -3], sw.displacement[:, -64:, 1])  # TE radial
+    with h5py.File(out / "isolas.h5") as h5:
+        s = h5["dlft"]["seeds"]
+        ti = np.array([o.decode().startswith("ti class") for o in s["origin"][()]])
+        periodic = np.isin(sw.period_class, (0, 1)).sum()
+        assert ti.sum() == periodic  # one seed per periodic speed (the short sweep of 20 revolutions has none)
+        assert s["converged"][()][ti].all() and (s["branch"][()][ti] == -2).all()
+
+
+def test_branch_layout(searched):
+    """Whatever branches were found carry the documented datasets and attributes."""
+    _, out = searched
+    with h5py.File(out / "isolas.h5") as h5:
+        for method in ("dlft", "rl"):
+            for name, b in h5[method]["branches"].items():
+                m = len(b["omega"])
+                assert b["x"].shape[0] == m and b["converged"].shape == (m,)
+                assert b["harmonics"].shape[:2] == (m, 11)  # 2 N_h + 1, N_h = 5
+                assert b.attrs["kind"] in ("primary", "isola", "bifurcated", "detached")
+                assert b.attrs["subharmonic"] == 1
+
+
+def test_a_second_run_reuses_it(searched):
+    scene, out = searched
+    before = (out / "isolas.h5").stat().st_mtime_ns
+    progress = Progress(quiet=True)
+    run_scene(load_scene(scene), out, until="isolas", progress=progress)
+    rec = {r.stage: r.action for r in progress.records}
+    assert rec["isolas"] == "reused"
+    assert (out / "isolas.h5").stat().st_mtime_ns == before
+
+
+def test_the_partial_file_gives_back_what_was_finished(tmp_path):
+    """What isolas.partial.h5 keeps of an interrupted search is what the resume reads back."""
+    from hbm.isolas.search import Corrections, FoundBranch
+    from pipelines.stages.isolas import _Partial
+
+    c = Corrections(converged=np.array([True, False, True]), iterations=np.array([3, 5, 4]),
+                    on_known=np.array([-1, -1, 0]), same_as=np.array([-1, -1, -1]),
+                    x=np.array([[1.0, 2.0], [np.nan, np.nan], [3.0, 4.0]]), cpu_time=1.5)
+    fb = FoundBranch(omega=np.array([1.0, 1.1]), x=np.array([[1.0, 2.0], [1.1, 2.1]]), converged=np.array([True, True]),
+                     kind="isola", closed=True, status="+: closed loop", start=0, seeds=(0,),
+                     extras={"le_amplitude": np.array([1e-4, 2e-4])}, n_points_computed=2, cpu_time=0.5)
+    p = _Partial(tmp_path / "isolas.partial.h5", "hash-a")
+    p.corrections("dlft", c)
+    p.branch("dlft", 0, fb, 1)
+    c2, done = p.resume("dlft")
+    np.testing.assert_array_equal(c2.candidates(), [0])
+    np.testing.assert_array_equal(c2.x[0], [1.0, 2.0])
+    assert len(done) == 1 and done[0].kind == "isola" and done[0].seeds == (0,) and done[0].closed
+    np.testing.assert_array_equal(done[0].x, fb.x)
+    assert p.resume("rl") == (None, [])
+    assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").resume("dlft") == (None, [])  # other inputs
