@@ -24,7 +24,7 @@ from pathlib import Path
 
 from fem.material import Material
 from fem.options import FemOptions
-from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions
+from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions, ValidationOptions
 from mesh.options import BladeOptions, MeshOptions
 from rom.options import RomOptions
 from pipelines.options import LimitOptions, RenderOptions
@@ -44,6 +44,7 @@ SECTIONS: dict[str, type] = {
     "contact": ContactOptions,
     "hbm": HbmOptions,
     "ti": TimeIntegrationOptions,
+    "validation": ValidationOptions,
     "render": RenderOptions,
     "limits": LimitOptions,
 }
@@ -65,6 +66,7 @@ class Scene:
     contact: ContactOptions
     hbm: HbmOptions
     ti: TimeIntegrationOptions
+    validation: ValidationOptions
     render: RenderOptions
     limits: LimitOptions
 
