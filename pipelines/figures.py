@@ -203,7 +203,7 @@ KIND_COLOURS = {
 STABILITY_STYLES = {"stable": "-", "unstable": "--", "unknown": ":"}
 #: Marker of each bifurcation kind (hbm.stability.bifurcation.KINDS).
 BIFURCATION_MARKERS = {"fold": "o", "branch point": "s", "period doubling": "D", "Neimark-Sacker": "*",
-                       "unclassified": "x"}
+                       "unclassified": "x", "validation point": "P"}
 
 
 def _stability_runs(stable, converged):

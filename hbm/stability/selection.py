@@ -280,9 +280,24 @@ def continue_doubled_branch(residual, u: np.ndarray, omega: float, bifurcation: 
     range, steps and Newton test; direction and max_points are set here).
     Returns (DoubledBranch, the new branch's HarmonicBalanceResidual or None).
     """
-    st = switch_branch(residual, u, omega, bifurcation)
+    # a period doubling's exponent has Im = omega' / 2 (mod omega', omega' = mode_omega) for
+    # Hill's exact problem; DLFT's truncated one moves it by ~1 1/s (hbm.stability.bifurcation
+    # REAL_ARG_TOL), and the mode's frequencies must be exact harmonics of the new basis
+    beta = bifurcation.exponent.imag
+    half = 0.5 * bifurcation.mode_omega
+    bif = replace(bifurcation, exponent=complex(bifurcation.exponent.real, round(beta / half) * half))
+    # switch_branch's step 1e-2 first; a point far past the bifurcation (a multiplier well
+    # beyond -1 when the branch's points are far apart) may need a shorter or a longer one
+    for step in (1e-2, 3e-3, 3e-2, 1e-3):
+        try:
+            st = switch_branch(residual, u, omega, bif, step=step)
+        except ValueError as exc:
+            return DoubledBranch(False, f"no branch switch: {exc}", omega_bifurcation=float(bifurcation.omega),
+                                 multiplier=float(np.real(bifurcation.multiplier))), None
+        if st.newton.converged:
+            break
     if not st.newton.converged:
-        return DoubledBranch(False, f"the branch switch did not converge: {st.newton.reason}",
+        return DoubledBranch(False, f"the branch switch did not converge (steps 1e-3 to 3e-2): {st.newton.reason}",
                              omega_bifurcation=float(bifurcation.omega),
                              multiplier=float(np.real(bifurcation.multiplier))), None
     new = st.residual

@@ -379,6 +379,9 @@ def draw_solution_set(ctx: Context) -> None:
                 lines.append((br.kind, br.omega, br.le_amplitude, br.converged, br.stable))
         if (out / VALIDATION.file).is_file():
             t = getattr(read_validation(out), m)
+            if t is not None:
+                marks += [("validation point", p.omega, p.le_amplitude) for p in (t.primary, t.isola, t.period_doubling)
+                          if p.found]
             if t is not None and t.pd_branch.found:
                 d = t.pd_branch
                 lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable))
