@@ -243,7 +243,7 @@ class DoubledBranch:
     of the new fundamental, -. start: index of the switch's start point in these arrays.
     """
 
-    found: bool
+    found: bool = field(metadata={"unit": "1"})
     reason: str
     omega_bifurcation: float = field(default=math.nan, metadata={"unit": "rad/s"})
     multiplier: float = field(default=math.nan, metadata={"unit": "1"})

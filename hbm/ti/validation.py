@@ -99,7 +99,7 @@ class OrbitComparison:
     """
 
     source: str
-    converged: bool
+    converged: bool = field(metadata={"unit": "1"})
     displacement: np.ndarray = field(metadata={"unit": "m"})
     force: np.ndarray = field(metadata={"unit": "N"})
     displacement_error: np.ndarray = field(metadata={"unit": "1"})
@@ -160,7 +160,9 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     v0 = (k * w * (-c[1::2] * np.sin(ph) + c[2::2] * np.cos(ph))).sum(axis=0)
     shifted = replace(system, theta=system.theta + sense * omega * t0)  # the same problem started at t0
     rec = Recording(start=stride, stride=stride, n_samples=n_periods * n_s, dofs=cols, force_nodes=nodes)
-    m = march(shifted, casing, mu, omega, x0, v0, h, n_periods * n_per, rec)
+    # one stride more than the recorded span: the last force sample is a block mean reaching
+    # half a stride past it (multipliers of steps never marched read 0)
+    m = march(shifted, casing, mu, omega, x0, v0, h, n_periods * n_per + stride, rec)
     x = m.displacement.reshape(n_periods, n_s, 3)
     f = m.normal_force.reshape(n_periods, n_s, 3)
     at = (i0 + 1 + np.arange(n_s)) % n_s  # grid index of each sample of a period

@@ -60,7 +60,7 @@ class ValidationPoint:
 
     kind: str
     method: str
-    found: bool
+    found: bool = field(metadata={"unit": "1"})
     reason: str
     branch: str = ""
     index: int = field(default=-1, metadata={"unit": "1"})
@@ -68,7 +68,7 @@ class ValidationPoint:
     subharmonic: int = field(default=1, metadata={"unit": "1"})
     u: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
     le_amplitude: float = field(default=float("nan"), metadata={"unit": "m"})
-    stable: bool = False
+    stable: bool = field(default=False, metadata={"unit": "1"})
     verdict: str = ""
     n_unstable: int = field(default=-1, metadata={"unit": "1"})
     multiplier: float = field(default=float("nan"), metadata={"unit": "1"})
