@@ -30,9 +30,9 @@ samples_per_revolution = 64
 
 [validation]
 n_periods = 20
-n_candidates = 4
-n_scan = 8
-pd_points = 10
+n_candidates = 2
+n_scan = 4
+pd_points = 6
 
 """
 
