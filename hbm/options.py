@@ -121,15 +121,17 @@ class ValidationOptions:
     of the period-doubled branch, compared with both HBM treatments.
 
     n_periods: periods marched from each point (the paper's 100). n_candidates: Floquet
-    analyses near a branch's peak to find a stable point (8: on rotor 67 the stable sheet of
-    the peak's fold is among the first three). n_scan: points analysed along a branch whose
+    analyses near a branch's peak to find a stable point (24: on the coarse rotor 67 ROM at
+    N_h = 40 DLFT's first stable candidate is among the first 8, whereas RL's whole peak
+    region is unstable and 16 candidates find no stable point; 24 find one at 60 % of the
+    peak; ~0.7 s each). n_scan: points analysed along a branch whose
     file holds no stability, to find where it changes (24: the cost of about 2 % of an NFRC
     at N_h = 40; a stretch between two scanned points can hide two changes). pd_points: most
     points of the period-doubled branch each way from the switch.
     """
 
     n_periods: int = 100
-    n_candidates: int = 8
+    n_candidates: int = 24
     n_scan: int = 24
     pd_points: int = 40
 
