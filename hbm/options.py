@@ -114,6 +114,35 @@ class HbmOptions:
             raise ValueError(f"subharmonic must be an integer >= 1, got {self.subharmonic!r}")
 
 
+@dataclass(frozen=True)
+class ValidationOptions:
+    """The validation points (section 3.3 of the reference paper): time integration marched
+    from a stable point near the primary resonance, from a point of an isola and from a point
+    of the period-doubled branch, compared with both HBM treatments.
+
+    n_periods: periods marched from each point (the paper's 100). n_candidates: Floquet
+    analyses near a branch's peak to find a stable point (24: on the coarse rotor 67 ROM at
+    N_h = 40 DLFT's first stable candidate is among the first 8, whereas RL's whole peak
+    region is unstable and 16 candidates find no stable point; 24 find one at 60 % of the
+    peak; ~0.7 s each). n_scan: points analysed along a branch whose
+    file holds no stability, to find where it changes (24: the cost of about 2 % of an NFRC
+    at N_h = 40; a stretch between two scanned points can hide two changes). pd_points: most
+    points of the period-doubled branch each way from the switch.
+    """
+
+    n_periods: int = 100
+    n_candidates: int = 24
+    n_scan: int = 24
+    pd_points: int = 40
+
+    def __post_init__(self):
+        if self.n_periods < 3:
+            raise ValueError(f"n_periods must be >= 3, got {self.n_periods}")
+        if self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2:
+            raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, got {self.n_candidates}, "
+                             f"{self.n_scan}, {self.pd_points}")
+
+
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange
 #: multipliers on the full ROM, or the massless-boundary model.
 TI_SCHEMES = ("carpenter", "massless")

@@ -186,3 +186,212 @@ def plot_frequencies(omega, frequencies, out_png, *, labels=None, engine_orders=
         ax.set_title(title)
     ax.legend(fontsize=8, loc="upper left", framealpha=0.9)
     return _save(fig, out_png)
+
+
+# -- the solution set and the validation points (Figs. 8 to 12) -------------------------------
+#: Pixel size of the multi-panel figures (Figs. 9 and 10), inches at DPI.
+GRID_FIGSIZE = (11.0, 9.0)
+#: Line colour of each branch kind, per treatment (first, second); stability sets the style.
+KIND_COLOURS = {
+    "primary": ("#1f77b4", "#d62728"),
+    "isola": ("#2ca02c", "#9467bd"),
+    "bifurcated": ("#ff7f0e", "#8c564b"),
+    "period-doubled": ("#17becf", "#e377c2"),
+    "detached": ("#7f7f7f", "#bcbd22"),
+}
+#: Line style by stability: stable, unstable, unknown.
+STABILITY_STYLES = {"stable": "-", "unstable": "--", "unknown": ":"}
+#: Marker of each bifurcation kind (hbm.stability.bifurcation.KINDS).
+BIFURCATION_MARKERS = {"fold": "o", "branch point": "s", "period doubling": "D", "Neimark-Sacker": "*",
+                       "unclassified": "x", "validation point": "P"}
+
+
+def _stability_runs(stable, converged):
+    """Runs [(start, stop, state)] of equal state ("stable", "unstable", "unknown") over the
+    converged points; a run ends one point into the next so that the curve stays connected."""
+    n = len(converged)
+    state = np.array(["unknown"] * n, dtype=object) if stable is None else \
+        np.where(np.asarray(stable, bool), "stable", "unstable").astype(object)
+    runs, i = [], 0
+    while i < n:
+        if not converged[i]:
+            i += 1
+            continue
+        j = i
+        while j + 1 < n and converged[j + 1] and state[j + 1] == state[i]:
+            j += 1
+        runs.append((i, min(j + 2, n) if j + 1 < n and converged[j + 1] else j + 1, state[i]))
+        i = j + 1
+    return runs
+
+
+def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0), unit: str = "mm",
+                      title: str | None = None, n_lobes: int = 2) -> Path:
+    """The solution set (paper Fig. 8): every branch's LE amplitude against Omega, stable parts
+    solid, unstable dashed, stability unknown dotted; bifurcations marked by kind; the TI
+    sweep's points by periodicity class.
+
+    curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude
+    (m,) m, converged (m,) bool, stable (m,) bool or None)], kind one of KIND_COLOURS;
+    marks: [(bifurcation kind, omega rad/s, amplitude m)]. ti_points as in plot_nfrc.
+    """
+    k = _LENGTH[unit]
+    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    handles, seen_styles, seen_marks = [], set(), set()
+    for t, (label, (lines, marks)) in enumerate(curves.items()):
+        for kind, omega, amp, conv, stable in lines:
+            colour = KIND_COLOURS.get(kind, KIND_COLOURS["detached"])[t % 2]
+            omega, amp = np.asarray(omega, float), k * np.asarray(amp, float)
+            conv = np.asarray(conv, bool)
+            for a, b, state in _stability_runs(stable, conv):
+                ax.plot(omega[a:b], amp[a:b], STABILITY_STYLES[state], color=colour, lw=1.3)
+                seen_styles.add(state)
+            handles.append(Line2D([], [], color=colour, lw=1.3, label=f"{label} {kind}"))
+        for kind, w, a in marks:
+            if np.isfinite(a):
+                ax.plot(w, k * a, BIFURCATION_MARKERS.get(kind, "x"), color="k", ms=5, mfc="none", zorder=4)
+                seen_marks.add(kind)
+    uniq = {h.get_label(): h for h in handles}
+    handles = list(uniq.values())
+    handles += [Line2D([], [], color="0.3", ls=STABILITY_STYLES[s], label=s) for s in STABILITY_STYLES if s in seen_styles]
+    handles += [Line2D([], [], ls="none", marker=BIFURCATION_MARKERS.get(m, "x"), color="k", mfc="none", label=m)
+                for m in BIFURCATION_MARKERS if m in seen_marks]
+    if ti_points is not None:
+        o, a, c = ti_points
+        handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10)
+    if not curves or not any(lines for lines, _ in curves.values()):
+        ax.text(0.5, 0.5, "no branch computed yet", transform=ax.transAxes, ha="center", color="0.4")
+    _amplitude_axes(ax, omega_range, unit, title)
+    ax.legend(handles=handles, fontsize=6, loc="upper left", framealpha=0.9, ncol=2)
+    return _save(fig, out_png)
+
+
+def _note(ax, text: str) -> None:
+    import textwrap
+
+    ax.text(0.5, 0.5, "\n".join(textwrap.wrap(text, 60)), transform=ax.transAxes, ha="center", va="center",
+            fontsize=7, color="0.35")
+    ax.set_xticks([])
+    ax.set_yticks([])
+
+
+#: Colours of the signals in Figs. 9 and 10.
+SIGNAL_COLOURS = {"dlft": "#1f77b4", "rl": "#d62728", "ti": "#111111"}
+
+
+def plot_validation_signals(points: dict, out_png, *, title: str | None = None) -> Path:
+    """Time signals at the validation points (paper Fig. 9): one row per point (primary, isola,
+    period-doubled), radial displacement and normal contact force at the LE (solid) and TE
+    (dashed): DLFT-HBM, RL-HBM and time integration over the orbit's last period.
+
+    points: {kind: a pipelines.stages.validation.ValidationPoint (found, reason, omega,
+    subharmonic, ti, dlft, rl)}. A point not found gets its reason written in its row.
+    """
+    fig, axes = plt.subplots(len(points), 2, figsize=GRID_FIGSIZE, constrained_layout=True, squeeze=False)
+    for row, (kind, p) in zip(axes, points.items()):
+        name = kind.replace("_", " ")
+        if not p.found:
+            for ax in row:
+                _note(ax, f"{name}: none ({p.reason})")
+            continue
+        t = 1e3 * p.ti.tau * p.subharmonic / p.omega  # ms
+        for ax, what, scale, unit in ((row[0], "displacement", 1e3, "mm"), (row[1], "force", 1.0, "N")):
+            for col, ls, end in ((0, "-", "LE"), (2, "--", "TE")):
+                ax.plot(t, scale * getattr(p.ti, what)[:, col], ls, color=SIGNAL_COLOURS["ti"], lw=1.6, alpha=0.6,
+                        label=f"TI {end}")
+                for m in ("dlft", "rl"):
+                    c = getattr(p, m)
+                    if c is not None and c.converged:
+                        ax.plot(t, scale * getattr(c, what)[:, col], ls, color=SIGNAL_COLOURS[m], lw=1.0,
+                                label=f"{m.upper()}-HBM {end}")
+            ax.set_xlim(t.min(), t.max())
+            ax.grid(True, lw=0.4, alpha=0.5)
+            ax.set_ylabel(f"{'radial displacement' if what == 'displacement' else 'normal force'} ({unit})", fontsize=8)
+            stab = "stable" if p.stable else "unstable"
+            ax.set_title(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {'stays' if p.ti.stays else 'leaves'})",
+                         fontsize=8)
+        row[0].legend(fontsize=6, loc="best", ncol=3)
+    for ax in axes[-1]:
+        ax.set_xlabel("time (ms)")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    return _save(fig, out_png)
+
+
+def plot_contact_event(point, out_png, *, title: str | None = None) -> Path:
+    """Close view of a contact event (paper Fig. 10): radial displacement of the LE and of the
+    second boundary node against the casing profile d_j(t), DLFT-HBM, RL-HBM and time
+    integration, around the TI orbit's closest approach to the casing at the LE.
+
+    point: a ValidationPoint (found, ti with tau, distance, displacement; dlft, rl).
+    """
+    fig, axes = plt.subplots(2, 1, figsize=GRID_FIGSIZE, constrained_layout=True)
+    if not point.found:
+        for ax in axes:
+            _note(ax, f"no point ({point.reason})")
+        return _save(fig, out_png)
+    ti = point.ti
+    n = len(ti.tau)
+    t = 1e3 * ti.tau * point.subharmonic / point.omega
+    d = ti.distance[:, 0]
+    i0 = int(np.argmin(d - ti.displacement[:, 0]))
+    lobe = d < 0.5 * (d.max() + d.min())  # the lobe's stretch around the closest approach
+    a = b = i0
+    while lobe[(a - 1) % n] and b - a < n - 1:
+        a -= 1
+    while lobe[(b + 1) % n] and b - a < n - 1:
+        b += 1
+    half = max(8, int(0.75 * (b - a + 1)))
+    sel = np.arange(i0 - half, i0 + half + 1) % n
+    tt = t[i0] + (np.arange(-half, half + 1)) * (t[1] - t[0])
+    for ax, col, name in ((axes[0], 0, "LE"), (axes[1], 1, f"boundary node {int(ti.nodes[1]) + 1}")):
+        ax.plot(tt, 1e3 * ti.distance[sel, col], color="0.5", lw=3, alpha=0.6, label="casing")
+        ax.plot(tt, 1e3 * ti.displacement[sel, col], color=SIGNAL_COLOURS["ti"], lw=1.6, label="TI")
+        for m in ("dlft", "rl"):
+            c = getattr(point, m)
+            if c is not None and c.converged:
+                ax.plot(tt, 1e3 * c.displacement[sel, col], color=SIGNAL_COLOURS[m], lw=1.0, label=f"{m.upper()}-HBM")
+        ax.set_ylabel(f"{name} radial displacement (mm)", fontsize=8)
+        ax.grid(True, lw=0.4, alpha=0.5)
+        ax.legend(fontsize=7, loc="best")
+    axes[1].set_xlabel("time (ms)")
+    if title:
+        fig.suptitle(title, fontsize=9)
+    return _save(fig, out_png)
+
+
+def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4, 6, 8, 10)) -> Path:
+    """Dynamical content along branches (paper Figs. 11 and 12) against Omega.
+
+    curves: {label: (omega (m,) rad/s, contributions (m, n) -)}; kind "modal" (column j:
+    mode j + 1's relative contribution, eq. 32-33; a 0.5 line) or "harmonic" (column k:
+    harmonic k's contribution to the LE radial displacement, eq. 34; those of `harmonics`
+    drawn, or the five largest when none of them carries content).
+    """
+    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    styles = ["-", "--", ":", "-."]
+    colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
+    for s, (label, (omega, c)) in enumerate(curves.items()):
+        c = np.asarray(c, float)
+        order = np.argsort(np.asarray(omega, float))
+        if kind == "modal":
+            cols = [j for j in range(c.shape[1]) if np.nanmax(c[:, j]) > 0.02] or [0]
+            names = [f"mode {j + 1}" for j in cols]
+        else:
+            cols = [h for h in harmonics if h < c.shape[1] and np.nanmax(c[:, h]) > 1e-3]
+            if not cols:
+                cols = list(np.argsort(-np.nanmax(c, axis=0))[:5])
+            names = [f"k = {h}" for h in cols]
+        for i, (j, name) in enumerate(zip(cols, names)):
+            ax.plot(np.asarray(omega)[order], c[order, j], styles[s % 4], color=colours[i % len(colours)], lw=1.2,
+                    label=f"{label}: {name}")
+    if kind == "modal":
+        ax.axhline(0.5, color="0.5", lw=0.8, ls=":")
+    if not curves:
+        _note(ax, f"no {kind} contributions in the solution set")
+    ax.set_xlabel("angular speed \u03a9 (rad/s)")
+    ax.set_ylabel("relative modal contribution (-)" if kind == "modal" else "harmonic contribution (-)")
+    ax.grid(True, lw=0.4, alpha=0.5)
+    if curves:
+        ax.legend(fontsize=6, loc="best")
+    return _save(fig, out_png)

@@ -25,7 +25,7 @@ from pathlib import Path
 from fem.material import Material
 from fem.options import FemOptions
 from hbm.isolas.options import IsolaOptions
-from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions
+from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions, ValidationOptions
 from mesh.options import BladeOptions, MeshOptions
 from rom.options import RomOptions
 from pipelines.options import LimitOptions, RenderOptions
@@ -46,6 +46,7 @@ SECTIONS: dict[str, type] = {
     "hbm": HbmOptions,
     "ti": TimeIntegrationOptions,
     "isolas": IsolaOptions,
+    "validation": ValidationOptions,
     "render": RenderOptions,
     "limits": LimitOptions,
 }
@@ -68,6 +69,7 @@ class Scene:
     hbm: HbmOptions
     ti: TimeIntegrationOptions
     isolas: IsolaOptions
+    validation: ValidationOptions
     render: RenderOptions
     limits: LimitOptions
 

@@ -1,77 +1,136 @@
-"""Time integration started on a harmonic-balance solution (section 3.3, Fig. 9).
+"""Time integration started on a harmonic-balance orbit and compared with HBM orbits (section
+3.3 of the reference paper, Figs. 9 and 10).
 
-x(0), x'(0) come from the HBM harmonics; the ROM is marched n_periods periods T = 2 pi / Omega
-with exact (Lagrange multiplier) contact, and the last period is compared at the LE and TE
-with the HBM signals. Displacements are compared sample by sample. Contact forces are not:
-the multiplier method delivers impacts as one-step impulses that no N_h-harmonic signal can
-follow, so the TI normal force is first projected on the HBM's own N_h harmonics (the
-Fourier coefficients of the force over the period, exact impulses included) and that
-truncated signal is compared with the HBM force (DLFT or regularised penalty).
+The ROM is marched n_periods periods T = 2 pi nu / Omega of the orbit (nu: the HBM basis'
+subharmonic) with exact (Lagrange multiplier) contact, from the orbit's state at the instant
+where it is farthest from the casing (hbm.stability.orbit explains why: started inside a
+contact phase, the first step removes the HBM orbit's small penetration in one impulse).
+Two things are measured:
+
+- whether time integration stays on the orbit: the distance to the orbit period by period
+  (`deviation`), the growth of that distance over the march, and the period-to-period
+  change over the last period (`drift`); a check of the orbit's stability verdict;
+- how the last period compares with each HBM orbit given (the orbit marched from, and the
+  other contact treatment's orbit at the same Omega): radial displacement at the LE and TE
+  sample by sample, and normal contact force. Forces are not compared sample by sample: the
+  multiplier method delivers impacts as one-step impulses that no N_h-harmonic signal can
+  follow, so the time-integration force is first projected on the HBM's own N_h harmonics
+  (the Fourier coefficients of the force over the period, impulses included) and that
+  truncated signal is compared with the HBM force (DLFT or regularised penalty).
+
+Every signal lives on one grid of n_time phases tau_i = 2 pi i / n_time of the basis
+(tau = Omega t / nu, t = 0 the HBM orbit's time origin).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from hbm.contact.casing import casing_distance
 from hbm.harmonic.fourier import FourierBasis
-from hbm.options import CasingOptions, ContactOptions
-from hbm.ti.sweep import steps_per_revolution
+from hbm.options import CasingOptions
 from hbm.ti.march import ModalSystem, Recording, march, rom_modal_system
+from hbm.ti.sweep import steps_per_revolution
+
+#: TI stays on an orbit when its distance to it over the last tenth of the periods is at most
+#: GROWTH_TOL times that over the first tenth and at most DEVIATION_TOL of the orbit's
+#: amplitude. Time integration starts on the HBM orbit, which is not its own (DLFT's Gibbs
+#: ripple at the impacts, RL's penalty, the truncation: 10-30 % of the amplitude, max norm,
+#: on the rotor 67 ROM at N_h = 40); on a stable orbit that distance is kept (the last 10
+#: periods at 0.84-0.94 of the first 10, 0.10-0.20 of the amplitude, measured at 1971-1979
+#: rad/s), whereas an unstable one is left within a few periods (100 times the amplitude):
+#: 1.5 and 0.6 separate both (tests/hbm/test_stability_rotor67.py).
+GROWTH_TOL = 1.5
+DEVIATION_TOL = 0.6
+#: distances below this fraction of the amplitude count as on the orbit in the growth ratio
+#: (an exact orbit's march: round-off, ~1e-12, whose ratio from period to period means nothing)
+DEVIATION_FLOOR = 1e-3
 
 
 @dataclass(frozen=True)
-class ValidationResult:
-    """TI against HBM over the last simulated period, at the LE and TE (columns 0, 1).
+class OrbitValidation:
+    """Time integration marched from an HBM orbit, over the validation grid.
 
-    omega: Omega = omega, rad/s. n_periods: periods simulated. dt: time step used, s.
-    tau: HBM sample angles Omega t mod 2 pi of the last period, (N_t,), rad.
-    hbm_displacement, ti_displacement: radial displacement, (N_t, 2), m.
-    hbm_force: HBM normal force lam, (N_t, 2), N (nan when not given).
-    ti_force: TI normal force truncated to the HBM's N_h harmonics, (N_t, 2), N.
-    ti_force_peak: largest TI multiplier in the last period (unfiltered), (2,), N.
-    displacement_error: max_t |r_TI - r_HBM| / max_t |r_HBM|, (2,), -.
-    force_error: max_t |lam_TI,Nh - lam_HBM| / max_t |lam_HBM|, (2,), - (nan without forces).
-    drift: max_t |r(t) - r(t - T)| / max_t |r| over the last period: how far TI is from
-    T-periodic, (2,), -. max_penetration: largest r_j - d_j after contact correction, m.
+    omega: rotation speed Omega, rad/s. subharmonic: nu, the orbit's period is 2 pi nu /
+    Omega. n_periods: periods marched. dt: time step, s. t0: start instant within the
+    period, s. nodes: contact nodes of the three columns (LE, the second boundary node, TE),
+    (3,). tau: grid phases 2 pi i / n_time, (n_time,), rad (t = tau nu / Omega).
+    distance: casing distance d_j at those phases, (n_time, 3), m (contact when r_j = d_j).
+    displacement: TI radial displacement over the last period, (n_time, 3), m.
+    force: TI normal force over the last period projected on the orbit's N_h harmonics,
+    (n_time, 3), N. force_peak: largest TI multiplier over the last period (unprojected), (3,), N.
+    deviation: (n_periods, 2), max over each period of |r_TI - r_HBM| at the LE and TE
+    relative to the HBM orbit's half peak-to-peak radial displacement there, -.
+    drift: max over the last period of |r(t) - r(t - T)| relative to the same amplitude, (2,), -.
+    growth: deviation over the last tenth of the periods over that of the first tenth, both
+    raised to DEVIATION_FLOOR (max over LE and TE), -. stays: growth <= GROWTH_TOL and that last deviation <= DEVIATION_TOL.
+    max_penetration: largest r_j - d_j after the contact correction, m.
     """
 
     omega: float = field(metadata={"unit": "rad/s"})
+    subharmonic: int = field(metadata={"unit": "1"})
     n_periods: int = field(metadata={"unit": "1"})
     dt: float = field(metadata={"unit": "s"})
+    t0: float = field(metadata={"unit": "s"})
+    nodes: np.ndarray = field(metadata={"unit": "1"})
     tau: np.ndarray = field(metadata={"unit": "rad"})
-    hbm_displacement: np.ndarray = field(metadata={"unit": "m"})
-    ti_displacement: np.ndarray = field(metadata={"unit": "m"})
-    hbm_force: np.ndarray = field(metadata={"unit": "N"})
-    ti_force: np.ndarray = field(metadata={"unit": "N"})
-    ti_force_peak: np.ndarray = field(metadata={"unit": "N"})
-    displacement_error: np.ndarray = field(metadata={"unit": "1"})
-    force_error: np.ndarray = field(metadata={"unit": "1"})
+    distance: np.ndarray = field(metadata={"unit": "m"})
+    displacement: np.ndarray = field(metadata={"unit": "m"})
+    force: np.ndarray = field(metadata={"unit": "N"})
+    force_peak: np.ndarray = field(metadata={"unit": "N"})
+    deviation: np.ndarray = field(metadata={"unit": "1"})
     drift: np.ndarray = field(metadata={"unit": "1"})
+    growth: float = field(metadata={"unit": "1"})
+    stays: bool = field(metadata={"unit": "1"})
     max_penetration: float = field(metadata={"unit": "m"})
 
 
-def initial_state(coeffs: np.ndarray, omega: float) -> tuple[np.ndarray, np.ndarray]:
-    """x(0) and x'(0) of x(t) = c_0 + sum_k a_k cos k w t + b_k sin k w t.
+@dataclass(frozen=True)
+class OrbitComparison:
+    """One HBM orbit against the time integration's last period, on the validation grid.
 
-    coeffs: (2 N_h + 1, n) in the order [c_0 = a_0 / 2, a_1, b_1, ..., a_Nh, b_Nh], m.
-    omega: w, rad/s. Returns ((n,) m, (n,) m/s).
+    source: where the orbit comes from, in words. converged: whether it is a solution (when
+    not, the signals are nan and source says why). displacement: HBM radial displacement,
+    (n_time, 3), m. force: HBM normal force, (n_time, 3), N (columns as OrbitValidation).
+    displacement_error: max_t |r_TI - r_HBM| / max_t |r_HBM| at the LE and TE, (2,), -.
+    force_error: max_t |lam_TI,Nh - lam_HBM| / max_t max(|lam_HBM|, |lam_TI,Nh|) at the LE and
+    TE, (2,), - (0 where neither is ever in contact).
     """
-    c = np.asarray(coeffs, dtype=float)
-    k = np.arange(1, (c.shape[0] - 1) // 2 + 1)[:, None]
-    return c[0] + c[1::2].sum(axis=0), omega * (k * c[2::2]).sum(axis=0)
+
+    source: str
+    converged: bool = field(metadata={"unit": "1"})
+    displacement: np.ndarray = field(metadata={"unit": "m"})
+    force: np.ndarray = field(metadata={"unit": "N"})
+    displacement_error: np.ndarray = field(metadata={"unit": "1"})
+    force_error: np.ndarray = field(metadata={"unit": "1"})
 
 
-def validate_against_hbm(rom, casing: CasingOptions, contact: ContactOptions, coeffs: np.ndarray, omega: float,
-                         forces: np.ndarray | None = None, n_periods: int = 100, dt: float = 1e-7,
-                         n_time: int | None = None) -> ValidationResult:
-    """March n_periods from an HBM solution and compare the last period with it.
+def validation_nodes(n_boundary: int) -> np.ndarray:
+    """The three compared contact nodes: LE (0), the second boundary node, TE (n_b - 1)."""
+    return np.array([0, min(1, n_boundary - 1), n_boundary - 1])
 
-    rom: RomModel (or ModalSystem). coeffs: full-dof HBM harmonics, (2 N_h + 1, n), m, eq. (5)
-    order, omega = Omega. omega: rad/s. forces: HBM normal forces lam at tau_i = 2 pi i / N_t,
-    (N_t, n_b), N (e.g. HarmonicBalanceResidual.signals(...)["lam"]); optional.
-    dt: requested step, s (shrunk so that T / dt is a multiple of N_t). n_time: N_t when no
-    forces are given (default 1024).
+
+def grid_size(n_harmonics: int, minimum: int = 1024) -> int:
+    """Samples per period of the validation grid: a power of 2, at least `minimum` and
+    enough for n_harmonics. 1024 by default: the time integration's forces are block means
+    over n_per / n_time steps, which attenuate harmonic k by sinc(pi k / n_time), 0.4 % at
+    k = 40."""
+    n = int(minimum)
+    while n < 2 * n_harmonics + 2:
+        n *= 2
+    return n
+
+
+def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, omega: float, *,
+                   subharmonic: int = 1, n_periods: int = 100, dt: float = 1e-7,
+                   n_time: int | None = None) -> OrbitValidation:
+    """March n_periods from an HBM orbit and measure how far time integration stays from it.
+
+    rom: RomModel (or a hbm.ti.march.ModalSystem). coeffs: the orbit's full-dof harmonics,
+    (2 N_h + 1, n), m, eq. (5) order, in the basis of omega / subharmonic (omega = Omega,
+    rad/s). dt: largest step, s (shrunk so that a period is a multiple of n_time steps).
+    n_time: grid samples per period (default grid_size(N_h)).
     """
     system = rom if isinstance(rom, ModalSystem) else rom_modal_system(rom)
     c = np.asarray(coeffs, dtype=float)
@@ -79,40 +138,75 @@ def validate_against_hbm(rom, casing: CasingOptions, contact: ContactOptions, co
         raise ValueError(f"coeffs must be (2 N_h + 1, {system.n_dof}), got {c.shape}")
     if n_periods < 3:
         raise ValueError(f"need n_periods >= 3, got {n_periods}")
-    n_h = (c.shape[0] - 1) // 2
+    nh = (c.shape[0] - 1) // 2
     nb = system.n_boundary
-    cols = [0, nb - 1]
-    if forces is not None:
-        forces = np.asarray(forces, dtype=float)
-        if forces.ndim != 2 or forces.shape[1] != nb:
-            raise ValueError(f"forces must be (N_t, {nb}), got {forces.shape}")
-        n_time = forces.shape[0]
-    n_time = int(n_time or 1024)
-    n_per = steps_per_revolution(omega, dt, n_time)
-    dt_eff = 2.0 * np.pi / (omega * n_per)
-    x0, v0 = initial_state(c, omega)
-    # the last two periods at every step: the last for the comparison, both for the drift
-    rec = Recording(start=(n_periods - 2) * n_per, stride=1, n_samples=2 * n_per,
-                    dofs=np.array([3 * j for j in cols]), force_nodes=np.array(cols))
-    m = march(system, casing, contact.mu, omega, x0, v0, dt_eff, n_periods * n_per, rec)
-    x_all, f_all = m.displacement, m.normal_force
-    last_x, prev_x = x_all[n_per:], x_all[:n_per]
-    last_f = f_all[-n_per:]
-    # samples of the last period start at a multiple of T: tau_i = 2 pi i / N_t
-    hb = FourierBasis(n_h, n_time)
-    hbm_x = hb.to_time(c[:, [3 * j for j in cols]])
-    ti_x = last_x[::n_per // n_time]
-    scale_x = np.abs(hbm_x).max(axis=0)
-    disp_err = np.abs(ti_x - hbm_x).max(axis=0) / scale_x
-    ti_f = hb.to_time(FourierBasis(n_h, n_per).to_freq(last_f))
-    if forces is not None:
-        hbm_f = forces[:, cols]
-        force_err = np.abs(ti_f - hbm_f).max(axis=0) / np.abs(hbm_f).max(axis=0)
-    else:
-        hbm_f = np.full_like(ti_f, np.nan)
-        force_err = np.full(2, np.nan)
-    drift = np.abs(last_x - prev_x).max(axis=0) / np.abs(last_x).max(axis=0)
-    return ValidationResult(omega=float(omega), n_periods=int(n_periods), dt=dt_eff, tau=hb.tau,
-                            hbm_displacement=hbm_x, ti_displacement=ti_x, hbm_force=hbm_f, ti_force=ti_f,
-                            ti_force_peak=last_f.max(axis=0), displacement_error=disp_err,
-                            force_error=force_err, drift=drift, max_penetration=m.max_penetration)
+    nodes = validation_nodes(nb)
+    cols = 3 * nodes
+    grid = FourierBasis(nh, int(n_time or grid_size(nh)))
+    n_s = grid.n_time
+    w = omega / subharmonic  # the basis' fundamental, rad/s
+    n_per = steps_per_revolution(w, dt, n_s)
+    h = 2.0 * np.pi / (w * n_per)
+    stride = n_per // n_s
+    sense = system.rotation
+    # start on a grid phase where the orbit is farthest from the casing
+    r_all = grid.to_time(c[:, 0:3 * nb:3])  # (n_s, n_b)
+    d_all = casing_distance(subharmonic * grid.tau, sense * system.theta, casing)
+    i0 = int(np.argmax((d_all - r_all).min(axis=1)))
+    t0 = grid.tau[i0] / w
+    k = np.arange(1, nh + 1)[:, None]
+    ph = k * grid.tau[i0]
+    x0 = c[0] + (c[1::2] * np.cos(ph) + c[2::2] * np.sin(ph)).sum(axis=0)
+    v0 = (k * w * (-c[1::2] * np.sin(ph) + c[2::2] * np.cos(ph))).sum(axis=0)
+    shifted = replace(system, theta=system.theta + sense * omega * t0)  # the same problem started at t0
+    rec = Recording(start=stride, stride=stride, n_samples=n_periods * n_s, dofs=cols, force_nodes=nodes)
+    # one stride more than the recorded span: the last force sample is a block mean reaching
+    # half a stride past it (multipliers of steps never marched read 0)
+    m = march(shifted, casing, mu, omega, x0, v0, h, n_periods * n_per + stride, rec)
+    x = m.displacement.reshape(n_periods, n_s, 3)
+    f = m.normal_force.reshape(n_periods, n_s, 3)
+    at = (i0 + 1 + np.arange(n_s)) % n_s  # grid index of each sample of a period
+    ref = grid.to_time(c[:, cols])  # (n_s, 3)
+    amp = np.maximum(0.5 * np.ptp(ref, axis=0), 1e-300)
+    dev = (np.abs(x - ref[at]).max(axis=1) / amp)[:, [0, 2]]
+    drift = (np.abs(x[-1] - x[-2]).max(axis=0) / amp)[[0, 2]]
+    n10 = max(1, n_periods // 10)
+    first, last = dev[:n10].max(axis=0), dev[-n10:].max(axis=0)
+    growth = float(np.max(np.maximum(last, DEVIATION_FLOOR) / np.maximum(first, DEVIATION_FLOOR)))
+    disp = np.empty((n_s, 3))
+    disp[at] = x[-1]
+    force = np.empty((n_s, 3))
+    force[at] = f[-1]
+    return OrbitValidation(omega=float(omega), subharmonic=int(subharmonic), n_periods=int(n_periods), dt=float(h),
+                           t0=float(t0), nodes=nodes, tau=grid.tau, distance=d_all[:, nodes], displacement=disp,
+                           force=grid.to_time(grid.to_freq(force)), force_peak=f[-1].max(axis=0), deviation=dev,
+                           drift=drift, growth=growth, stays=bool(growth <= GROWTH_TOL and last.max() <= DEVIATION_TOL),
+                           max_penetration=float(m.max_penetration))
+
+
+def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.ndarray | None,
+                     source: str) -> OrbitComparison:
+    """An HBM orbit against the time integration `ti` (same Omega and subharmonic).
+
+    coeffs: the orbit's full-dof harmonics (2 N_h + 1, n), m, in ti's basis; None when there
+    is no orbit (source then says why). forces: its normal forces lam on its own AFT grid
+    (N_t, n_b), N (e.g. HarmonicBalanceResidual.signals(...)["lam"]). Both treatments use
+    the scene's N_h, so ti.force (projected on the marched orbit's N_h) is compared as it is.
+    """
+    n_s = len(ti.tau)
+    nan = np.full((n_s, 3), np.nan)
+    if coeffs is None:
+        return OrbitComparison(source, False, nan, nan, np.full(2, np.nan), np.full(2, np.nan))
+    c = np.asarray(coeffs, dtype=float)
+    nh = (c.shape[0] - 1) // 2
+    grid = FourierBasis(nh, n_s)
+    disp = grid.to_time(c[:, 3 * ti.nodes])
+    lam = np.asarray(forces, dtype=float)
+    hbm_f = grid.to_time(FourierBasis(nh, lam.shape[0]).to_freq(lam[:, ti.nodes]))
+    ti_f = ti.force
+    cols = [0, 2]
+    derr = np.abs(ti.displacement - disp).max(axis=0)[cols] / np.abs(disp).max(axis=0)[cols]
+    scale = np.maximum(np.abs(hbm_f).max(axis=0), np.abs(ti_f).max(axis=0))[cols]
+    diff = np.abs(ti_f - hbm_f).max(axis=0)[cols]
+    ferr = np.where(scale > 0, diff / np.where(scale > 0, scale, 1.0), 0.0)
+    return OrbitComparison(source, True, disp, hbm_f, derr, ferr)

@@ -33,6 +33,7 @@ ISOLAS = Output("isolas.h5")
 
 #: Units of the per-branch datasets
 _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "harmonics": "m", "stable": "1",
+          "modal_contribution": "1", "harmonic_contribution": "m",
           "n_unstable": "1"}
 
 
@@ -44,7 +45,9 @@ class IsolaBranch:
     "detached"; closed; status (how each half ended); subharmonic: nu (basis Omega / nu);
     seeds (k,) int: indices into the treatment's seeds. omega (m,) rad/s; x (m, n_u) scaled
     unknowns; converged (m,) bool; le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m;
-    stable (m,) bool and n_unstable (m,) int, or None without stability.
+    stable (m,) bool and n_unstable (m,) int, or None without stability. modal_contribution
+    (m, n) and harmonic_contribution (m, N_h + 1), m: the dynamical content of each point
+    (hbm.harmonic.content, eqs. 32-34), or None in files without it.
     """
 
     method: str
@@ -61,6 +64,13 @@ class IsolaBranch:
     harmonics: np.ndarray
     stable: np.ndarray | None = None
     n_unstable: np.ndarray | None = None
+    modal_contribution: np.ndarray | None = None
+    harmonic_contribution: np.ndarray | None = None
+
+    @property
+    def name(self) -> str:
+        """Its group name under branches/: NNN."""
+        return f"{self.index:03d}"
 
 
 def _text(v) -> str:
@@ -87,15 +97,18 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     seeds=np.asarray(a["seeds"], dtype=np.int64).reshape(-1), omega=b["omega"][()], x=b["x"][()],
                     converged=b["converged"][()].astype(bool), le_amplitude=b["le_amplitude"][()],
                     harmonics=b["harmonics"][()], stable=b["stable"][()].astype(bool) if "stable" in b else None,
-                    n_unstable=b["n_unstable"][()] if "n_unstable" in b else None))
+                    n_unstable=b["n_unstable"][()] if "n_unstable" in b else None,
+                    modal_contribution=b["modal_contribution"][()] if "modal_contribution" in b else None,
+                    harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None))
             out[method] = rows
     return out
 
 
 # -- writing ---------------------------------------------------------------------------------
-def _write_branch(group, fb, nu: int) -> None:
+def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
     data = {"omega": fb.omega, "x": fb.x, "converged": np.asarray(fb.converged, bool)}
     data.update({k: v for k, v in fb.extras.items() if k in _UNITS})
+    data.update({k: v for k, v in (content or {}).items() if k in _UNITS})
     for name, v in data.items():
         group.create_dataset(name, data=np.asarray(v)).attrs["unit"] = _UNITS[name]
     a = group.attrs
@@ -189,7 +202,8 @@ class _Partial:
             g.attrs["n_branches"] = index + 1  # last: the branch counts once all of it is written
 
 
-def _write_final(path, results: dict, provenance: dict) -> None:
+def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
+    """content: {method: [branch_content of each branch]} (hbm.harmonic.content, eqs. 32-34)."""
     import h5py
 
     with art.atomic_output(path) as tmp:
@@ -217,7 +231,7 @@ def _write_final(path, results: dict, provenance: dict) -> None:
                 s.create_dataset("branch", data=res.seed_branch).attrs["unit"] = "1"
                 b = g.create_group("branches")
                 for k, fb in enumerate(res.branches):
-                    _write_branch(b.create_group(f"{k:03d}"), fb, nu)
+                    _write_branch(b.create_group(f"{k:03d}"), fb, nu, content.get(method, [None] * (k + 1))[k])
         art.add_checksums(tmp)
 
 
@@ -273,6 +287,10 @@ def _compute(ctx: Context, outputs) -> None:
     final = out / ISOLAS.file
     partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
     results = {}  # method -> (IsolaSearch, nu, status, cpu, wall), in hbm.methods' order when written
+    content = {}  # method -> the dynamical content of each branch
+    from hbm.harmonic.content import branch_content, rom_modes
+
+    modes = rom_modes(rom.K, rom.M)
     for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
         problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
         res, _ = problem()
@@ -305,6 +323,7 @@ def _compute(ctx: Context, outputs) -> None:
         cpu = result.cpu_time + sum(b.cpu_time for b in done)
         results[method] = (result, res.nu, "complete", cpu, wall)
         if root:
+            content[method] = [branch_content(res, rom, b.x, b.omega, modes) for b in result.branches]
             kinds = {}
             for b in result.branches:
                 kinds[b.kind] = kinds.get(b.kind, 0) + 1
@@ -320,7 +339,7 @@ def _compute(ctx: Context, outputs) -> None:
                         f"dominant harmonic {dom}, {len(b.seeds)} seeds")
 
     def write():
-        _write_final(final, results, ctx.provenance(ISOLAS, "isolas"))
+        _write_final(final, results, ctx.provenance(ISOLAS, "isolas"), content)
         partial.path.unlink(missing_ok=True)
 
     on_root(comm, write)

@@ -1,12 +1,32 @@
-"""Stage validation: time integration marched from HBM solutions and compared with them
-(validation.h5), a stage of its own so that changing N_h never reruns the TI sweep."""
+"""Stage validation: the paper's three validation points (section 3.3, Figs. 9 and 10), chosen
+automatically for each contact treatment, time integration marched from each and compared
+with both HBM treatments (validation.h5); and the full view of the solution set (Fig. 8).
+
+For each treatment of [hbm] methods:
+- primary: a stable point near the primary resonance of its NFRC (hbm.stability.selection.
+  choose_point: the stored verdicts when the NFRC was computed with [hbm] stability, else
+  Floquet analyses of a few points near the peak);
+- isola: a point (stable if any) of a branch of kind "isola" in isolas.h5, when that file
+  exists and holds one (else the reason is recorded);
+- period doubling: the first period doubling of the NFRC (its bifurcation table, or located
+  here by a bounded scan), the period-doubled branch switched to there and continued both
+  ways (stored here), and a point of it (stable if any).
+From each point time integration is marched [validation] n_periods periods of the orbit
+(hbm.ti.validation.march_from_hbm) and its last period compared with the orbit itself and
+with the other treatment's orbit at the same Omega, corrected by damped Newton from the
+point (not the nearest point of the other NFRC: the other treatment's branch need not pass
+there, e.g. on an isola or the period-doubled branch).
+"""
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
 
 import numpy as np
 
-from hbm.ti.validation import ValidationResult
+from hbm.stability.selection import DoubledBranch
+from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, OrbitComparison, OrbitValidation
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Figure, Output, Stage
 from pipelines.stages.hbm import nfrc_output
@@ -14,60 +34,367 @@ from pipelines.stages.rom import read_rom
 
 VALIDATION = Output("validation.h5")
 
+#: The isolas stage's artifact: the isola validation point is taken from it.
+ISOLAS = "isolas.h5"
+UPSTREAM = ("rom", "hbm", "isolas")
+OPTIONAL_INPUTS = ()
+
+KINDS = ("primary", "isola", "period_doubling")
+
+
+@dataclass(frozen=True)
+class ValidationPoint:
+    """One validation point and what time integration says of it.
+
+    kind: "primary", "isola" or "period_doubling". method: the treatment whose branch it lies
+    on. found: whether there is one (reason: how it was chosen, or why there is none).
+    branch: where it lies, in words (file and branch). index: its index there. omega: Omega,
+    rad/s. subharmonic: nu of its basis (the orbit's period 2 pi nu / Omega). u: its
+    unknowns, (n_u,). le_amplitude: m. stable, verdict, n_unstable, multiplier: its stability
+    (hbm.stability.selection.ChosenPoint). ti: the march from it; dlft, rl: each treatment's
+    orbit at that Omega against the march (hbm.ti.validation), absent when not found.
+    """
+
+    kind: str
+    method: str
+    found: bool = field(metadata={"unit": "1"})
+    reason: str
+    branch: str = ""
+    index: int = field(default=-1, metadata={"unit": "1"})
+    omega: float = field(default=float("nan"), metadata={"unit": "rad/s"})
+    subharmonic: int = field(default=1, metadata={"unit": "1"})
+    u: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
+    le_amplitude: float = field(default=float("nan"), metadata={"unit": "m"})
+    stable: bool = field(default=False, metadata={"unit": "1"})
+    verdict: str = ""
+    n_unstable: int = field(default=-1, metadata={"unit": "1"})
+    multiplier: float = field(default=float("nan"), metadata={"unit": "1"})
+    ti: OrbitValidation | None = None
+    dlft: OrbitComparison | None = None
+    rl: OrbitComparison | None = None
+
+
+@dataclass(frozen=True)
+class TreatmentValidation:
+    """The three points of one treatment, and its period-doubled branch.
+
+    method: "dlft" or "rl". cpu_time: process CPU time spent on this treatment, s.
+    pd_branch: hbm.stability.selection.DoubledBranch (found False with the reason when there
+    is no period doubling or the switch failed).
+    """
+
+    method: str
+    primary: ValidationPoint
+    isola: ValidationPoint
+    period_doubling: ValidationPoint
+    pd_branch: DoubledBranch
+    cpu_time: float = field(metadata={"unit": "s"})
+
 
 @dataclass(frozen=True)
 class ValidationArtifact:
-    """What validation.h5 holds. method: the HBM treatment validated. point: index of the
-    NFRC point marched from. result: hbm.ti.validation.ValidationResult."""
+    """What validation.h5 holds: one TreatmentValidation per treatment of [hbm] methods.
+    isolas: how isolas.h5 was used ("absent" or its path). growth_tol, deviation_tol: the
+    stated tolerances of "TI stays on the orbit" (hbm.ti.validation.GROWTH_TOL,
+    DEVIATION_TOL), -. cpu_time: the stage's process CPU time, s."""
 
-    method: str
-    point: int = field(metadata={"unit": "1"})
-    result: ValidationResult
+    isolas: str
+    growth_tol: float = field(metadata={"unit": "1"})
+    deviation_tol: float = field(metadata={"unit": "1"})
+    cpu_time: float = field(metadata={"unit": "s"})
+    dlft: TreatmentValidation | None = None
+    rl: TreatmentValidation | None = None
+
+
+def read_validation(out: Path) -> ValidationArtifact:
+    return art.read_artifact(Path(out) / VALIDATION.file, ValidationArtifact)
+
+
+# -- isolas.h5 ---------------------------------------------------------------------------------
+def read_branch_set(path: Path, method: str) -> list:
+    """The branches (pipelines.stages.isolas.IsolaBranch) of one treatment in isolas.h5 ([]
+    when the file or the treatment's group is absent)."""
+    from pipelines.stages.isolas import read_isolas
+
+    path = Path(path)
+    return read_isolas(path).get(method, []) if path.is_file() else []
+
+
+# -- compute -----------------------------------------------------------------------------------
+def _pd_brackets(path: Path):
+    """Indices after which the NFRC file's bifurcation table places a period doubling, or None
+    when the file holds no stability (no table)."""
+    import h5py
+
+    from hbm.stability.bifurcation import PERIOD_DOUBLING
+
+    with h5py.File(path, "r") as h5:
+        if "bifurcations" not in h5:
+            return None
+        g = h5["bifurcations"]
+        kinds = [k.decode() if isinstance(k, bytes) else str(k) for k in g["kind"][()]]
+        return [int(i) for i, k in zip(g["index"][()], kinds) if k == PERIOD_DOUBLING]
+
+
+def _options_for(hbm, n_u: int, n_r: int, nu: int):
+    """The scene's HbmOptions for unknowns of size n_u in the basis of Omega / nu."""
+    n_h = (n_u // n_r - 1) // 2
+    ratio = max(1, round(n_h / hbm.n_harmonics))
+    return replace(hbm, subharmonic=int(nu), n_harmonics=int(n_h), n_time=max(hbm.n_time * ratio, 2 * n_h + 2))
+
+
+def _validate(ctx, rom, system, kind, method, chosen, residual, branch) -> ValidationPoint:
+    """March from a chosen point and compare with both treatments' orbits at its Omega."""
+    from hbm.harmonic.residual import build_residual
+    from hbm.harmonic.solver import HbmSolver
+    from hbm.harmonic.start import damped_newton
+    from hbm.continuation.newton import NewtonOptions
+    from hbm.ti.validation import compare_with_hbm, march_from_hbm
+
+    scene = ctx.scene
+    if not chosen.found:
+        return ValidationPoint(kind, method, False, chosen.reason, branch)
+    u, omega, nu = chosen.u, chosen.omega, residual.nu
+    ti = march_from_hbm(system, scene.casing, scene.contact.mu, residual.expand_harmonics(u, omega), omega,
+                        subharmonic=nu, n_periods=scene.validation.n_periods, dt=scene.ti.dt)
+    comps = {}
+    for m in ("dlft", "rl"):
+        if m == method:
+            res, sol_u, src = residual, u, "the point itself"
+        else:
+            res = build_residual(rom, scene.casing, scene.contact, residual.options, method=m)
+            sol = damped_newton(res, res.to_unknowns(residual.to_coefficients(u)), omega,
+                                NewtonOptions(tol_residual=scene.hbm.tolerance, max_iter=12),
+                                HbmSolver(atol=0.1 * scene.hbm.tolerance))
+            if not sol.converged:
+                comps[m] = compare_with_hbm(ti, None, None, f"damped Newton at the same Omega from the point "
+                                                            f"failed: {sol.reason}")
+                continue
+            sol_u = sol.x
+            dist = np.linalg.norm(sol.x - u) / max(np.linalg.norm(u), 1e-300)
+            src = f"damped Newton at the same Omega from the point ({sol.iterations} iterations, moved {dist:.3g})"
+        comps[m] = compare_with_hbm(ti, res.expand_harmonics(sol_u, omega), res.signals(sol_u, omega)["lam"], src)
+    return ValidationPoint(kind, method, True, chosen.reason, branch, chosen.index, omega, nu, np.asarray(u, float),
+                           chosen.le_amplitude, chosen.stable, chosen.verdict, chosen.n_unstable, chosen.multiplier,
+                           ti, comps["dlft"], comps["rl"])
+
+
+def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
+    from pipelines.branch_store import load_branch
+
+    scene, opts = ctx.scene, ctx.scene.validation
+    c0 = time.process_time()
+    path = ctx.out / nfrc_output(method).file
+    stored = load_branch(path)
+    b, ex = stored.branch, stored.extras
+    res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
+    tag = method.upper()
+    # primary
+    update(f"{tag}: a stable point near the primary resonance")
+    ch = choose_point(res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
+                      n_candidates=opts.n_candidates)
+    update(f"{tag} primary point: {opts.n_periods} periods of time integration")
+    primary = _validate(ctx, rom, system, "primary", method, ch, res, path.name)
+    # isola
+    isolas = ctx.out / ISOLAS
+    branches = [br for br in read_branch_set(isolas, method) if br.kind == "isola"]
+    if not isolas.is_file():
+        isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
+    elif not branches:
+        isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind 'isola' for {method}")
+    else:
+        update(f"{tag}: a point on an isola")
+        best = None
+        for br in branches:
+            r_b = build_residual(rom, scene.casing, scene.contact,
+                                 _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic), method=method)
+            ch = choose_point(r_b, br.omega, br.x, br.le_amplitude, br.converged, br.stable,
+                              n_candidates=opts.n_candidates)
+            if ch.found and (best is None or (ch.stable and not best[1].stable)):
+                best = (br, ch, r_b)
+            if best is not None and best[1].stable:
+                break
+        if best is None:
+            isola = ValidationPoint("isola", method, False, f"no converged point on the {len(branches)} isola(s)")
+        else:
+            br, ch, r_b = best
+            update(f"{tag} isola point: {opts.n_periods} periods of time integration")
+            isola = _validate(ctx, rom, system, "isola", method, ch, r_b, f"{ISOLAS} {method}/branches/{br.name}")
+    # period doubling
+    update(f"{tag}: period doubling of the NFRC")
+    loc = locate_period_doubling(res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets=_pd_brackets(path),
+                                 n_scan=opts.n_scan)
+    if loc.bifurcation is None:
+        pd_branch = DoubledBranch(False, loc.reason)
+        pd = ValidationPoint("period_doubling", method, False, loc.reason)
+    else:
+        update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s")
+        pd_branch, r_pd = continue_doubled_branch(res, b.x[loc.index], float(b.omega[loc.index]), loc.bifurcation,
+                                                  default_continuation(scene.hbm), n_points=opts.pd_points)
+        pd_branch = replace(pd_branch, reason=f"{loc.reason}; {pd_branch.reason}")
+        if not pd_branch.found:
+            pd = ValidationPoint("period_doubling", method, False, pd_branch.reason)
+        else:
+            # points that carry the new frequencies: the start's neighbours are still the old orbit
+            far = pd_branch.new_content >= 0.05
+            ch = choose_point(r_pd, pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
+                              np.ones(len(pd_branch.omega), bool), pd_branch.stable,
+                              eligible=far if far.any() else None, n_candidates=opts.n_candidates)
+            update(f"{tag} period-doubled point: {opts.n_periods} periods of time integration")
+            pd = _validate(ctx, rom, system, "period_doubling", method, ch, r_pd, f"{VALIDATION.file} period-doubled "
+                                                                                  f"branch of {method}")
+    return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0)
+
+
+def _summary(t: TreatmentValidation) -> list[str]:
+    lines = []
+    for p in (t.primary, t.isola, t.period_doubling):
+        head = f"  {t.method.upper()} {p.kind}: "
+        if not p.found:
+            lines.append(head + f"none ({p.reason})")
+            continue
+        s = (f"Omega = {p.omega:.1f} rad/s, nu = {p.subharmonic}, {'stable' if p.stable else 'UNSTABLE'} "
+             f"(|mu| {p.multiplier:.4g}); TI {'stays' if p.ti.stays else 'LEAVES'} (growth {p.ti.growth:.2f}, "
+             f"last deviation {p.ti.deviation[-10:].max():.3f})")
+        for m in ("dlft", "rl"):
+            c = getattr(p, m)
+            if c is not None and c.converged:
+                s += (f"; vs {m.upper()}: displacement LE {100 * c.displacement_error[0]:.1f} % TE "
+                      f"{100 * c.displacement_error[1]:.1f} %, force LE {100 * c.force_error[0]:.1f} % TE "
+                      f"{100 * c.force_error[1]:.1f} %")
+            elif c is not None:
+                s += f"; no {m.upper()} orbit ({c.source})"
+        lines.append(head + s)
+    return lines
 
 
 def _compute(ctx: Context, outputs) -> None:
-    from hbm.harmonic.residual import build_residual
-    from hbm.ti.validation import validate_against_hbm
-    from pipelines.branch_store import load_branch
+    from hbm.ti.march import rom_modal_system
 
-    scene = ctx.scene
-    method = scene.hbm.methods[0]
-    stored = load_branch(ctx.out / nfrc_output(method).file)
-    b = stored.branch
-    amp = np.where(b.converged, stored.extras["le_amplitude"], -np.inf)
-    i = int(np.argmax(amp))
+    c0 = time.process_time()
     rom = read_rom(ctx.out)
-    res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
-    u, omega = b.x[i], float(b.omega[i])
+    system = rom_modal_system(rom)
+    isolas = ctx.out / ISOLAS
+    done = {}
     with ctx.progress.step("validation", None) as update:
-        update(f"{method.upper()}-HBM point at \u03a9 = {omega:.1f} rad/s, 100 periods")
-        v = validate_against_hbm(rom, scene.casing, scene.contact, res.expand_harmonics(u, omega), omega,
-                                 forces=res.signals(u, omega)["lam"], n_periods=100, dt=scene.ti.dt)
-    art.write_artifact(ctx.out / VALIDATION.file, ValidationArtifact(method, i, v),
-                       **ctx.provenance(VALIDATION, "validation"))
-    ctx.log(f"  validation at Omega = {omega:.1f} rad/s ({method.upper()}-HBM peak): displacement error "
-            f"LE {100 * v.displacement_error[0]:.2f} %, TE {100 * v.displacement_error[1]:.2f} %; "
-            f"force error LE {100 * v.force_error[0]:.1f} %, TE {100 * v.force_error[1]:.1f} %")
+        for method in ctx.scene.hbm.methods:
+            done[method] = _treatment(ctx, rom, system, method, lambda text: update(text))
+    a = ValidationArtifact(isolas=str(isolas) if isolas.is_file() else "absent", growth_tol=GROWTH_TOL,
+                           deviation_tol=DEVIATION_TOL, cpu_time=time.process_time() - c0, **done)
+    art.write_artifact(ctx.out / VALIDATION.file, a, **ctx.provenance(VALIDATION, "validation"))
+    for t in done.values():
+        for line in _summary(t):
+            ctx.log(line)
+    ctx.log(f"  validation: {a.cpu_time:.1f} s CPU")
 
 
-def draw_validation(ctx: Context) -> None:
-    from pipelines.figures import plot_time_signals
+# -- figures -----------------------------------------------------------------------------------
+def _points(a: ValidationArtifact):
+    return {m: getattr(a, m) for m in ("dlft", "rl") if getattr(a, m) is not None}
 
-    a = art.read_artifact(ctx.out / VALIDATION.file, ValidationArtifact)
-    v, m = a.result, a.method.upper()
-    t = v.tau / v.omega
+
+def draw_time_signals(ctx: Context) -> None:
+    """Fig. 9, one PNG per treatment whose points are shown (validation_METHOD.png), and Fig.
+    10 (contact_METHOD.png): the primary point's LE and second-node displacement against the
+    casing during a contact event."""
+    from pipelines.figures import plot_contact_event, plot_validation_signals
+
+    a = read_validation(ctx.out)
     fig = ctx.out / "figures"
-    plot_time_signals(t, {f"{m}-HBM LE": 1e3 * v.hbm_displacement[:, 0], "TI LE": 1e3 * v.ti_displacement[:, 0],
-                          f"{m}-HBM TE": 1e3 * v.hbm_displacement[:, 1], "TI TE": 1e3 * v.ti_displacement[:, 1]},
-                      fig / "validation_displacement.png", "radial displacement (mm)")
-    plot_time_signals(t, {f"{m}-HBM LE": v.hbm_force[:, 0], "TI LE": v.ti_force[:, 0],
-                          f"{m}-HBM TE": v.hbm_force[:, 1], "TI TE": v.ti_force[:, 1]},
-                      fig / "validation_force.png", "normal contact force (N)")
+    for m, t in _points(a).items():
+        plot_validation_signals({p.kind: p for p in (t.primary, t.isola, t.period_doubling)}, fig / f"validation_{m}.png",
+                                title=f"points on the {m.upper()}-HBM solution set against time integration")
+        plot_contact_event(t.primary, fig / f"contact_{m}.png",
+                           title=f"{m.upper()} primary point, \u03a9 = {t.primary.omega:.1f} rad/s")
 
 
-FIGURES = Figure("validation", files=lambda s: ("validation_displacement.png", "validation_force.png"),
-                 depends=(), inputs=lambda s: (VALIDATION.file,), draw=draw_validation)
+def _signal_files(scene) -> tuple[str, ...]:
+    return tuple(f for m in scene.hbm.methods for f in (f"validation_{m}.png", f"contact_{m}.png"))
 
-STAGE = Stage("validation", depends=("casing", "contact", "ti.dt", "hbm.methods"), upstream=("rom", "hbm"),
+
+def draw_solution_set(ctx: Context) -> None:
+    """Fig. 8: the solution set of each treatment (solution_set_METHOD.png) and both together
+    (solution_set.png), from the files that exist."""
+    import h5py
+
+    from pipelines.branch_store import load_branch
+    from pipelines.figures import plot_solution_set
+
+    scene, out = ctx.scene, ctx.out
+    curves = {}
+    for m in scene.hbm.methods:
+        lines, marks = [], []
+        path = out / nfrc_output(m).file
+        if path.is_file():
+            s = load_branch(path)
+            lines.append(("primary", s.branch.omega, s.extras["le_amplitude"], s.branch.converged, s.extras.get("stable")))
+            with h5py.File(path, "r") as h5:
+                if "bifurcations" in h5:
+                    g = h5["bifurcations"]
+                    kinds = [k.decode() if isinstance(k, bytes) else str(k) for k in g["kind"][()]]
+                    marks += list(zip(kinds, g["omega"][()], g["le_amplitude"][()]))
+        for br in read_branch_set(out / ISOLAS, m):
+            if br.kind != "primary":
+                lines.append((br.kind, br.omega, br.le_amplitude, br.converged, br.stable))
+        if (out / VALIDATION.file).is_file():
+            t = getattr(read_validation(out), m)
+            if t is not None:
+                marks += [("validation point", p.omega, p.le_amplitude) for p in (t.primary, t.isola, t.period_doubling)
+                          if p.found]
+            if t is not None and t.pd_branch.found:
+                d = t.pd_branch
+                lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable))
+        curves[m.upper()] = (lines, marks)
+    ti = None
+    if (out / "ti.h5").is_file():
+        with h5py.File(out / "ti.h5", "r") as h5:
+            g = h5["sweep"]
+            ti = (g["omega"][()], g["amplitude"][()], g["period_class"][()])
+    rng = (scene.hbm.omega_min, scene.hbm.omega_max)
+    for m in scene.hbm.methods:
+        plot_solution_set({m.upper(): curves[m.upper()]}, out / "figures" / f"solution_set_{m}.png", ti_points=ti,
+                          omega_range=rng, n_lobes=scene.casing.n_lobes,
+                          title=f"{m.upper()}-HBM solution set")
+    plot_solution_set(curves, out / "figures" / "solution_set.png", ti_points=ti, omega_range=rng,
+                      n_lobes=scene.casing.n_lobes, title="solution set, both treatments")
+
+
+def _set_files(scene) -> tuple[str, ...]:
+    return tuple(f"solution_set_{m}.png" for m in scene.hbm.methods) + ("solution_set.png",)
+
+
+def _set_inputs(scene) -> tuple[str, ...]:
+    return tuple(nfrc_output(m).file for m in scene.hbm.methods) + (ISOLAS, VALIDATION.file, "ti.h5")
+
+
+def draw_content(ctx: Context) -> None:
+    """Figs. 11 and 12 (dynamical content along the isolas) when isolas.h5 carries it."""
+    from pipelines.figures import plot_content
+
+    scene, out = ctx.scene, ctx.out
+    modal, harmonic = {}, {}
+    for m in scene.hbm.methods:
+        for br in read_branch_set(out / ISOLAS, m):
+            if br.kind == "isola" and br.modal_contribution is not None:
+                modal[f"{m.upper()} isola {br.name}"] = (br.omega, br.modal_contribution)
+            if br.kind == "isola" and br.harmonic_contribution is not None:
+                harmonic[f"{m.upper()} isola {br.name}"] = (br.omega, br.harmonic_contribution)
+    # drawn (with a note) even without content: a figure that is never drawn would be redrawn by every run
+    plot_content(modal, out / "figures" / "isola_modal_content.png", kind="modal")
+    plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic")
+
+
+SIGNALS = Figure("validation", files=_signal_files, depends=("hbm.methods",),
+                 inputs=lambda s: (VALIDATION.file,), draw=draw_time_signals)
+SOLUTION_SET = Figure("solution_set", files=_set_files,
+                      depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes"),
+                      inputs=_set_inputs, draw=draw_solution_set)
+CONTENT = Figure("isola_content", files=lambda s: ("isola_modal_content.png", "isola_harmonic_content.png"),
+                 depends=("hbm.methods",), inputs=lambda s: (ISOLAS,), draw=draw_content)
+
+STAGE = Stage("validation", depends=("casing", "contact", "ti.dt", "hbm", "validation"), upstream=UPSTREAM,
               outputs=lambda scene: (VALIDATION,) if scene.hbm.methods else (), compute=_compute,
-              figures=(FIGURES,))
+              figures=(SIGNALS, SOLUTION_SET, CONTENT), optional=lambda scene: OPTIONAL_INPUTS)

@@ -8,10 +8,11 @@ from support import coarse_text
 
 ROOT = Path(__file__).resolve().parents[2]
 
-#: [hbm], [ti] and [isolas] of a clone's scene: a short NFRC (~5 s per treatment), a 4-speed
-#: sweep of 20 revolutions at dt = 4e-7 s (the coarse ROM's stability limit is 8.9e-7 s; the
-#: validation stage's 100 periods use the same dt) and an isola search from 2 modal seeds and
-#: the sweep's periodic points; mesh, fem and rom do not depend on them.
+#: [hbm], [ti], [isolas] and [validation] of a clone's scene: a short NFRC (~5 s per treatment),
+#: a 4-speed sweep of 20 revolutions at dt = 4e-7 s (the coarse ROM's stability limit is 8.9e-7 s;
+#: the validation stage's marches use the same dt, 20 periods each instead of the paper's 100,
+#: and fewer Floquet analyses: dense QZ at this N_h, ~0.9 s each) and an isola search from 2
+#: modal seeds and the sweep's periodic points; mesh, fem and rom do not depend on them.
 SHORT = """[hbm]
 methods = ["dlft", "rl"]
 n_harmonics = 5
@@ -33,6 +34,12 @@ n_modes = 1
 harmonics = [2]
 amplitudes = [1e-3]
 n_omega = 2
+
+[validation]
+n_periods = 20
+n_candidates = 2
+n_scan = 4
+pd_points = 6
 
 """
 

@@ -140,4 +140,4 @@ def test_ctrl_c_in_ti_then_in_validation(coarse_nfrc, tmp_path):
     assert main(["run", str(scene), "--out", str(tmp_path), "--quiet"]) == 0
     for name in ("ti.h5", "validation.h5"):
         assert art.verify(tmp_path / name) is None
-    assert (tmp_path / "figures" / "validation_force.png").is_file()
+    assert (tmp_path / "figures" / "validation_dlft.png").is_file()

@@ -2,7 +2,7 @@
 
 The tiny scene keeps the coarse rotor 67 mesh, FEM and ROM (shared, session-wide) and runs
 a cheap NFRC (N_h = 5, N_t = 64, Omega in [1900, 2000]) and a short TI sweep (2 speeds, 20
-revolutions), then the validation stage, the figures and `bladerub render`.
+revolutions), then the validation stage (20 periods per point), the figures and `bladerub render`.
 """
 import h5py
 import numpy as np
@@ -24,6 +24,7 @@ omega_min = 1900.0
 omega_max = 2000.0
 
 [ti]
+dt = 4e-7
 n_revolutions = 20
 n_keep = 5
 omega_min = 1900.0
@@ -35,6 +36,12 @@ n_modes = 1
 harmonics = [2]
 amplitudes = [1e-3]
 n_omega = 2
+
+[validation]
+n_periods = 20
+n_candidates = 2
+n_scan = 4
+pd_points = 6
 """
 
 
@@ -72,7 +79,8 @@ def test_every_stage_and_figure_is_made(tiny):
     for name in ("nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "validation.h5"):
         assert art.read_attrs(out / name)["created"], name
     figs = out / "figures"
-    for png in ("nfrc.png", "ti_sweep.png", "validation_displacement.png", "validation_force.png", "mode_01.png"):
+    for png in ("nfrc.png", "ti_sweep.png", "validation_dlft.png", "validation_rl.png", "contact_dlft.png",
+                "solution_set.png", "solution_set_rl.png", "mode_01.png"):
         assert (figs / png).stat().st_size > 10_000, png
     # every dataset of every artifact carries its unit (the NFRC files included)
     for name in ("nfrc_dlft.h5", "rom.h5", "validation.h5"):
@@ -167,14 +175,13 @@ def test_render_command(tiny, tmp_path, capsys):
 
 
 def test_a_missing_field_is_a_clear_error(tiny, tmp_path):
-    from hbm.ti.validation import ValidationResult  # noqa: F401  (the artifact's layout)
     from pipelines.stages.validation import ValidationArtifact
 
     scene, base = tiny
     out = fresh_copy(base, tmp_path / "out")
     with h5py.File(out / "validation.h5", "a") as h5:
-        del h5["result"]["drift"]
-    with pytest.raises(art.ArtifactError, match="field 'drift' of ValidationResult is missing"):
+        del h5["dlft"]["primary"]["ti"]["drift"]
+    with pytest.raises(art.ArtifactError, match="field 'drift' of OrbitValidation is missing"):
         art.read_artifact(out / "validation.h5", ValidationArtifact)
     from rom.model import load_rom
 

@@ -1,0 +1,336 @@
+"""Points of a solution set chosen for a check by time integration (section 3.3 of the
+reference paper): a stable point near a branch's peak, the period doubling of a branch, and
+the period-doubled branch born there.
+
+Floquet analyses (hbm.stability.spectrum.orbit_spectrum) are made only where they decide
+something: at a few candidate points near the peak, at a bounded scan of the branch when its
+file holds no stability, and in the bisection down to the two neighbouring points between
+which a multiplier crosses -1. Stored verdicts (an NFRC computed with [hbm] stability) are
+used first and confirmed at the chosen point.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.branch import ContinuationPoint
+from hbm.harmonic.nfrc import nfrc_extras
+from hbm.harmonic.solver import HbmSolver
+from hbm.stability.bifurcation import PERIOD_DOUBLING, Bifurcation
+from hbm.stability.monitor import StabilityMonitor, StabilityOptions
+from hbm.stability.spectrum import orbit_spectrum
+from hbm.stability.switching import switch_branch
+
+#: a point is chosen as stable when its largest multiplier (minimal period) has
+#: log|mu| < -STABILITY_MARGIN: a clear verdict, not a multiplier on the unit circle that the
+#: truncation could move to either side (DLFT's exponents move by ~0.2 % of log|mu| between
+#: N_h = 40 and 60 on rotor 67, hbm.stability.spectrum).
+STABILITY_MARGIN = 1e-3
+
+
+@dataclass(frozen=True)
+class ChosenPoint:
+    """A point of a branch chosen for validation.
+
+    found: whether there is one (reason says why not, or how it was chosen).
+    index: its index on the branch (-1 when none). omega: Omega, rad/s. u: its unknowns,
+    (n_u,) scaled as the branch's residual. le_amplitude: m. stable: the verdict at the point.
+    verdict: "analysed" (Floquet analysis made here) or "stored" (the branch file's, not
+    recomputed). n_unstable: multipliers outside the unit circle (-1 unknown). multiplier:
+    largest |mu| over the minimal period (nan when not analysed here). n_analyses: Floquet
+    analyses made to choose it.
+    """
+
+    found: bool
+    reason: str
+    index: int = field(default=-1, metadata={"unit": "1"})
+    omega: float = field(default=math.nan, metadata={"unit": "rad/s"})
+    u: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
+    le_amplitude: float = field(default=math.nan, metadata={"unit": "m"})
+    stable: bool = False
+    verdict: str = ""
+    n_unstable: int = field(default=-1, metadata={"unit": "1"})
+    multiplier: float = field(default=math.nan, metadata={"unit": "1"})
+    n_analyses: int = field(default=0, metadata={"unit": "1"})
+
+
+def _candidates(order: np.ndarray, amplitude: np.ndarray, n: int) -> list[int]:
+    """n candidate indices near the peak: ranks (i / n)^2 R, i = 0 .. n - 1, of `order` (points
+    by decreasing amplitude), R the number of points with at least half the peak amplitude:
+    dense at the peak, reaching down to half of it (the stable sheet of a fold at the peak
+    can lie a few percent below it, its unstable sheet crowds the first ranks); each rank
+    taken at the first point at least one index away from those taken before."""
+    R = max(1, int(np.count_nonzero(amplitude[order] >= 0.5 * amplitude[order[0]])))
+    out: list[int] = []
+    for i in range(n):
+        r = int(round((i / n) ** 2 * R))
+        for j in order[r:]:
+            if all(abs(int(j) - k) > 1 for k in out):
+                out.append(int(j))
+                break
+    return out
+
+
+def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligible=None, n_candidates: int = 8,
+                 margin: float = STABILITY_MARGIN) -> ChosenPoint:
+    """The stable point of largest LE amplitude among a few candidates of a branch.
+
+    residual: the branch's HarmonicBalanceResidual. omega (m,) rad/s, x (m, n_u), amplitude
+    (m,) m, converged (m,) bool: the branch. stable: (m,) bool stored verdicts, or None.
+    eligible: (m,) bool, points that may be chosen (default all converged ones).
+    With stored verdicts the points called stable are tried by decreasing amplitude and the
+    first one whose analysis confirms it is chosen; otherwise (or when none is confirmed) the
+    n_candidates points near the peak (_candidates: dense at the peak, down to half its
+    amplitude) are analysed by decreasing amplitude and the first stable one (log|mu| <
+    -margin) is chosen. When none is, the least unstable candidate is
+    chosen and the reason says so (stable False).
+    """
+    omega, amplitude = np.asarray(omega, float), np.asarray(amplitude, float)
+    ok = np.asarray(converged, bool) & np.isfinite(amplitude)
+    if eligible is not None:
+        ok &= np.asarray(eligible, bool)
+    if not ok.any():
+        return ChosenPoint(False, "no converged point on the branch")
+    order = np.flatnonzero(ok)[np.argsort(-amplitude[ok], kind="stable")]
+    tried: dict[int, tuple] = {}
+
+    def analyse(i):
+        if i not in tried:
+            sp, _ = orbit_spectrum(residual, x[i], float(omega[i]))
+            mu = float(np.abs(sp.multipliers[0])) if len(sp.multipliers) else 0.0
+            tried[i] = (sp.stable and (mu == 0.0 or math.log(mu) < -margin), sp.n_unstable, mu)
+        return tried[i]
+
+    def chosen(i, reason):
+        s, n, mu = tried[i]
+        return ChosenPoint(True, reason, int(i), float(omega[i]), np.array(x[i], float), float(amplitude[i]), bool(s),
+                           "analysed", int(n), float(mu), len(tried))
+
+    if stable is not None:
+        called = [i for i in order if bool(stable[i])]
+        for i in called[:n_candidates]:
+            if analyse(i)[0]:
+                return chosen(i, f"largest LE amplitude among the {len(called)} points the branch file calls "
+                                 f"stable, confirmed here")
+    candidates = _candidates(order, amplitude, n_candidates)
+    for i in candidates:
+        if analyse(i)[0]:
+            return chosen(i, f"largest LE amplitude among the stable ones of {len(candidates)} candidates near the "
+                             f"peak (analysed here)")
+    i = min(tried, key=lambda j: tried[j][2])
+    return chosen(i, f"no stable point among {len(tried)} analysed candidates near the peak: the least "
+                     f"unstable one (|mu| = {tried[i][2]:.4g})")
+
+
+@dataclass(frozen=True)
+class LocatedDoubling:
+    """A period doubling of a branch, or why none was found.
+
+    bifurcation: hbm.stability.bifurcation.Bifurcation (with its critical mode) or None.
+    index: the branch point on the bifurcation's unstable side, where the mode was computed
+    (the start of the branch switch), -1 when none. reason: how it was found, or why none.
+    n_analyses: Floquet analyses made.
+    """
+
+    bifurcation: Bifurcation | None
+    index: int
+    reason: str
+    n_analyses: int
+
+
+def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets=None, n_scan: int = 24,
+                           max_analyses: int = 80) -> LocatedDoubling:
+    """The first period doubling along a branch, with its critical mode.
+
+    residual: the branch's HarmonicBalanceResidual. omega (m,) rad/s, x (m, n_u), amplitude
+    (m,) m, converged (m,) bool. brackets: point indices after which a period doubling lies
+    (the `index` column of a branch file's bifurcation table), or None: then n_scan points
+    evenly spread over the branch are analysed and every change of the number of unstable
+    multipliers between two of them is a bracket. Each bracket is bisected on the stored
+    points down to two neighbours, where a StabilityMonitor (hbm.stability.monitor) pairs,
+    classifies and locates the crossing (folds told apart by the turn in Omega) and gives
+    its mode. max_analyses bounds the Floquet analyses.
+    """
+    omega, x = np.asarray(omega, float), np.asarray(x, float)
+    idx = np.flatnonzero(np.asarray(converged, bool))
+    cache: dict[int, tuple] = {}
+    if len(idx) < 2:
+        return LocatedDoubling(None, -1, "fewer than two converged points", 0)
+
+    def spec(i):
+        if i not in cache:
+            if len(cache) >= max_analyses:
+                raise _Budget
+            cache[i] = orbit_spectrum(residual, x[i], float(omega[i]))
+        return cache[i]
+
+    def count(i):
+        return spec(i)[0].n_unstable
+
+    pos = {int(i): k for k, i in enumerate(idx)}
+    pairs, checked = [], 0
+    try:
+        if brackets is not None:
+            pairs = [(int(i), int(i) + 1) for i in brackets if int(i) in pos and int(i) + 1 in pos]
+            if not pairs:
+                return LocatedDoubling(None, -1, "the branch file's bifurcation table holds no period doubling", 0)
+            how = "from the branch file's bifurcation table"
+        else:
+            scan = idx[np.unique(np.linspace(0, len(idx) - 1, min(n_scan, len(idx))).round().astype(int))]
+            pairs = [(int(a), int(b)) for a, b in zip(scan[:-1], scan[1:]) if count(a) != count(b)]
+            how = f"located here (scan of {len(scan)} points and bisection)"
+            if not pairs:
+                return LocatedDoubling(None, -1, f"no change of stability among {len(scan)} points spread over the "
+                                                 f"branch", len(cache))
+        for a, b in pairs:
+            checked += 1
+            while pos[b] - pos[a] > 1:
+                mid = int(idx[(pos[a] + pos[b]) // 2])
+                if count(mid) != count(a):
+                    b = mid
+                else:
+                    a = mid
+            bif = _classify(residual, omega, x, amplitude, idx, pos, a, b, spec)
+            if bif is not None:
+                side = b if bif.direction > 0 else a
+                return LocatedDoubling(bif, side, f"{how}: multiplier {bif.multiplier.real:.4g}"
+                                                  f"{bif.multiplier.imag:+.2g}i between points {a} and {b}", len(cache))
+    except _Budget:
+        return LocatedDoubling(None, -1, f"no period doubling among the {max(checked - 1, 0)} of {len(pairs)} stability "
+                                         f"change(s) examined within {max_analyses} Floquet analyses", len(cache))
+    return LocatedDoubling(None, -1, f"none of the {len(pairs)} stability change(s) is a period doubling "
+                                     f"({how.split(' (')[0]})", len(cache))
+
+
+class _Budget(Exception):
+    pass
+
+
+def _classify(residual, omega, x, amplitude, idx, pos, a, b, spec) -> Bifurcation | None:
+    """The period doubling between the neighbouring points a and b (None if the crossing
+    there is of another kind), by a StabilityMonitor fed a's and b's neighbours too (the turn
+    in Omega that makes a +1 crossing a fold)."""
+    ks = [int(idx[k]) for k in range(max(0, pos[a] - 1), min(len(idx), pos[b] + 2))]
+    by_key = {(float(omega[k]), float(x[k][0])): k for k in ks}
+    mon = StabilityMonitor(analyse=lambda xx, w: spec(by_key[(float(w), float(xx[0]))]),
+                           options=StabilityOptions(max_gap=1))
+    prev = None
+    for k in ks:
+        step = 0.0 if prev is None else math.hypot(float(np.linalg.norm(x[k] - x[prev])), (omega[k] - omega[prev]) / 100.0)
+        mon.push(ContinuationPoint(k, float(omega[k]), x[k], True, 0.0, 0, step, 0.0),
+                 {"le_amplitude": float(amplitude[k])})
+        prev = k
+    mon.finish()
+    pds = [bf for bf in mon.bifurcations if bf.kind == PERIOD_DOUBLING and bf.eigenvector is not None]
+    return pds[0] if pds else None
+
+
+@dataclass(frozen=True)
+class DoubledBranch:
+    """The period-doubled branch born at a period doubling (omega = Omega / 2 content), m points
+    ordered along the branch (the part continued towards decreasing Omega reversed, then the
+    other part from the start point).
+
+    found: whether the switch converged (reason otherwise, or the statuses of both parts).
+    omega_bifurcation: Omega of the period doubling, rad/s. multiplier: its |mu| with sign
+    (real part), -. subharmonic: nu of the new branch's basis; n_harmonics, n_time: its N_h,
+    N_t. omega (m,) rad/s; x (m, n_u) the new residual's unknowns; le_amplitude (m,) m;
+    stable (m,) bool, n_unstable (m,) int (hbm.stability.monitor along the branch);
+    new_content (m,) share (2-norm) of the harmonics the old orbit lacks, the odd multiples
+    of the new fundamental, -. start: index of the switch's start point in these arrays.
+    """
+
+    found: bool = field(metadata={"unit": "1"})
+    reason: str
+    omega_bifurcation: float = field(default=math.nan, metadata={"unit": "rad/s"})
+    multiplier: float = field(default=math.nan, metadata={"unit": "1"})
+    subharmonic: int = field(default=1, metadata={"unit": "1"})
+    n_harmonics: int = field(default=0, metadata={"unit": "1"})
+    n_time: int = field(default=0, metadata={"unit": "1"})
+    omega: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "rad/s"})
+    x: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "1"})
+    le_amplitude: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "m"})
+    stable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool), metadata={"unit": "1"})
+    n_unstable: np.ndarray = field(default_factory=lambda: np.zeros(0, int), metadata={"unit": "1"})
+    new_content: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
+    start: int = field(default=-1, metadata={"unit": "1"})
+
+
+def new_content(residual, u: np.ndarray, period_ratio: int) -> float:
+    """Share (2-norm) of u's harmonics on the frequencies an orbit of period T / g (g =
+    period_ratio, in the old basis) lacks once doubled: in the new basis, the harmonics that
+    are not multiples of g (g even: same basis) or the odd ones (g odd: basis of Omega / 2 nu)."""
+    xr = residual.to_coefficients(u)
+    orders = residual.basis.orders
+    mask = (orders % period_ratio) != 0 if period_ratio % 2 == 0 else (orders % 2) == 1
+    return float(np.linalg.norm(xr[mask]) / max(np.linalg.norm(xr), 1e-300))
+
+
+def continue_doubled_branch(residual, u: np.ndarray, omega: float, bifurcation: Bifurcation,
+                            continuation: ContinuationOptions, n_points: int = 40,
+                            stability: StabilityOptions = StabilityOptions()):
+    """Switch to the period-doubled branch at `bifurcation` (hbm.stability.switching) and
+    continue it both ways, at most n_points each way, with the stability of its points.
+
+    residual, u (n_u,), omega (rad/s): the old branch's residual and the point on the
+    bifurcation's unstable side. continuation: the old branch's continuation settings (its
+    range, steps and Newton test; direction and max_points are set here).
+    Returns (DoubledBranch, the new branch's HarmonicBalanceResidual or None).
+    """
+    # a period doubling's exponent has Im = omega' / 2 (mod omega', omega' = mode_omega) for
+    # Hill's exact problem; DLFT's truncated one moves it by ~1 1/s (hbm.stability.bifurcation
+    # REAL_ARG_TOL), and the mode's frequencies must be exact harmonics of the new basis
+    beta = bifurcation.exponent.imag
+    half = 0.5 * bifurcation.mode_omega
+    bif = replace(bifurcation, exponent=complex(bifurcation.exponent.real, round(beta / half) * half))
+    # switch_branch's step 1e-2 first; a point far past the bifurcation (a multiplier well
+    # beyond -1 when the branch's points are far apart) may need a shorter or a longer one
+    for step in (1e-2, 3e-3, 3e-2, 1e-3):
+        try:
+            st = switch_branch(residual, u, omega, bif, step=step)
+        except ValueError as exc:
+            return DoubledBranch(False, f"no branch switch: {exc}", omega_bifurcation=float(bifurcation.omega),
+                                 multiplier=float(np.real(bifurcation.multiplier))), None
+        if st.newton.converged:
+            break
+    if not st.newton.converged:
+        return DoubledBranch(False, f"the branch switch did not converge (steps 1e-3 to 3e-2): {st.newton.reason}",
+                             omega_bifurcation=float(bifurcation.omega),
+                             multiplier=float(np.real(bifurcation.multiplier))), None
+    new = st.residual
+    g = int(bifurcation.period_ratio)
+    parts, statuses = [], []
+    for direction in (-1, 1):
+        rows: dict[int, tuple] = {}
+        mon = StabilityMonitor.for_residual(new, stability)
+
+        def keep(items, rows=rows):
+            for q, ex in items:
+                rows[q.index] = (q.omega, q.x, ex["le_amplitude"], bool(ex["stable"]), int(ex["n_unstable"]))
+
+        def on_point(p, mon=mon, keep=keep):
+            if p.converged:
+                keep(mon.push(p, nfrc_extras(new, p.x)))
+
+        opts = replace(continuation, direction=direction, max_points=n_points)
+        br = continue_branch(new, st.u, st.omega, opts, on_point=on_point,
+                             solver=HbmSolver(atol=0.1 * opts.newton.tol_residual))
+        keep(mon.finish())
+        statuses.append(f"{'down' if direction < 0 else 'up'}: {br.status}")
+        parts.append([rows[k] for k in sorted(rows)])
+    down, up = parts
+    pts = down[::-1] + up[1:] if down else up
+    if not pts:
+        return DoubledBranch(False, "no converged point on the doubled branch: " + "; ".join(statuses)), new
+    om, xs, amp, stab, nun = (np.array([p[k] for p in pts]) for k in range(5))
+    return DoubledBranch(True, f"switch at Omega = {st.omega:.6g} rad/s (new content {st.odd_content:.3g}); "
+                               + "; ".join(statuses),
+                         omega_bifurcation=float(bifurcation.omega), multiplier=float(np.real(bifurcation.multiplier)),
+                         subharmonic=int(new.nu), n_harmonics=int(new.basis.n_harmonics),
+                         n_time=int(new.basis.n_time), omega=om.astype(float), x=xs.astype(float),
+                         le_amplitude=amp.astype(float), stable=stab.astype(bool), n_unstable=nun.astype(int),
+                         new_content=np.array([new_content(new, xi, g) for xi in xs]),
+                         start=max(len(down) - 1, 0)), new

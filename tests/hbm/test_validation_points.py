@@ -1,0 +1,138 @@
+"""The validation points chosen automatically (hbm.stability.selection) and time integration
+from them (hbm.ti.validation), checked against independent references:
+
+- rotor 67 coarse ROM, DLFT-HBM at N_h = 40 over [1960, 2000] rad/s (the 2B x 4 Omega
+  resonance bent over, hbm/test_stability_rotor67.py): the point chosen near the peak is
+  stable, and time integration (exact Lagrange-multiplier contact, another code) marched 100
+  periods from it stays on it and agrees with it; the RL orbit found by Newton from it too;
+- the forced RL-obstacle oscillator of hbm/test_period_doubling.py (a period doubling near
+  W = 4.27, confirmed there by shooting): the period doubling is located without stored
+  stability, the doubled branch carries the harmonics of W / 2, and time integration
+  (scipy's solve_ivp) from the chosen point stays on it.
+"""
+from pathlib import Path
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from scipy.integrate import solve_ivp
+
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.newton import NewtonOptions, newton_solve
+from hbm.harmonic.condensation import HarmonicForcing
+from hbm.harmonic.nfrc import compute_nfrc, nfrc_extras
+from hbm.harmonic.residual import build_residual
+from hbm.harmonic.solver import HbmSolver
+from hbm.harmonic.start import damped_newton
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from hbm.stability.bifurcation import PERIOD_DOUBLING
+from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
+from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, compare_with_hbm, march_from_hbm
+from rom.model import load_rom
+
+ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+
+
+def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees():
+    rom = load_rom(ROM)
+    casing, contact = CasingOptions(), ContactOptions()
+    opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1960.0, omega_max=2000.0)
+    r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)
+    res = build_residual(rom, casing, contact, opts, method="dlft")
+    ch = choose_point(res, r.omega, r.unknowns, r.le_amplitude, r.converged)
+    # the peak (1962 rad/s) is on the unstable sheet of the bent resonance; the chosen point
+    # is the first stable candidate below it (1970 rad/s, |mu| = 0.9965 measured)
+    assert ch.found and ch.stable and ch.verdict == "analysed" and ch.multiplier < 1.0
+    assert ch.le_amplitude > 0.5 * r.le_amplitude.max() and ch.n_analyses <= 8
+    ti = march_from_hbm(rom, casing, contact.mu, res.expand_harmonics(ch.u, ch.omega), ch.omega, n_periods=100,
+                        dt=4e-7)
+    # stays on its orbit: the distance to it over the last 10 periods at most GROWTH_TOL (1.5)
+    # times that over the first 10 and below DEVIATION_TOL (0.6) of the amplitude (measured:
+    # growth 0.98, deviation 0.06 LE and 0.14 TE)
+    assert ti.stays and ti.growth <= GROWTH_TOL and ti.deviation[-10:].max() <= DEVIATION_TOL
+    assert ti.max_penetration < 1e-12
+    own = compare_with_hbm(ti, res.expand_harmonics(ch.u, ch.omega), res.signals(ch.u, ch.omega)["lam"], "self")
+    # measured: displacement 3.5 % LE, 11.5 % TE (DLFT's Gibbs ripple at the impacts); force
+    # after projection on N_h harmonics 3.4 % LE, 5.2 % TE
+    assert np.all(own.displacement_error < [0.06, 0.16]), own.displacement_error
+    assert np.all(own.force_error < [0.06, 0.08]), own.force_error
+    # the RL orbit at the same Omega, by damped Newton from the DLFT point (moved 5.6 %):
+    # displacement 7.7 % / 17 %, force 36 % / 31 % (the penalty's regularised impacts)
+    rl = build_residual(rom, casing, contact, opts, method="rl")
+    sol = damped_newton(rl, ch.u, ch.omega, NewtonOptions(tol_residual=1e-8, max_iter=12), HbmSolver(atol=1e-9))
+    assert sol.converged, sol.reason
+    other = compare_with_hbm(ti, rl.expand_harmonics(sol.x, ch.omega), rl.signals(sol.x, ch.omega)["lam"], "rl")
+    assert np.all(other.displacement_error < [0.11, 0.24]), other.displacement_error
+    assert np.all(other.force_error < [0.5, 0.45]), other.force_error
+
+
+# -- period doubling: the forced RL obstacle oscillator ---------------------------------------
+C, KAPPA, GAMMA, F = 0.05, 10.0, 0.1, 1.0
+NOPT = NewtonOptions(tol_residual=1e-10, max_iter=40)
+
+
+def _rhs(t, y, w):
+    h = 0.5 * KAPPA * y[0]
+    lam = h + np.sqrt(h * h + GAMMA ** 2)
+    return [y[1], -C * y[1] - y[0] - lam + F * np.cos(w * t)]
+
+
+@pytest.fixture(scope="module")
+def oscillator():
+    rom = SimpleNamespace(K=np.eye(3), M=np.diag([1.0, 0.0, 0.0]), C=np.diag([C, 0.0, 0.0]), rho=np.array([0.25]),
+                          theta=np.array([0.0]), rotation=1, n_boundary=1, nonlinear_dofs=np.arange(3))
+    res = build_residual(rom, CasingOptions(), ContactOptions(kappa=KAPPA, gamma=GAMMA, epsilon=3.0, mu=0.0,
+                                                              lanczos=False),
+                         HbmOptions(n_harmonics=30, n_time=512), method="rl",
+                         forcing=HarmonicForcing(np.array([F, 0, 0]), 1), alpha=1.0,
+                         distance=lambda tau: np.zeros((len(tau), 1)))
+    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    opts = ContinuationOptions(omega_min=3.4, omega_max=4.6, ds=0.005, ds_max=0.02, direction=-1, newton=NOPT,
+                               closed_loop_tol=None, omega_scale=1.0)
+    br = continue_branch(res, sol.x, 4.6, opts)
+    amp = np.array([nfrc_extras(res, x)["le_amplitude"] for x in br.x])
+    return res, br, amp, opts
+
+
+def test_period_doubling_is_located_without_stored_stability(oscillator):
+    res, br, amp, _ = oscillator
+    loc = locate_period_doubling(res, br.omega, br.x, amp, br.converged, n_scan=12)
+    pd = loc.bifurcation
+    assert pd is not None and pd.kind == PERIOD_DOUBLING, loc.reason
+    # between neighbouring points (ds_max = 0.02 apart at most), where hbm/test_period_doubling.py
+    # finds it with the monitor along the whole branch and checks it against shooting (4.33)
+    assert abs(np.diff(pd.omega_bracket)[0]) <= 0.02 + 1e-12 and 4.3 < pd.omega < 4.36
+    assert pd.multiplier.real < -1.0
+    assert loc.index in (pd.index, pd.index + 1) and loc.n_analyses < 30
+    # from a table's bracket (as an NFRC file computed with stability gives it): the same one
+    again = locate_period_doubling(res, br.omega, br.x, amp, br.converged, brackets=[pd.index])
+    assert again.bifurcation is not None and abs(again.bifurcation.omega - pd.omega) < 1e-9
+    # a bracket without a period doubling (a stretch of the stable branch) is reported
+    none = locate_period_doubling(res, br.omega, br.x, amp, br.converged, brackets=[1])
+    assert none.bifurcation is None and "period doubling" in none.reason
+
+
+def test_doubled_branch_has_half_frequency_content_and_time_integration_stays_on_it(oscillator):
+    res, br, amp, opts = oscillator
+    loc = locate_period_doubling(res, br.omega, br.x, amp, br.converged, n_scan=12)
+    db, new = continue_doubled_branch(res, br.x[loc.index], br.omega[loc.index], loc.bifurcation, opts,
+                                      n_points=30)
+    assert db.found and new.nu == 2 and db.subharmonic == 2, db.reason
+    assert len(db.omega) > 30 and db.omega.min() < 4.2  # both ways, and down away from the bifurcation
+    # content at W / 2 (odd harmonics of the new basis): none at the bifurcation, growing on the branch
+    assert db.new_content[db.start] < 0.3 and db.new_content.max() > 0.2
+    ch = choose_point(new, db.omega, db.x, db.le_amplitude, np.ones(len(db.omega), bool), db.stable,
+                      eligible=db.new_content >= 0.05)
+    assert ch.found and ch.stable and db.new_content[ch.index] >= 0.05, ch.reason
+    # time integration from it: x(kT) alternates between the orbit's x(0) and x(T) for 200
+    # periods T = 2 pi / W (N_h = 61 of W / 2: the orbit within ~1e-8 of the exact one)
+    xr = new.to_coefficients(ch.u)[:, 0]
+    k = np.arange(1, new.basis.n_harmonics + 1)
+    wf, w = new.fundamental(ch.omega), ch.omega
+    T = 2 * np.pi / w
+    x_at = lambda t: xr[0] + np.sum(xr[1::2] * np.cos(k * wf * t) + xr[2::2] * np.sin(k * wf * t))
+    v0 = np.sum(k * wf * xr[2::2])
+    x = solve_ivp(_rhs, (0, 200 * T), [x_at(0.0), v0], args=(w,), t_eval=np.arange(201) * T, rtol=1e-10, atol=1e-12,
+                  method="DOP853").y[0]
+    assert abs(x_at(T) - x_at(0.0)) > 1e-3  # a period-doubled orbit: x(T) != x(0)
+    assert np.abs(x[0::2] - x_at(0.0)).max() < 1e-6 and np.abs(x[1::2] - x_at(T)).max() < 1e-6

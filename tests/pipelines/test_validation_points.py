@@ -1,0 +1,123 @@
+"""The validation stage in the pipeline (on the SHORT coarse scene: N_h = 5, Omega in [1900,
+2000] rad/s, 20 periods per point): an isola point taken from an isolas.h5 in the isolas
+stage's layout, a recorded reason without one, the stage rerun when isolas.h5 appears,
+changes or goes and not otherwise, and the figures (Figs. 8 to 12) non-blank PNGs."""
+import h5py
+import numpy as np
+import pytest
+from matplotlib.image import imread
+
+from coarse_runs import clone
+from pipelines.branch_store import load_branch
+from pipelines.progress import Progress
+from pipelines.runner import run_scene
+from pipelines.scene import load_scene
+from pipelines.stages.validation import read_validation
+
+
+def _records(scene, out):
+    progress = Progress(quiet=True)
+    run_scene(load_scene(scene), out, progress=progress, until="validation")
+    return {r.stage: (r.action, r.why) for r in progress.records}
+
+
+def write_isolas(path, nfrc, lo: int, hi: int, bump: float = 0.0):
+    """A small isolas.h5 in the isolas stage's layout: for DLFT one "isola" (points lo..hi-1 of
+    the NFRC file `nfrc`, whose unknowns are the same residual's) with dynamical content, and
+    one "bifurcated" branch; for RL only a "bifurcated" one. bump: added to an attribute so
+    that the file's content changes."""
+    s = load_branch(nfrc)
+    b, ex = s.branch, s.extras
+    with h5py.File(path, "w") as h5:
+        h5.attrs["inputs_hash"] = f"fixture {bump}"
+        for method, kinds in (("dlft", ("isola", "bifurcated")), ("rl", ("bifurcated",))):
+            g = h5.create_group(method)
+            g.attrs.update(n_seeds=3, n_converged=2, n_distinct=len(kinds), n_branches=len(kinds), cpu_time=1.0 + bump,
+                           wall_time=1.0, status="fixture")
+            sd = g.create_group("seeds")
+            sd["omega"] = np.array([1950.0, 1960.0, 1970.0])
+            sd["origin"] = np.array(["mode 1 k 2", "ti", "ti"], dtype=h5py.string_dtype())
+            sd["converged"] = np.array([True, True, False])
+            sd["branch"] = np.array([0, len(kinds) - 1, -1])
+            for n, kind in enumerate(kinds):
+                sl = slice(lo, hi) if kind == "isola" else slice(0, 4)
+                bg = g.create_group(f"branches/{n:03d}")
+                m = len(b.omega[sl])
+                bg["omega"], bg["x"], bg["converged"] = b.omega[sl], b.x[sl], b.converged[sl]
+                bg["le_amplitude"], bg["harmonics"] = ex["le_amplitude"][sl], ex["harmonics"][sl]
+                bg["modal_contribution"] = np.tile([0.7, 0.2, 0.1], (m, 1))
+                hc = np.zeros((m, 6))
+                hc[:, 2], hc[:, 4] = 0.8, 0.2
+                bg["harmonic_contribution"] = hc
+                bg.attrs.update(kind=kind, closed=kind == "isola", status="closed loop", subharmonic=1,
+                                seeds=np.array([n]))
+
+
+def _check_png(path):
+    img = imread(path)[..., :3]
+    assert img.std() > 0.02, path  # lines and text, not a blank page
+    return img
+
+
+@pytest.fixture(scope="module")
+def runs(coarse_nfrc, tmp_path_factory):
+    """A clone of the SHORT coarse folder run --until validation: without isolas.h5, again,
+    with the fixture isolas.h5, again, with it changed. Returns (out, [(records, artifact)])."""
+    out = tmp_path_factory.mktemp("validation_points")
+    scene = clone(coarse_nfrc[1], out)
+    done = []
+
+    def run():
+        rec = _records(scene, out)
+        done.append((rec, read_validation(out)))
+
+    run()
+    run()
+    write_isolas(out / "isolas.h5", out / "nfrc_dlft.h5", 3, 12)
+    run()
+    run()
+    write_isolas(out / "isolas.h5", out / "nfrc_dlft.h5", 3, 12, bump=1.0)
+    run()
+    return out, done
+
+
+def test_isola_point_from_isolas_h5_and_reruns_only_when_it_changes(runs):
+    out, done = runs
+    (rec, a), (rec_again, _), (rec_iso, b), (rec_iso_again, _), (rec_changed, _) = done
+    # without isolas.h5: a recorded reason, not an error
+    assert rec["validation"][0] == "computed"
+    for t in (a.dlft, a.rl):
+        assert not t.isola.found and "no isolas.h5" in t.isola.reason
+        p = t.primary
+        assert p.found and p.ti is not None and p.ti.n_periods == 20 and p.ti.deviation.shape == (20, 2)
+        # both treatments compared at the point: its own orbit, the other's by Newton (or why not)
+        own, other = getattr(p, t.method), getattr(p, "rl" if t.method == "dlft" else "dlft")
+        assert own.source == "the point itself" and own.converged
+        assert "Newton" in other.source
+        assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
+        # the period doubling: found with its branch, or a reason
+        assert t.period_doubling.found == t.pd_branch.found and t.period_doubling.reason
+    assert a.isolas == "absent" and a.growth_tol == 1.5 and a.cpu_time > 0
+    assert rec_again["validation"][0] == "reused"
+    # isolas.h5 appears: recomputed, the DLFT isola point lies on the fixture's isola
+    assert rec_iso["validation"][0] == "computed" and "isolas.h5" in rec_iso["validation"][1]
+    iso = b.dlft.isola
+    assert iso.found and iso.branch == "isolas.h5 dlft/branches/000" and 0 <= iso.index < 9
+    omega = load_branch(out / "nfrc_dlft.h5").branch.omega
+    assert iso.omega == omega[3 + iso.index] and iso.ti is not None
+    assert not b.rl.isola.found and "no branch of kind 'isola'" in b.rl.isola.reason
+    # unchanged: reused; changed: recomputed
+    assert rec_iso_again["validation"][0] == "reused"
+    assert rec_changed["validation"][0] == "computed" and "isolas.h5" in rec_changed["validation"][1]
+
+
+def test_figures_are_drawn_from_the_artifacts(runs):
+    out, _ = runs
+    figs = out / "figures"
+    for name in ("solution_set.png", "solution_set_dlft.png", "solution_set_rl.png", "validation_dlft.png",
+                 "validation_rl.png", "contact_dlft.png", "contact_rl.png", "isola_modal_content.png",
+                 "isola_harmonic_content.png"):
+        _check_png(figs / name)
+    # the overlay holds both treatments' curves: it differs from a single one
+    both, one = _check_png(figs / "solution_set.png"), _check_png(figs / "solution_set_dlft.png")
+    assert np.abs(both - one).max(axis=2).__gt__(0.2).sum() > 200
