@@ -30,13 +30,13 @@ def marcher(rec):
 
 
 def test_block_mean_forces_equal_the_mean_of_the_per_step_multipliers():
-    """Stride 7 from step 10 on three of the nine nodes (the others not recorded): sample i is the
-    mean of lam_m over m = 7 + 7 i .. 13 + 7 i, read from a stride-1 march of every node
-    (its sample k is lam at step k + 1)."""
+    """Stride 7 from step 10 on three of the nine nodes, one of them twice (the others not
+    recorded): sample i is the mean of lam_m over m = 7 + 7 i .. 13 + 7 i, read from a
+    stride-1 march of every node (its sample k is lam at step k + 1)."""
     every = Recording(start=1, stride=1, n_samples=N, dofs=np.array([0]), force_nodes=np.arange(9))
     per_step = marcher(every).advance(N).result()
     assert per_step.contact_steps > 20 and (per_step.normal_force > 0).sum(axis=1).max() >= 2
-    nodes = np.array([0, 4, 8])
+    nodes = np.array([0, 4, 8, 4])
     s, n0, ns = 7, 10, 84
     rec = Recording(start=n0, stride=s, n_samples=ns, dofs=np.array([0]), force_nodes=nodes)
     blocks = marcher(rec).advance(N).result()
