@@ -364,12 +364,6 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     fshift = 0 if massless else 1  # lam computed at step m1 belongs to step m1 (massless) or m1 - 1
     f_block = (first - fshift - sf) // stride  # floor division: negative before the first block
     f_next = sf + (f_block + 1) * stride
-    # the current force block is summed here and written out when it ends, as the extremes
-    facc = np.zeros((nf, 3))
-    if 0 <= f_block < n_out:
-        for a in range(nf):
-            for c in range(3):
-                facc[a, c] = out_f[f_block, a, c]
     for it in range(n_steps):
         m1 = step0 + it + 1  # the step being computed
         tau = om * (m1 * dt)
@@ -491,23 +485,15 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                     max_pen = rh[j] - d[j]
         # forces: block means (counters, not divisions: an integer division costs as much as a mode)
         if m1 - fshift == f_next:
-            if 0 <= f_block < n_out:
-                for a in range(nf):
-                    for c in range(3):
-                        out_f[f_block, a, c] = facc[a, c]
             f_block += 1
             f_next += stride
-            if 0 <= f_block < n_out:
-                for a in range(nf):
-                    for c in range(3):
-                        facc[a, c] = out_f[f_block, a, c]
         if m > 0 and 0 <= f_block < n_out:
-            for a in range(nf):  # (a node may be recorded twice)
+            for a in range(nf):
                 j = fnodes[a]
                 if lam[j] != 0.0:
-                    facc[a, 0] += lam[j] * inv_stride
-                    facc[a, 1] -= mu * st[j] * lam[j] * inv_stride
-                    facc[a, 2] -= mu * sz[j] * lam[j] * inv_stride
+                    out_f[f_block, a, 0] += lam[j] * inv_stride
+                    out_f[f_block, a, 1] -= mu * st[j] * lam[j] * inv_stride
+                    out_f[f_block, a, 2] -= mu * sz[j] * lam[j] * inv_stride
         # record the state at step m1: radial extremes of its block, the sampled dof (massless:
         # with the static response to this step's forces) and the Poincare section
         if m1 >= start:
@@ -557,10 +543,6 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
         for j in range(nb):
             out_ext[e_block, 0, j] = emax[j]
             out_ext[e_block, 1, j] = emin[j]
-    if 0 <= f_block < n_out:
-        for a in range(nf):
-            for c in range(3):
-                out_f[f_block, a, c] = facc[a, c]
     stats[0] = max_pen
     stats[1] = min_lam
     counts[0] = n_contact
