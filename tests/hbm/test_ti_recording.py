@@ -2,8 +2,8 @@
 casing and friction: block-mean contact forces against the per-step multipliers of the same
 march, and a march advanced in uneven chunks against one advanced in one call.
 
-The kernel sums a force block in a local accumulator and writes it out when the block ends
-(or the call returns); these tests pin that to the definition of Recording.
+Block means must keep the impulse of the multipliers they average, and a march advanced in
+chunks (the sweep's early stop) must not depend on where the chunks end.
 """
 import numpy as np
 
