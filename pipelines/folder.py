@@ -15,6 +15,7 @@ import fcntl
 import json
 import os
 import socket
+import time
 from contextlib import contextmanager
 from pathlib import Path
 
@@ -50,11 +51,18 @@ def prepare(out: Path) -> Path:
     return out
 
 
-def _holder(fd: int) -> str:
-    try:
-        info = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
-    except (OSError, ValueError):
-        info = {}
+def _holder(fd: int, wait_s: float = 1.0) -> str:
+    """Who holds the lock, from the lock file. The holder writes itself just after taking the
+    lock: a run that lost the race by microseconds reads again for up to wait_s."""
+    deadline = time.monotonic() + wait_s
+    while True:
+        try:
+            info = json.loads(os.pread(fd, 4096, 0).decode() or "{}")
+        except (OSError, ValueError):
+            info = {}
+        if info or time.monotonic() > deadline:
+            break
+        time.sleep(0.02)
     if not info:
         return "another process"
     return (f"pid {info.get('pid', '?')} on {info.get('host', '?')} (`{info.get('command', '?')}`, "

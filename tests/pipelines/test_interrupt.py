@@ -136,8 +136,8 @@ def test_ctrl_c_in_ti_then_in_validation(coarse_nfrc, tmp_path):
     line = interrupt(scene, tmp_path, "ti", 0.5, slow=True)
     assert "; kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5;" in line and not (tmp_path / "ti.h5").exists()
     line = interrupt(scene, tmp_path, "validation", 0.5, slow=True)
-    assert "; kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5, ti.h5;" in line
+    assert "; kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5, ti.h5, isolas.h5;" in line
     assert main(["run", str(scene), "--out", str(tmp_path), "--quiet"]) == 0
-    for name in ("ti.h5", "validation.h5"):
+    for name in ("ti.h5", "isolas.h5", "validation.h5"):
         assert art.verify(tmp_path / name) is None
     assert (tmp_path / "figures" / "validation_dlft.png").is_file()

@@ -8,6 +8,7 @@ import pytest
 from matplotlib.image import imread
 
 from coarse_runs import clone
+from pipelines import artifacts as art
 from pipelines.branch_store import load_branch
 from pipelines.progress import Progress
 from pipelines.runner import run_scene
@@ -28,8 +29,11 @@ def write_isolas(path, nfrc, lo: int, hi: int, bump: float = 0.0):
     that the file's content changes."""
     s = load_branch(nfrc)
     b, ex = s.branch, s.extras
+    with h5py.File(path, "r") as h5:  # the isolas stage's own file: its provenance keeps it current
+        keep = {k: h5.attrs[k] for k in h5.attrs if k != art.CHECKSUMS}
+    path.unlink()  # a link into the shared coarse run: replace it, never write through it
     with h5py.File(path, "w") as h5:
-        h5.attrs["inputs_hash"] = f"fixture {bump}"
+        h5.attrs.update(keep)
         for method, kinds in (("dlft", ("isola", "bifurcated")), ("rl", ("bifurcated",))):
             g = h5.create_group(method)
             g.attrs.update(n_seeds=3, n_converged=2, n_distinct=len(kinds), n_branches=len(kinds), cpu_time=1.0 + bump,
@@ -51,6 +55,7 @@ def write_isolas(path, nfrc, lo: int, hi: int, bump: float = 0.0):
                 bg["harmonic_contribution"] = hc
                 bg.attrs.update(kind=kind, closed=kind == "isola", status="closed loop", subharmonic=1,
                                 seeds=np.array([n]))
+    art.add_checksums(path)
 
 
 def _check_png(path):
@@ -59,10 +64,28 @@ def _check_png(path):
     return img
 
 
+def _validate(scene_path, out):
+    """The validation stage alone on the folder as it is (the fixture isolas.h5 stands in for
+    the search's), as benchmarks/bench_validation.py runs it."""
+    from pipelines.runner import expected_inputs, update_figures
+    from pipelines.stages import REGISTRY
+    from pipelines.stages.base import Context
+
+    scene = load_scene(scene_path)
+    expected = expected_inputs(scene, ("validation",), out)
+    stage, ctx = REGISTRY["validation"], Context(scene, out, Progress(quiet=True))
+    for o in stage.outputs(scene):
+        ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
+    stage.compute(ctx, stage.outputs(scene))
+    update_figures(scene, out, [stage], Progress(quiet=True))
+    return read_validation(out)
+
+
 @pytest.fixture(scope="module")
 def runs(coarse_nfrc, tmp_path_factory):
-    """A clone of the SHORT coarse folder run --until validation: without isolas.h5, again,
-    with the fixture isolas.h5, again, with it changed. Returns (out, [(records, artifact)])."""
+    """A clone of the SHORT coarse folder run through validation (its own search finds no
+    isola), again; the validation stage on a fixture isolas.h5 with an isola; then the scene's
+    [isolas] changed. Returns (out, [(records, artifact)])."""
     out = tmp_path_factory.mktemp("validation_points")
     scene = clone(coarse_nfrc[1], out)
     done = []
@@ -74,20 +97,19 @@ def runs(coarse_nfrc, tmp_path_factory):
     run()
     run()
     write_isolas(out / "isolas.h5", out / "nfrc_dlft.h5", 3, 12)
-    run()
-    run()
-    write_isolas(out / "isolas.h5", out / "nfrc_dlft.h5", 3, 12, bump=1.0)
+    done.append((None, _validate(scene, out)))
+    scene.write_text(scene.read_text().replace("amplitudes = [1e-3]", "amplitudes = [2e-3]"))
     run()
     return out, done
 
 
-def test_isola_point_from_isolas_h5_and_reruns_only_when_it_changes(runs):
+def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
     out, done = runs
-    (rec, a), (rec_again, _), (rec_iso, b), (rec_iso_again, _), (rec_changed, _) = done
-    # without isolas.h5: a recorded reason, not an error
+    (rec, a), (rec_again, _), (_, b), (rec_changed, _) = done
+    # the search of the short scene finds no isola: a recorded reason, not an error
     assert rec["validation"][0] == "computed"
     for t in (a.dlft, a.rl):
-        assert not t.isola.found and "no isolas.h5" in t.isola.reason
+        assert not t.isola.found and "no branch of kind 'isola'" in t.isola.reason
         p = t.primary
         assert p.found and p.ti is not None and p.ti.n_periods == 20 and p.ti.deviation.shape == (20, 2)
         # both treatments compared at the point: its own orbit, the other's by Newton (or why not)
@@ -97,18 +119,17 @@ def test_isola_point_from_isolas_h5_and_reruns_only_when_it_changes(runs):
         assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
         # the period doubling: found with its branch, or a reason
         assert t.period_doubling.found == t.pd_branch.found and t.period_doubling.reason
-    assert a.isolas == "absent" and a.growth_tol == 1.5 and a.cpu_time > 0
+    assert a.isolas.endswith("isolas.h5") and a.growth_tol == 1.5 and a.cpu_time > 0
     assert rec_again["validation"][0] == "reused"
-    # isolas.h5 appears: recomputed, the DLFT isola point lies on the fixture's isola
-    assert rec_iso["validation"][0] == "computed" and "isolas.h5" in rec_iso["validation"][1]
+    # an isolas.h5 with an isola: the DLFT isola point lies on it
     iso = b.dlft.isola
     assert iso.found and iso.branch == "isolas.h5 dlft/branches/000" and 0 <= iso.index < 9
     omega = load_branch(out / "nfrc_dlft.h5").branch.omega
     assert iso.omega == omega[3 + iso.index] and iso.ti is not None
     assert not b.rl.isola.found and "no branch of kind 'isola'" in b.rl.isola.reason
-    # unchanged: reused; changed: recomputed
-    assert rec_iso_again["validation"][0] == "reused"
-    assert rec_changed["validation"][0] == "computed" and "isolas.h5" in rec_changed["validation"][1]
+    # the search's inputs change: it reruns, and so does the validation after it
+    assert rec_changed["isolas"][0] == "computed" and rec_changed["validation"][0] == "computed"
+    assert "isolas.h5" in rec_changed["validation"][1]
 
 
 def test_figures_are_drawn_from_the_artifacts(runs):
