@@ -130,7 +130,8 @@ def newton_solve(residual: Residual, x0: np.ndarray, omega: float, options: Newt
     """Solve R(x, omega) = 0 at fixed omega by Newton's method, eq. (9).
 
     x0: initial iterate (n,). omega: the fixed parameter, rad/s. solver: the LinearSolver
-    (default: direct LU). x_scale: scalar or (n,), the size of x for options.tol_step.
+    (default: direct LU). The line search calls residual(x, omega, jacobian=False) where
+    the residual takes the keyword (R alone, no Jacobian). x_scale: scalar or (n,), the size of x for options.tol_step.
     """
     solver = solver or DirectSolver()
     omega = float(omega)
@@ -141,6 +142,11 @@ def newton_solve(residual: Residual, x0: np.ndarray, omega: float, options: Newt
         return float(np.linalg.norm(R)), lambda: solver.factorize(J).solve(-R)
 
     def merit(x):
-        return float(np.linalg.norm(residual(x, omega)[0]))
+        # the line search needs ||R|| only: skip the Jacobian where the residual can
+        try:
+            R = residual(x, omega, jacobian=False)
+        except TypeError:  # a residual without the keyword
+            R = residual(x, omega)[0]
+        return float(np.linalg.norm(R))
 
     return newton_iterate(x0, linearise, options, scale=x_scale, merit=merit, where=f" at omega={omega:.6g}")

@@ -42,7 +42,7 @@ import numpy as np
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
-from hbm.continuation.newton import NewtonOptions, NewtonResult, newton_iterate, newton_solve
+from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, polyline_distance
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
@@ -175,7 +175,7 @@ class _Corrector:
         kept = []  # (index, x) of the distinct converged solutions at this omega
         tol = self.options.tolerance
         for i, w, x0 in items:
-            sol = correct_seed(self.residual, x0, w, self.options.newton, self.solver)
+            sol = newton_solve(self.residual, x0, w, self.options.newton, solver=self.solver)
             if not sol.converged or not np.all(np.isfinite(sol.x)):
                 out.append((i, False, sol.iterations, -1, -1, None))
                 continue
@@ -185,26 +185,6 @@ class _Corrector:
                 kept.append((i, sol.x))
             out.append((i, True, sol.iterations, k, same, sol.x))
         return out
-
-
-def correct_seed(residual, x0, omega: float, options: NewtonOptions, solver) -> NewtonResult:
-    """Newton at fixed omega from a seed (hbm.continuation.newton.newton_iterate), its line
-    search measuring ||R|| without the Jacobian where the residual takes jacobian=False."""
-    w = float(omega)
-
-    def linearise(x):
-        R, J, _ = residual(x, w)
-        R = np.asarray(R, dtype=float).reshape(-1)
-        return float(np.linalg.norm(R)), lambda: solver.factorize(J).solve(-R)
-
-    def merit(x):
-        try:
-            R = residual(x, w, jacobian=False)
-        except TypeError:  # a residual without the keyword
-            R = residual(x, w)[0]
-        return float(np.linalg.norm(R))
-
-    return newton_iterate(x0, linearise, options, merit=merit, where=f" at omega={w:.6g}")
 
 
 _WORKER: dict = {}

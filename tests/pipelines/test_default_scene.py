@@ -2,7 +2,9 @@
 
 This is the one place the issue's accuracy figure is asserted on the default scene: the
 Craig-Bampton ROM's first six eigenfrequencies are Ritz upper bounds of the full model's
-and within 0.5 % of them. About 2 minutes and 7 GB on the 2-core CI machine.
+and within 0.5 % of them. About 3.5 minutes and 7 GB on a 2-core machine: a benchmark-sized
+run, so it is opt-in (`pytest --heavy`); benchmarks/bench_mesh_to_rom.py --scene default
+prints the same figures.
 """
 from pathlib import Path
 
@@ -17,7 +19,7 @@ from support import SHARED
 ROOT = Path(__file__).resolve().parents[2]
 
 
-@pytest.mark.slow
+@pytest.mark.heavy
 def test_default_scene_rom_matches_full_model(tmp_path):
     text = (ROOT / "scenes" / "rotor67.toml").read_text()
     text = text.replace("../../shared", str(SHARED))
