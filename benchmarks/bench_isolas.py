@@ -92,7 +92,8 @@ def main():
                   f"{b.cpu_time:.0f} s CPU, {b.status}", flush=True)
 
         t0 = time.perf_counter()
-        r = search(problem, seeds, known, search_options(hbm, iso), describe=describe(res, False),
+        r = search(problem, seeds, known, search_options(hbm, iso), seed_factory=problem.for_seeds(),
+                   describe=describe(res, False),
                    on_progress=on_progress, on_branch=on_branch)
         done[method] = r
         kinds = {}

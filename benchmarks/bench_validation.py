@@ -32,7 +32,7 @@ def main() -> None:
     if not (a.out / "rom.h5").is_file():
         shutil.copy(ROOT / "tests" / "data" / "rotor67_coarse_rom.h5", a.out / "rom.h5")
     progress = Progress()
-    expected = expected_inputs(scene, ("hbm", "validation"), a.out)
+    expected = expected_inputs(scene, ("hbm", "validation"))
     for name in ("hbm", "validation"):
         stage = REGISTRY[name]
         ctx = Context(scene, a.out, progress)

@@ -54,20 +54,15 @@ def _digest(components: dict) -> str:
     return hashlib.sha256(json.dumps(components, sort_keys=True).encode()).hexdigest()
 
 
-def expected_inputs(scene, names, out: Path | None = None) -> dict:
+def expected_inputs(scene, names) -> dict:
     """{output file: (inputs {component: hash}, inputs hash)} for the outputs of the named
     stages (and those upstream of them): scene keys, input files by content, the upstream
-    outputs' expected inputs hashes, and the output's key; plus, given the output folder
-    `out`, the content of the stages' optional artifacts that exist there (Stage.optional).
-    Depends on the scene only otherwise."""
+    outputs' expected inputs hashes, and the output's key."""
     last = max(STAGES.index(n) for n in names)
     memo: dict = {}
     for name in STAGES[: last + 1]:
         stage = REGISTRY[name]
         files = {f"file {label}": file_hash(path) for label, path in stage.files(scene).items()}
-        if out is not None:
-            files.update({f"optional {name}": file_hash(Path(out) / name) for name in stage.optional(scene)
-                          if (Path(out) / name).is_file()})
         for o in stage.outputs(scene):
             comp = {f"scene {k}": scene.key_hash(k) for k in stage.depends + o.depends}
             comp.update(files)
@@ -118,7 +113,7 @@ def plan(scene, out: Path, names, force: bool = False, expected: dict | None = N
          verify: bool = True) -> list[Step]:
     """What a run of the named stages will compute and why. verify: check the checksums of
     the outputs that are current by their inputs hash (else trust the hash alone)."""
-    expected = expected or expected_inputs(scene, names, out)
+    expected = expected or expected_inputs(scene, names)
     steps = []
     for name in names:
         stage = REGISTRY[name]
@@ -188,7 +183,7 @@ def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
     out = on_root(comm, lambda: folder.prepare(Path(out)))
     command = command or f"bladerub run {scene.path} --out {out} --until {until}"
     names = STAGES[: STAGES.index(until) + 1]
-    expected = expected_inputs(scene, names, out)
+    expected = expected_inputs(scene, names)
     with ExitStack() as lock:
         def hold() -> None:  # rank 0 holds the folder for the whole run
             lock.enter_context(folder.hold(out, command))

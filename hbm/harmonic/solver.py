@@ -37,6 +37,11 @@ class HbmSolver:
     atol: absolute residual asked of the bordered solves at most; compute_nfrc sets
       tol_residual / 10, which relaxes the last Newton step of each point to what Newton's
       test can see (RL NFRC 77 -> 67 s).
+    plain_forcing: the plain solves (J x = b) as inexact Newton steps too, with relative
+      tolerance min(1e-2, max(rtol, plain_forcing ||b||, atol / ||b||)); 0 (the default)
+      keeps them at rtol, which the bordered fall-back, the stability analysis and the
+      start strategies need. The isola search's seed corrections use 1e-2 (see
+      hbm.isolas.harmonic.HbmProblem).
     max_krylov: GMRES iterations before a solve is declared stalled.
     refactor_after: a preconditioner costs ~12 ms at N_h = 40, a GMRES iteration ~1 ms,
       and its solves take 1.6, 2.5, 3.8, 5.7, 6.5 ... 9 iterations as it ages; rebuilding
@@ -53,6 +58,7 @@ class HbmSolver:
     rtol: float = 3e-7
     forcing: float = 1e-3
     atol: float = 0.0
+    plain_forcing: float = 0.0
     max_krylov: int = 60
     refactor_after: int = 6
     single: bool | None = None
@@ -121,12 +127,16 @@ class HbmFactorization:
         x = s._pre(b)
         if self._exact:
             return x
-        x, ok = s._gmres(J.__matmul__, s._pre, b, x, s.rtol)
+        tol = s.rtol
+        if s.plain_forcing > 0:
+            bn = float(np.linalg.norm(b))
+            tol = min(1e-2, max(s.rtol, s.plain_forcing * bn, s.atol / max(bn, 1e-300)))
+        x, ok = s._gmres(J.__matmul__, s._pre, b, x, tol)
         if ok:
             return x
         if s._pre.source is not J:  # the reused preconditioner is too far off: build this J's
             pre = s.precondition(J)
-            x, ok = s._gmres(J.__matmul__, pre, b, pre(b), s.rtol)
+            x, ok = s._gmres(J.__matmul__, pre, b, pre(b), tol)
             if ok:
                 return x
         s._count("dense_fallback")  # GMRES stalled even with J's own preconditioner

@@ -13,7 +13,10 @@ Two phases:
 2. branches: each remaining solution, in seed order, unless it lies on a branch found so
    far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
    test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
-   half branch also ends when it meets a known or found branch. The halves are merged
+   half branch also ends when it meets a known or found branch. Where two cores are
+   usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
+   two processes, and the second is dropped when the first closes the loop: the wall time
+   of an open branch halves, that of a closed one does not change. The halves are merged
    into one branch and classified:
      primary: it merges into (runs along) the primary NFRC;
      bifurcated: it crosses another branch (a branch point), or passes through a located
@@ -190,10 +193,14 @@ class _Corrector:
 _WORKER: dict = {}
 
 
-def _init_worker(factory, known, options):
+def _limit_blas():
     from threadpoolctl import threadpool_limits
 
     _WORKER["limits"] = threadpool_limits(limits=1, user_api="blas")  # one process per core
+
+
+def _init_worker(factory, known, options):
+    _limit_blas()
     _WORKER["corrector"] = _Corrector(factory, known, options)
 
 
@@ -310,6 +317,16 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         return Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
 
 
+def _run_half(factory, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float):
+    """_half with a fresh (residual, solver) from factory, in this process or a worker: a
+    half branch does not depend on which process ran it nor on what that process solved
+    before (a kept preconditioner would change its last digits). -> (Branch, joined, CPU s)."""
+    t = time.process_time()
+    residual, solver = factory()
+    br, joined = _half(residual, solver, x0, w0, direction, opts, others, tol)
+    return br, joined, time.process_time() - t
+
+
 def _parallel(points, b: KnownBranch, xn, wn, opts) -> bool:
     """Whether the half branch's last secant runs along b's segment near (xn, wn)."""
     if len(points) < 2 or len(b.omega) < 2:
@@ -357,7 +374,7 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions):
 
 
 def search(factory, seeds, known, options: SearchOptions, *, comm=None, corrections: Corrections | None = None,
-           branches=(), bifurcation_points: KnownBranch | None = None,
+           seed_factory=None, branches=(), bifurcation_points: KnownBranch | None = None,
            describe: Callable[[np.ndarray, np.ndarray], dict] | None = None,
            on_corrections: Callable[[Corrections], None] | None = None,
            on_branch: Callable[[int, FoundBranch], None] | None = None,
@@ -372,6 +389,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
     corrections, branches: what an interrupted run of the same inputs finished (resume):
       phase 1 is skipped when corrections are given; the given branches are kept as they are
       and their seeds never continued again.
+    seed_factory: like factory, for phase 1 (e.g. a linear solver tuned for far-off
+      starts); None: factory.
     bifurcation_points: located bifurcations of the known branches (omega (k,), x (k, n)):
       a branch through one is "bifurcated".
     describe(omega (m,), x (m, n)) -> {name: (m, ...) array}: per-point data of each branch.
@@ -383,14 +402,15 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
     seeds = tuple(seeds)
     progress = on_progress or (lambda phase, done, total: None)
     if corrections is None:
-        corrections = correct_seeds(factory, seeds, known, options, comm,
+        corrections = correct_seeds(seed_factory or factory, seeds, known, options, comm,
                                     on_progress=lambda d, t: progress("seeds", d, t))
         if on_corrections is not None and (comm is None or comm.rank == 0):
             on_corrections(corrections)
     cpu_phase1 = corrections.cpu_time
 
-    def branches_phase():
+    def branches_phase(pool=None):
         t_start = time.process_time()
+        cpu_workers = 0.0
         residual, solver = factory()
         found = list(branches)
         owner = {}  # seed -> branch index
@@ -415,12 +435,23 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             t0 = time.process_time()
             others = ([(f"known branch {j} ({b.label})", -1 - j, b) for j, b in enumerate(known)]
                       + [(f"branch {j}", j, p) for j, p in enumerate(polys)])
-            first, j1 = _half(residual, solver, x0, w0, +1, co, others, options.tolerance)
+            args = (factory, x0, w0, +1, co, others, options.tolerance)
+            if pool is not None:  # both halves at once; the second is dropped if the first closes
+                futures = [pool.submit(_run_half, *args), pool.submit(_run_half, *args[:3], -1, *args[4:])]
+                (first, j1, c1), (second, j2, c2) = (f.result() for f in futures)
+                cpu_half = c1 + c2
+                cpu_workers += cpu_half
+            else:
+                first, j1, cpu_half = _run_half(*args)
+                second = None
             halves = [(first, j1)]
-            second = None
             if not first.status.startswith(STATUS_CLOSED_LOOP) and first.converged[0]:
-                second, j2 = _half(residual, solver, x0, w0, -1, co, others, options.tolerance)
+                if second is None:
+                    second, j2, c2 = _run_half(*args[:3], -1, *args[4:])
+                    cpu_half += c2
                 halves.append((second, j2))
+            else:
+                second = None
             n_cont += 1
             computed = len(first) + (len(second) - 1 if second is not None else 0)
             n_pts += computed
@@ -447,16 +478,22 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 extras = full
             fb = FoundBranch(omega=omega, x=x, converged=conv, kind=kind, closed=closed, status=status, start=i,
                              seeds=(i,), extras=extras, n_points_computed=computed,
-                             cpu_time=time.process_time() - t0)
+                             cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0))
             found.append(fb)
             owner[i] = len(found) - 1
             if on_branch is not None:
                 on_branch(len(found) - 1, fb)
         progress("branches", len(cand), len(cand))
-        return found, owner, n_cont, n_pts, time.process_time() - t_start
+        return found, owner, n_cont, n_pts, time.process_time() - t_start + cpu_workers
 
     if comm is None:
-        found, owner, n_cont, n_pts, cpu2 = branches_phase()
+        workers = min(options.workers or len(os.sched_getaffinity(0)), 2)
+        if workers < 2 or not len(corrections.candidates()):
+            found, owner, n_cont, n_pts, cpu2 = branches_phase()
+        else:  # the two halves of each branch on two processes (module doc of correct_seeds)
+            ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+            with concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=_limit_blas) as pool:
+                found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
         value, error = None, None
         if comm.rank == 0:

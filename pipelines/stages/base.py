@@ -68,10 +68,7 @@ class Stage:
     estimate(scene, out, outputs): an Estimate of computing those outputs (None: cheap or
     unknown), for the size guard; `out` may hold current upstream artifacts to count from.
     distributed: under `mpirun -n N` (pipelines.parallel), compute runs on every rank and
-        writes on rank 0 only; otherwise it runs on rank 0 alone while the others wait.
-    optional(scene): artifact names in the output folder that compute reads when they exist
-        (made by no stage of the registry yet): each one present enters the hash by its
-        content, so the outputs are recomputed when it appears, changes or goes."""
+        writes on rank 0 only; otherwise it runs on rank 0 alone while the others wait."""
 
     name: str
     depends: tuple[str, ...]
@@ -82,7 +79,6 @@ class Stage:
     figures: tuple[Figure, ...] = ()
     estimate: Callable[[object, Path, tuple[Output, ...]], "Estimate | None"] = lambda scene, out, outputs: None
     distributed: bool = False
-    optional: Callable[[object], tuple[str, ...]] = lambda scene: ()
 
 
 @dataclass

@@ -314,7 +314,8 @@ def _compute(ctx: Context, outputs) -> None:
                 else:
                     update(f"branches {d}/{total} candidates")
 
-            result = search(problem, seeds, known, opts, comm=comm, corrections=corrections, branches=done,
+            result = search(problem, seeds, known, opts, comm=comm, corrections=corrections,
+                            seed_factory=problem.for_seeds(), branches=done,
                             bifurcation_points=bif, describe=describe(res, hbm.stability),
                             on_corrections=lambda c, m=method: partial.corrections(m, c) if root else None,
                             on_branch=lambda i, fb, m=method: partial.branch(m, i, fb, res.nu) if root else None,

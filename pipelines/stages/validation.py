@@ -37,7 +37,6 @@ VALIDATION = Output("validation.h5")
 #: The isolas stage's artifact: the isola validation point is taken from it.
 ISOLAS = "isolas.h5"
 UPSTREAM = ("rom", "hbm", "isolas")
-OPTIONAL_INPUTS = ()
 
 KINDS = ("primary", "isola", "period_doubling")
 
@@ -397,4 +396,4 @@ CONTENT = Figure("isola_content", files=lambda s: ("isola_modal_content.png", "i
 
 STAGE = Stage("validation", depends=("casing", "contact", "ti.dt", "hbm", "validation"), upstream=UPSTREAM,
               outputs=lambda scene: (VALIDATION,) if scene.hbm.methods else (), compute=_compute,
-              figures=(SIGNALS, SOLUTION_SET, CONTENT), optional=lambda scene: OPTIONAL_INPUTS)
+              figures=(SIGNALS, SOLUTION_SET, CONTENT))

@@ -72,7 +72,7 @@ def _validate(scene_path, out):
     from pipelines.stages.base import Context
 
     scene = load_scene(scene_path)
-    expected = expected_inputs(scene, ("validation",), out)
+    expected = expected_inputs(scene, ("validation",))
     stage, ctx = REGISTRY["validation"], Context(scene, out, Progress(quiet=True))
     for o in stage.outputs(scene):
         ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
