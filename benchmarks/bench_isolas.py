@@ -3,13 +3,14 @@
 Usage:
   PYTHONPATH=. .venv/bin/python benchmarks/bench_isolas.py [--rom tests/data/rotor67_coarse_rom.h5]
       [--methods dlft rl] [--ti out/coarse/ti.h5] [--nh 40] [--n-omega 41] [--amplitudes ...]
-      [--harmonics ...] [--n-modes 4] [--workers N]
+      [--harmonics ...] [--n-modes 4] [--workers N] [--max-points 600] [--save branches.npz]
 
 The scene defaults ([hbm] N_h = 40, N_t = 1024, Omega in [400, 2000] rad/s; [isolas]
 defaults) unless told otherwise. For each treatment: the primary NFRC (compute_nfrc, timed
 apart), then the search from the modal seeds (RL: DLFT's corrected ones when both run, as
 the stage does), and the periodic points of a ti.h5 when --ti names one. Prints per treatment: seeds, converged, distinct, branches per class with
-their Omega range, closed, dominant harmonic, and the search's CPU and wall time.
+their Omega range, closed, dominant harmonic, and the search's CPU and wall time;
+--save writes the branches to an .npz (keys METHOD_K_omega, _x, _converged, _le_amplitude).
 """
 from __future__ import annotations
 
@@ -46,11 +47,14 @@ def main():
     ap.add_argument("--harmonics", type=int, nargs="+")
     ap.add_argument("--amplitudes", type=float, nargs="+")
     ap.add_argument("--workers", type=int)
+    ap.add_argument("--max-points", type=int)
+    ap.add_argument("--save", help="write each treatment's branches (omega, x, converged, le_amplitude) to this .npz")
     a = ap.parse_args()
     rom = load_rom(a.rom)
     hbm = HbmOptions(n_harmonics=a.nh, n_time=max(1024, 4 * a.nh))
     iso = IsolaOptions()
     changes = {k: v for k, v in (("n_omega", a.n_omega), ("n_modes", a.n_modes), ("workers", a.workers),
+                                 ("max_points", a.max_points),
                                  ("harmonics", tuple(a.harmonics) if a.harmonics else None),
                                  ("amplitudes", tuple(a.amplitudes) if a.amplitudes else None)) if v is not None}
     iso = replace(iso, **changes)
@@ -112,6 +116,14 @@ def main():
             amp = 1e3 * np.nanmax(b.extras["le_amplitude"][ok]) if "le_amplitude" in b.extras else np.nan
             print(f"| {k} | {b.kind} | {b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} | {b.closed} | "
                   f"{int(ok.sum())} | {dom} | {amp:.3f} | {len(b.seeds)} | {b.status} |", flush=True)
+    if a.save:
+        arrays = {}
+        for method, r in done.items():
+            for k, b in enumerate(r.branches):
+                arrays.update({f"{method}_{k}_omega": b.omega, f"{method}_{k}_x": b.x,
+                               f"{method}_{k}_converged": b.converged,
+                               f"{method}_{k}_le_amplitude": b.extras.get("le_amplitude", np.full(len(b.omega), np.nan))})
+        np.savez(a.save, **arrays)
 
 
 if __name__ == "__main__":

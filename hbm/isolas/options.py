@@ -29,7 +29,8 @@ class IsolaOptions:
       Omega from the polyline's nearest point lands within tolerance / 100 of it. Default
       1e-2: 1 % of the casing clearance (4 um) in the tip displacement at the same Omega.
     max_points: most points of each half branch (each direction from a seed). Default 600:
-      the longest closed branch of the coarse rotor 67 search has ~300 points.
+      the default rotor 67 scene's RL isola closes after 437 points in one half (400 would
+      cut it); open branches that wind on cost up to twice this.
     crawl_points: a half branch ends after this many successive points at a step below 4
       ds_min (status "crawled at the step floor"): such stretches cost a correction per
       ~1e-5 of arc length. Default 30.

@@ -13,6 +13,12 @@ point (stays there).
 """
 from __future__ import annotations
 
+import os
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
 import numpy as np
 import pytest
 import scipy.integrate as si
@@ -155,3 +161,31 @@ def test_an_interrupted_search_resumes_without_recomputing(primary):
         np.testing.assert_allclose(a.x, b.x)
         assert a.seeds == b.seeds
     np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
+def test_mpi_search_equals_the_serial_one(tmp_path, primary):
+    """`mpirun -n 2` shares the seeds' omegas between the ranks (allgather) and continues the
+    branches on rank 0: the same corrections, seed verdicts and branches as one process,
+    to the bit (the same seeds solved by the same code, whichever rank solved them)."""
+    import mpi4py  # noqa: F401  (installed with python3-dolfinx; a missing one must fail, not skip)
+    out = tmp_path / "mpi.npz"
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
+    cmd = ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else [])
+    run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_isolas.py")), str(out)],
+                         env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stdout + run.stderr
+    got = np.load(out)
+    assert list(got["ranks"]) == [2, 2]
+    serial = search(factory, modal_seeds(), [primary], options(workers=1))
+    c = serial.corrections
+    np.testing.assert_array_equal(got["converged"], c.converged)
+    np.testing.assert_array_equal(got["x"], c.x)
+    np.testing.assert_array_equal(got["on_known"], c.on_known)
+    np.testing.assert_array_equal(got["same_as"], c.same_as)
+    np.testing.assert_array_equal(got["seed_branch"], serial.seed_branch)
+    assert list(got["kinds"]) == [b.kind for b in serial.branches] and "isola" in list(got["kinds"])
+    for k, b in enumerate(serial.branches):
+        np.testing.assert_array_equal(got[f"omega_{k}"], b.omega)
+        np.testing.assert_array_equal(got[f"bx_{k}"], b.x)
