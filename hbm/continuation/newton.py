@@ -130,8 +130,9 @@ def newton_solve(residual: Residual, x0: np.ndarray, omega: float, options: Newt
     """Solve R(x, omega) = 0 at fixed omega by Newton's method, eq. (9).
 
     x0: initial iterate (n,). omega: the fixed parameter, rad/s. solver: the LinearSolver
-    (default: direct LU). The line search calls residual(x, omega, jacobian=False) where
-    the residual takes the keyword (R alone, no Jacobian). x_scale: scalar or (n,), the size of x for options.tol_step.
+    (default: direct LU). x_scale: scalar or (n,), the size of x for options.tol_step.
+    The line search calls residual(x, omega, jacobian=False) (R alone, no Jacobian) where
+    the residual takes that keyword.
     """
     solver = solver or DirectSolver()
     omega = float(omega)

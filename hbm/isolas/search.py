@@ -490,7 +490,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
         workers = min(options.workers or len(os.sched_getaffinity(0)), 2)
         if workers < 2 or not len(corrections.candidates()):
             found, owner, n_cont, n_pts, cpu2 = branches_phase()
-        else:  # the two halves of each branch on two processes (module doc of correct_seeds)
+        else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
             with concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=_limit_blas) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
