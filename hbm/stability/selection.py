@@ -130,15 +130,20 @@ class LocatedDoubling:
     """A period doubling of a branch, or why none was found.
 
     bifurcation: hbm.stability.bifurcation.Bifurcation (with its critical mode) or None.
-    index: the branch point on the bifurcation's unstable side, where the mode was computed
-    (the start of the branch switch), -1 when none. reason: how it was found, or why none.
-    n_analyses: Floquet analyses made.
+    index: the stored branch point on the bifurcation's unstable side, -1 when none.
+    reason: how it was found, or why none. n_analyses: Floquet analyses made.
+    omega (rad/s), u (n_u,): the start of the branch switch, where the mode was computed:
+    the stored point `index`, or, where its multiplier is far past -1 (the crossing lies
+    between two distant points), a point of the branch found between the two (see
+    refine_crossing); nan and None when none.
     """
 
     bifurcation: Bifurcation | None
     index: int
     reason: str
     n_analyses: int
+    omega: float = math.nan
+    u: np.ndarray | None = None
 
 
 def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets=None, n_scan: int = 24,
@@ -196,8 +201,16 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
             bif = _classify(residual, omega, x, amplitude, idx, pos, a, b, spec)
             if bif is not None:
                 side = b if bif.direction > 0 else a
-                return LocatedDoubling(bif, side, f"{how}: multiplier {bif.multiplier.real:.4g}"
-                                                  f"{bif.multiplier.imag:+.2g}i between points {a} and {b}", len(cache))
+                why = (f"{how}: multiplier {bif.multiplier.real:.4g}{bif.multiplier.imag:+.2g}i between points "
+                       f"{a} and {b}")
+                w_s, u_s = float(omega[side]), x[side]
+                if abs(math.log(abs(bif.multiplier))) > REFINE_BEYOND:
+                    ref = refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec)
+                    if ref is not None:
+                        bif, w_s, u_s, n_ref = ref
+                        why += (f", refined between them ({n_ref} points of the branch): multiplier "
+                                f"{bif.multiplier.real:.4g}{bif.multiplier.imag:+.2g}i at Omega = {w_s:.6g} rad/s")
+                return LocatedDoubling(bif, side, why, len(cache), w_s, np.asarray(u_s, float))
     except _Budget:
         return LocatedDoubling(None, -1, f"no period doubling among the {max(checked - 1, 0)} of {len(pairs)} stability "
                                          f"change(s) examined within {max_analyses} Floquet analyses", len(cache))
@@ -207,6 +220,81 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
 
 class _Budget(Exception):
     pass
+
+
+#: |log|mu|| of the crossing multiplier at the switch's start beyond which the crossing is
+#: refined: the pitchfork's new branch leaves from mu = -1, and from a point far past it
+#: (RL on rotor 67: mu = -2.8 at the next NFRC point) the switch's Newton does not reach it
+REFINE_BEYOND = 0.1
+
+
+def refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec, levels: int = 8):
+    """The crossing between the neighbouring stored points a and b, bisected on branch
+    points computed between them: each new point is the solution on the hyperplane through
+    the midpoint of the bracket, normal to its chord (Newton with the bordered solve, the
+    metric of hbm.harmonic.nfrc.default_continuation: u, Omega / 100 rad/s), analysed and
+    kept on the side whose number of unstable multipliers it shares. Stops when the
+    bracket's unstable-side multiplier is within REFINE_BEYOND of the unit circle in
+    |log|mu||, or after `levels` bisections.
+
+    Returns (Bifurcation classified on the last bracket that classifies as a period
+    doubling, with the stored neighbours; omega of its unstable-side point, rad/s; its
+    unknowns (n_u,); branch points computed), or None when no refined bracket does.
+    """
+    from hbm.continuation.newton import NewtonOptions, newton_iterate
+
+    tol = residual.options.tolerance
+    solver = HbmSolver(atol=0.1 * tol)
+    w = [float(omega[k]) for k in (a, b)]
+    u = [np.asarray(x[k], float) for k in (a, b)]
+    sp = [spec(a), spec(b)]
+    n = u[0].size
+    computed = 0
+    best = None
+    for _ in range(levels):
+        dx, dw = u[1] - u[0], (w[1] - w[0]) / 100.0
+        nrm = math.hypot(float(np.linalg.norm(dx)), dw)
+        dx, dw = dx / nrm, dw / nrm
+        um, wm = 0.5 * (u[0] + u[1]), 0.5 * (w[0] + w[1])
+
+        def linearise(y, um=um, wm=wm, dx=dx, dw=dw):
+            xi, wi = y[:n], float(y[n])
+            R, J, r_w = residual(xi, wi)
+            P = float((xi - um) @ dx + (wi - wm) / 100.0 * dw)
+
+            def step():
+                sx, sw, _ = solver.factorize(J).solve_bordered(np.asarray(r_w, float), dx, dw / 100.0,
+                                                               np.asarray(R, float), P)
+                return np.append(sx, sw)
+
+            return float(math.hypot(float(np.linalg.norm(R)), P)), step
+
+        sol = newton_iterate(np.append(um, wm), linearise, NewtonOptions(tol_residual=tol, max_iter=12))
+        if not sol.converged:
+            break
+        computed += 1
+        u_m, w_m = sol.x[:n], float(sol.x[n])
+        s_m = orbit_spectrum(residual, u_m, w_m)
+        k = 0 if s_m[0].n_unstable == sp[0][0].n_unstable else 1
+        u[k], w[k], sp[k] = u_m, w_m, s_m
+        # classify the current bracket with the stored neighbours (the turn in Omega of a fold)
+        before = [int(idx[j]) for j in range(max(0, pos[a] - 1), pos[a])]
+        after = [int(idx[j]) for j in range(pos[b] + 1, min(len(idx), pos[b] + 2))]
+        om = np.array([omega[j] for j in before] + w + [omega[j] for j in after], float)
+        xs = np.array([x[j] for j in before] + u + [x[j] for j in after], float)
+        specs = [spec(j) for j in before] + sp + [spec(j) for j in after]
+        amp = np.array([amplitude[j] for j in before] + [nfrc_extras(residual, v)["le_amplitude"] for v in u]
+                       + [amplitude[j] for j in after], float)
+        loc = np.arange(len(om))
+        bif = _classify(residual, om, xs, amp, loc, {int(i): int(i) for i in loc}, len(before), len(before) + 1,
+                        lambda i, specs=specs: specs[i])
+        if bif is None:  # e.g. the multiplier's partner on the negative axis has joined it in a
+            break        # complex pair on the stable side: keep the last classified bracket
+        side = 1 if bif.direction > 0 else 0
+        best = (bif, w[side], u[side], computed)
+        if abs(math.log(abs(bif.multiplier))) <= REFINE_BEYOND:
+            break
+    return best
 
 
 def _classify(residual, omega, x, amplitude, idx, pos, a, b, spec) -> Bifurcation | None:

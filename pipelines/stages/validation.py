@@ -231,7 +231,7 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
         pd = ValidationPoint("period_doubling", method, False, loc.reason)
     else:
         update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s")
-        pd_branch, r_pd = continue_doubled_branch(res, b.x[loc.index], float(b.omega[loc.index]), loc.bifurcation,
+        pd_branch, r_pd = continue_doubled_branch(res, loc.u, loc.omega, loc.bifurcation,
                                                   default_continuation(scene.hbm), n_points=opts.pd_points)
         pd_branch = replace(pd_branch, reason=f"{loc.reason}; {pd_branch.reason}")
         if not pd_branch.found:

@@ -10,6 +10,7 @@ from them (hbm.ti.validation), checked against independent references:
   stability, the doubled branch carries the harmonics of W / 2, and time integration
   (scipy's solve_ivp) from the chosen point stays on it.
 """
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -136,3 +137,31 @@ def test_doubled_branch_has_half_frequency_content_and_time_integration_stays_on
                   method="DOP853").y[0]
     assert abs(x_at(T) - x_at(0.0)) > 1e-3  # a period-doubled orbit: x(T) != x(0)
     assert np.abs(x[0::2] - x_at(0.0)).max() < 1e-6 and np.abs(x[1::2] - x_at(T)).max() < 1e-6
+
+
+def test_a_crossing_far_past_minus_one_is_refined_on_the_branch(oscillator):
+    """Stored points far apart (ds_max 0.2: the point past the period doubling has a
+    multiplier well beyond -1, as RL's on rotor 67, mu = -2.8): the start of the switch is a
+    branch point computed between them whose multiplier, by shooting (another method), is
+    within REFINE_BEYOND of -1 in log|mu|, and the switch from it converges."""
+    from test_period_doubling import _pd_multiplier, _state
+
+    from hbm.stability.selection import REFINE_BEYOND
+
+    res, _, _, opts = oscillator
+    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    coarse = continue_branch(res, sol.x, 4.6, replace(opts, ds_max=0.2, ds=0.1))
+    amp = np.array([nfrc_extras(res, x)["le_amplitude"] for x in coarse.x])
+    loc = locate_period_doubling(res, coarse.omega, coarse.x, amp, coarse.converged, n_scan=12)
+    assert loc.bifurcation is not None and loc.bifurcation.kind == PERIOD_DOUBLING, loc.reason
+    k = loc.index
+    mu_stored = _pd_multiplier(_state(res, coarse.x[k], coarse.omega[k]), coarse.omega[k])
+    assert np.log(abs(mu_stored)) > 2 * REFINE_BEYOND  # the case: the stored point is far past -1
+    assert "refined" in loc.reason
+    lo, hi = sorted(coarse.omega[[k - 1, k + 1]]) if 0 < k < len(coarse.omega) - 1 else (3.4, 4.6)
+    assert lo <= loc.omega <= hi
+    assert np.linalg.norm(res(loc.u, loc.omega, jacobian=False)) < 1e-8  # a point of the branch
+    mu = _pd_multiplier(_state(res, loc.u, loc.omega), loc.omega)
+    assert mu < -1.0 and np.log(abs(mu)) <= REFINE_BEYOND + 0.02, mu  # HBM's N_h = 30 vs shooting
+    db, _ = continue_doubled_branch(res, loc.u, loc.omega, loc.bifurcation, opts, n_points=10)
+    assert db.found, db.reason
