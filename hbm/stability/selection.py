@@ -17,6 +17,7 @@ import numpy as np
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import ContinuationPoint
+from hbm.continuation.newton import NewtonOptions, newton_iterate
 from hbm.harmonic.nfrc import nfrc_extras
 from hbm.harmonic.solver import HbmSolver
 from hbm.stability.bifurcation import PERIOD_DOUBLING, Bifurcation
@@ -241,8 +242,6 @@ def refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec, levels:
     doubling, with the stored neighbours; omega of its unstable-side point, rad/s; its
     unknowns (n_u,); branch points computed), or None when no refined bracket does.
     """
-    from hbm.continuation.newton import NewtonOptions, newton_iterate
-
     tol = residual.options.tolerance
     solver = HbmSolver(atol=0.1 * tol)
     w = [float(omega[k]) for k in (a, b)]
