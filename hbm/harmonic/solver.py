@@ -98,6 +98,11 @@ class HbmSolver:
                 self._pre, self._stale, error = None, True, exc
         return HbmFactorization(J, self, error)
 
+    def _inexact_rtol(self, forcing: float, norm: float, cap: float) -> float:
+        """Relative tolerance of an inexact Newton step whose right-hand side has this norm:
+        min(cap, max(rtol, forcing norm, atol / norm)), loose far from the solution."""
+        return min(cap, max(self.rtol, forcing * norm, self.atol / max(norm, 1e-300)))
+
     def _gmres(self, matvec, prec, b, x0, rtol):
         x, it, ok = gmres(matvec, prec, b, x0, rtol, self.max_krylov)
         self._count("krylov", it)
@@ -127,10 +132,7 @@ class HbmFactorization:
         x = s._pre(b)
         if self._exact:
             return x
-        tol = s.rtol
-        if s.plain_forcing > 0:
-            bn = float(np.linalg.norm(b))
-            tol = min(1e-2, max(s.rtol, s.plain_forcing * bn, s.atol / max(bn, 1e-300)))
+        tol = s._inexact_rtol(s.plain_forcing, float(np.linalg.norm(b)), 1e-2) if s.plain_forcing > 0 else s.rtol
         x, ok = s._gmres(J.__matmul__, s._pre, b, x, tol)
         if ok:
             return x
@@ -179,9 +181,7 @@ class HbmFactorization:
             def mv(v):
                 return np.append(J @ v[:-1] + c * v[-1], p @ v[:-1] + q * v[-1])
 
-            tol = sv.rtol
-            if sv.forcing > 0 or sv.atol > 0:
-                tol = min(1e-3, max(sv.rtol, sv.forcing * rn, sv.atol / max(rn, 1e-300)))
+            tol = sv._inexact_rtol(sv.forcing, rn, 1e-3) if sv.forcing > 0 or sv.atol > 0 else sv.rtol
             d, ok = sv._gmres(mv, prec, rhs, prec(rhs), tol)
             if not (ok and finite(d)):
                 raise SingularMatrixError("bordered GMRES: no convergence")

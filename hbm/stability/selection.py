@@ -250,6 +250,9 @@ def refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec, levels:
     n = u[0].size
     computed = 0
     best = None
+    # the stored neighbours that classify each bracket with it (the turn in Omega of a fold)
+    before = [int(idx[j]) for j in range(max(0, pos[a] - 1), pos[a])]
+    after = [int(idx[j]) for j in range(pos[b] + 1, min(len(idx), pos[b] + 2))]
     for _ in range(levels):
         dx, dw = u[1] - u[0], (w[1] - w[0]) / 100.0
         nrm = math.hypot(float(np.linalg.norm(dx)), dw)
@@ -276,9 +279,6 @@ def refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec, levels:
         s_m = orbit_spectrum(residual, u_m, w_m)
         k = 0 if s_m[0].n_unstable == sp[0][0].n_unstable else 1
         u[k], w[k], sp[k] = u_m, w_m, s_m
-        # classify the current bracket with the stored neighbours (the turn in Omega of a fold)
-        before = [int(idx[j]) for j in range(max(0, pos[a] - 1), pos[a])]
-        after = [int(idx[j]) for j in range(pos[b] + 1, min(len(idx), pos[b] + 2))]
         om = np.array([omega[j] for j in before] + w + [omega[j] for j in after], float)
         xs = np.array([x[j] for j in before] + u + [x[j] for j in after], float)
         specs = [spec(j) for j in before] + sp + [spec(j) for j in after]
