@@ -46,7 +46,7 @@ import numpy as np
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
-from hbm.isolas.membership import KnownBranch, polyline_distance
+from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -273,26 +273,17 @@ def lies_on(residual, x, omega: float, branches, options: SearchOptions, solver=
     Newton at omega from the polyline's nearest point lands within tolerance / 100 of x."""
     co = options.continuation
     for k, b in enumerate(branches):
-        d, xn, wn = polyline_distance(x, omega, b, co.x_scale, co.omega_scale)
-        if d <= options.tolerance:
+        # most solutions lie on a branch: the cheap test (only segments near omega) first
+        if polyline_distance(x, omega, b, co.x_scale, co.omega_scale, within=options.tolerance)[0] <= options.tolerance:
             return k
+        d, xn, wn, near = nearest_on_polyline(x, omega, b, co.x_scale, co.omega_scale)
         if not math.isfinite(d) or len(b.omega) < 2:
             continue
-        chord = _local_chord(b, xn, wn, co)
-        if d <= options.refine_ratio * chord:
+        if d <= options.refine_ratio * segment_length(b, near, co.x_scale, co.omega_scale):
             sol = newton_solve(residual, xn, omega, options.newton, solver=solver)
             if sol.converged and np.linalg.norm((sol.x - x) / co.x_scale) <= 0.01 * options.tolerance:
                 return k
     return -1
-
-
-def _local_chord(b: KnownBranch, xn, wn, co) -> float:
-    """Length (scaled) of the polyline segment nearest to the point (xn, wn) on it."""
-    P = np.column_stack([b.x / co.x_scale, b.omega / co.omega_scale])
-    q = np.append(xn / co.x_scale, wn / co.omega_scale)
-    k = int(np.argmin(np.linalg.norm(P - q, axis=1)))
-    nb = [j for j in (k - 1, k + 1) if 0 <= j < len(P)]
-    return max(float(np.linalg.norm(P[j] - P[k])) for j in nb)
 
 
 # -- phase 2: branches -------------------------------------------------------------------------
@@ -306,7 +297,7 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         if not p.converged or p.index == 0:
             return
         for label, idx, b in others:
-            d, xn, wn = polyline_distance(p.x, p.omega, b, opts.x_scale, opts.omega_scale)
+            d, xn, wn = polyline_distance(p.x, p.omega, b, opts.x_scale, opts.omega_scale, within=tol)
             if d <= tol:
                 raise _Joined(label, idx, _parallel(points, b, xn, wn, opts))
 
@@ -366,7 +357,7 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions):
         b = KnownBranch.of(omega, x, "new")
         co = options.continuation
         for w, xb in zip(bifurcation_points.omega, bifurcation_points.x):
-            if polyline_distance(xb, w, b, co.x_scale, co.omega_scale)[0] <= options.tolerance:
+            if polyline_distance(xb, w, b, co.x_scale, co.omega_scale, within=options.tolerance)[0] <= options.tolerance:
                 return "bifurcated", closed
     if closed or not any(_at_bound(br.status) for br, _ in halves):
         return "isola", closed

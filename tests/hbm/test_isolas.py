@@ -189,3 +189,41 @@ def test_mpi_search_equals_the_serial_one(tmp_path, primary):
     for k, b in enumerate(serial.branches):
         np.testing.assert_array_equal(got[f"omega_{k}"], b.omega)
         np.testing.assert_array_equal(got[f"bx_{k}"], b.x)
+
+
+def test_the_polyline_distance_is_the_nearest_of_densely_sampled_segments():
+    """Against a bounded scalar minimisation of the distance along every segment. With within=w the
+    distance is the same whenever it is <= w (only segments near omega are measured) and
+    never claims a distance <= w that is not there."""
+    from hbm.isolas.membership import polyline_distance
+
+    rng = np.random.default_rng(3)
+    n, m = 5, 25
+    omega = np.cumsum(rng.uniform(-0.2, 1.0, m))  # turns back in omega now and then
+    x = np.cumsum(rng.standard_normal((m, n)), axis=0)
+    b = KnownBranch.of(omega, x, "zig-zag")
+    xs, ws = np.array([1.0, 2.0, 0.5, 1.0, 3.0]), 0.5
+    from scipy.optimize import minimize_scalar
+
+    checked = {"near": 0, "far": 0}
+    for k in range(60):
+        i = rng.integers(m - 1)
+        f = rng.uniform()
+        q = x[i] + f * (x[i + 1] - x[i]) + rng.normal(scale=rng.choice([1e-3, 0.3, 3.0]), size=n)
+        w = omega[i] + f * (omega[i + 1] - omega[i]) + rng.normal(scale=0.3)
+        best = min(minimize_scalar(lambda s: np.hypot(np.linalg.norm((x[j] + s * (x[j + 1] - x[j]) - q) / xs),
+                                                      (omega[j] + s * (omega[j + 1] - omega[j]) - w) / ws),
+                                   bounds=(0.0, 1.0), method="bounded", options={"xatol": 1e-10}).fun
+                   for j in range(m - 1))
+        d, xn, wn = polyline_distance(q, w, b, xs, ws)
+        assert d == pytest.approx(best, rel=1e-8, abs=1e-12)
+        assert np.hypot(np.linalg.norm((xn - q) / xs), (wn - w) / ws) == pytest.approx(d, rel=1e-12)
+        for tol in (1e-2, 0.5, 2.0):
+            dw = polyline_distance(q, w, b, xs, ws, within=tol)[0]
+            if best <= tol:
+                assert dw == d
+                checked["near"] += 1
+            else:
+                assert dw > tol
+                checked["far"] += 1
+    assert checked["near"] > 20 and checked["far"] > 20
