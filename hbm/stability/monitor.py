@@ -9,7 +9,8 @@ analysed one, and infers the others:
 - `gap` points have passed since the last analysis. After each analysis the multipliers
   are paired with the previous analysis' (bifurcation.pair_multipliers); each pair's
   speed d log|mu| / ds along the arc length gives the arc length it needs to reach the
-  unit circle, and the next analysis comes after half the smallest of these, in points
+  unit circle (multipliers moving away from it are not counted), and the next analysis
+  comes after half the smallest of these, in points
   (at most max_gap; 1 after a change of the count or an unpaired multiplier within
   `margin` of the circle). The lightly damped modes' multipliers sit at |mu| ~ 0.95-0.99
   over the minimal period, so a fixed margin would analyse every point;
@@ -182,6 +183,8 @@ class StabilityMonitor:
         reach = np.inf
         for i, j in pairs:
             la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
+            if la * lb > 0 and abs(lb) >= abs(la):
+                continue  # moving away from the circle: no crossing ahead on its present course
             speed = abs(lb - la) / (b.s - a.s)
             if speed > 0:
                 reach = min(reach, abs(lb) / speed)
