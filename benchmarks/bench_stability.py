@@ -1,8 +1,15 @@
-"""Benchmark of one Floquet analysis (hbm.stability.spectrum.orbit_spectrum) at points of an NFRC.
+"""Benchmark of one Floquet analysis (hbm.stability.spectrum.orbit_spectrum) at points of an NFRC,
+or (--schedule) of the stability monitor's choice of points along a whole NFRC.
 
 Usage:
   .venv/bin/python benchmarks/bench_stability.py [--rom tests/data/rotor67_coarse_rom.h5]
       [--methods dlft rl] [--points 12] [--nh 40] [--nt 1024] [--omega-min 1800] [--omega-max 2000]
+  .venv/bin/python benchmarks/bench_stability.py --schedule [--methods dlft] [--omega-min 400 --omega-max 2000]
+
+--schedule: the NFRC with stability twice, with the default StabilityOptions and with every
+point analysed (max_gap 1, the reference); prints analyses, stability time and the
+bifurcations of each, and which of the reference's the default schedule missed (same kind
+within 2 rad/s).
 
 Computes the NFRC over [omega_min, omega_max] without stability (one BLAS thread, as
 compute_nfrc), then analyses `points` of its points spread along it, twice each, and prints
@@ -58,8 +65,11 @@ def main():
     ap.add_argument("--nt", type=int, default=1024)
     ap.add_argument("--omega-min", type=float, default=1800.0)
     ap.add_argument("--omega-max", type=float, default=2000.0)
+    ap.add_argument("--schedule", action="store_true")
     a = ap.parse_args()
     rom = load_rom(a.rom)
+    if a.schedule:
+        return schedule(rom, a)
     opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
     print(f"ROM {a.rom}, N_h = {a.nh}, N_t = {a.nt}, Omega in [{a.omega_min:g}, {a.omega_max:g}] rad/s\n")
     print("| method | NFRC s / point (wall, CPU) | analysis wall (s) | analysis CPU (s) | LU | solves | rest "
@@ -91,6 +101,35 @@ def main():
               f"{statistics.median(cpus):.3f} | {t_init.cpu / tot:.0%} | {t_call.cpu / tot:.0%} | "
               f"{1 - (t_init.cpu + t_call.cpu) / tot:.0%} | {t_call.calls / len(cpus):.0f} | "
               f"{min(nodes)}-{max(nodes)} of 9 | {statistics.median(cpus) / per_point[1]:.1f} |", flush=True)
+
+
+def schedule(rom, a):
+    from collections import Counter
+
+    from hbm.stability.monitor import StabilityOptions
+
+    opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
+    for m in a.methods:
+        runs = {}
+        for name, so in (("default", StabilityOptions()), ("every point", StabilityOptions(max_gap=1))):
+            c0 = time.process_time()
+            r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=so)
+            runs[name] = r
+            kinds = Counter(b.kind for b in r.bifurcations)
+            print(f"{m} {name}: {len(r.omega)} points, {r.n_stability_analyses} analyses, stability "
+                  f"{r.stability_time:.1f} s wall, whole run {time.process_time() - c0:.1f} s CPU; "
+                  + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())), flush=True)
+        got = [(b.kind, b.omega) for b in runs["default"].bifurcations]
+        used, missed = set(), []
+        for kind, w in ((b.kind, b.omega) for b in runs["every point"].bifurcations):
+            near = [i for i, (k, x) in enumerate(got) if k == kind and i not in used and abs(x - w) < 2.0]
+            if near:
+                used.add(min(near, key=lambda i: abs(got[i][1] - w)))
+            else:
+                missed.append(f"{kind} {w:.1f}")
+        print(f"{m}: the default schedule located {len(used)} of the reference's "
+              f"{len(runs['every point'].bifurcations)}, {len(got) - len(used)} others; missed: "
+              + ("; ".join(missed) or "none"), flush=True)
 
 
 if __name__ == "__main__":
