@@ -16,12 +16,17 @@ class FemOptions:
     tol: eigen-solver convergence: largest relative change of a wanted eigenvalue (w^2) in
         the last block step (Ritz values converge monotonically from above).
     ordering: fill-reducing ordering of the sparse Cholesky (metis, scotch, pord, amd).
+    out_of_core: MUMPS keeps the Cholesky factor of K in files (a temporary folder in the
+        system's temp directory, TMPDIR) instead of memory, and reads it back at each block
+        solve: the peak memory drops by the factor's size, at the cost of writing it once
+        and reading it ~20 times (from the page cache when memory allows).
     """
 
     n_modes: int = 12
     n_fixed_interface_modes: int = 12
     tol: float = 1e-10
     ordering: str = "metis"
+    out_of_core: bool = False
 
     def __post_init__(self):
         if self.n_modes < 1:
