@@ -83,23 +83,6 @@ def _to_scipy(A) -> sp.csr_matrix:
     return out
 
 
-def _return_freed_memory() -> None:
-    """Hand the heap memory freed by the assembly back to the system (glibc malloc_trim).
-
-    dolfinx builds the sparsity pattern and the element tables from many small allocations;
-    freed, they stay in the process's heap, not reused by the large (mmap'ed) blocks that
-    follow (the Cholesky factor, the eigen bases): 0.23 of 0.50 GB after assembling
-    the 92 000-dof rotor 67 wedge deck, measured. No-op where glibc is not the C library."""
-    import ctypes
-    import ctypes.util
-
-    name = ctypes.util.find_library("c")
-    try:
-        ctypes.CDLL(name).malloc_trim(0)
-    except (OSError, AttributeError, TypeError):
-        pass
-
-
 def _restrict(A: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
     """A[order][:, order] for a square CSR A, without scipy's column fancy-indexing (which
     builds an index matrix product; ~3x slower on 5e7 nonzeros): gather the rows, renumber
@@ -207,8 +190,6 @@ def assemble_system(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarra
         A.assemble()
         mats.append(_restrict(_to_scipy(A), order))
     K, M = mats
-    del forms, a, A
-    _return_freed_memory()
     return FemSystem(K=K, M=M, node_dofs=node_dofs)
 
 
@@ -280,8 +261,6 @@ def assemble_distributed(nodes: np.ndarray, cells: np.ndarray, root_facets: np.n
         A.destroy()
     index.destroy()
     K, M = mats
-    del forms, a, A
-    _return_freed_memory()
     return DistributedSystem(K=K, M=M, node_dofs=node_dofs, layout=layout)
 
 
