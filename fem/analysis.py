@@ -74,7 +74,12 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
     scratch = tempfile.TemporaryDirectory(prefix="bladerub-mumps-") if options.out_of_core else None
     t = time.perf_counter()
-    factor = CholeskyFactor(K, ordering=options.ordering, out_of_core=scratch.name if scratch else None)
+    try:
+        factor = CholeskyFactor(K, ordering=options.ordering, out_of_core=scratch.name if scratch else None)
+    except BaseException:
+        if scratch is not None:
+            scratch.cleanup()
+        raise
     timings["factorisation"] = time.perf_counter() - t
     try:
         t = time.perf_counter()

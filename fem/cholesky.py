@@ -70,10 +70,10 @@ class CholeskyFactor:
         F = pc.getFactorMatrix()
         F.setMumpsIcntl(7, ORDERINGS[ordering])
         F.setMumpsIcntl(24, 0)  # no null-pivot detection: K is SPD once the root is clamped
+        opts = PETSc.Options()
         if out_of_core is not None:
             F.setMumpsIcntl(22, 1)
-        opts = PETSc.Options()
-        if out_of_core is not None:  # read by PETSc when it hands the matrix to MUMPS, in setUp
+            # the folder is read by PETSc when it hands the matrix to MUMPS, in setUp
             opts["mat_mumps_ooc_tmpdir"] = str(out_of_core)
         try:
             ksp.setUp()
