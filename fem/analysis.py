@@ -59,6 +59,7 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
         (and 'gather' under MPI) and the block-solve counts 'modes_block_solves',
         'interface_block_solves'.
     """
+    import tempfile
     import time
 
     from fem.assembly import DistributedSystem
@@ -71,8 +72,14 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     K, M = system.K, system.M
     want_basis = boundary_node_index is not None and len(boundary_node_index) > 0
     bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
+    scratch = tempfile.TemporaryDirectory(prefix="bladerub-mumps-") if options.out_of_core else None
     t = time.perf_counter()
-    factor = CholeskyFactor(K, ordering=options.ordering)
+    try:
+        factor = CholeskyFactor(K, ordering=options.ordering, out_of_core=scratch.name if scratch else None)
+    except BaseException:
+        if scratch is not None:
+            scratch.cleanup()
+        raise
     timings["factorisation"] = time.perf_counter() - t
     try:
         t = time.perf_counter()
@@ -90,6 +97,8 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
         timings["interface"] = time.perf_counter() - t
     finally:
         factor.destroy()
+        if scratch is not None:
+            scratch.cleanup()
     vectors = modal.vectors
     if layout is not None:
         # everything to rank 0, in the serial numbering the row blocks already use

@@ -21,12 +21,16 @@ class CholeskyFactor:
 
     A: a scipy sparse matrix (this process only), or a fem.distributed.DistributedMatrix
     (factorised in parallel by MUMPS on the matrix's communicator).
+    out_of_core: None: the factor stays in memory. A directory: MUMPS writes the factor
+        there as it computes it (ICNTL(22) = 1) and reads it back at every solve; the
+        memory is then that of the active fronts only, the factor lives in files (and in
+        the page cache, which the system can drop). The caller owns the directory.
     `solve(B)` with B (n,) or (n, k) returns A^{-1} B in the same shape (float64); for a
     distributed A, B and the result are this rank's row block (n_local rows), and the call
     is collective.
     """
 
-    def __init__(self, A, ordering: str = "metis"):
+    def __init__(self, A, ordering: str = "metis", out_of_core: str | None = None):
         from petsc4py import PETSc
 
         from fem.distributed import DistributedMatrix
@@ -66,7 +70,16 @@ class CholeskyFactor:
         F = pc.getFactorMatrix()
         F.setMumpsIcntl(7, ORDERINGS[ordering])
         F.setMumpsIcntl(24, 0)  # no null-pivot detection: K is SPD once the root is clamped
-        ksp.setUp()
+        opts = PETSc.Options()
+        if out_of_core is not None:
+            F.setMumpsIcntl(22, 1)
+            # the folder is read by PETSc when it hands the matrix to MUMPS, in setUp
+            opts["mat_mumps_ooc_tmpdir"] = str(out_of_core)
+        try:
+            ksp.setUp()
+        finally:
+            if out_of_core is not None:
+                opts.delValue("mat_mumps_ooc_tmpdir")
         info = F.getMumpsInfog(1)
         if info < 0:
             raise RuntimeError(f"MUMPS factorisation failed, INFOG(1) = {info}, INFOG(2) = {F.getMumpsInfog(2)}"
@@ -113,7 +126,9 @@ class CholeskyFactor:
         return np.column_stack([self.solve(np.ascontiguousarray(b)) for b in np.asarray(B).T])
 
     def destroy(self) -> None:
-        """Free the factor (several GB on the default blade) now rather than at garbage collection."""
-        for obj in (self._ksp, self._A):
+        """Free the factor (several GB on the default blade) now rather than at garbage collection.
+        The factor matrix is released here too (this object holds a reference to it): only
+        then does MUMPS free it and delete its out-of-core files."""
+        for obj in (self._ksp, self._F, self._A):
             if obj is not None:
                 obj.destroy()

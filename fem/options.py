@@ -16,12 +16,20 @@ class FemOptions:
     tol: eigen-solver convergence: largest relative change of a wanted eigenvalue (w^2) in
         the last block step (Ritz values converge monotonically from above).
     ordering: fill-reducing ordering of the sparse Cholesky (metis, scotch, pord, amd).
+    out_of_core: MUMPS keeps the Cholesky factor of K in files (a temporary folder in the
+        system's temp directory, TMPDIR) instead of memory, and reads it back at each block
+        solve: the peak memory drops by the factor's size, at the cost of writing it once
+        and reading it ~20 times (from the page cache when memory allows). Measured on the
+        rotor 67 wedge deck of 589 950 dof: peak 4.2 GB instead of 8.8 GB, CPU time 361 s
+        instead of 279 s, the same frequencies to 1e-14. Off by default: in core is faster
+        where the memory is there (the default blade needs ~7 GB).
     """
 
     n_modes: int = 12
     n_fixed_interface_modes: int = 12
     tol: float = 1e-10
     ordering: str = "metis"
+    out_of_core: bool = False
 
     def __post_init__(self):
         if self.n_modes < 1:

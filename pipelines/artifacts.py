@@ -156,12 +156,19 @@ _BLOCK = 1 << 24
 _ALGORITHM = "crc32x16M"
 
 
-def _block_digest(buf: memoryview, start: int, size: int) -> bytes:
+def _block_digest(buf: memoryview, start: int, size: int, mapping: mmap.mmap | None = None) -> bytes:
     part = buf[start:start + size]
     try:
         return zlib.crc32(part).to_bytes(4, "little") + len(part).to_bytes(8, "little")
     finally:
         part.release()
+        if mapping is not None:
+            # Out of this process's resident set again (the pages stay in the page cache; a
+            # neighbouring block that shares the first page reads it back in): else the
+            # whole file counts in the stage's peak memory, +1.3 GB for the fem.h5 of a
+            # 590 000-dof blade.
+            lo = start - start % mmap.PAGESIZE
+            mapping.madvise(mmap.MADV_DONTNEED, lo, start + size - lo)
 
 
 def _datasets(h5: h5py.File) -> dict:
@@ -209,13 +216,13 @@ def dataset_checksums(h5: h5py.File, names=None) -> dict:
                 n = ds.id.get_storage_size()
                 offset = ds.id.get_offset() if ds.chunks is None else None
                 if offset is not None and ds.dtype.kind != "O" and n == ds.size * ds.dtype.itemsize:
-                    buf, start = views[0], offset
+                    buf, start, mapping = views[0], offset, whole
                 else:
                     data = _content_bytes(ds)
                     n = data.size
-                    buf, start = memoryview(data).cast("B"), 0
+                    buf, start, mapping = memoryview(data).cast("B"), 0, None
                     views.append(buf)
-                jobs[name] = [(buf, start + k, min(_BLOCK, n - k)) for k in range(0, n, _BLOCK)]
+                jobs[name] = [(buf, start + k, min(_BLOCK, n - k), mapping) for k in range(0, n, _BLOCK)]
             with ThreadPoolExecutor(max(1, min(8, len(os.sched_getaffinity(0))))) as pool:
                 futures = {name: [pool.submit(_block_digest, *job) for job in blocks] for name, blocks in jobs.items()}
                 out = {}

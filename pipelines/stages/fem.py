@@ -60,16 +60,23 @@ def fem_bytes(scene, nodes: float) -> float:
 
 
 def _estimate(scene, out, outputs) -> Estimate | None:
-    # Peak memory ~35 kB per node (MUMPS factors, SLEPc bases): 0.83 GB for the coarse mesh
-    # (24 104 nodes), ~7 GB for the default one (197 000); time measured on 2 cores.
+    # Peak memory ~35 kB per node (MUMPS factor, eigen bases): 0.83 GB for the coarse mesh
+    # (24 104 nodes), ~7 GB for the default one (197 000); time measured on 2 cores. With
+    # the factor out of core ~23 kB per node: 4.5e9 and 6.9e9 B (FEM stage peaks of
+    # `bladerub run`) for the rotor 67 wedge decks split into 197 685 and 319 011 tet10
+    # nodes (in core 10.8e9 B for the first: the uniformly fine split meshes have a larger
+    # factor per node than the table meshes).
     from pipelines.guard import count
 
     n, exact = node_count(scene, out)
     if n is None:  # a mesh file not imported yet: its size is not known before
         return None
-    return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof", memory=0.2e9 + 35e3 * n,
-                    seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n),
-                    advice=f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers")
+    advice = f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers"
+    if not scene.fem.out_of_core:
+        advice += ", or set [fem] out_of_core = true"
+    per_node = 23e3 if scene.fem.out_of_core else 35e3
+    return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof",
+                    memory=0.2e9 + per_node * n, seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n), advice=advice)
 
 
 def mode_files(scene) -> tuple[str, ...]:

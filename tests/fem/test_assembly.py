@@ -65,6 +65,20 @@ def test_modes_match_arpack(system):
     assert (nodal[:, system.node_dofs[:, 0] < 0] == 0).all()
 
 
+def test_out_of_core_factor_lives_in_files_and_matches_arpack(system, tmp_path):
+    from fem.cholesky import CholeskyFactor
+
+    factor = CholeskyFactor(system.K, out_of_core=str(tmp_path))
+    try:
+        assert any(tmp_path.iterdir())  # MUMPS wrote the factor there
+        r = compute_modes(system.K, system.M, 6, factor=factor)
+    finally:
+        factor.destroy()
+    assert not any(tmp_path.iterdir())  # and deleted it when the factor was freed
+    w2, _ = sla.eigsh(system.K, M=system.M, k=6, sigma=0.0)
+    np.testing.assert_allclose(r.frequencies ** 2, np.sort(w2), rtol=1e-9)
+
+
 def test_nu_at_incompressible_limit_raises():
     with pytest.raises(ValueError, match="Poisson"):
         Material(nu=0.5)

@@ -56,6 +56,17 @@ def test_layout(rom, mesh):
         np.testing.assert_allclose(block, mesh.boundary_frames[j].T, atol=1e-6)
 
 
+def test_out_of_core_factor_gives_the_same_fem_result(fem, mesh, tmp_path, monkeypatch):
+    import tempfile
+
+    monkeypatch.setattr(tempfile, "tempdir", str(tmp_path))  # where solve_system puts the factor's files
+    ooc = analyse_blade(mesh, Material(), FemOptions(n_modes=12, n_fixed_interface_modes=12, out_of_core=True))
+    assert not any(tmp_path.iterdir())  # removed with the factor
+    np.testing.assert_allclose(ooc.frequencies, fem.frequencies, rtol=1e-10)
+    np.testing.assert_allclose(ooc.fixed_interface_frequencies, fem.fixed_interface_frequencies, rtol=1e-10)
+    np.testing.assert_allclose(ooc.constraint_modes, fem.constraint_modes, rtol=0, atol=1e-10)
+
+
 def test_full_modes_match_arpack(fem):
     w2, _ = sla.eigsh(fem.K, M=fem.M, k=6, sigma=0.0)
     np.testing.assert_allclose(fem.frequencies[:6], np.sqrt(np.sort(w2)), rtol=1e-9)
