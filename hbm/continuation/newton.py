@@ -5,6 +5,8 @@ paper, plus an optional bound on the last correction and an optional backtrackin
 search); it knows neither what the unknowns are nor how a step is solved. Two users:
 
 - `newton_solve`: Newton at fixed omega, eq. (9), with a LinearSolver's solve;
+- `newton_solve_on_plane`: Newton on (x, omega) with one linear constraint (a hyperplane),
+  with the LinearSolver's bordered solve;
 - the arc-length corrector (hbm.continuation.arclength), eq. (25), whose unknowns are
   (x, omega) and whose step is the LinearSolver's bordered solve.
 """
@@ -151,3 +153,31 @@ def newton_solve(residual: Residual, x0: np.ndarray, omega: float, options: Newt
         return float(np.linalg.norm(R))
 
     return newton_iterate(x0, linearise, options, scale=x_scale, merit=merit, where=f" at omega={omega:.6g}")
+
+
+def newton_solve_on_plane(residual: Residual, x0: np.ndarray, omega0: float, p: np.ndarray, q: float,
+                          options: NewtonOptions = NewtonOptions(), *, solver: LinearSolver | None = None,
+                          where: str = "") -> NewtonResult:
+    """Solve R(x, omega) = 0 on the hyperplane through the start (x0 (n,), omega0 rad/s) with
+    normal (p, q): p . (x - x0) + q (omega - omega0) = 0, with the bordered solve of the
+    LinearSolver (default: direct LU). p: (n,) per unit of x; q: per rad/s. The convergence
+    measure is hypot(||R||, constraint). The result's x is (x, omega) stacked, (n + 1,).
+    """
+    solver = solver or DirectSolver()
+    x0 = np.asarray(x0, dtype=float)
+    n = x0.size
+    p = np.asarray(p, dtype=float)
+
+    def linearise(y):
+        xi, wi = y[:n], float(y[n])
+        R, J, r_w = residual(xi, wi)
+        R = np.asarray(R, dtype=float).reshape(-1)
+        P = float((xi - x0) @ p + q * (wi - omega0))
+
+        def step():
+            dx, dw, _ = solver.factorize(J).solve_bordered(np.asarray(r_w, dtype=float).reshape(-1), p, q, R, P)
+            return np.append(dx, dw)
+
+        return float(np.hypot(np.linalg.norm(R), P)), step
+
+    return newton_iterate(np.append(x0, float(omega0)), linearise, options, where=where)

@@ -17,7 +17,7 @@ import numpy as np
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import ContinuationPoint
-from hbm.continuation.newton import NewtonOptions, newton_iterate
+from hbm.continuation.newton import NewtonOptions, newton_solve_on_plane
 from hbm.harmonic.nfrc import nfrc_extras
 from hbm.harmonic.solver import HbmSolver
 from hbm.stability.bifurcation import PERIOD_DOUBLING, Bifurcation
@@ -259,19 +259,9 @@ def refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec, levels:
         dx, dw = dx / nrm, dw / nrm
         um, wm = 0.5 * (u[0] + u[1]), 0.5 * (w[0] + w[1])
 
-        def linearise(y, um=um, wm=wm, dx=dx, dw=dw):
-            xi, wi = y[:n], float(y[n])
-            R, J, r_w = residual(xi, wi)
-            P = float((xi - um) @ dx + (wi - wm) / 100.0 * dw)
-
-            def step():
-                sx, sw, _ = solver.factorize(J).solve_bordered(np.asarray(r_w, float), dx, dw / 100.0,
-                                                               np.asarray(R, float), P)
-                return np.append(sx, sw)
-
-            return float(math.hypot(float(np.linalg.norm(R)), P)), step
-
-        sol = newton_iterate(np.append(um, wm), linearise, NewtonOptions(tol_residual=tol, max_iter=12))
+        # the plane through the midpoint, normal to the chord (Omega in units of 100 rad/s)
+        sol = newton_solve_on_plane(residual, um, wm, dx, dw / 100.0, NewtonOptions(tol_residual=tol, max_iter=12),
+                                    solver=solver)
         if not sol.converged:
             break
         computed += 1

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hbm.continuation.newton import NewtonOptions, NewtonResult, newton_iterate
+from hbm.continuation.newton import NewtonOptions, NewtonResult, newton_solve_on_plane
 from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.harmonic.solver import HbmSolver
 from hbm.stability.bifurcation import PERIOD_DOUBLING, Bifurcation
@@ -145,20 +145,9 @@ def switch_branch(residual: HarmonicBalanceResidual, u: np.ndarray, omega: float
     eps = step * max(np.linalg.norm(u_b), 1.0)
     solver = solver or HbmSolver(atol=0.1 * newton.tol_residual)
     n = u_b.size
-
-    def linearise(yv):  # R(u, Omega) = 0 and <u - u_b, t> = eps
-        xi, wi = yv[:n], float(yv[n])
-        R, J, r_w = new(xi, wi)
-        P = float((xi - u_b) @ t) - eps
-        rn = float(np.hypot(np.linalg.norm(R), P))
-
-        def stepf():
-            dx, dw, _ = solver.factorize(J).solve_bordered(np.asarray(r_w, dtype=float), t, 0.0, np.asarray(R), P)
-            return np.append(dx, dw)
-
-        return rn, stepf
-
-    res = newton_iterate(np.append(u_b + eps * t, omega), linearise, newton, where=f" switching near Omega={omega:.6g}")
+    # R(u, Omega) = 0 and <u - u_b, t> = eps (t is a unit vector): the plane through u_b + eps t
+    res = newton_solve_on_plane(new, u_b + eps * t, omega, t, 0.0, newton, solver=solver,
+                                where=f" switching near Omega={omega:.6g}")
     u1, w1 = res.x[:n], float(res.x[n])
     d = np.append(u1 - u_b, (w1 - omega) / 100.0)
     tangent = d / max(np.linalg.norm(d), 1e-300)

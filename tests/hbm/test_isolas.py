@@ -191,10 +191,12 @@ def test_mpi_search_equals_the_serial_one(tmp_path, primary):
         np.testing.assert_array_equal(got[f"bx_{k}"], b.x)
 
 
-def test_the_polyline_distance_is_the_nearest_of_densely_sampled_segments():
+def test_the_polyline_distance_is_the_minimum_along_every_segment():
     """Against a bounded scalar minimisation of the distance along every segment. With within=w the
     distance is the same whenever it is <= w (only segments near omega are measured) and
     never claims a distance <= w that is not there."""
+    from scipy.optimize import minimize_scalar
+
     from hbm.isolas.membership import polyline_distance
 
     rng = np.random.default_rng(3)
@@ -203,10 +205,8 @@ def test_the_polyline_distance_is_the_nearest_of_densely_sampled_segments():
     x = np.cumsum(rng.standard_normal((m, n)), axis=0)
     b = KnownBranch.of(omega, x, "zig-zag")
     xs, ws = np.array([1.0, 2.0, 0.5, 1.0, 3.0]), 0.5
-    from scipy.optimize import minimize_scalar
-
     checked = {"near": 0, "far": 0}
-    for k in range(60):
+    for _ in range(60):
         i = rng.integers(m - 1)
         f = rng.uniform()
         q = x[i] + f * (x[i + 1] - x[i]) + rng.normal(scale=rng.choice([1e-3, 0.3, 3.0]), size=n)
