@@ -72,6 +72,12 @@ class HbmOptions:
       (Hill's method, hbm.stability). Off by default: it adds 1.5 to 2.3 times the NFRC's
       own time on rotor 67 (RL, DLFT; ~320-480 analyses of ~0.2 s CPU each, see
       hbm.stability.monitor; the 25 % target of issue 11 is not met).
+    stability_max_gap: most points between two Floquet analyses (the monitor analyses
+      sooner where multipliers approach the unit circle). 8 analyses ~40 % of the points of
+      the rotor 67 NFRCs; 1 analyses every point (2.2 times the stability time of the
+      default on the coarse DLFT NFRC) and so also finds the short unstable stretches
+      that lie inside one gap (a pair of crossings a few rad/s apart: 8 of the 59
+      crossings there are missed with 8).
     subharmonic: nu, the HBM's fundamental is omega = Omega / nu (nu = 1: the casing's
       period; nu = 2 holds the period-doubled orbits). The continuation parameter stays
       Omega.
@@ -87,6 +93,7 @@ class HbmOptions:
     ds_max: float = 5.0
     tolerance: float = 1e-8
     stability: bool = False
+    stability_max_gap: int = 8
     subharmonic: int = 1
 
     def __post_init__(self):
@@ -110,6 +117,8 @@ class HbmOptions:
             raise ValueError(f"ds_max must be > 0, got {self.ds_max}")
         if not 0 < self.tolerance < 1:
             raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance}")
+        if self.stability_max_gap < 1:
+            raise ValueError(f"stability_max_gap must be >= 1 (1: every point analysed), got {self.stability_max_gap}")
         if isinstance(self.subharmonic, bool) or int(self.subharmonic) != self.subharmonic or self.subharmonic < 1:
             raise ValueError(f"subharmonic must be an integer >= 1, got {self.subharmonic!r}")
 

@@ -162,7 +162,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       Newton from u0, the unknowns of a solution at any N_h (pad_harmonics adapts them),
       e.g. a low-N_h NFRC's point; the branch then goes in the continuation's direction.
     stability: Floquet stability of every point and the bifurcations (hbm.stability.monitor;
-      True: default StabilityOptions; None: hbm.stability). on_point then sees each point
+      True: StabilityOptions with hbm.stability_max_gap; None: hbm.stability). on_point then sees each point
       once its stability is known (up to StabilityOptions.max_gap points later), its extras
       completed with stable, n_unstable, stability_analysed, leading_multipliers and
       period_ratio (the failed last point: n_unstable -1).
@@ -174,7 +174,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     pending = []
     if stability is None:
         stability = hbm.stability
-    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions()
+    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions(max_gap=hbm.stability_max_gap)
     monitor = StabilityMonitor.for_residual(res, sopts) if stability else None
     per_point = {}  # index -> stability extras
     t_stab = [0.0]

@@ -68,6 +68,24 @@ def test_analysed_points_match_an_own_analysis_and_changes_are_bifurcations(run)
     assert table["omega"][1] == "rad/s" and table["le_amplitude"][1] == "m"
 
 
+def test_scene_max_gap_1_analyses_every_point_and_finds_what_the_gaps_do(run):
+    """[hbm] stability_max_gap = 1 (HbmOptions, the scene's section) reaches the monitor:
+    every point is analysed, and the counts there agree with the gapped run's analysed
+    points; every stability change the gapped run located is one of the exhaustive run's."""
+    import dataclasses
+
+    rom, gapped, _ = run
+    opts = dataclasses.replace(OPTS, stability=True, stability_max_gap=1)
+    r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, "dlft")
+    assert r.stability_analysed.all() and r.n_stability_analyses >= len(r.omega)
+    assert gapped.n_stability_analyses < r.n_stability_analyses
+    np.testing.assert_array_equal(r.omega, gapped.omega)  # the same continuation
+    both = gapped.stability_analysed
+    np.testing.assert_array_equal(r.n_unstable[both], gapped.n_unstable[both])
+    every = {(b.kind, b.index) for b in r.bifurcations}
+    assert {(b.kind, b.index) for b in gapped.bifurcations} <= every
+
+
 def test_resumed_run_keeps_the_old_points_and_goes_on_with_stability(run):
     rom, r, _ = run
     m0 = len(r.omega) // 2

@@ -102,6 +102,7 @@ def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_pat
     ("[render]\nscale = 0\n", r"scale must be > 0 \(the largest displacement drawn"),
     ("[render]\nn_modes = 13\n", r"\[render\] n_modes = 13 exceeds \[fem\] n_modes = 12"),
     ("[limits]\nmemory_gb = -1\n", r"memory_gb must be >= 0 GB"),
+    ("[hbm]\nstability_max_gap = 0\n", r"stability_max_gap must be >= 1 \(1: every point analysed\)"),
 ])
 def test_value_out_of_range_is_named_with_its_reason(text, message):
     with pytest.raises(SceneError, match=message):
