@@ -2,8 +2,9 @@
 
 check_run prints each planned stage's estimate (what drives its size, memory, time, disk;
 pipelines.stages.base.Estimate) and refuses, in one line naming the scene key to change,
-a stage whose memory exceeds this machine's (or [limits] memory_gb), or a run whose files
-exceed the free space of the output folder. --yes runs it anyway.
+a stage whose memory exceeds this machine's (or [limits] memory_gb), a stage whose
+temporary files exceed the free space of TMPDIR (the out-of-core Cholesky factor), or a
+run whose files exceed the free space of the output folder. --yes runs it anyway.
 
 blade_warnings checks a meshed blade against what turbomachine blades are, in the unit the
 scene said its table is in: a table in feet read as metres gives a rotor-67 tip moving at
@@ -13,6 +14,7 @@ from __future__ import annotations
 
 import os
 import shutil
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -70,11 +72,19 @@ def check_run(scene, out: Path, steps, progress, yes: bool = False, disk: float 
         if est is None:
             continue
         progress.log(f"[{s.stage.name}] estimate: {est.size}; memory ~{gb(est.memory)}, time ~{duration(est.seconds)}, "
-                     f"files ~{gb(est.disk)}")
+                     f"files ~{gb(est.disk)}" + (f", temporary files ~{gb(est.scratch)}" if est.scratch else ""))
         if est.memory > limit and not yes:
             where = "[limits] memory_gb" if scene.limits.memory_gb > 0 else "this machine's memory"
             raise Refused(f"[{s.stage.name}] {est.size} would need ~{gb(est.memory)} of memory, more than {where} "
                           f"({gb(limit)}): {est.advice}; or pass --yes (or raise [limits] memory_gb) to run it anyway")
+        if est.scratch > 0:
+            tmp = tempfile.gettempdir()
+            tmp_free = shutil.disk_usage(tmp).free
+            if est.scratch > tmp_free and not yes:
+                raise FolderError(f"[{s.stage.name}] {est.size} writes ~{gb(est.scratch)} of temporary files "
+                                  f"(the out-of-core Cholesky factor) under {tmp}, which has {gb(tmp_free)} free: "
+                                  "point TMPDIR to a larger disk, or set [fem] out_of_core = false where the "
+                                  "memory allows (--yes runs it anyway)")
         disk += est.disk
         if biggest is None or est.disk > biggest[1]:
             biggest = (s.stage.name, est.disk)

@@ -48,7 +48,8 @@ class Estimate:
 
     size: what drives the cost, in words ("~24 000 nodes"). memory: peak, bytes. seconds:
     wall time on a machine like the 2-core reference one. disk: bytes of the files written.
-    advice: which scene key to change to make it smaller.
+    advice: which scene key to change to make it smaller. scratch: bytes of temporary files
+    the stage writes under TMPDIR (tempfile.gettempdir()) and removes when it ends.
     """
 
     size: str
@@ -56,6 +57,7 @@ class Estimate:
     seconds: float
     disk: float
     advice: str
+    scratch: float = 0.0
 
 
 @dataclass(frozen=True)

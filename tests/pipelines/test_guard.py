@@ -87,6 +87,37 @@ def test_refusal_can_be_overridden(coarse_run, machine_24gb):
     guard.check_run(roomy, coarse_run[1], steps, quiet)  # [limits] memory_gb
 
 
+def test_out_of_core_factor_larger_than_tmpdir_is_refused(coarse_run, tmp_path, monkeypatch, capsys, machine_24gb):
+    """[fem] out_of_core writes the Cholesky factor under TMPDIR: a TMPDIR too small for it
+    is refused before anything is computed, naming the folder and the key."""
+    import shutil
+    import tempfile
+    from collections import namedtuple
+
+    from pipelines.stages.fem import factor_bytes
+
+    scene = clone(coarse_run[1], tmp_path)
+    scene.write_text(scene.read_text().replace("[fem]", "[fem]\nout_of_core = true", 1))
+    with h5py.File(tmp_path / "mesh.h5") as h5:
+        nodes = h5["nodes"].shape[0]
+    need = factor_bytes(nodes)
+    # the fit's two measured points (wedge decks split into tet10)
+    assert factor_bytes(197685) == pytest.approx(4.6e9, rel=0.02)
+    assert factor_bytes(319011) == pytest.approx(9.36e9, rel=0.01)
+    tmp, real = tempfile.gettempdir(), shutil.disk_usage
+    usage = namedtuple("usage", "total used free")
+
+    def disk_usage(path):
+        return usage(1e12, 1e12 - 0.5 * need, 0.5 * need) if str(path) == tmp else real(path)
+
+    monkeypatch.setattr(guard.shutil, "disk_usage", disk_usage)
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "fem"]) == 2
+    line = error_line(capsys)
+    assert f"writes ~{guard.gb(need)} of temporary files (the out-of-core Cholesky factor) under {tmp}" in line
+    assert "point TMPDIR to a larger disk, or set [fem] out_of_core = false" in line
+    assert (tmp_path / "fem.h5").is_symlink()  # the current fem.h5 untouched (a run replaces the link)
+
+
 def test_feet_table_read_as_metres_is_warned(coarse_run, tmp_path, monkeypatch, capsys):
     """The mesh stage warns once, naming the value, the unit it assumed and the unit that fits
     (gmsh replaced by the shared mesh scaled as a metres reading of the feet table would be)."""
