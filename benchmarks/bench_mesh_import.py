@@ -23,14 +23,20 @@ the table. Then `bladerub run SCENE --until rom` on a scene naming the deck is t
 child process; its peak memory is the largest stage peak of the run's summary. The
 frequencies are printed beside those of the table-built default mesh (README).
 --out-of-core: the scene sets [fem] out_of_core = true (MUMPS keeps the Cholesky factor
-of K in files).
+of K in files). --ranks N: the run under `mpirun -n N` (one BLAS thread per rank); the
+peak memory is then also given as the largest sum over the ranks of their proportional
+set sizes (PSS, shared pages split between the processes that map them), sampled every
+0.5 s from /proc.
 """
 from __future__ import annotations
 
 import argparse
+import os
 import resource
+import shutil
 import subprocess
 import sys
+import threading
 import time
 from pathlib import Path
 
@@ -200,11 +206,18 @@ def rotor67(args):
         return
     cmd = [sys.executable, "-m", "pipelines.cli", "run", str(scene), "--out", str(out / "run"), "--until",
            args.until, "--force"]
+    env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(Path.home())}
+    if args.ranks > 1:
+        cmd = [shutil.which("mpirun") or "mpirun", "-n", str(args.ranks)] + cmd
+        env.update(OMP_NUM_THREADS="1", OPENBLAS_NUM_THREADS="1", OMPI_ALLOW_RUN_AS_ROOT="1",
+                   OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1", OMPI_MCA_rmaps_base_oversubscribe="1")
     t0 = time.perf_counter()
     # The run resets the kernel's high-water mark at each stage (pipelines.progress), so the
-    # child's ru_maxrss is only the last stage's peak: take the largest peak of its summary.
-    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True,
-                            env={"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin", "HOME": str(Path.home())})
+    # child's ru_maxrss is only the last stage's peak: take the largest peak of its summary
+    # (rank 0's under mpirun; the sampler sums every process of the run).
+    proc = subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env)
+    sampler = TreeMemory(proc.pid)
+    sampler.start()
     peaks = []
     for line in proc.stdout:
         print(line, end="", flush=True)
@@ -212,13 +225,58 @@ def rotor67(args):
         if len(cells) >= 3 and cells[2].endswith(" GB"):
             peaks.append(float(cells[2][:-3]))
     proc.wait()
+    sampler.stop()
     wall = time.perf_counter() - t0
     if proc.returncode:
         raise SystemExit(proc.returncode)
     ru = resource.getrusage(resource.RUSAGE_CHILDREN)
-    print(f"bladerub run --until {args.until}: {wall:.1f} s wall ({wall / 60:.2f} min), CPU "
+    print(f"bladerub run --until {args.until} on {args.ranks} rank(s): {wall:.1f} s wall ({wall / 60:.2f} min), CPU "
           f"{ru.ru_utime + ru.ru_stime:.1f} s (all threads; wall depends on the machine's other jobs), "
-          f"peak memory {max(peaks, default=float('nan')):.2f} GB (largest stage peak of the run summary)")
+          f"peak memory {max(peaks, default=float('nan')):.2f} GB (largest stage peak of the run summary, rank 0), "
+          f"{sampler.peak / 1e9:.2f} GB summed over the run's processes (PSS, sampled)")
+
+
+class TreeMemory(threading.Thread):
+    """Largest sum of the proportional set sizes of a process and its descendants, bytes,
+    sampled every `every` s from /proc (Linux)."""
+
+    def __init__(self, pid: int, every: float = 0.5):
+        super().__init__(daemon=True)
+        self.pid, self.every, self.peak = pid, every, 0
+        self._done = threading.Event()
+
+    def _tree(self) -> list[int]:
+        children: dict[int, list[int]] = {}
+        for d in os.listdir("/proc"):
+            if d.isdigit():
+                try:
+                    ppid = int(Path(f"/proc/{d}/stat").read_text().rsplit(")", 1)[1].split()[1])
+                except (OSError, IndexError, ValueError):
+                    continue
+                children.setdefault(ppid, []).append(int(d))
+        out, todo = [], [self.pid]
+        while todo:
+            p = todo.pop()
+            out.append(p)
+            todo.extend(children.get(p, []))
+        return out
+
+    def _pss(self, pid: int) -> int:
+        try:
+            for line in Path(f"/proc/{pid}/smaps_rollup").read_text().splitlines():
+                if line.startswith("Pss:"):
+                    return 1024 * int(line.split()[1])
+        except (OSError, ValueError):
+            pass
+        return 0
+
+    def run(self):
+        while not self._done.wait(self.every):
+            self.peak = max(self.peak, sum(self._pss(p) for p in self._tree()))
+
+    def stop(self):
+        self._done.set()
+        self.join()
 
 
 def steps(deck: Path, out_of_core: bool = False):
@@ -262,6 +320,7 @@ def main(argv=None):
     p.add_argument("--out", default=str(ROOT / "out" / "bench_mesh_import"))
     p.add_argument("--until", default="rom")
     p.add_argument("--out-of-core", action="store_true", help="[fem] out_of_core = true in the scene")
+    p.add_argument("--ranks", type=int, default=1, help="run under mpirun -n RANKS")
     p.add_argument("--deck-only", action="store_true", help="write the deck and the scene, do not run")
     p.add_argument("--steps", action="store_true", help="run import, assembly, FEM and ROM in this process, "
                    "printing the peak memory after each step, instead of bladerub run")

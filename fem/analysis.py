@@ -3,6 +3,7 @@ Craig-Bampton ingredients, all from one Cholesky factorisation of K (see fem.int
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 import scipy.sparse as sp
@@ -57,7 +58,8 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     boundary_node_index: (n_b,) mesh nodes for the Craig-Bampton basis; None or empty skips it.
     timings: if a dict, receives wall times in s of 'factorisation', 'modes', 'interface'
         (and 'gather' under MPI) and the block-solve counts 'modes_block_solves',
-        'interface_block_solves'.
+        'interface_block_solves'; out of core, 'factor_files_mb', the size of the factor's
+        files under TMPDIR, MB.
     """
     import tempfile
     import time
@@ -81,6 +83,9 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
             scratch.cleanup()
         raise
     timings["factorisation"] = time.perf_counter() - t
+    if scratch is not None:  # what the factor takes on the disk of TMPDIR, all ranks together
+        files = sum(f.stat().st_size for f in Path(scratch.name).rglob("*") if f.is_file())
+        timings["factor_files_mb"] = round((layout.comm.allreduce(files) if layout is not None else files) / 1e6)
     try:
         t = time.perf_counter()
         modal = compute_modes(K, M, options.n_modes, factor=factor, tol=options.tol, layout=layout)

@@ -41,7 +41,8 @@ def _compute(ctx: Context, outputs) -> None:
 
     def write():
         prov = ctx.provenance(FEM, "fem")
-        prov["extra_attrs"].update({f"time_{k}_s": v for k, v in timings.items()})
+        # wall times as time_<step>_s; counts and sizes under their own names
+        prov["extra_attrs"].update({f"time_{k}_s" if isinstance(v, float) else k: v for k, v in timings.items()})
         art.write_artifact(ctx.out / FEM.file, result, **prov)
         ctx.log(f"  {result.K.shape[0]} free dof{ranks}; "
                 + ", ".join(f"{k} {v:.1f} s" if isinstance(v, float) else f"{k} {v}" for k, v in timings.items()))

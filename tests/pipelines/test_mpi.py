@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from pipelines.cli import main
+from pipelines.stages.fem import factor_bytes
 
 ROOT = Path(__file__).resolve().parents[2]
 COARSE = ROOT / "scenes" / "rotor67_coarse.toml"
@@ -26,13 +27,13 @@ pytestmark = pytest.mark.skipif(MPIRUN is None, reason="mpirun not found: the MP
                                 "(Debian: openmpi-bin, installed by .ci/install)")
 
 
-def _mpirun(n: int, *args: str, timeout: float = 300) -> subprocess.CompletedProcess:
+def _mpirun(n: int, *args: str, timeout: float = 300, **env) -> subprocess.CompletedProcess:
     """`mpirun -n n python args...` with this checkout first on the path. Open MPI refuses
     root without the two ALLOW_RUN_AS_ROOT variables (CI containers run as root) and more
     ranks than cores without oversubscription (2 ranks on a 1-core runner); other MPIs
     ignore these variables. The timeout turns a deadlock into a failure."""
     env = dict(os.environ, PYTHONPATH=str(ROOT), OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
+               OMPI_MCA_rmaps_base_oversubscribe="1", **env)
     return subprocess.run([MPIRUN, "-n", str(n), sys.executable, *args], cwd=ROOT, env=env, capture_output=True,
                           text=True, timeout=timeout)
 
@@ -92,6 +93,34 @@ def test_rom_matches_one_process(runs):
     for name, a, b in zip(names, _read(par / "rom.h5", *names), _read(ser / "rom.h5", *names)):
         # what the HBM stage reads: to the issue's 1e-8 of the largest entry (see above)
         np.testing.assert_allclose(a, b, rtol=0, atol=1e-8 * np.abs(b).max(), err_msg=name)
+
+
+def test_out_of_core_factor_on_two_ranks_matches_one_process_in_core(runs, tmp_path):
+    """[fem] out_of_core under mpirun: each rank's MUMPS writes its part of the factor to
+    files under TMPDIR and reads it back at every block solve; the FEM results equal the
+    serial in-core run's, and the temporary folders are gone afterwards."""
+    par, ser, _ = runs
+    scene = tmp_path / "scene.toml"
+    text = (par.parent / "scene.toml").read_text()
+    assert "[fem]" in text
+    scene.write_text(text.replace("[fem]", "[fem]\nout_of_core = true", 1))
+    out, scratch = tmp_path / "ooc", tmp_path / "scratch"
+    out.mkdir()
+    scratch.mkdir()
+    shutil.copy(par / "mesh.h5", out / "mesh.h5")
+    proc = _mpirun(2, "-m", "pipelines.cli", "run", str(scene), "--out", str(out), "--until", "fem", TMPDIR=str(scratch))
+    assert proc.returncode == 0, proc.stdout + proc.stderr
+    assert "free dof on 2 MPI ranks" in proc.stdout
+    with h5py.File(out / "fem.h5", "r") as h5:
+        # the factor was in files (both ranks' together), of about the size the guard plans
+        # for (pipelines.stages.fem.factor_bytes, an upper bound for table meshes)
+        mb, nodes = h5.attrs["factor_files_mb"], len(_read(out / "mesh.h5", "nodes")[0])
+    assert 0.1 * factor_bytes(nodes) / 1e6 < mb <= factor_bytes(nodes) / 1e6, (mb, nodes)
+    names = ("frequencies", "fixed_interface_frequencies", "modes", "constraint_modes", "fixed_interface_modes")
+    for name, a, b in zip(names, _read(out / "fem.h5", *names), _read(ser / "fem.h5", *names)):
+        assert a.shape == b.shape, name  # the bound of test_frequencies_and_modes_match_one_process
+        np.testing.assert_allclose(a, b, rtol=0, atol=1e-8 * np.abs(b).max(), err_msg=name)
+    assert not list(scratch.iterdir()), "the out-of-core factor's files were left behind"
 
 
 def test_distributed_run_speaks_once_and_says_so(runs):
