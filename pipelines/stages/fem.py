@@ -82,12 +82,13 @@ def _estimate(scene, out, outputs) -> Estimate | None:
 
 
 def factor_bytes(nodes: float) -> float:
-    """Size of the Cholesky factor of K that MUMPS writes out of core, bytes, for a tet10
-    mesh of `nodes` nodes: 8 bytes per factor entry, 1.17e9 entries at 319 011 nodes
-    growing as nodes^1.5 (the rotor 67 wedge decks split into 197 685 and 319 011 tet10
-    nodes: 4.6 and 9.4 GB, exponent 1.48). The table-built meshes, finer only at the LE
-    and TE, have smaller factors per node: an upper bound for them."""
-    return 8.0 * 1.17e9 * (nodes / 319011.0) ** 1.5
+    """Size of the files in which MUMPS keeps the Cholesky factor of K out of core, bytes,
+    for a tet10 mesh of `nodes` nodes: 9.70e9 B at 319 011 nodes (the ~200k-node rotor 67
+    wedge deck: 1.17e9 factor entries, 8.3 B each with MUMPS's index arrays) growing as
+    nodes^1.5 (the factor entries of the decks split into 197 685 and 319 011 tet10 nodes
+    grow with exponent 1.48). The table-built meshes, finer only at the LE and TE, have
+    smaller factors per node: an upper bound for them."""
+    return 9.70e9 * (nodes / 319011.0) ** 1.5
 
 
 def mode_files(scene) -> tuple[str, ...]:

@@ -101,9 +101,6 @@ def test_out_of_core_factor_larger_than_tmpdir_is_refused(coarse_run, tmp_path, 
     with h5py.File(tmp_path / "mesh.h5") as h5:
         nodes = h5["nodes"].shape[0]
     need = factor_bytes(nodes)
-    # the fit's two measured points (wedge decks split into tet10)
-    assert factor_bytes(197685) == pytest.approx(4.6e9, rel=0.02)
-    assert factor_bytes(319011) == pytest.approx(9.36e9, rel=0.01)
     tmp, real = tempfile.gettempdir(), shutil.disk_usage
     usage = namedtuple("usage", "total used free")
 
