@@ -10,6 +10,11 @@ Usage:
 point analysed (max_gap 1, the reference); prints analyses, stability time and the
 bifurcations of each, and which of the reference's the default schedule missed (same kind
 within 2 rad/s).
+--schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
+replayed on those spectra for each StabilityOptions.reach_fraction given (the schedule's
+decisions are all that differ: the same analyses give the same spectra); prints per
+fraction the analyses, the crossings of the every-point reference missed, and the points
+whose stable flag differs from the reference's.
 
 Computes the NFRC over [omega_min, omega_max] without stability (one BLAS thread, as
 compute_nfrc), then analyses `points` of its points spread along it, twice each, and prints
@@ -66,8 +71,11 @@ def main():
     ap.add_argument("--omega-min", type=float, default=1800.0)
     ap.add_argument("--omega-max", type=float, default=2000.0)
     ap.add_argument("--schedule", action="store_true")
+    ap.add_argument("--replay", default="", help="with --schedule: reach fractions to replay, e.g. 0.5,0.25")
     a = ap.parse_args()
     rom = load_rom(a.rom)
+    if a.schedule and a.replay:
+        return replay(rom, a)
     if a.schedule:
         return schedule(rom, a)
     opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
@@ -103,6 +111,62 @@ def main():
               f"{min(nodes)}-{max(nodes)} of 9 | {statistics.median(cpus) / per_point[1]:.1f} |", flush=True)
 
 
+def _missed(reference, found, tol=2.0):
+    """The reference's bifurcations with no bifurcation of the same kind within tol rad/s in
+    `found` (each used once): ["kind omega", ...]."""
+    got = [(b.kind, b.omega) for b in found]
+    used, missed = set(), []
+    for b in reference:
+        near = [i for i, (k, x) in enumerate(got) if k == b.kind and i not in used and abs(x - b.omega) < tol]
+        if near:
+            used.add(min(near, key=lambda i: abs(got[i][1] - b.omega)))
+        else:
+            missed.append(f"{b.kind} {b.omega:.1f}")
+    return missed
+
+
+def replay(rom, a):
+    from types import SimpleNamespace
+
+    from hbm.stability.monitor import StabilityMonitor, StabilityOptions
+
+    fractions = [float(f) for f in a.replay.split(",")]
+    opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
+    for m in a.methods:
+        r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
+        res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=m)
+        n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
+        c0 = time.process_time()
+        with threadpool_limits(limits=1, user_api="blas"):
+            spectra = [orbit_spectrum(res, r.unknowns[i], float(r.omega[i])) for i in range(n)]
+        per = (time.process_time() - c0) / n
+
+        def monitor(options):
+            mon = StabilityMonitor(analyse=lambda x, w: spectra[int(x[0])], options=options)
+            flags = {}
+            for i in range(n):
+                p = SimpleNamespace(index=i, omega=float(r.omega[i]), step=float(r.step[i]), x=np.array([i]))
+                done = mon.push(p, {"le_amplitude": float(r.le_amplitude[i]), "harmonics": r.harmonics[i]})
+                flags.update((q.index, ex["stable"]) for q, ex in done)
+            flags.update((q.index, ex["stable"]) for q, ex in mon.finish())
+            return mon, flags
+
+        ref, ref_flags = monitor(StabilityOptions(max_gap=1))
+        print(f"{m}: {n} points, every point analysed: {len(ref.bifurcations)} crossings located, "
+              f"{per:.3f} s CPU per analysis", flush=True)
+        print("| reach fraction | analyses | ratio to 0.5 | crossings missed | points with another stable flag |")
+        print("|---|---|---|---|---|")
+        base = None
+        for f in fractions:
+            mon, flags = monitor(StabilityOptions(reach_fraction=f))
+            missed = _missed(ref.bifurcations, mon.bifurcations)
+            wrong = sum(flags[i] != ref_flags[i] for i in ref_flags)
+            base = base or (mon.n_analyses if f == 0.5 else None)
+            ratio = f"{mon.n_analyses / base:.2f}" if base else "-"
+            print(f"| {f:g} | {mon.n_analyses} | {ratio} | {len(missed)} of {len(ref.bifurcations)}"
+                  f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} |", flush=True)
+
+
 def schedule(rom, a):
     from collections import Counter
 
@@ -119,17 +183,11 @@ def schedule(rom, a):
             print(f"{m} {name}: {len(r.omega)} points, {r.n_stability_analyses} analyses, stability "
                   f"{r.stability_time:.1f} s wall, whole run {time.process_time() - c0:.1f} s CPU; "
                   + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())), flush=True)
-        got = [(b.kind, b.omega) for b in runs["default"].bifurcations]
-        used, missed = set(), []
-        for kind, w in ((b.kind, b.omega) for b in runs["every point"].bifurcations):
-            near = [i for i, (k, x) in enumerate(got) if k == kind and i not in used and abs(x - w) < 2.0]
-            if near:
-                used.add(min(near, key=lambda i: abs(got[i][1] - w)))
-            else:
-                missed.append(f"{kind} {w:.1f}")
-        print(f"{m}: the default schedule located {len(used)} of the reference's "
-              f"{len(runs['every point'].bifurcations)}, {len(got) - len(used)} others; missed: "
-              + ("; ".join(missed) or "none"), flush=True)
+        ref, got = runs["every point"].bifurcations, runs["default"].bifurcations
+        missed = _missed(ref, got)
+        found = len(ref) - len(missed)
+        print(f"{m}: the default schedule located {found} of the reference's {len(ref)}, {len(got) - found} others; "
+              "missed: " + ("; ".join(missed) or "none"), flush=True)
 
 
 if __name__ == "__main__":

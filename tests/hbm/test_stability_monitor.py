@@ -1,0 +1,53 @@
+"""The stability monitor's schedule on a branch whose multipliers are known in closed form:
+the crossings it locates against the exact ones, and the stable flags it infers for the
+points it did not analyse."""
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from hbm.stability.bifurcation import NEIMARK_SACKER
+from hbm.stability.monitor import StabilityMonitor, StabilityOptions
+from hbm.stability.spectrum import FloquetSpectrum
+
+OMEGA = 1000.0
+
+
+def spectrum(log_mod: float) -> FloquetSpectrum:
+    """A complex pair exp(log_mod +- 1.1 i) and two real stable multipliers (0.5, 0.3)."""
+    mu = np.array([np.exp(log_mod + 1.1j), np.exp(log_mod - 1.1j), 0.5 + 0j, 0.3 + 0j])
+    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
+                           centred=np.ones(4, bool), edge_energy=np.zeros(4),
+                           eigenvectors=np.zeros((4, 3, 2), complex), modulus_floor=0.05, method="arnoldi")
+
+
+def run(log_mod, n: int, options: StabilityOptions):
+    """Points 0..n-1 one unit of arc length apart, Omega decreasing (no fold)."""
+    mon = StabilityMonitor(analyse=lambda x, w: (spectrum(log_mod(float(x[0]))), 1), options=options)
+    flags = {}
+    for i in range(n):
+        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
+        flags.update((q.index, ex["stable"]) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    flags.update((q.index, ex["stable"]) for q, ex in mon.finish())
+    return mon, flags
+
+
+@pytest.mark.parametrize("name, log_mod", [
+    # a pair that leaves the circle and comes back 7 points later
+    ("bump", lambda s: -0.3 + 0.4 * np.exp(-((s - 100) / 6) ** 2)),
+    # a pair that creeps, then accelerates out, then falls back in fast
+    ("accelerating", lambda s: -0.3 + 0.3 * (s / 100) ** 6 - 0.32 * max(0.0, (s - 100) / 10) ** 2),
+])
+def test_a_short_unstable_stretch_is_found_where_it_is(name, log_mod):
+    n = 160
+    mon, flags = run(log_mod, n, StabilityOptions())
+    exact = [i for i in range(n - 1) if (log_mod(i) > 0) != (log_mod(i + 1) > 0)]
+    assert len(exact) == 2  # out and back in
+    assert [(b.kind, b.index) for b in mon.bifurcations] == [(NEIMARK_SACKER, i) for i in exact]
+    for b, i in zip(mon.bifurcations, exact):
+        # the crossing by linear interpolation of log|mu| between the neighbours
+        frac = log_mod(i) / (log_mod(i) - log_mod(i + 1))
+        assert b.omega == pytest.approx(OMEGA - i - frac, abs=1e-9)
+        assert b.direction == (1 if log_mod(i + 1) > 0 else -1)
+    assert flags == {i: log_mod(i) <= 0 for i in range(n)}
+    assert mon.n_analyses < n / 3  # the quiet stretches are skipped
