@@ -297,17 +297,6 @@ class HillSolver:
             pos = np.full(n, -1)
             pos[self.nl] = np.arange(len(self.nl))
             self._r_nl = pos[3 * np.asarray(H.nodes, dtype=int)]  # radial rows of the contact nodes in nl
-            # The eliminations are linear and harmonic by harmonic: as real matrices per
-            # harmonic, each is one batched product per solve instead of a dozen small numpy
-            # calls, whose overhead (not their arithmetic) was ~12 % of an analysis.
-            nr = len(self.nl)
-
-            def from_l(B):  # b_l -> [Z_ll^-1 b_l, H_nl Z_ll^-1 b_l]
-                Y = self._ll_inverse(B)
-                return np.concatenate([Y, self._coupling(Y, self._nl_li)], axis=1)
-
-            self._from_l = harmonic_blocks(from_l, len(li), H.n_c)
-            self._from_n = harmonic_blocks(lambda X: self._ll_inverse(self._coupling(X, self._li_nl)), nr, H.n_c)
 
     def _ll_inverse(self, B: np.ndarray) -> np.ndarray:
         """Z_ll^-1 B on the eliminated dof, B (n_c, n_l) in the real basis (real or complex)."""
@@ -340,8 +329,8 @@ class HillSolver:
         X = np.empty(B.shape, dtype=np.result_type(B, float))
         rhs = B[:, nl]
         if len(li):
-            YC = apply_harmonic_blocks(self._from_l, B[:, li])
-            Y, C = YC[:, : len(li)], YC[:, len(li):]  # C (n_c, n_r): rows nl of H(0) [0, y]
+            Y = self._ll_inverse(B[:, li])
+            C = self._coupling(Y, self._nl_li)  # (n_c, n_r): rows nl of H(0) [0, y]
             if len(H.nodes) and H.g_z:  # DLFT's g = g_eps p_r - g_z (H_lin p)_r: p_r = 0 here
                 Cf = np.zeros((H.n_c, H.n), dtype=C.dtype)
                 Cf[:, nl] = C
@@ -356,41 +345,5 @@ class HillSolver:
         xn = xn.reshape(H.n_c, len(nl))
         X[:, nl] = xn
         if len(li):
-            X[:, li] = Y - apply_harmonic_blocks(self._from_n, xn)
+            X[:, li] = Y - self._ll_inverse(self._coupling(xn, self._li_nl))
         return X.reshape(shape)
-
-
-def harmonic_blocks(f, n_in: int, n_c: int) -> tuple[np.ndarray, np.ndarray]:
-    """A linear map f: (n_c, n_in) -> (n_c, n_out) of coefficient arrays (eq. 5 order) that
-    keeps each harmonic to itself, as (A0 (n_in, n_out), A (N_h, 2 n_in, 2 n_out)): row 0
-    of f(X) is X[0] A0 and the (cos, sin) rows of harmonic k are [X_ak, X_bk] A_k. Found by
-    applying f to 2 n_in inputs, each with one dof's cos (or sin) rows set in every harmonic."""
-    nh = (n_c - 1) // 2
-    A0, A = None, None
-    for part in (0, 1):
-        for j in range(n_in):
-            E = np.zeros((n_c, n_in))
-            E[1 + part::2, j] = 1.0
-            if part == 0:
-                E[0, j] = 1.0
-            Y = np.asarray(f(E))
-            if A is None:
-                n_out = Y.shape[1]
-                A0, A = np.zeros((n_in, n_out)), np.zeros((nh, 2 * n_in, 2 * n_out))
-            if part == 0:
-                A0[j] = Y[0]
-            A[:, part * n_in + j, :n_out] = Y[1::2]
-            A[:, part * n_in + j, n_out:] = Y[2::2]
-    return A0, A
-
-
-def apply_harmonic_blocks(blocks: tuple[np.ndarray, np.ndarray], X: np.ndarray) -> np.ndarray:
-    """f(X) for the map given by harmonic_blocks; X (n_c, n_in) real or complex."""
-    A0, A = blocks
-    n_out = A0.shape[1]
-    out = np.empty((X.shape[0], n_out), dtype=np.result_type(X, float))
-    out[0] = X[0] @ A0
-    Yk = (np.concatenate([X[1::2], X[2::2]], axis=1)[:, None, :] @ A)[:, 0, :]  # (N_h, 2 n_out)
-    out[1::2] = Yk[:, :n_out]
-    out[2::2] = Yk[:, n_out:]
-    return out
