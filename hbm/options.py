@@ -70,7 +70,7 @@ class HbmOptions:
     tolerance: Newton's test on the scaled residual ||R|| (R ~ H_r / (k_ref / alpha)).
     stability: Floquet stability of every point and the bifurcations of the branch
       (Hill's method, hbm.stability). Off by default: it adds 1.8 to 2.5 times the NFRC's
-      own time on the coarse rotor 67 ROM (RL, DLFT; 352-540 analyses of ~0.2 s CPU each,
+      own time on the coarse rotor 67 ROM (RL, DLFT; 353-542 analyses of ~0.2-0.4 s CPU each,
       see hbm.stability.monitor; the 25 % target of issue 11 is not met).
     stability_max_gap: most points between two Floquet analyses (the monitor analyses
       sooner where multipliers approach the unit circle). 8 analyses ~55 % of the points
