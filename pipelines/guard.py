@@ -3,7 +3,7 @@
 check_run prints each planned stage's estimate (what drives its size, memory, time, disk;
 pipelines.stages.base.Estimate) and refuses, in one line naming the scene key to change,
 a stage whose memory exceeds this machine's (or [limits] memory_gb), a stage whose
-temporary files exceed the free space of TMPDIR (the out-of-core Cholesky factor), or a
+temporary files exceed the free space of TMPDIR (e.g. the out-of-core Cholesky factor), or a
 run whose files exceed the free space of the output folder. --yes runs it anyway.
 
 blade_warnings checks a meshed blade against what turbomachine blades are, in the unit the
@@ -81,10 +81,10 @@ def check_run(scene, out: Path, steps, progress, yes: bool = False, disk: float 
             tmp = tempfile.gettempdir()
             tmp_free = shutil.disk_usage(tmp).free
             if est.scratch > tmp_free and not yes:
+                other = f", or {est.scratch_advice}" if est.scratch_advice else ""
                 raise FolderError(f"[{s.stage.name}] {est.size} writes ~{gb(est.scratch)} of temporary files "
-                                  f"(the out-of-core Cholesky factor) under {tmp}, which has {gb(tmp_free)} free: "
-                                  "point TMPDIR to a larger disk, or set [fem] out_of_core = false where the "
-                                  "memory allows (--yes runs it anyway)")
+                                  f"({est.scratch_what}) under {tmp}, which has {gb(tmp_free)} free: "
+                                  f"point TMPDIR to a larger disk{other} (--yes runs it anyway)")
         disk += est.disk
         if biggest is None or est.disk > biggest[1]:
             biggest = (s.stage.name, est.disk)

@@ -49,7 +49,8 @@ class Estimate:
     size: what drives the cost, in words ("~24 000 nodes"). memory: peak, bytes. seconds:
     wall time on a machine like the 2-core reference one. disk: bytes of the files written.
     advice: which scene key to change to make it smaller. scratch: bytes of temporary files
-    the stage writes under TMPDIR (tempfile.gettempdir()) and removes when it ends.
+    the stage writes under TMPDIR (tempfile.gettempdir()) and removes when it ends;
+    scratch_what: what they are; scratch_advice: the scene key that avoids them.
     """
 
     size: str
@@ -58,6 +59,8 @@ class Estimate:
     disk: float
     advice: str
     scratch: float = 0.0
+    scratch_what: str = "temporary files"
+    scratch_advice: str = ""
 
 
 @dataclass(frozen=True)

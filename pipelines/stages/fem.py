@@ -78,7 +78,9 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     per_node = 23e3 if scene.fem.out_of_core else 35e3
     return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof",
                     memory=0.2e9 + per_node * n, seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n), advice=advice,
-                    scratch=factor_bytes(n) if scene.fem.out_of_core else 0.0)
+                    scratch=factor_bytes(n) if scene.fem.out_of_core else 0.0,
+                    scratch_what="the out-of-core Cholesky factor",
+                    scratch_advice="set [fem] out_of_core = false where the memory allows")
 
 
 def factor_bytes(nodes: float) -> float:
