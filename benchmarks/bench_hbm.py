@@ -4,6 +4,7 @@ Usage:
   .venv/bin/python benchmarks/bench_hbm.py [--rom out/.../rom.h5] [--repeat 3]
       [--penetration 1.25e-4] [--table] [--nh 10 20 40 60] [--nt 256 512 1024 2048]
       [--methods dlft rl] [--no-default] [--stability {off,on,both}]
+  .venv/bin/python benchmarks/bench_hbm.py --stage [--scene scenes/rotor67_coarse.toml] [--rom ...] [--repeat 2]
 
 Without --rom the 39-dof stand-in of tests/support.py is used (not a blade: figures
 exercise the code paths only). Prints markdown tables: median wall time per method, and
@@ -16,6 +17,10 @@ drawn a little earlier or later gives a large local difference). --no-default sk
 each repeat runs without, then with (alternating, so that the machine's load hits both
 alike), and the table gives both medians, the stability monitor's own time, the analyses,
 and the bifurcations found.
+--stage: the hbm stage itself on a scene (default the coarse rotor 67 scene with the ROM of
+tests/data), its treatments one after the other in this process and then at once in one
+process each (its default), alternated --repeat times; wall time, CPU time (this process
+and its children) and the points of each NFRC.
 """
 from __future__ import annotations
 
@@ -60,7 +65,12 @@ def main():
     ap.add_argument("--nt", type=int, nargs="+", default=[256, 512, 1024, 2048])
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
     ap.add_argument("--stability", choices=["off", "on", "both"], default="off")
+    ap.add_argument("--stage", action="store_true", help="time the hbm stage, serial against concurrent")
+    ap.add_argument("--scene", default=str(ROOT / "scenes" / "rotor67_coarse.toml"))
     a = ap.parse_args()
+    if a.stage:
+        stage_table(a)
+        return
     rom = load(a.rom)
     casing = CasingOptions(penetration=a.penetration)
     print(f"ROM: {a.rom or 'stand-in'}; casing penetration {a.penetration:g} m\n")
@@ -141,6 +151,51 @@ def stability_table(rom, a, casing):
             print(f"    {b.kind:16s} Omega = {b.omega:8.2f} rad/s (bracket {min(b.omega_bracket):.2f}-"
                   f"{max(b.omega_bracket):.2f}), LE amplitude {1e3 * b.le_amplitude:.3f} mm, |mu| = "
                   f"{abs(b.multiplier):.3f}, {'loses' if b.direction > 0 else 'gains'} stability", flush=True)
+
+
+def stage_table(a):
+    """The hbm stage (pipelines.stages.hbm) with workers=1 and its default, alternated."""
+    import resource
+    import shutil
+    import tempfile
+    import time
+
+    from pipelines.branch_store import load_branch
+    from pipelines.progress import Progress
+    from pipelines.runner import expected_inputs
+    from pipelines.scene import load_scene
+    from pipelines.stages import REGISTRY, hbm
+    from pipelines.stages.base import Context
+
+    scene = load_scene(Path(a.scene))
+    outputs = REGISTRY["hbm"].outputs(scene)
+    expected = expected_inputs(scene, ("hbm",))
+    rows = {"serial": [], "concurrent": []}
+    print(f"scene {a.scene}, ROM {a.rom or 'tests/data/rotor67_coarse_rom.h5'}\n")
+    for _ in range(a.repeat):
+        for mode, workers in (("serial", 1), ("concurrent", None)):
+            with tempfile.TemporaryDirectory(prefix="bench-hbm-stage-") as tmp:
+                out = Path(tmp)
+                shutil.copy(a.rom or ROOT / "tests" / "data" / "rotor67_coarse_rom.h5", out / "rom.h5")
+                ctx = Context(scene, out, Progress(quiet=True))
+                for o in outputs:
+                    ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
+                before = resource.getrusage(resource.RUSAGE_CHILDREN)
+                c0, t0 = time.process_time(), time.perf_counter()
+                hbm._compute(ctx, outputs, workers)
+                wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+                after = resource.getrusage(resource.RUSAGE_CHILDREN)
+                cpu += (after.ru_utime + after.ru_stime) - (before.ru_utime + before.ru_stime)
+                points = [len(load_branch(out / o.file).branch.omega) for o in outputs]
+            rows[mode].append((wall, cpu, points))
+            print(f"  {mode}: {wall:.1f} s wall, {cpu:.1f} s CPU, points {points}", flush=True)
+    print("\n| run | wall (s), each repeat | median wall (s) | CPU (s), median | points per treatment |")
+    print("|---|---|---|---|---|")
+    for mode, r in rows.items():
+        print(f"| {mode} | {', '.join(f'{w:.1f}' for w, _, _ in r)} | {statistics.median(w for w, _, _ in r):.1f} | "
+              f"{statistics.median(c for _, c, _ in r):.1f} | {r[-1][2]} |")
+    ratio = statistics.median(w for w, _, _ in rows["concurrent"]) / statistics.median(w for w, _, _ in rows["serial"])
+    print(f"\nconcurrent / serial wall: {ratio:.2f}")
 
 
 if __name__ == "__main__":

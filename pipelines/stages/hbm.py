@@ -2,11 +2,17 @@
 output: a finished treatment is never recomputed because another one changed or failed.
 
 Points are appended to NAME.partial.h5 as they are computed (pipelines.branch_store); an
-interrupted run of the same inputs resumes from them.
+interrupted run of the same inputs resumes from them. The treatments are independent
+continuations of one core each, so they run at once in forked processes, one per core
+(serially under MPI, where forking is unsafe, or on one core).
 """
 from __future__ import annotations
 
+import os
+import sys
 import time
+from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -32,14 +38,115 @@ def _outputs(scene) -> tuple[Output, ...]:
     return tuple(nfrc_output(m) for m in scene.hbm.methods)
 
 
-def _compute(ctx: Context, outputs) -> None:
+@dataclass(frozen=True)
+class _Reporter:
+    """Where one treatment's run speaks: log(text) a line of the run's log, warn(text) a
+    warning, update(text) its live line."""
+
+    log: Callable[[str], None]
+    warn: Callable[[str], None]
+    update: Callable[[str], None]
+
+
+def _compute(ctx: Context, outputs, workers: int | None = None) -> None:
+    """workers: processes, one treatment each (default: one per core, at most one per
+    treatment; 1 runs them one after the other in this process)."""
     rom = read_rom(ctx.out)
     warn_friction_lock(ctx, rom)
-    for output in outputs:
-        _run_method(ctx, rom, output)
+    if workers is None:
+        workers = 1 if "mpi4py.MPI" in sys.modules else len(os.sched_getaffinity(0))
+    workers = min(workers, len(outputs))
+    if workers <= 1:
+        for output in outputs:
+            with ctx.progress.step(f"hbm {output.key}", None) as update:
+                _run_method(ctx, rom, output, _Reporter(ctx.log, ctx.progress.warn, lambda text: update(text)))
+        return
+    _run_concurrently(ctx, rom, tuple(outputs))
 
 
-def _run_method(ctx: Context, rom, output: Output) -> None:
+#: What a forked treatment process inherits (set just before the fork, cleared after).
+_FORKED: dict = {}
+
+
+def _treatment_process(index: int, messages) -> None:
+    """Target of a forked process: the index-th output's treatment; every word of it, and
+    its end ("done" or "error" with the exception), goes to the parent through `messages`."""
+    import signal
+
+    from threadpoolctl import threadpool_limits
+
+    # Ctrl-C reaches the whole process group: the parent speaks for the run, this process
+    # just ends (its points are on disk, flushed one by one)
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    ctx, rom, output = _FORKED["ctx"], _FORKED["rom"], _FORKED["outputs"][index]
+    key = output.key
+
+    def send(kind: str):
+        return lambda payload: messages.put((key, kind, payload))
+
+    try:
+        with threadpool_limits(limits=1, user_api="blas"):  # one process per core
+            _run_method(ctx, rom, output, _Reporter(send("log"), send("warn"), send("update")))
+        messages.put((key, "done", None))
+    except BaseException as exc:  # noqa: BLE001 - handed to the parent, which raises it
+        try:
+            messages.put((key, "error", exc))
+        except Exception:  # an exception that does not pickle
+            messages.put((key, "error", RuntimeError(f"{type(exc).__name__}: {exc}")))
+
+
+def _run_concurrently(ctx: Context, rom, outputs: tuple) -> None:
+    """Every output's treatment in its own forked process; the parent shows their live
+    lines and log, waits for all of them (a failing treatment does not stop the others)
+    and then raises the first failure in the order of `outputs`."""
+    import multiprocessing
+    import queue
+
+    from pipelines.child import ChildDied
+
+    mp = multiprocessing.get_context("fork")
+    messages = mp.Queue()
+    _FORKED.update(ctx=ctx, rom=rom, outputs=outputs)
+    procs = {o.key: mp.Process(target=_treatment_process, args=(i, messages), daemon=True, name=f"hbm {o.key}")
+             for i, o in enumerate(outputs)}
+    try:
+        for p in procs.values():  # forked before the live line's thread starts
+            p.start()
+    finally:
+        _FORKED.clear()
+    lines = {key: "starting" for key in procs}
+    ended: dict = {}
+    try:
+        with ctx.progress.step("hbm " + " + ".join(procs), None) as update:
+            while len(ended) < len(procs):
+                try:
+                    key, kind, payload = messages.get(timeout=0.5)
+                except queue.Empty:
+                    for key, p in procs.items():  # killed or crashed without a word
+                        if key not in ended and not p.is_alive() and messages.empty():
+                            ended[key] = ChildDied(f"the {key} NFRC process ended without an answer "
+                                                   f"(exit code {p.exitcode})")
+                    continue
+                if kind == "update":
+                    lines[key] = payload
+                    update("; ".join(f"{k}: {t}" for k, t in lines.items()))
+                elif kind == "log":
+                    ctx.log(payload)
+                elif kind == "warn":
+                    ctx.progress.warn(payload)
+                else:
+                    ended[key] = payload
+    finally:
+        for p in procs.values():
+            if p.is_alive() and procs and len(ended) < len(procs):
+                p.terminate()
+            p.join()
+    for o in outputs:
+        if ended[o.key] is not None:
+            raise ended[o.key]
+
+
+def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
     from hbm.harmonic.nfrc import compute_nfrc
     from pipelines.branch_store import BranchStore, load_branch, partial_path
 
@@ -53,26 +160,26 @@ def _run_method(ctx: Context, rom, output: Output) -> None:
         try:
             resume = load_branch(part, allow_partial=True)
             store = BranchStore.reopen(part)
-            ctx.log(f"  {method}: resuming from {store.n_points} points on disk")
+            say.log(f"  {method}: resuming from {store.n_points} points on disk")
         except (OSError, ValueError, KeyError) as exc:  # a run killed inside an HDF5 write
             resume, store = None, None
-            ctx.progress.warn(f"{part.name} cannot be read ({art.first_line(exc)}): the {method} NFRC starts over")
+            say.warn(f"{part.name} cannot be read ({art.first_line(exc)}): the {method} NFRC starts over")
     content, mode_frequencies = _content_of(rom, scene, method)
     t0 = time.perf_counter()
-    with ctx.progress.step(f"hbm {method}", None) as update:
-        def on_point(point, extras):
-            nonlocal store
-            if store is None:
-                store = BranchStore.create(final, len(point.x), attrs=attrs, units=EXTRA_UNITS)
-            store.append(point, {**extras, **content(point)})
-            update(f"\u03a9 = {point.omega:.1f} rad/s, {point.index + 1} points, ds = {point.step:.3g}")
 
-        try:
-            result = compute_nfrc(rom, scene.casing, scene.contact, scene.hbm, method=method, on_point=on_point,
-                                  resume=resume)
-        finally:
-            if store is not None:
-                store.close()
+    def on_point(point, extras):
+        nonlocal store
+        if store is None:
+            store = BranchStore.create(final, len(point.x), attrs=attrs, units=EXTRA_UNITS)
+        store.append(point, {**extras, **content(point)})
+        say.update(f"\u03a9 = {point.omega:.1f} rad/s, {point.index + 1} points, ds = {point.step:.3g}")
+
+    try:
+        result = compute_nfrc(rom, scene.casing, scene.contact, scene.hbm, method=method, on_point=on_point,
+                              resume=resume)
+    finally:
+        if store is not None:
+            store.close()
     if store is None:  # not even a start point: still record why, in a complete file
         BranchStore.create(final, result.unknowns.shape[-1] if result.unknowns.ndim == 2 else 0,
                            attrs=attrs, units=EXTRA_UNITS).close()
@@ -83,7 +190,7 @@ def _run_method(ctx: Context, rom, output: Output) -> None:
         tables["bifurcations"] = bifurcation_arrays(result.bifurcations)
     BranchStore.reopen(part).finalize(result.status, tables=tables)
     ok = int(result.converged.sum())
-    ctx.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
+    say.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
             f"status: {result.status}")
 
 

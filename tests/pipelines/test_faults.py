@@ -191,6 +191,65 @@ def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path,
     assert load_branch(tmp_path / "nfrc_rl.h5").complete and art.verify(tmp_path / "nfrc_rl.h5") is None
 
 
+def test_a_treatment_that_fails_does_not_stop_the_other(coarse_run, tmp_path, monkeypatch, capsys):
+    """The treatments run at once (one process each on this 2-core machine): a full disk in
+    RL's process ends RL only; DLFT's NFRC is finished and kept, the run fails in one line
+    that names the error and what was kept, and the next run goes on with RL alone."""
+    import errno
+
+    from pipelines import branch_store
+
+    scene = clone(coarse_run[1], tmp_path)
+    real = branch_store.BranchStore.append
+
+    def full_disk_in_rl(self, point, extras=None):
+        if self.path.name == "nfrc_rl.h5" and self.n_points == 3:
+            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
+        real(self, point, extras)
+
+    monkeypatch.setattr(branch_store.BranchStore, "append", full_disk_in_rl)
+    assert run(scene, tmp_path, "--until", "hbm") == 1
+    line = one_line(capsys.readouterr().err)
+    assert line.startswith("bladerub: error: stage hbm failed: No space left on device")
+    assert "kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, 3 points of nfrc_rl.partial.h5" in line
+    assert load_branch(tmp_path / "nfrc_dlft.h5").complete and art.verify(tmp_path / "nfrc_dlft.h5") is None
+    dlft = (tmp_path / "nfrc_dlft.h5").read_bytes()
+    monkeypatch.undo()
+    assert run(scene, tmp_path, "--until", "hbm") == 0
+    out = capsys.readouterr().out
+    assert "[hbm] running (nfrc_rl.h5: no artifact) ..." in out and "rl: resuming from 3 points on disk" in out
+    assert (tmp_path / "nfrc_dlft.h5").read_bytes() == dlft
+
+
+def test_treatments_at_once_give_the_nfrcs_of_one_after_the_other(coarse_nfrc, tmp_path):
+    """The stage's default (one process per treatment) against workers=1 (this process, one
+    after the other): the same points to round-off (each process limits BLAS to one thread)."""
+    from pipelines.progress import Progress
+    from pipelines.runner import expected_inputs
+    from pipelines.stages import REGISTRY
+    from pipelines.stages.base import Context
+    from pipelines.stages.hbm import _compute
+
+    scene = clone(coarse_nfrc[1], tmp_path)
+    for name in ("nfrc_dlft.h5", "nfrc_rl.h5"):
+        (tmp_path / name).unlink()
+    sc = load_scene(scene)
+    outputs = REGISTRY["hbm"].outputs(sc)
+    expected = expected_inputs(sc, ("hbm",))
+    ctx = Context(sc, tmp_path, Progress(quiet=True))
+    for o in outputs:
+        ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
+    _compute(ctx, outputs, workers=1)
+    for o in outputs:
+        serial = load_branch(tmp_path / o.file)
+        concurrent = load_branch(coarse_nfrc[1] / o.file)  # made by `bladerub run` with its default
+        assert serial.complete and concurrent.complete
+        assert serial.branch.omega.shape == concurrent.branch.omega.shape and len(serial.branch.omega) > 10
+        scale = np.abs(concurrent.branch.x).max()
+        assert np.abs(serial.branch.x - concurrent.branch.x).max() <= 1e-9 * scale
+        assert np.allclose(serial.branch.omega, concurrent.branch.omega, rtol=1e-10, atol=0)
+
+
 # --- one run per folder ------------------------------------------------------------------
 def test_a_second_run_is_refused_naming_the_first(coarse_run, tmp_path, capsys):
     scene = clone(coarse_run[1], tmp_path)
