@@ -3,8 +3,8 @@ output: a finished treatment is never recomputed because another one changed or 
 
 Points are appended to NAME.partial.h5 as they are computed (pipelines.branch_store); an
 interrupted run of the same inputs resumes from them. The treatments are independent
-continuations of one core each, so they run at once in forked processes, one per core
-(serially under MPI, where forking is unsafe, or on one core).
+continuations of one core each, so they run at once, one process per core (one after the
+other on one core, or under an MPI launcher, where the stage runs on rank 0).
 """
 from __future__ import annotations
 
@@ -53,40 +53,47 @@ def _compute(ctx: Context, outputs, workers: int | None = None) -> None:
     treatment; 1 runs them one after the other in this process)."""
     rom = read_rom(ctx.out)
     warn_friction_lock(ctx, rom)
-    if workers is None:
-        workers = 1 if "mpi4py.MPI" in sys.modules else len(os.sched_getaffinity(0))
-    workers = min(workers, len(outputs))
+    workers = min(_workers(len(outputs)) if workers is None else workers, len(outputs))
     if workers <= 1:
         for output in outputs:
             with ctx.progress.step(f"hbm {output.key}", None) as update:
                 _run_method(ctx, rom, output, _Reporter(ctx.log, ctx.progress.warn, lambda text: update(text)))
         return
-    _run_concurrently(ctx, rom, tuple(outputs))
+    _run_concurrently(ctx, tuple(outputs))
 
 
-#: What a forked treatment process inherits (set just before the fork, cleared after).
-_FORKED: dict = {}
+def _workers(n_treatments: int) -> int:
+    """Processes for n treatments: one per core, at most one per treatment; 1 under an MPI
+    launcher (the stage runs on rank 0 there, and its children would not be MPI ranks)."""
+    from pipelines.parallel import world
+
+    if world() is not None:
+        return 1
+    return max(1, min(n_treatments, len(os.sched_getaffinity(0))))
 
 
-def _treatment_process(index: int, messages) -> None:
-    """Target of a forked process: the index-th output's treatment; every word of it, and
-    its end ("done" or "error" with the exception), goes to the parent through `messages`."""
+def _treatment_process(scene, out, hashes: dict, inputs: dict, output: Output, messages) -> None:
+    """Target of a treatment's process: its NFRC, as _run_method in the run's own process;
+    every word of it, and its end ("done", or "error" with the exception), goes to the
+    parent through `messages`."""
     import signal
 
     from threadpoolctl import threadpool_limits
 
+    from pipelines.progress import Progress
+
     # Ctrl-C reaches the whole process group: the parent speaks for the run, this process
     # just ends (its points are on disk, flushed one by one)
     signal.signal(signal.SIGINT, signal.SIG_DFL)
-    ctx, rom, output = _FORKED["ctx"], _FORKED["rom"], _FORKED["outputs"][index]
     key = output.key
 
     def send(kind: str):
         return lambda payload: messages.put((key, kind, payload))
 
     try:
+        ctx = Context(scene, out, Progress(quiet=True), hashes, inputs)
         with threadpool_limits(limits=1, user_api="blas"):  # one process per core
-            _run_method(ctx, rom, output, _Reporter(send("log"), send("warn"), send("update")))
+            _run_method(ctx, read_rom(out), output, _Reporter(send("log"), send("warn"), send("update")))
         messages.put((key, "done", None))
     except BaseException as exc:  # noqa: BLE001 - handed to the parent, which raises it
         try:
@@ -95,25 +102,23 @@ def _treatment_process(index: int, messages) -> None:
             messages.put((key, "error", RuntimeError(f"{type(exc).__name__}: {exc}")))
 
 
-def _run_concurrently(ctx: Context, rom, outputs: tuple) -> None:
-    """Every output's treatment in its own forked process; the parent shows their live
-    lines and log, waits for all of them (a failing treatment does not stop the others)
-    and then raises the first failure in the order of `outputs`."""
+def _run_concurrently(ctx: Context, outputs: tuple) -> None:
+    """Every output's treatment in a process of its own; the parent shows their live lines
+    and log, waits for all of them (a failing treatment does not stop the others) and then
+    raises the first failure in the order of `outputs`."""
     import multiprocessing
     import queue
 
     from pipelines.child import ChildDied
 
-    mp = multiprocessing.get_context("fork")
+    # fork is cheapest, but unsafe once MPI is initialised (dolfinx does it in the fem stage)
+    mp = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
     messages = mp.Queue()
-    _FORKED.update(ctx=ctx, rom=rom, outputs=outputs)
-    procs = {o.key: mp.Process(target=_treatment_process, args=(i, messages), daemon=True, name=f"hbm {o.key}")
-             for i, o in enumerate(outputs)}
-    try:
-        for p in procs.values():  # forked before the live line's thread starts
-            p.start()
-    finally:
-        _FORKED.clear()
+    procs = {o.key: mp.Process(target=_treatment_process, args=(ctx.scene, ctx.out, ctx.hashes, ctx.inputs, o, messages),
+                               daemon=True, name=f"hbm {o.key}") for o in outputs}
+    ctx.log(f"  {' and '.join(procs)} at once, one process each")
+    for p in procs.values():  # before the live line's thread starts (fork copies one thread)
+        p.start()
     lines = {key: "starting" for key in procs}
     ended: dict = {}
     try:
@@ -138,7 +143,7 @@ def _run_concurrently(ctx: Context, rom, outputs: tuple) -> None:
                     ended[key] = payload
     finally:
         for p in procs.values():
-            if p.is_alive() and procs and len(ended) < len(procs):
+            if p.is_alive() and len(ended) < len(procs):  # interrupted: the others end too
                 p.terminate()
             p.join()
     for o in outputs:
@@ -335,16 +340,20 @@ def _estimate(scene, out, outputs) -> Estimate:
     solves need far less. Time per point ~ a n_c + b n_c^3 (n_c = 2 N_h + 1: the AFT, then the
     m x m preconditioner LU, m <= n_c n_b), fitted to 30 points from 2000 rad/s on the coarse
     ROM at N_h = 10 to 160 (0.06 to 0.9 s per point); a whole NFRC is ~600-1800 points
-    (default scene: 1176 DLFT, 1830 RL), max_points at most."""
+    (default scene: 1176 DLFT, 1830 RL), max_points at most. The treatments run at once on
+    as many cores, one each (_workers): the time is that of the rounds they take, the
+    memory that of the treatments at once."""
     h = scene.hbm
     n_c = 2 * h.n_harmonics + 1
     n_u = n_c * 3 * scene.mesh.n_boundary
     per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9
     points = min(h.max_points, 1500)
+    at_once = _workers(len(outputs))
     from pipelines.guard import count
 
     return Estimate(size=f"{len(outputs)} NFRC(s) of {count(n_u)} unknowns (N_h = {h.n_harmonics})",
-                    memory=0.2e9 + 10 * n_u ** 2 * 8.0, seconds=len(outputs) * points * per_point,
+                    memory=(0.2e9 + 10 * n_u ** 2 * 8.0) * at_once,
+                    seconds=-(-len(outputs) // at_once) * points * per_point,
                     disk=len(outputs) * h.max_points * (n_u + n_c * 3 * scene.mesh.n_boundary + 16) * 8.0,
                     advice=f"lower [hbm] n_harmonics (now {h.n_harmonics}; the reference is 40)")
 

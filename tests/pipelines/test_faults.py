@@ -169,8 +169,12 @@ def test_interruption_between_artifact_and_figure(coarse_nfrc, tmp_path, monkeyp
 
 
 def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path, monkeypatch, capsys):
+    """The treatments one after the other (one core): Ctrl-C in the second keeps the first.
+    (At once, each in its own process, a real Ctrl-C: test_interrupt.py.)"""
     from pipelines import branch_store
+    from pipelines.stages import hbm
 
+    monkeypatch.setattr(hbm, "_workers", lambda n: 1)  # this process: the patch below reaches it
     scene = clone(coarse_run[1], tmp_path)
     real = branch_store.BranchStore.append
 
@@ -191,34 +195,41 @@ def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path,
     assert load_branch(tmp_path / "nfrc_rl.h5").complete and art.verify(tmp_path / "nfrc_rl.h5") is None
 
 
-def test_a_treatment_that_fails_does_not_stop_the_other(coarse_run, tmp_path, monkeypatch, capsys):
-    """The treatments run at once (one process each on this 2-core machine): a full disk in
-    RL's process ends RL only; DLFT's NFRC is finished and kept, the run fails in one line
-    that names the error and what was kept, and the next run goes on with RL alone."""
-    import errno
+#: `bladerub run` with a full disk in RL's process at its 4th point (a fresh interpreter that
+#: starts at the hbm stage has not initialised MPI, so the treatments' processes are forked
+#: and inherit the patch).
+FULL_DISK_IN_RL = (
+    "import errno, os, sys; from pipelines import branch_store; real = branch_store.BranchStore.append\n"
+    "def append(self, point, extras=None):\n"
+    "    if self.path.name == 'nfrc_rl.h5' and self.n_points == 3:\n"
+    "        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))\n"
+    "    real(self, point, extras)\n"
+    "branch_store.BranchStore.append = append\n"
+    "from pipelines.cli import main; sys.exit(main(sys.argv[1:]))")
 
-    from pipelines import branch_store
 
+def test_a_treatment_that_fails_does_not_stop_the_other(coarse_run, tmp_path, capsys):
+    """The treatments run at once, one process each: a full disk in RL's process ends RL
+    only; DLFT's NFRC is finished and kept, the run fails in one line that names the error
+    and what was kept, and the next run (here from this process, whose treatments are
+    spawned) goes on with RL alone from its points on disk."""
     scene = clone(coarse_run[1], tmp_path)
-    real = branch_store.BranchStore.append
-
-    def full_disk_in_rl(self, point, extras=None):
-        if self.path.name == "nfrc_rl.h5" and self.n_points == 3:
-            raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(self.path))
-        real(self, point, extras)
-
-    monkeypatch.setattr(branch_store.BranchStore, "append", full_disk_in_rl)
-    assert run(scene, tmp_path, "--until", "hbm") == 1
-    line = one_line(capsys.readouterr().err)
+    # as from a shell: without the singleton MPI environment this process's dolfinx set up
+    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
+    p = subprocess.run([sys.executable, "-c", FULL_DISK_IN_RL, "run", str(scene), "--out", str(tmp_path),
+                        "--until", "hbm"], cwd=ROOT, capture_output=True, text=True, timeout=600, env=env)
+    assert p.returncode == 1, p.stdout + p.stderr
+    assert "  dlft and rl at once, one process each" in p.stdout
+    line = one_line(p.stderr)
     assert line.startswith("bladerub: error: stage hbm failed: No space left on device")
-    assert "kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, 3 points of nfrc_rl.partial.h5" in line
+    assert line.endswith("kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, 3 points of nfrc_rl.partial.h5")
     assert load_branch(tmp_path / "nfrc_dlft.h5").complete and art.verify(tmp_path / "nfrc_dlft.h5") is None
     dlft = (tmp_path / "nfrc_dlft.h5").read_bytes()
-    monkeypatch.undo()
     assert run(scene, tmp_path, "--until", "hbm") == 0
     out = capsys.readouterr().out
     assert "[hbm] running (nfrc_rl.h5: no artifact) ..." in out and "rl: resuming from 3 points on disk" in out
     assert (tmp_path / "nfrc_dlft.h5").read_bytes() == dlft
+    assert load_branch(tmp_path / "nfrc_rl.h5").complete and art.verify(tmp_path / "nfrc_rl.h5") is None
 
 
 def test_treatments_at_once_give_the_nfrcs_of_one_after_the_other(coarse_nfrc, tmp_path):
