@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hbm.options import HbmOptions
 from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
                                       parabola_vertex, upper_half)
 from hbm.stability.hill import harmonic_period
@@ -62,7 +63,7 @@ class StabilityOptions:
     """
 
     n_eig: int = 40
-    max_gap: int = 8
+    max_gap: int = HbmOptions.stability_max_gap  # the scene's default ([hbm] stability_max_gap)
     margin: float = 0.02
     n_leading: int = 4
     window: float = 3.0
