@@ -57,7 +57,7 @@ def _compute(ctx: Context, outputs, workers: int | None = None) -> None:
     if workers <= 1:
         for output in outputs:
             with ctx.progress.step(f"hbm {output.key}", None) as update:
-                _run_method(ctx, rom, output, _Reporter(ctx.log, ctx.progress.warn, lambda text: update(text)))
+                _run_method(ctx, rom, output, _Reporter(ctx.log, ctx.progress.warn, update))
         return
     _run_concurrently(ctx, tuple(outputs))
 

@@ -207,7 +207,11 @@ FULL_DISK_IN_RL = (
     "branch_store.BranchStore.append = append\n"
     "from pipelines.cli import main; sys.exit(main(sys.argv[1:]))")
 
+#: The stage runs the treatments at once only where there are two cores or more.
+TWO_CORES = pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="one core: the treatments run one after the other")
 
+
+@TWO_CORES
 def test_a_treatment_that_fails_does_not_stop_the_other(coarse_run, tmp_path, capsys):
     """The treatments run at once, one process each: a full disk in RL's process ends RL
     only; DLFT's NFRC is finished and kept, the run fails in one line that names the error
@@ -232,6 +236,7 @@ def test_a_treatment_that_fails_does_not_stop_the_other(coarse_run, tmp_path, ca
     assert load_branch(tmp_path / "nfrc_rl.h5").complete and art.verify(tmp_path / "nfrc_rl.h5") is None
 
 
+@TWO_CORES
 def test_treatments_at_once_give_the_nfrcs_of_one_after_the_other(coarse_nfrc, tmp_path):
     """The stage's default (one process per treatment) against workers=1 (this process, one
     after the other): the same points to round-off (each process limits BLAS to one thread)."""
