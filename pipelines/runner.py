@@ -131,8 +131,9 @@ def plan(scene, out: Path, names, force: bool = False, expected: dict | None = N
 
 def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: bool = True) -> str:
     """The artifacts a stopped run leaves usable (those current before it, those it finished:
-    a stage with several outputs, such as the NFRCs, may have finished some), and the points
-    of interrupted NFRCs. detailed: read the files (else names and times only)."""
+    a stage with several outputs, such as the NFRCs, may have finished some), the points of
+    interrupted NFRCs and the branches of an interrupted isola search. detailed: read the
+    files (else names and times only)."""
     from pipelines.branch_store import partial_path
 
     def finished(o) -> bool:
@@ -148,9 +149,14 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
         for o in s.todo:
             part = partial_path(out / o.file)
             if o.file not in kept and o.file.endswith(".h5") and part.is_file():
-                n = art.read_attrs(part).get("n_points", 0) if detailed else "the"
-                if n:
-                    kept.append(f"{n} points of {part.name}")
+                if not detailed:
+                    kept.append(f"the points of {part.name}")
+                    continue
+                a = art.read_attrs(part)
+                if a.get("n_points", 0):
+                    kept.append(f"{a['n_points']} points of {part.name}")
+                elif a.get("n_branches", 0):
+                    kept.append(f"{a['n_branches']} branches of {part.name}")
     return ", ".join(kept) if kept else "nothing new"
 
 

@@ -122,10 +122,15 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     p = _Partial(tmp_path / "isolas.partial.h5", "hash-a")
     p.corrections("dlft", c)
     p.branch("dlft", 0, fb, 1)
+    p.corrections("rl", c)
+    p.branch("rl", 0, fb, 1)
+    p.branch("rl", 1, fb, 1)
+    # what an interrupted run says it kept
+    assert art.read_attrs(tmp_path / "isolas.partial.h5")["n_branches"] == 3
     c2, done = p.resume("dlft")
     np.testing.assert_array_equal(c2.candidates(), [0])
     np.testing.assert_array_equal(c2.x[0], [1.0, 2.0])
     assert len(done) == 1 and done[0].kind == "isola" and done[0].seeds == (0,) and done[0].closed
     np.testing.assert_array_equal(done[0].x, fb.x)
-    assert p.resume("rl") == (None, [])
+    assert len(p.resume("rl")[1]) == 2
     assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").resume("dlft") == (None, [])  # other inputs
