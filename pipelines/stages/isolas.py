@@ -191,7 +191,7 @@ class _Partial:
             _write_corrections(g.create_group("corrections"), c)
             g.create_group("branches")
             g.attrs["n_branches"] = 0
-            h5.attrs["n_branches"] = sum(int(h5[m].attrs.get("n_branches", 0)) for m in h5)
+            _count_branches(h5)
 
     def branch(self, method: str, index: int, fb, nu: int) -> None:
         with self._open() as h5:
@@ -201,8 +201,13 @@ class _Partial:
                 del g["branches"][name]
             _write_branch(g["branches"].create_group(name), fb, nu)
             g.attrs["n_branches"] = index + 1  # last: the branch counts once all of it is written
-            # every treatment's, for what an interrupted run says it kept (pipelines.runner)
-            h5.attrs["n_branches"] = sum(int(h5[m].attrs.get("n_branches", 0)) for m in h5)
+            _count_branches(h5)
+
+
+def _count_branches(h5) -> None:
+    """The root attribute n_branches: every treatment's finished branches, for what an
+    interrupted run says it kept (pipelines.runner)."""
+    h5.attrs["n_branches"] = sum(int(h5[m].attrs.get("n_branches", 0)) for m in h5)
 
 
 def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
