@@ -198,15 +198,7 @@ class BranchStore:
         tables: {group: {name: (array, unit)}}, whole-branch data written with it (e.g. the
         bifurcations located along the branch), each dataset with its unit.
         """
-        for group, arrays in (tables or {}).items():
-            if group in self._h5:
-                del self._h5[group]
-            g = self._h5.create_group(group)
-            for name, (value, unit) in arrays.items():
-                value = np.asarray(value)
-                if value.dtype == object:  # text columns (e.g. a bifurcation's kind)
-                    value = np.array([str(v) for v in value], dtype=h5py.string_dtype())
-                g.create_dataset(name, data=value).attrs["unit"] = unit
+        write_tables(self._h5, tables or {})
         self._h5.attrs["status"] = status
         self._h5.attrs["detail"] = detail
         self._h5.attrs["complete"] = 1
@@ -257,3 +249,31 @@ def load_branch(path: Path | str, *, allow_partial: bool = False) -> StoredBranc
         extras = {name: ds[:m] for name, ds in h5["extras"].items()}
     branch = Branch(**arrays, status=attrs["status"], detail=attrs["detail"])
     return StoredBranch(branch, extras, attrs, complete)
+
+
+def write_tables(parent, tables: dict) -> None:
+    """Whole-branch tables {group: {name: (array, unit)}} as groups of `parent` (an h5py
+    group), each dataset with its unit; text columns (object arrays, e.g. a bifurcation's
+    kind) as variable-length strings. A group already there is replaced."""
+    for group, arrays in tables.items():
+        if group in parent:
+            del parent[group]
+        g = parent.create_group(group)
+        for name, (value, unit) in arrays.items():
+            value = np.asarray(value)
+            if value.dtype == object:
+                value = np.array([str(v) for v in value], dtype=h5py.string_dtype())
+            g.create_dataset(name, data=value).attrs["unit"] = unit
+
+
+def read_table(group) -> dict:
+    """{name: (array, unit)} of a group written by write_tables (text columns as object arrays of str)."""
+    out = {}
+    for name, d in group.items():
+        v = d[()]
+        if v.dtype.kind in "OS":
+            v = np.array([x.decode() if isinstance(x, bytes) else str(x) for x in np.asarray(v).reshape(-1)],
+                         dtype=object)
+        unit = d.attrs.get("unit", "-")
+        out[name] = (v, unit.decode() if isinstance(unit, bytes) else str(unit))
+    return out

@@ -160,24 +160,29 @@ def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, floa
     return out
 
 
-def describe(res: HarmonicBalanceResidual, stability: bool):
+def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0, 1.0), options=None):
     """describe(omega (m,), u (m, n_u)) for hbm.isolas.search: le_amplitude (m,) m and
-    harmonics (m, 2 N_h + 1, 3 n_b) m (hbm.harmonic.nfrc.nfrc_extras); with stability,
-    stable (m,) bool and n_unstable (m,) int from the Floquet analysis of every point
-    (hbm.stability.spectrum.orbit_spectrum)."""
+    harmonics (m, 2 N_h + 1, 3 n_b) m (hbm.harmonic.nfrc.nfrc_extras); with stability, the
+    branch's stability as the NFRC gets it (hbm.stability.monitor.monitor_branch: gapped
+    Floquet analyses, bisection on the stored points): stable (m,) bool, n_unstable (m,)
+    int, stability_analysed (m,) bool, leading_multipliers (m, n_leading), period_ratio
+    (m,) int, and the table "bifurcations" (hbm.stability.bifurcation.bifurcation_arrays,
+    its index counting the described points) under "tables". scales: (x_scale,
+    omega_scale), the continuation's, in which the monitor measures arc length. options:
+    StabilityOptions (default: the monitor's)."""
     def run(omega, u):
         ex = [nfrc_extras(res, x) for x in u]
         out = {"le_amplitude": np.array([e["le_amplitude"] for e in ex]),
                "harmonics": np.array([e["harmonics"] for e in ex])}
         if stability:
-            from hbm.stability.spectrum import orbit_spectrum
+            from hbm.stability.bifurcation import bifurcation_arrays
+            from hbm.stability.monitor import StabilityMonitor, StabilityOptions, monitor_branch
 
-            n_un = []
-            for w, x in zip(omega, u):
-                spec, _ = orbit_spectrum(res, x, float(w))
-                n_un.append(spec.n_unstable)
-            out["n_unstable"] = np.array(n_un, dtype=np.int64)
-            out["stable"] = out["n_unstable"] == 0
+            opts = options or StabilityOptions()
+            mon = StabilityMonitor.for_residual(res, opts)
+            st = monitor_branch(mon.analyse, omega, u, ex, scales[0], scales[1], opts)
+            out.update(st.per_point())
+            out["tables"] = {"bifurcations": bifurcation_arrays(st.bifurcations)}
         return out
 
     return run

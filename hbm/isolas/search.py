@@ -341,6 +341,19 @@ def _merge(first: Branch, second: Branch | None):
             np.concatenate([second.converged[::-1], first.converged[1:]]))
 
 
+def _reindexed(tables: dict, positions: np.ndarray) -> dict:
+    """describe's tables ({name: {column: (array, unit)}}) with their `index` column (a
+    position among the described, converged points) mapped to the branch's points."""
+    out = {}
+    for name, cols in tables.items():
+        cols = dict(cols)
+        if "index" in cols:
+            idx, unit = cols["index"]
+            cols["index"] = (positions[np.asarray(idx, dtype=np.int64)], unit)
+        out[name] = cols
+    return out
+
+
 def _at_bound(status: str) -> bool:
     return status.startswith(STATUS_OMEGA_MIN) or status.startswith(STATUS_OMEGA_MAX)
 
@@ -384,7 +397,10 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
       starts); None: factory.
     bifurcation_points: located bifurcations of the known branches (omega (k,), x (k, n)):
       a branch through one is "bifurcated".
-    describe(omega (m,), x (m, n)) -> {name: (m, ...) array}: per-point data of each branch.
+    describe(omega (m,), x (m, n)) -> {name: (m, ...) array}: per-point data of each branch
+      (of its converged points; nan or 0 elsewhere), and optionally "tables": {name:
+      {column: (array, unit)}}, per-branch tables whose `index` column (a position among
+      the points described) is mapped to the branch's points; kept in extras["tables"].
     on_corrections(c): called once phase 1 is done (not on resume); on_branch(index,
       branch): called as each new branch is finished (to save it); on_progress(phase,
       done, total): "seeds" or "branches".
@@ -457,7 +473,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             kind, closed = _classify(halves, omega, x, bifurcation_points, options)
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
             ok = np.asarray(conv, bool)
-            extras = describe(omega[ok], x[ok]) if describe is not None and ok.any() else {}
+            extras = dict(describe(omega[ok], x[ok])) if describe is not None and ok.any() else {}
+            tables = _reindexed(extras.pop("tables", {}), np.flatnonzero(ok))
             if extras:  # per-point data of the converged points, nan elsewhere
                 full = {}
                 for name, v in extras.items():
@@ -467,6 +484,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                     arr[ok] = v
                     full[name] = arr
                 extras = full
+            if tables:
+                extras["tables"] = tables
             fb = FoundBranch(omega=omega, x=x, converged=conv, kind=kind, closed=closed, status=status, start=i,
                              seeds=(i,), extras=extras, n_points_computed=computed,
                              cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0))

@@ -315,3 +315,62 @@ def unknown_stability(extras: dict, options: StabilityOptions = StabilityOptions
     g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4) if "harmonics" in extras else 1
     return dict(extras, stable=False, n_unstable=-1, stability_analysed=False,
                 leading_multipliers=np.full(options.n_leading, np.nan), period_ratio=int(g))
+
+
+@dataclass(frozen=True, eq=False)
+class BranchStability:
+    """The stability of a stored branch's m points (monitor_branch).
+
+    stable (m,) bool; n_unstable (m,) int; stability_analysed (m,) bool;
+    leading_multipliers (m, n_leading) float (nan where not analysed); period_ratio (m,) int;
+    bifurcations: Bifurcation tuple, `index` counting the given points; n_analyses.
+    """
+
+    stable: np.ndarray
+    n_unstable: np.ndarray
+    stability_analysed: np.ndarray
+    leading_multipliers: np.ndarray
+    period_ratio: np.ndarray
+    bifurcations: tuple
+    n_analyses: int
+
+    def per_point(self) -> dict:
+        """{name: (m, ...) array} of the per-point fields."""
+        return {k: getattr(self, k) for k in ("stable", "n_unstable", "stability_analysed", "leading_multipliers",
+                                              "period_ratio")}
+
+
+def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_scale=1.0, omega_scale: float = 1.0,
+                   options: StabilityOptions = StabilityOptions()) -> BranchStability:
+    """The monitor run over the points of a branch computed without it (e.g. a branch of the
+    isola search): the same gapped analyses, bisection on the stored points and located
+    bifurcations as if it had watched the continuation, for the analyses of about a third of
+    the points instead of all of them.
+
+    analyse(x, omega) -> (FloquetSpectrum, g) (StabilityMonitor.analyse). omega (m,) rad/s
+    and x (m, n): consecutive converged points of one branch; extras: m dicts with
+    le_amplitude (m) and harmonics (hbm.harmonic.nfrc.nfrc_extras). x_scale (scalar or
+    (n,)) and omega_scale (rad/s): the continuation's scales, which give the arc length
+    between points that the gap control measures in.
+    """
+    from hbm.continuation.branch import ContinuationPoint
+
+    omega = np.asarray(omega, dtype=float)
+    x = np.asarray(x, dtype=float)
+    m = len(omega)
+    mon = StabilityMonitor(analyse=analyse, options=options)
+    done = {}
+    for i in range(m):
+        step = 0.0 if i == 0 else float(np.sqrt(np.sum(((x[i] - x[i - 1]) / x_scale) ** 2)
+                                                + ((omega[i] - omega[i - 1]) / omega_scale) ** 2))
+        p = ContinuationPoint(i, float(omega[i]), x[i], True, 0.0, 0, step, 0.0)
+        done.update((q.index, ex) for q, ex in mon.push(p, extras[i]))
+    done.update((q.index, ex) for q, ex in mon.finish())
+    k = options.n_leading
+    return BranchStability(
+        stable=np.array([done[i]["stable"] for i in range(m)], dtype=bool),
+        n_unstable=np.array([done[i]["n_unstable"] for i in range(m)], dtype=np.int64),
+        stability_analysed=np.array([done[i]["stability_analysed"] for i in range(m)], dtype=bool),
+        leading_multipliers=np.array([done[i]["leading_multipliers"] for i in range(m)], dtype=float).reshape(m, k),
+        period_ratio=np.array([done[i]["period_ratio"] for i in range(m)], dtype=np.int64),
+        bifurcations=tuple(sorted(mon.bifurcations, key=lambda b: (b.index, b.fraction))), n_analyses=mon.n_analyses)

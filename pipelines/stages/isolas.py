@@ -13,8 +13,11 @@ Layout of isolas.h5 (root: the usual provenance attributes):
   /<method>/seeds/ omega (s,) rad/s; origin (s,) fixed-length ASCII; converged (s,) bool;
       branch (s,) int (the branch it lies on; -1 not converged, -2 on the primary NFRC)
   /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
-      le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; stable (m,)
-      bool and n_unstable (m,) int when [hbm] stability is on. attrs kind ("primary" |
+      le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; with
+      [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
+      stability_analysed (m,) bool, leading_multipliers (m, 4), period_ratio (m,) int,
+      and bifurcations/ (the table of hbm.stability.bifurcation.bifurcation_arrays, index
+      counting this branch's points). attrs kind ("primary" |
       "isola" | "bifurcated" | "detached"), closed (bool), status (str), subharmonic (nu),
       seeds (int array), start (seed continued), n_points_computed, cpu_time (s)
 """
@@ -26,6 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from pipelines import artifacts as art
+from pipelines.branch_store import read_table, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
 from pipelines.stages.rom import read_rom
 
@@ -34,7 +38,11 @@ ISOLAS = Output("isolas.h5")
 #: Units of the per-branch datasets
 _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "harmonics": "m", "stable": "1",
           "modal_contribution": "1", "harmonic_contribution": "m",
-          "n_unstable": "1"}
+          "n_unstable": "1", "stability_analysed": "1", "leading_multipliers": "1", "period_ratio": "1"}
+
+#: per-point datasets read back into a FoundBranch's extras (resume)
+_EXTRAS = ("le_amplitude", "harmonics", "stable", "n_unstable", "stability_analysed", "leading_multipliers",
+           "period_ratio")
 
 
 @dataclass(frozen=True, eq=False)
@@ -47,7 +55,9 @@ class IsolaBranch:
     unknowns; converged (m,) bool; le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m;
     stable (m,) bool and n_unstable (m,) int, or None without stability. modal_contribution
     (m, n) and harmonic_contribution (m, N_h + 1), m: the dynamical content of each point
-    (hbm.harmonic.content, eqs. 32-34), or None in files without it.
+    (hbm.harmonic.content, eqs. 32-34), or None in files without it. bifurcations: the
+    branch's table {column: array} (hbm.stability.bifurcation.bifurcation_arrays; index
+    counts this branch's points), or None without stability.
     """
 
     method: str
@@ -66,6 +76,7 @@ class IsolaBranch:
     n_unstable: np.ndarray | None = None
     modal_contribution: np.ndarray | None = None
     harmonic_contribution: np.ndarray | None = None
+    bifurcations: dict | None = None
 
     @property
     def name(self) -> str:
@@ -99,7 +110,9 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     harmonics=b["harmonics"][()], stable=b["stable"][()].astype(bool) if "stable" in b else None,
                     n_unstable=b["n_unstable"][()] if "n_unstable" in b else None,
                     modal_contribution=b["modal_contribution"][()] if "modal_contribution" in b else None,
-                    harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None))
+                    harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None,
+                    bifurcations=({k: v for k, (v, _) in read_table(b["bifurcations"]).items()}
+                                  if "bifurcations" in b else None)))
             out[method] = rows
     return out
 
@@ -111,6 +124,7 @@ def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
     data.update({k: v for k, v in (content or {}).items() if k in _UNITS})
     for name, v in data.items():
         group.create_dataset(name, data=np.asarray(v)).attrs["unit"] = _UNITS[name]
+    write_tables(group, fb.extras.get("tables", {}))
     a = group.attrs
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
     a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
@@ -121,7 +135,9 @@ def _read_found(group):
     from hbm.isolas.search import FoundBranch
 
     a = group.attrs
-    extras = {k: group[k][()] for k in ("le_amplitude", "harmonics", "stable", "n_unstable") if k in group}
+    extras = {k: group[k][()] for k in _EXTRAS if k in group}
+    if "bifurcations" in group:
+        extras["tables"] = {"bifurcations": read_table(group["bifurcations"])}
     return FoundBranch(omega=group["omega"][()], x=group["x"][()], converged=group["converged"][()].astype(bool),
                        kind=_text(a["kind"]), closed=bool(a["closed"]), status=_text(a["status"]),
                        start=int(a["start"]), seeds=tuple(int(s) for s in np.asarray(a["seeds"]).reshape(-1)),
@@ -292,6 +308,12 @@ def _compute(ctx: Context, outputs) -> None:
     lo, hi = iso.omega_range(hbm)
     omegas = np.linspace(lo, hi, iso.n_omega)
     opts = search_options(hbm, iso)
+    co = opts.continuation
+    stab = None
+    if hbm.stability:
+        from hbm.stability.monitor import StabilityOptions
+
+        stab = StabilityOptions(max_gap=hbm.stability_max_gap)
     final = out / ISOLAS.file
     partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
     results = {}  # method -> (IsolaSearch, nu, status, cpu, wall), in hbm.methods' order when written
@@ -324,7 +346,7 @@ def _compute(ctx: Context, outputs) -> None:
 
             result = search(problem, seeds, known, opts, comm=comm, corrections=corrections,
                             seed_factory=problem.for_seeds(), branches=done,
-                            bifurcation_points=bif, describe=describe(res, hbm.stability),
+                            bifurcation_points=bif, describe=describe(res, hbm.stability, (co.x_scale, co.omega_scale), stab),
                             on_corrections=lambda c, m=method: partial.corrections(m, c) if root else None,
                             on_branch=lambda i, fb, m=method: partial.branch(m, i, fb, res.nu) if root else None,
                             on_progress=on_progress)

@@ -338,6 +338,9 @@ def draw_solution_set(ctx: Context) -> None:
         for br in read_branch_set(out / ISOLAS, m):
             if br.kind != "primary":
                 lines.append((br.kind, br.omega, br.le_amplitude, br.converged, br.stable))
+                if br.bifurcations is not None:
+                    t = br.bifurcations
+                    marks += list(zip(t["kind"], t["omega"], t["le_amplitude"]))
         if (out / VALIDATION.file).is_file():
             t = getattr(read_validation(out), m)
             if t is not None:

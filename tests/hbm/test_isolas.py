@@ -114,8 +114,15 @@ def test_the_isola_exists_independently_of_the_search():
         assert amp == pytest.approx(expect, rel=0.05)  # one harmonic vs the exact orbit
 
 
+def turns(omega, x):
+    """A describe for the search: the per-point amplitude, and a table of the points where
+    Omega turns back (the isola's two folds), its index counting the points given."""
+    i = np.flatnonzero((omega[1:-1] - omega[:-2]) * (omega[2:] - omega[1:-1]) < 0) + 1
+    return {"amplitude": np.hypot(x[:, 0], x[:, 1]), "tables": {"turns": {"index": (i, "-"), "omega": (omega[i], "1")}}}
+
+
 def test_the_search_finds_the_isola_once(primary):
-    res = search(factory, modal_seeds(), [primary], options(workers=2))
+    res = search(factory, modal_seeds(), [primary], options(workers=2), describe=turns)
     isolas = [b for b in res.branches if b.kind == "isola"]
     assert len(isolas) == 1, [(b.kind, b.status) for b in res.branches]
     b = isolas[0]
@@ -131,6 +138,12 @@ def test_the_search_finds_the_isola_once(primary):
     assert b.omega[ok].min() == pytest.approx(lo, abs=2e-4)
     assert b.omega[ok].max() == pytest.approx(hi, abs=2e-4)
     assert A.max() == pytest.approx(amplitudes(1.0)[2], rel=0.02)
+    # describe's per-point data and its table, indexed on the branch's points: two turns, at
+    # the isola's ends
+    assert np.allclose(b.extras["amplitude"][ok], A)
+    t = b.extras["tables"]["turns"]
+    assert sorted(b.omega[t["index"][0]]) == pytest.approx([lo, hi], abs=2e-4)
+    assert np.array_equal(b.omega[t["index"][0]], t["omega"][0])
     # seeds: some land on the primary, some on the isola, none elsewhere
     assert (res.seed_branch == ON_KNOWN).any()
     idx = res.branches.index(b)
@@ -227,3 +240,12 @@ def test_the_polyline_distance_is_the_minimum_along_every_segment():
                 assert dw > tol
                 checked["far"] += 1
     assert checked["near"] > 20 and checked["far"] > 20
+
+
+def test_describe_tables_are_indexed_on_the_branch_points():
+    from hbm.isolas.search import _reindexed
+
+    # the branch's first point failed: the described points are 1, 2, 3, 5 of it
+    t = _reindexed({"b": {"index": (np.array([0, 3]), "-"), "omega": (np.array([1.0, 2.0]), "rad/s")}},
+                   np.array([1, 2, 3, 5]))
+    assert t["b"]["index"][0].tolist() == [1, 5] and t["b"]["omega"][0].tolist() == [1.0, 2.0]

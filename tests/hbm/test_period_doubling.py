@@ -162,3 +162,32 @@ def test_switched_branch_is_period_doubled_and_time_integration_stays_on_it(bran
     assert abs(x_T - y0[0]) > 1e-2
     assert np.abs(x[0::2] - y0[0]).max() < 1e-6
     assert np.abs(x[1::2] - x_T).max() < 1e-6
+
+
+def test_a_branch_computed_without_stability_gets_it_afterwards(branch):
+    """What the isola search does with the branches it continues (hbm.isolas.harmonic.describe):
+    the monitor replayed over stored points, here a branch sampled at other arc lengths than
+    the fixture's. The reference is shooting's multiplier -1, not the fixture's monitor."""
+    from hbm.isolas.harmonic import describe
+    from hbm.stability.monitor import StabilityOptions
+
+    res = branch[0]
+    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    opts = ContinuationOptions(omega_min=4.0, omega_max=4.6, ds=0.003, ds_max=0.012, direction=-1, newton=NOPT,
+                               closed_loop_tol=None, omega_scale=1.0)
+    br = continue_branch(res, sol.x, 4.6, opts)
+    ok = br.converged
+    d = describe(res, True, (1.0, 1.0), StabilityOptions(max_gap=8))(br.omega[ok], br.x[ok])
+    t = d["tables"]["bifurcations"]
+    assert list(t["kind"][0]) == [PERIOD_DOUBLING]
+    (i,), (w_pd,) = t["index"][0], t["omega"][0]
+    om = br.omega[ok]
+    lo, hi = sorted((om[i], om[i + 1]))
+    y = _state(res, br.x[ok][i], om[i])
+    w_exact = brentq(lambda w: _pd_multiplier(y, w) + 1.0, lo - 0.01, hi + 0.01, xtol=1e-8)
+    assert abs(w_pd - w_exact) < hi - lo
+    # every point's flag on the right side of shooting's crossing; 13 of the 54 analysed
+    assert np.array_equal(d["stable"], om > w_exact)
+    assert np.array_equal(d["n_unstable"], (om < w_exact).astype(int))
+    assert d["stability_analysed"].sum() < 0.35 * len(om), (d["stability_analysed"].sum(), len(om))
+    assert np.all(np.isfinite(d["leading_multipliers"][d["stability_analysed"], 0]))

@@ -118,7 +118,15 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
                     x=np.array([[1.0, 2.0], [np.nan, np.nan], [3.0, 4.0]]), cpu_time=1.5)
     fb = FoundBranch(omega=np.array([1.0, 1.1]), x=np.array([[1.0, 2.0], [1.1, 2.1]]), converged=np.array([True, True]),
                      kind="isola", closed=True, status="+: closed loop", start=0, seeds=(0,),
-                     extras={"le_amplitude": np.array([1e-4, 2e-4])}, n_points_computed=2, cpu_time=0.5)
+                     extras={"le_amplitude": np.array([1e-4, 2e-4]), "harmonics": np.zeros((2, 3, 2)),
+                             "stable": np.array([True, False]),
+                             "n_unstable": np.array([0, 1]), "stability_analysed": np.array([True, True]),
+                             "leading_multipliers": np.array([[0.9, 0.5, 0.1, 0.1], [1.2, 0.9, 0.5, 0.1]]),
+                             "period_ratio": np.array([2, 2]),
+                             "tables": {"bifurcations": {"kind": (np.array(["period doubling"], dtype=object), "-"),
+                                                         "omega": (np.array([1.05]), "rad/s"),
+                                                         "index": (np.array([0]), "-")}}},
+                     n_points_computed=2, cpu_time=0.5)
     p = _Partial(tmp_path / "isolas.partial.h5", "hash-a")
     p.corrections("dlft", c)
     p.branch("dlft", 0, fb, 1)
@@ -132,5 +140,17 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     np.testing.assert_array_equal(c2.x[0], [1.0, 2.0])
     assert len(done) == 1 and done[0].kind == "isola" and done[0].seeds == (0,) and done[0].closed
     np.testing.assert_array_equal(done[0].x, fb.x)
+    for k in ("stable", "n_unstable", "stability_analysed", "leading_multipliers", "period_ratio"):
+        np.testing.assert_array_equal(done[0].extras[k], fb.extras[k])
+    t = done[0].extras["tables"]["bifurcations"]
+    assert list(t["kind"][0]) == ["period doubling"] and t["omega"] == (1.05, "rad/s") and t["index"][0] == [0]
+    # the final file carries the same table, read back with the branch
+    from pipelines.stages.isolas import _write_branch, read_isolas
+
+    with h5py.File(tmp_path / "isolas.h5", "w") as h5:
+        _write_branch(h5.create_group("dlft/branches/000"), done[0], 1)
+    b = read_isolas(tmp_path / "isolas.h5")["dlft"][0]
+    assert list(b.bifurcations["kind"]) == ["period doubling"] and b.bifurcations["omega"][0] == 1.05
+    np.testing.assert_array_equal(b.stable, [True, False])
     assert len(p.resume("rl")[1]) == 2
     assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").resume("dlft") == (None, [])  # other inputs
