@@ -6,8 +6,11 @@ For each treatment of [hbm] methods:
 - primary: a stable point near the primary resonance of its NFRC (hbm.stability.selection.
   choose_point: the stored verdicts when the NFRC was computed with [hbm] stability, else
   Floquet analyses of a few points near the peak);
-- isola: a point (stable if any) of a branch of kind "isola" in isolas.h5, when that file
-  exists and holds one (else the reason is recorded);
+- isola: a point (stable if any) of a branch of isolas.h5 that never meets the primary:
+  of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
+  rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
+  integration keeps, where the closed isolas have one stable stretch or none), when that
+  file exists and holds one (else the reason is recorded);
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan), the period-doubled branch switched to there and continued both
   ways (stored here), and a point of it (stable if any).
@@ -37,6 +40,8 @@ VALIDATION = Output("validation.h5")
 #: The isolas stage's artifact: the isola validation point is taken from it.
 ISOLAS = "isolas.h5"
 UPSTREAM = ("rom", "hbm", "isolas")
+#: kinds of isolas.h5 branches the isola point is taken from, in this order of preference
+ISOLA_KINDS = ("isola", "detached")
 
 KINDS = ("primary", "isola", "period_doubling")
 
@@ -199,11 +204,13 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     primary = _validate(ctx, rom, system, "primary", method, ch, res, path.name)
     # isola
     isolas = ctx.out / ISOLAS
-    branches = [br for br in read_branch_set(isolas, method) if br.kind == "isola"]
+    found = read_branch_set(isolas, method)
+    branches = [br for kind in ISOLA_KINDS for br in found if br.kind == kind]
     if not isolas.is_file():
         isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
     elif not branches:
-        isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind 'isola' for {method}")
+        isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind "
+                                                         f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}")
     else:
         update(f"{tag}: a point on an isola")
         best = None
@@ -217,7 +224,8 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
             if best is not None and best[1].stable:
                 break
         if best is None:
-            isola = ValidationPoint("isola", method, False, f"no converged point on the {len(branches)} isola(s)")
+            isola = ValidationPoint("isola", method, False, f"no converged point on the {len(branches)} branch(es) "
+                                                             f"off the primary")
         else:
             br, ch, r_b = best
             update(f"{tag} isola point: {opts.n_periods} periods of time integration")

@@ -25,16 +25,17 @@ def _records(scene, out):
 def write_isolas(path, nfrc, lo: int, hi: int, bump: float = 0.0):
     """A small isolas.h5 in the isolas stage's layout: for DLFT one "isola" (points lo..hi-1 of
     the NFRC file `nfrc`, whose unknowns are the same residual's) with dynamical content, and
-    one "bifurcated" branch; for RL only a "bifurcated" one. bump: added to an attribute so
-    that the file's content changes."""
-    s = load_branch(nfrc)
-    b, ex = s.branch, s.extras
+    one "bifurcated" branch; for RL a "bifurcated" one and a "detached" one (points lo..hi-1
+    of nfrc_rl.h5 beside `nfrc`). bump: added to an attribute so that the file's content
+    changes."""
     with h5py.File(path, "r") as h5:  # the isolas stage's own file: its provenance keeps it current
         keep = {k: h5.attrs[k] for k in h5.attrs if k != art.CHECKSUMS}
     path.unlink()  # a link into the shared coarse run: replace it, never write through it
     with h5py.File(path, "w") as h5:
         h5.attrs.update(keep)
-        for method, kinds in (("dlft", ("isola", "bifurcated")), ("rl", ("bifurcated",))):
+        for method, kinds in (("dlft", ("isola", "bifurcated")), ("rl", ("bifurcated", "detached"))):
+            s = load_branch(nfrc.parent / f"nfrc_{method}.h5")
+            b, ex = s.branch, s.extras
             g = h5.create_group(method)
             g.attrs.update(n_seeds=3, n_converged=2, n_distinct=len(kinds), n_branches=len(kinds), cpu_time=1.0 + bump,
                            wall_time=1.0, status="fixture")
@@ -44,7 +45,7 @@ def write_isolas(path, nfrc, lo: int, hi: int, bump: float = 0.0):
             sd["converged"] = np.array([True, True, False])
             sd["branch"] = np.array([0, len(kinds) - 1, -1])
             for n, kind in enumerate(kinds):
-                sl = slice(lo, hi) if kind == "isola" else slice(0, 4)
+                sl = slice(lo, hi) if kind in ("isola", "detached") else slice(0, 4)
                 bg = g.create_group(f"branches/{n:03d}")
                 m = len(b.omega[sl])
                 bg["omega"], bg["x"], bg["converged"] = b.omega[sl], b.x[sl], b.converged[sl]
@@ -109,7 +110,7 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
     # the search of the short scene finds no isola: a recorded reason, not an error
     assert rec["validation"][0] == "computed"
     for t in (a.dlft, a.rl):
-        assert not t.isola.found and "no branch of kind 'isola'" in t.isola.reason
+        assert not t.isola.found and "no branch of kind 'isola' or 'detached'" in t.isola.reason
         p = t.primary
         assert p.found and p.ti is not None and p.ti.n_periods == 20 and p.ti.deviation.shape == (20, 2)
         # both treatments compared at the point: its own orbit, the other's by Newton (or why not)
@@ -126,7 +127,10 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
     assert iso.found and iso.branch == "isolas.h5 dlft/branches/000" and 0 <= iso.index < 9
     omega = load_branch(out / "nfrc_dlft.h5").branch.omega
     assert iso.omega == omega[3 + iso.index] and iso.ti is not None
-    assert not b.rl.isola.found and "no branch of kind 'isola'" in b.rl.isola.reason
+    # RL has no isola but a "detached" branch, which never meets the primary either: its point
+    iso = b.rl.isola
+    assert iso.found and iso.branch == "isolas.h5 rl/branches/001" and 0 <= iso.index < 9
+    assert iso.omega == load_branch(out / "nfrc_rl.h5").branch.omega[3 + iso.index] and iso.ti is not None
     # the search's inputs change: it reruns, and so does the validation after it
     assert rec_changed["isolas"][0] == "computed" and rec_changed["validation"][0] == "computed"
     assert "isolas.h5" in rec_changed["validation"][1]
