@@ -29,7 +29,7 @@ def main():
     from dataclasses import replace
 
     from hbm.harmonic.nfrc import compute_nfrc
-    from hbm.isolas.harmonic import (HbmProblem, describe, dominant_harmonic, modal_seeds, rl_seeds, search_options,
+    from hbm.isolas.harmonic import (BranchDescriber, HbmProblem, dominant_harmonic, modal_seeds, rl_seeds, search_options,
                                      ti_seeds)
     from hbm.isolas.membership import KnownBranch
     from hbm.isolas.options import IsolaOptions
@@ -97,7 +97,7 @@ def main():
 
         t0 = time.perf_counter()
         r = search(problem, seeds, known, search_options(hbm, iso), seed_factory=problem.for_seeds(),
-                   describe=describe(res, False),
+                   describe=BranchDescriber(problem),
                    on_progress=on_progress, on_branch=on_branch)
         done[method] = r
         kinds = {}

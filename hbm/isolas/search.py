@@ -36,6 +36,7 @@ import concurrent.futures
 import math
 import multiprocessing
 import os
+import pickle
 import sys
 import time
 from dataclasses import dataclass, field, replace
@@ -341,6 +342,47 @@ def _merge(first: Branch, second: Branch | None):
             np.concatenate([second.converged[::-1], first.converged[1:]]))
 
 
+#: fewest points per chunk when a branch is described on two processes
+_MIN_CHUNK = 16
+
+
+def _run_describe(describe, omega, x):
+    t = time.process_time()
+    return dict(describe(omega, x)), time.process_time() - t
+
+
+def _described(describe, omega: np.ndarray, x: np.ndarray, pool=None) -> tuple[dict, float]:
+    """(describe's dict, CPU s spent in worker processes). With a pool, the points are
+    described in two chunks at once, sharing one point k, where Omega runs monotonically
+    through k-1, k, k+1: what describe finds between two neighbours (e.g. a stability change)
+    lies in one chunk, and no turn in Omega is cut. The chunks' per-point arrays are joined
+    (k once) and their tables concatenated, the second's `index` shifted by k."""
+    n = len(omega)
+    if pool is None or n < 2 * _MIN_CHUNK:
+        return dict(describe(omega, x)), 0.0
+    d = np.diff(omega)
+    mid = n // 2
+    k = next((j for r in range(n // 2 - _MIN_CHUNK) for j in (mid - r, mid + r) if d[j - 1] * d[j] > 0), None)
+    if k is None:
+        return dict(describe(omega, x)), 0.0
+    try:
+        pickle.dumps(describe)
+    except (pickle.PicklingError, AttributeError, TypeError):  # e.g. a closure: described here
+        return dict(describe(omega, x)), 0.0
+    fa = pool.submit(_run_describe, describe, omega[:k + 1], x[:k + 1])
+    fb = pool.submit(_run_describe, describe, omega[k:], x[k:])
+    (a, ca), (b, cb) = fa.result(), fb.result()
+    ta, tb = a.pop("tables", {}), _reindexed(b.pop("tables", {}), np.arange(k, n))
+    out = {name: np.concatenate([np.asarray(a[name]), np.asarray(b[name])[1:]]) for name in a}
+    tables = {}
+    for name in list(ta) + [t for t in tb if t not in ta]:
+        parts = [t[name] for t in (ta, tb) if name in t]
+        tables[name] = {c: (np.concatenate([np.asarray(q[c][0]) for q in parts]), parts[0][c][1]) for c in parts[0]}
+    if tables:
+        out["tables"] = tables
+    return out, ca + cb
+
+
 def _reindexed(tables: dict, positions: np.ndarray) -> dict:
     """describe's tables ({name: {column: (array, unit)}}) with their `index` column (a
     position among the described, converged points) mapped to the branch's points."""
@@ -473,7 +515,9 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             kind, closed = _classify(halves, omega, x, bifurcation_points, options)
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
             ok = np.asarray(conv, bool)
-            extras = dict(describe(omega[ok], x[ok])) if describe is not None and ok.any() else {}
+            extras, cpu_desc = _described(describe, omega[ok], x[ok], pool) if describe is not None and ok.any() \
+                else ({}, 0.0)
+            cpu_workers += cpu_desc
             tables = _reindexed(extras.pop("tables", {}), np.flatnonzero(ok))
             if extras:  # per-point data of the converged points, nan elsewhere
                 full = {}
@@ -488,7 +532,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 extras["tables"] = tables
             fb = FoundBranch(omega=omega, x=x, converged=conv, kind=kind, closed=closed, status=status, start=i,
                              seeds=(i,), extras=extras, n_points_computed=computed,
-                             cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0))
+                             cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0) + cpu_desc)
             found.append(fb)
             owner[i] = len(found) - 1
             if on_branch is not None:

@@ -286,8 +286,8 @@ def _known(out, method: str):
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the seeds' Newton corrections are shared among the ranks, rank 0
     continues the branches and writes."""
-    from hbm.isolas.harmonic import (HbmProblem, describe, dominant_harmonic, modal_seeds, rl_seeds, search_options,
-                                     ti_seeds)
+    from hbm.isolas.harmonic import (BranchDescriber, HbmProblem, dominant_harmonic, modal_seeds, rl_seeds,
+                                     search_options, ti_seeds)
     from hbm.isolas.search import search
     from pipelines.branch_store import partial_path
     from pipelines.parallel import is_root, on_root, world
@@ -309,7 +309,7 @@ def _compute(ctx: Context, outputs) -> None:
     omegas = np.linspace(lo, hi, iso.n_omega)
     opts = search_options(hbm, iso)
     co = opts.continuation
-    stab = None
+    stab = None  # the monitor's options: [hbm] stability_max_gap, as for the NFRC
     if hbm.stability:
         from hbm.stability.monitor import StabilityOptions
 
@@ -346,7 +346,8 @@ def _compute(ctx: Context, outputs) -> None:
 
             result = search(problem, seeds, known, opts, comm=comm, corrections=corrections,
                             seed_factory=problem.for_seeds(), branches=done,
-                            bifurcation_points=bif, describe=describe(res, hbm.stability, (co.x_scale, co.omega_scale), stab),
+                            bifurcation_points=bif,
+                            describe=BranchDescriber(problem, hbm.stability, (co.x_scale, co.omega_scale), stab),
                             on_corrections=lambda c, m=method: partial.corrections(m, c) if root else None,
                             on_branch=lambda i, fb, m=method: partial.branch(m, i, fb, res.nu) if root else None,
                             on_progress=on_progress)

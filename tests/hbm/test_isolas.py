@@ -249,3 +249,25 @@ def test_describe_tables_are_indexed_on_the_branch_points():
     t = _reindexed({"b": {"index": (np.array([0, 3]), "-"), "omega": (np.array([1.0, 2.0]), "rad/s")}},
                    np.array([1, 2, 3, 5]))
     assert t["b"]["index"][0].tolist() == [1, 5] and t["b"]["omega"][0].tolist() == [1.0, 2.0]
+
+
+def test_a_branch_described_in_two_chunks_is_described_as_a_whole():
+    """The search describes long branches on its two processes (hbm.isolas.search._described):
+    per-point data and tables (re-indexed) as from one call, even with a turn in Omega at
+    the middle of the points (the split moves off it)."""
+    import concurrent.futures
+
+    from hbm.isolas.search import _described
+
+    s = np.linspace(0.0, 1.0, 101)
+    omega = 1.0 + 0.2 * np.sin(2 * np.pi * s * 1.5 + np.pi / 2 - 1.5 * np.pi)  # turns at points 33 and 67
+    omega[50] = omega[49] + 0.5 * (omega[51] - omega[49])
+    omega[51] = omega[50]  # a flat step at the middle: no strict monotony there
+    x = np.column_stack([np.cos(7 * s), np.sin(7 * s)])
+    whole, _ = _described(turns, omega, x)
+    assert len(whole["tables"]["turns"]["index"][0]) >= 2
+    with concurrent.futures.ThreadPoolExecutor(2) as pool:
+        parts, _ = _described(turns, omega, x, pool)
+    np.testing.assert_array_equal(parts["amplitude"], whole["amplitude"])
+    for c in ("index", "omega"):
+        np.testing.assert_array_equal(parts["tables"]["turns"][c][0], whole["tables"]["turns"][c][0])
