@@ -228,7 +228,7 @@ def _stability_runs(stable, converged):
 def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0), unit: str = "mm",
                       title: str | None = None, n_lobes: int = 2) -> Path:
     """The solution set (paper Fig. 8): every branch's LE amplitude against Omega, stable parts
-    solid, unstable dashed, stability unknown dotted; bifurcations marked by kind; the TI
+    solid, unstable dashed, stability unknown dotted; the bifurcations given marked by kind; the TI
     sweep's points by periodicity class.
 
     curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude

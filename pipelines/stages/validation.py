@@ -322,12 +322,28 @@ def _signal_files(scene) -> tuple[str, ...]:
     return tuple(f for m in scene.hbm.methods for f in (f"validation_{m}.png", f"contact_{m}.png"))
 
 
+def _stability_bounds(table: dict, stable) -> list:
+    """[(kind, omega, le_amplitude)] of the bifurcations of a branch's table ({column:
+    array}) where a stable stretch begins or ends (the stable flag differs between the two
+    points around it). The others, crossings among orbits already unstable, stay in the
+    files: on the coarse rotor 67 ROM a single long isola has 100 to 250 of them, which
+    would bury the figure's curves."""
+    kinds, om, amp, idx = (np.asarray(table[k]) for k in ("kind", "omega", "le_amplitude", "index"))
+    if stable is None:
+        return list(zip(kinds, om, amp))
+    st = np.asarray(stable, bool)
+    j = np.clip(idx.astype(np.int64), 0, len(st) - 2) if len(st) > 1 else idx.astype(np.int64) * 0
+    keep = st[j] != st[np.minimum(j + 1, len(st) - 1)]
+    return [(str(k), w, a) for k, w, a, ok in zip(kinds, om, amp, keep) if ok]
+
+
 def draw_solution_set(ctx: Context) -> None:
     """Fig. 8: the solution set of each treatment (solution_set_METHOD.png) and both together
-    (solution_set.png), from the files that exist."""
+    (solution_set.png), from the files that exist; the bifurcations marked are those where a
+    stable stretch begins or ends (_stability_bounds)."""
     import h5py
 
-    from pipelines.branch_store import load_branch
+    from pipelines.branch_store import load_branch, read_table
     from pipelines.figures import plot_solution_set
 
     scene, out = ctx.scene, ctx.out
@@ -340,15 +356,13 @@ def draw_solution_set(ctx: Context) -> None:
             lines.append(("primary", s.branch.omega, s.extras["le_amplitude"], s.branch.converged, s.extras.get("stable")))
             with h5py.File(path, "r") as h5:
                 if "bifurcations" in h5:
-                    g = h5["bifurcations"]
-                    kinds = [k.decode() if isinstance(k, bytes) else str(k) for k in g["kind"][()]]
-                    marks += list(zip(kinds, g["omega"][()], g["le_amplitude"][()]))
+                    marks += _stability_bounds({k: v for k, (v, _) in read_table(h5["bifurcations"]).items()},
+                                               s.extras.get("stable"))
         for br in read_branch_set(out / ISOLAS, m):
             if br.kind != "primary":
                 lines.append((br.kind, br.omega, br.le_amplitude, br.converged, br.stable))
                 if br.bifurcations is not None:
-                    t = br.bifurcations
-                    marks += list(zip(t["kind"], t["omega"], t["le_amplitude"]))
+                    marks += _stability_bounds(br.bifurcations, br.stable)
         if (out / VALIDATION.file).is_file():
             t = getattr(read_validation(out), m)
             if t is not None:

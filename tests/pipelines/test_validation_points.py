@@ -146,3 +146,16 @@ def test_figures_are_drawn_from_the_artifacts(runs):
     # the overlay holds both treatments' curves: it differs from a single one
     both, one = _check_png(figs / "solution_set.png"), _check_png(figs / "solution_set_dlft.png")
     assert np.abs(both - one).max(axis=2).__gt__(0.2).sum() > 200
+
+
+def test_the_solution_set_marks_the_ends_of_stable_stretches():
+    """Fig. 8 marks the bifurcations where the stable flag changes, not those among orbits
+    already unstable (which stay in the files)."""
+    from pipelines.stages.validation import _stability_bounds
+
+    stable = np.array([True, True, False, False, False, True])
+    table = {"kind": np.array(["period doubling", "Neimark-Sacker", "fold", "branch point"], dtype=object),
+             "omega": np.array([1.5, 2.5, 3.5, 4.5]), "le_amplitude": np.array([1e-3, 2e-3, 3e-3, 4e-3]),
+             "index": np.array([1, 2, 3, 4])}
+    assert _stability_bounds(table, stable) == [("period doubling", 1.5, 1e-3), ("branch point", 4.5, 4e-3)]
+    assert len(_stability_bounds(table, None)) == 4  # no stability stored: all of them
