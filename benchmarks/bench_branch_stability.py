@@ -8,7 +8,8 @@ verdict) from up to --march stable points per branch, spread over its stable poi
 
 Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE --out OUT`).
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
-the largest multiplier modulus) and one per march (stays or leaves, growth, deviation of the
+the largest multiplier modulus, the minimal periods met and the median CPU time of one
+analysis) and one per march (stays or leaves, growth, deviation of the
 last 10 periods, largest contact force at the end).
 """
 from __future__ import annotations
@@ -55,9 +56,12 @@ def main() -> None:
             res = build_residual(rom, scene.casing, scene.contact,
                                  _options_for(scene.hbm, br.x.shape[1], n_r, br.subharmonic), method=method)
             idx = [i for i in range(0, len(br.omega), a.every) if br.converged[i]]
-            largest, stable = [], []
+            largest, stable, cost, ratios = [], [], [], set()
             for i in idx:
-                spectrum, _ = orbit_spectrum(res, br.x[i], float(br.omega[i]))
+                c = time.process_time()
+                spectrum, g = orbit_spectrum(res, br.x[i], float(br.omega[i]))
+                cost.append(time.process_time() - c)
+                ratios.add(int(g))
                 largest.append(float(np.abs(spectrum.multipliers).max()))
                 stable.append(spectrum.n_unstable == 0)
             largest, stable, idx = np.array(largest), np.array(stable, bool), np.array(idx)
@@ -65,7 +69,8 @@ def main() -> None:
                     if stable.any() else "none stable")
             print(f"{method} {br.name} {br.kind}{' (closed)' if br.closed else ''}, {br.omega.min():.0f}-"
                   f"{br.omega.max():.0f} rad/s, {len(br.omega)} points: {len(idx)} analysed, {span}; largest |mu| "
-                  f"{largest.min():.3g} to {largest.max():.3g} (median {np.median(largest):.3g}); "
+                  f"{largest.min():.3g} to {largest.max():.3g} (median {np.median(largest):.3g}); minimal period "
+                  f"T / g, g in {sorted(ratios)}; one analysis {np.median(cost):.2f} s CPU (median); "
                   f"{time.process_time() - t0:.0f} s CPU", flush=True)
             picks = idx[stable]
             if len(picks) > a.march:
