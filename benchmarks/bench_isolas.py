@@ -29,8 +29,8 @@ def main():
     from dataclasses import replace
 
     from hbm.harmonic.nfrc import compute_nfrc
-    from hbm.isolas.harmonic import (BranchDescriber, HbmProblem, dominant_harmonic, modal_seeds, rl_seeds, search_options,
-                                     ti_seeds)
+    from hbm.isolas.harmonic import (BranchDescriber, HbmProblem, dominant_harmonic, modal_seeds, rl_seeds,
+                                     search_options, ti_seeds)
     from hbm.isolas.membership import KnownBranch
     from hbm.isolas.options import IsolaOptions
     from hbm.isolas.search import search
