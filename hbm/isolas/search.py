@@ -25,7 +25,9 @@ Two phases:
      detached: otherwise (an end on the range's bound, never meeting the primary).
    A half that merges into a branch found earlier makes the new one part of it: its seeds
    go to that branch, its points are dropped. Seeds lying on a branch found later are
-   attributed to it and never continued.
+   attributed to it and never continued. The caller's `describe` (per-point data, e.g. the
+   stability, and per-branch tables) runs on the merged branch, in two chunks at once on
+   the two processes when it is long (_described).
 
 Resume: `search` takes the corrections and finished branches of an interrupted run of the
 same inputs and only computes what is missing; the result is the uninterrupted one.
