@@ -136,20 +136,28 @@ class ValidationOptions:
     peak; ~0.7 s each). n_scan: points analysed along a branch whose
     file holds no stability, to find where it changes (24: the cost of about 2 % of an NFRC
     at N_h = 40; a stretch between two scanned points can hide two changes). pd_points: most
-    points of the period-doubled branch each way from the switch.
+    points of the period-doubled branch each way from the switch. pd_tries: period doublings
+    tried until time integration stays on the doubled branch's point: the NFRC's first, then
+    (when the isola search stored stability) those that end a stable stretch of one of its
+    branches, longest stretch first. Default 4: on the coarse rotor 67 ROM the points of the
+    NFRCs' doubled branches, Hill-stable, fall into the friction lock under time
+    integration, and so do those of two of DLFT's detached branch; the 820 rad/s one of that
+    branch is kept. Each try costs a switch, 2 pd_points continuation points with stability
+    and a march (~2-3 min there).
     """
 
     n_periods: int = 100
     n_candidates: int = 24
     n_scan: int = 24
     pd_points: int = 40
+    pd_tries: int = 4
 
     def __post_init__(self):
         if self.n_periods < 3:
             raise ValueError(f"n_periods must be >= 3, got {self.n_periods}")
-        if self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2:
-            raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, got {self.n_candidates}, "
-                             f"{self.n_scan}, {self.pd_points}")
+        if self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2 or self.pd_tries < 1:
+            raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, pd_tries >= 1, got "
+                             f"{self.n_candidates}, {self.n_scan}, {self.pd_points}, {self.pd_tries}")
 
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange

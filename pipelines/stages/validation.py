@@ -13,7 +13,9 @@ For each treatment of [hbm] methods:
   file exists and holds one (else the reason is recorded);
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan), the period-doubled branch switched to there and continued both
-  ways (stored here), and a point of it (stable if any).
+  ways (stored here), and a point of it (stable if any); when time integration leaves that
+  point, the period doublings that end stable stretches of the isola search's branches
+  (doubling_candidates), up to [validation] pd_tries in all, until it stays on one.
 From each point time integration is marched [validation] n_periods periods of the orbit
 (hbm.ti.validation.march_from_hbm) and its last period compared with the orbit itself and
 with the other treatment's orbit at the same Omega, corrected by damped Newton from the
@@ -28,6 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hbm.stability.bifurcation import PERIOD_DOUBLING
 from hbm.stability.selection import DoubledBranch
 from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, OrbitComparison, OrbitValidation
 from pipelines import artifacts as art
@@ -184,9 +187,8 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch) -> Valid
 
 
 def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
-    from hbm.harmonic.nfrc import default_continuation
     from hbm.harmonic.residual import build_residual
-    from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
+    from hbm.stability.selection import choose_point
     from pipelines.branch_store import load_branch
 
     scene, opts = ctx.scene, ctx.scene.validation
@@ -231,29 +233,91 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
             update(f"{tag} isola point: {opts.n_periods} periods of time integration")
             isola = _validate(ctx, rom, system, "isola", method, ch, r_b, f"{ISOLAS} {method}/branches/{br.name}")
     # period doubling
-    update(f"{tag}: period doubling of the NFRC")
-    loc = locate_period_doubling(res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets=_pd_brackets(path),
-                                 n_scan=opts.n_scan)
-    if loc.bifurcation is None:
-        pd_branch = DoubledBranch(False, loc.reason)
-        pd = ValidationPoint("period_doubling", method, False, loc.reason)
-    else:
-        update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s")
-        pd_branch, r_pd = continue_doubled_branch(res, loc.u, loc.omega, loc.bifurcation,
-                                                  default_continuation(scene.hbm), n_points=opts.pd_points)
-        pd_branch = replace(pd_branch, reason=f"{loc.reason}; {pd_branch.reason}")
-        if not pd_branch.found:
-            pd = ValidationPoint("period_doubling", method, False, pd_branch.reason)
-        else:
-            # points that carry the new frequencies: the start's neighbours are still the old orbit
-            far = pd_branch.new_content >= 0.05
-            ch = choose_point(r_pd, pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
-                              np.ones(len(pd_branch.omega), bool), pd_branch.stable,
-                              eligible=far if far.any() else None, n_candidates=opts.n_candidates)
-            update(f"{tag} period-doubled point: {opts.n_periods} periods of time integration")
-            pd = _validate(ctx, rom, system, "period_doubling", method, ch, r_pd, f"{VALIDATION.file} period-doubled "
-                                                                                  f"branch of {method}")
+    pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update)
     return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0)
+
+
+def doubling_candidates(branches) -> list:
+    """[(branch, index)]: the period doublings of isola-search branches (IsolaBranch with a
+    bifurcation table and stable flags) where a stable stretch begins or ends, the
+    longest stretch first; index: the branch point after which the doubling lies. A
+    supercritical doubling hands its stability on to the doubled branch; a long stable
+    stretch says the old orbit is robustly stable there, away from the friction lock."""
+    out = []
+    for br in branches:
+        t, st = br.bifurcations, br.stable
+        if t is None or st is None:
+            continue
+        st = np.asarray(st, bool)
+        for kind, i in zip(t["kind"], np.asarray(t["index"], dtype=np.int64)):
+            i = int(i)
+            if kind != PERIOD_DOUBLING or not 0 <= i < len(st) - 1 or st[i] == st[i + 1]:
+                continue
+            j = i if st[i] else i + 1
+            lo, hi = j, j
+            while lo > 0 and st[lo - 1]:
+                lo -= 1
+            while hi + 1 < len(st) and st[hi + 1]:
+                hi += 1
+            out.append((hi - lo + 1, br, i))
+    out.sort(key=lambda c: -c[0])  # stable sort: branch order, then position, among equal stretches
+    return [(br, i) for _, br, i in out]
+
+
+def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update):
+    """(ValidationPoint, DoubledBranch) of the period-doubling point: the NFRC's first period
+    doubling, then doubling_candidates of isolas.h5, up to [validation] pd_tries, until time
+    integration stays on the doubled branch's chosen point (the first try is kept when none
+    does; the reason lists every try)."""
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
+
+    scene, opts, tag = ctx.scene, ctx.scene.validation, method.upper()
+    sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, _pd_brackets(path))]
+    if opts.pd_tries > 1:
+        for br, i in doubling_candidates(read_branch_set(ctx.out / ISOLAS, method))[: opts.pd_tries - 1]:
+            r_b = build_residual(rom, scene.casing, scene.contact,
+                                 _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic), method=method)
+            sources.append((f"{ISOLAS} {method}/branches/{br.name}", r_b, br.omega, br.x, br.le_amplitude,
+                            br.converged, [i]))
+    first, tried = None, []
+    for where, r_s, omega, x, amp, conv, brackets in sources:
+        update(f"{tag}: period doubling of {where}")
+        loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan)
+        if loc.bifurcation is None:
+            result = (ValidationPoint("period_doubling", method, False, f"{where}: {loc.reason}"),
+                      DoubledBranch(False, f"{where}: {loc.reason}"))
+        else:
+            update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
+            pd_branch, r_pd = continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation,
+                                                      default_continuation(scene.hbm), n_points=opts.pd_points)
+            pd_branch = replace(pd_branch, reason=f"{where}: {loc.reason}; {pd_branch.reason}")
+            if not pd_branch.found:
+                result = (ValidationPoint("period_doubling", method, False, pd_branch.reason), pd_branch)
+            else:
+                # points that carry the new frequencies: the start's neighbours are still the old orbit
+                far = pd_branch.new_content >= 0.05
+                ch = choose_point(r_pd, pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
+                                  np.ones(len(pd_branch.omega), bool), pd_branch.stable,
+                                  eligible=far if far.any() else None, n_candidates=opts.n_candidates)
+                update(f"{tag} period-doubled point: {opts.n_periods} periods of time integration")
+                result = (_validate(ctx, rom, system, "period_doubling", method, ch, r_pd,
+                                    f"{VALIDATION.file} period-doubled branch of {method}, from {where}"), pd_branch)
+        p = result[0]
+        stays = p.found and p.ti is not None and bool(p.ti.stays)
+        tried.append(f"{where}: PD at {loc.bifurcation.omega:.1f} rad/s, point at {p.omega:.1f} rad/s, time integration "
+                     f"{'stays' if stays else 'leaves'}" if p.found else f"{where}: none ({p.reason})")
+        first = first or result
+        if stays:
+            break
+    else:
+        result = first
+    if len(tried) > 1:
+        note = f"tried {len(tried)}: " + " | ".join(tried)
+        result = (replace(result[0], reason=f"{result[0].reason}; {note}"),
+                  replace(result[1], reason=f"{result[1].reason}; {note}"))
+    return result
 
 
 def _summary(t: TreatmentValidation) -> list[str]:

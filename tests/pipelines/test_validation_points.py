@@ -159,3 +159,22 @@ def test_the_solution_set_marks_the_ends_of_stable_stretches():
              "index": np.array([1, 2, 3, 4])}
     assert _stability_bounds(table, stable) == [("period doubling", 1.5, 1e-3), ("branch point", 4.5, 4e-3)]
     assert len(_stability_bounds(table, None)) == 4  # no stability stored: all of them
+
+
+def test_period_doublings_to_try_end_stable_stretches_longest_first():
+    from types import SimpleNamespace
+
+    from pipelines.stages.validation import doubling_candidates
+
+    def branch(name, stable, kinds, index):
+        return SimpleNamespace(name=name, stable=np.array(stable, bool),
+                               bifurcations={"kind": np.array(kinds, dtype=object), "index": np.array(index)})
+
+    a = branch("000", [0, 1, 1, 0, 0, 0], ["period doubling", "period doubling", "Neimark-Sacker"], [0, 2, 4])
+    b = branch("001", [0, 0, 1, 1, 1, 1, 0], ["period doubling", "fold", "period doubling", "period doubling"],
+               [1, 5, 5, 3])
+    c = SimpleNamespace(name="002", stable=None, bifurcations=None)  # a search without stability
+    got = [(br.name, i) for br, i in doubling_candidates([a, b, c])]
+    # b's stretch of 4 (both its ends), then a's of 2; the fold, the Neimark-Sacker and the
+    # doubling inside b's stretch (3 -> 4, both stable) are not candidates
+    assert got == [("001", 1), ("001", 5), ("000", 0), ("000", 2)]
