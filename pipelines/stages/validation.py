@@ -240,9 +240,11 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
 def doubling_candidates(branches) -> list:
     """[(branch, index)]: the period doublings of isola-search branches (IsolaBranch with a
     bifurcation table and stable flags) where a stable stretch begins or ends, the
-    longest stretch first; index: the branch point after which the doubling lies. A
-    supercritical doubling hands its stability on to the doubled branch; a long stable
-    stretch says the old orbit is robustly stable there, away from the friction lock."""
+    longest stretch first; index: the branch point after which the doubling lies. Why these:
+    a supercritical doubling hands the old orbit's stability on to the doubled branch, and
+    the longest stable stretches are the likeliest to be the stable orbits that time
+    integration keeps (a heuristic: on the coarse rotor 67 ROM the third candidate of DLFT
+    and the second of RL were the first kept)."""
     out = []
     for br in branches:
         t, st = br.bifurcations, br.stable
