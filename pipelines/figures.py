@@ -308,7 +308,7 @@ def plot_validation_signals(points: dict, out_png, *, title: str | None = None) 
             ax.grid(True, lw=0.4, alpha=0.5)
             ax.set_ylabel(f"{'radial displacement' if what == 'displacement' else 'normal force'} ({unit})", fontsize=8)
             stab = "stable" if p.stable else "unstable"
-            ax.set_title(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {'stays' if p.ti.stays else 'leaves'})",
+            ax.set_title(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {p.ti.verdict()})",
                          fontsize=8)
         row[0].legend(fontsize=6, loc="best", ncol=3)
     for ax in axes[-1]:

@@ -9,7 +9,11 @@ Two things are measured:
 
 - whether time integration stays on the orbit: the distance to the orbit period by period
   (`deviation`), the growth of that distance over the march, and the period-to-period
-  change over the last period (`drift`); a check of the orbit's stability verdict;
+  change over the last period (`drift`); a check of the orbit's stability verdict. When it
+  leaves, where it goes: a node pressed on the casing over the whole last tenth of the
+  march is told apart (`outcome` "permanent contact"): with friction above the
+  contact set's friction-lock limit (rom.friction_lock) that is the lock, which a rubbing
+  orbit's stability says nothing about;
 - how the last period compares with each HBM orbit given (the orbit marched from, and the
   other contact treatment's orbit at the same Omega): radial displacement at the LE and TE
   sample by sample, and normal contact force. Forces are not compared sample by sample: the
@@ -66,6 +70,11 @@ class OrbitValidation:
     growth: deviation over the last tenth of the periods over that of the first tenth, both
     raised to DEVIATION_FLOOR (max over LE and TE), -. stays: growth <= GROWTH_TOL and that last deviation <= DEVIATION_TOL.
     max_penetration: largest r_j - d_j after the contact correction, m.
+    contact_fraction: share of the samples of the last tenth of the periods where each
+    boundary node (LE to TE) carries a normal force, (n_b,), -.
+    outcome: "stays" (= stays), "permanent contact" (left the orbit, and a node never lets go
+    of the casing over the last tenth of the periods: the friction lock when mu >= the ROM's
+    mu_set) or "leaves" (anything else).
     """
 
     omega: float = field(metadata={"unit": "rad/s"})
@@ -84,6 +93,24 @@ class OrbitValidation:
     growth: float = field(metadata={"unit": "1"})
     stays: bool = field(metadata={"unit": "1"})
     max_penetration: float = field(metadata={"unit": "m"})
+    contact_fraction: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
+    outcome: str = ""
+
+    @property
+    def locked_nodes(self) -> np.ndarray:
+        """Boundary nodes (LE = 0) in contact over the whole last tenth of the march, (k,)."""
+        return np.flatnonzero(np.asarray(self.contact_fraction) >= 1.0)
+
+    def verdict(self) -> str:
+        """In words: "stays", "leaves", or "leaves for permanent contact (TE)" naming the
+        locked nodes (LE, TE, or "node j" counted from the LE at 0)."""
+        if self.stays:
+            return "stays"
+        if self.outcome != "permanent contact":
+            return "leaves"
+        nb = len(self.contact_fraction)
+        names = ["LE" if j == 0 else "TE" if j == nb - 1 else f"node {j}" for j in self.locked_nodes]
+        return f"leaves for permanent contact ({', '.join(names)})"
 
 
 @dataclass(frozen=True)
@@ -159,12 +186,14 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     x0 = c[0] + (c[1::2] * np.cos(ph) + c[2::2] * np.sin(ph)).sum(axis=0)
     v0 = (k * w * (-c[1::2] * np.sin(ph) + c[2::2] * np.cos(ph))).sum(axis=0)
     shifted = replace(system, theta=system.theta + sense * omega * t0)  # the same problem started at t0
-    rec = Recording(start=stride, stride=stride, n_samples=n_periods * n_s, dofs=cols, force_nodes=nodes)
+    # forces of every contact node: a node other than the three compared may be the one that locks
+    rec = Recording(start=stride, stride=stride, n_samples=n_periods * n_s, dofs=cols, force_nodes=np.arange(nb))
     # one stride more than the recorded span: the last force sample is a block mean reaching
     # half a stride past it (multipliers of steps never marched read 0)
     m = march(shifted, casing, mu, omega, x0, v0, h, n_periods * n_per + stride, rec)
     x = m.displacement.reshape(n_periods, n_s, 3)
-    f = m.normal_force.reshape(n_periods, n_s, 3)
+    f_all = m.normal_force.reshape(n_periods, n_s, nb)
+    f = f_all[:, :, nodes]
     at = (i0 + 1 + np.arange(n_s)) % n_s  # grid index of each sample of a period
     ref = grid.to_time(c[:, cols])  # (n_s, 3)
     amp = np.maximum(0.5 * np.ptp(ref, axis=0), 1e-300)
@@ -173,6 +202,12 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     n10 = max(1, n_periods // 10)
     first, last = dev[:n10].max(axis=0), dev[-n10:].max(axis=0)
     growth = float(np.max(np.maximum(last, DEVIATION_FLOOR) / np.maximum(first, DEVIATION_FLOOR)))
+    stays = bool(growth <= GROWTH_TOL and last.max() <= DEVIATION_TOL)
+    # Permanent contact does not ask the march to have settled: past the friction-lock limit
+    # the contact response is not unique, and a locked node's force may wander from period
+    # to period (by 1-2 % on the two-node toy of tests/hbm/test_friction_lock_ti.py).
+    in_contact = (f_all[-n10:] > 0.0).mean(axis=(0, 1))  # over the last tenth of the march
+    outcome = "stays" if stays else ("permanent contact" if (in_contact >= 1.0).any() else "leaves")
     disp = np.empty((n_s, 3))
     disp[at] = x[-1]
     force = np.empty((n_s, 3))
@@ -180,8 +215,8 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     return OrbitValidation(omega=float(omega), subharmonic=int(subharmonic), n_periods=int(n_periods), dt=float(h),
                            t0=float(t0), nodes=nodes, tau=grid.tau, distance=d_all[:, nodes], displacement=disp,
                            force=grid.to_time(grid.to_freq(force)), force_peak=f[-1].max(axis=0), deviation=dev,
-                           drift=drift, growth=growth, stays=bool(growth <= GROWTH_TOL and last.max() <= DEVIATION_TOL),
-                           max_penetration=float(m.max_penetration))
+                           drift=drift, growth=growth, stays=stays, max_penetration=float(m.max_penetration),
+                           contact_fraction=in_contact, outcome=outcome)
 
 
 def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.ndarray | None,

@@ -309,7 +309,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
         p = result[0]
         stays = p.found and p.ti is not None and bool(p.ti.stays)
         tried.append(f"{where}: PD at {loc.bifurcation.omega:.1f} rad/s, point at {p.omega:.1f} rad/s, time integration "
-                     f"{'stays' if stays else 'leaves'}" if p.found else f"{where}: none ({p.reason})")
+                     f"{ti_verdict(p.ti, rom, scene.contact.mu)}" if p.found else f"{where}: none ({p.reason})")
         first = first or result
         if stays:
             break
@@ -322,7 +322,17 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     return result
 
 
-def _summary(t: TreatmentValidation) -> list[str]:
+def ti_verdict(ti: OrbitValidation, rom, mu: float) -> str:
+    """ti.verdict(), and when it ends in permanent contact with mu at or above the ROM's
+    contact-set limit mu_set (rom.friction_lock), that this is the friction lock."""
+    words = ti.verdict() if ti is not None else "not marched"
+    lock = getattr(rom, "friction_lock", None)
+    if ti is not None and ti.outcome == "permanent contact" and lock is not None and mu >= lock.mu_set:
+        words += f": the friction lock, mu = {mu:g} >= mu_set = {lock.mu_set:.3g}"
+    return words
+
+
+def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
     lines = []
     for p in (t.primary, t.isola, t.period_doubling):
         head = f"  {t.method.upper()} {p.kind}: "
@@ -330,7 +340,8 @@ def _summary(t: TreatmentValidation) -> list[str]:
             lines.append(head + f"none ({p.reason})")
             continue
         s = (f"Omega = {p.omega:.1f} rad/s, nu = {p.subharmonic}, {'stable' if p.stable else 'UNSTABLE'} "
-             f"(|mu| {p.multiplier:.4g}); TI {'stays' if p.ti.stays else 'LEAVES'} (growth {p.ti.growth:.2f}, "
+             f"(|mu| {p.multiplier:.4g}); TI {ti_verdict(p.ti, rom, mu).replace('leaves', 'LEAVES', 1)} "
+             f"(growth {p.ti.growth:.2f}, "
              f"last deviation {p.ti.deviation[-10:].max():.3f})")
         for m in ("dlft", "rl"):
             c = getattr(p, m)
@@ -359,7 +370,7 @@ def _compute(ctx: Context, outputs) -> None:
                            deviation_tol=DEVIATION_TOL, cpu_time=time.process_time() - c0, **done)
     art.write_artifact(ctx.out / VALIDATION.file, a, **ctx.provenance(VALIDATION, "validation"))
     for t in done.values():
-        for line in _summary(t):
+        for line in _summary(t, rom, ctx.scene.contact.mu):
             ctx.log(line)
     ctx.log(f"  validation: {a.cpu_time:.1f} s CPU")
 

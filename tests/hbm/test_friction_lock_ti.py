@@ -84,3 +84,30 @@ def test_node_the_check_calls_locked_stays_on_the_casing(s, mu):
         assert lam > 0 and r > 1e-4  # still pressed on the receding casing: locked
     else:
         assert lam == 0 and abs(r) < 1e-6  # released, back at rest
+
+
+@pytest.mark.parametrize("s", [1, -1])
+@pytest.mark.parametrize("mu", [0.6, 0.7])
+def test_validation_march_tells_the_lock_apart(s, mu):
+    """The validation's march (hbm.ti.validation) from the toy at rest: it leaves that state
+    in every case (the lobes indent the nodes); it ends in "permanent contact" of exactly the
+    nodes the static check calls dragged in, and only above their mu_j."""
+    from hbm.ti.validation import march_from_hbm
+
+    K = np.linalg.inv(G)
+    lock = friction_lock(K, 2, s)
+    M = 1e-3 * np.eye(6)
+    C, _ = modal_damping(K, M, np.full(6, 0.2))
+    system = modal_system(K, M, C, RHO, THETA, rotation=s)
+    rest = np.zeros((3, 6))
+    rest[1, 0] = rest[1, 3] = 1e-9  # a tiny orbit (m): the rest state with a scale to measure against
+    ti = march_from_hbm(system, CASING, mu, rest, OMEGA, n_periods=4, dt=0.2 * 2.0 / system.omega.max())
+    assert not ti.stays and ti.max_penetration < 1e-12
+    dragged = np.flatnonzero(lock.dragged_in(mu))
+    assert ti.locked_nodes.tolist() == dragged.tolist()
+    if len(dragged):
+        assert ti.outcome == "permanent contact"
+        assert ti.verdict() == f"leaves for permanent contact ({'LE' if dragged[0] == 0 else 'TE'})"
+    else:
+        assert ti.outcome == "leaves" and ti.verdict() == "leaves"
+        assert 0 < ti.contact_fraction.max() < 0.5  # each lobe indents, then lets go
