@@ -36,10 +36,8 @@ from __future__ import annotations
 
 import concurrent.futures
 import math
-import multiprocessing
 import os
 import pickle
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from typing import Callable
@@ -50,6 +48,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
+from hbm.processes import process_context
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -248,9 +247,7 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
                 cpu += c
                 progress(len(rows), s)
         else:
-            # fork is cheapest (the residual is built once per worker from the inherited
-            # factory) but unsafe once MPI is initialised
-            ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+            ctx = process_context()  # fork: the residual is built once per worker from the inherited factory
             with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
                                                         initargs=(factory, known, options)) as pool:
                 for f in concurrent.futures.as_completed([pool.submit(_run_worker, t) for t in tasks]):
@@ -547,7 +544,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
         if workers < 2 or not len(corrections.candidates()):
             found, owner, n_cont, n_pts, cpu2 = branches_phase()
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
-            ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+            ctx = process_context()
             with concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=_limit_blas) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
+from hbm.processes import process_context
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -233,10 +234,8 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
                 progress(len(points), len(omegas))
         else:
             import concurrent.futures
-            import multiprocessing
 
-            # fork is cheapest (the compiled kernel comes along) but unsafe once MPI is initialised
-            ctx = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+            ctx = process_context()
             with concurrent.futures.ProcessPoolExecutor(min(n_workers, len(omegas)), mp_context=ctx) as pool:
                 futures = {pool.submit(simulate, system, casing, mu, omegas[i], ti_options): i for i in order}
                 for f in concurrent.futures.as_completed(futures):

@@ -9,7 +9,6 @@ other on one core, or under an MPI launcher, where the stage runs on rank 0).
 from __future__ import annotations
 
 import os
-import sys
 import time
 from dataclasses import dataclass
 from typing import Callable
@@ -106,13 +105,12 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
     """Every output's treatment in a process of its own; the parent shows their live lines
     and log, waits for all of them (a failing treatment does not stop the others) and then
     raises the first failure in the order of `outputs`."""
-    import multiprocessing
     import queue
 
+    from hbm.processes import process_context
     from pipelines.child import ChildDied
 
-    # fork is cheapest, but unsafe once MPI is initialised (dolfinx does it in the fem stage)
-    mp = multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+    mp = process_context()
     messages = mp.Queue()
     procs = {o.key: mp.Process(target=_treatment_process, args=(ctx.scene, ctx.out, ctx.hashes, ctx.inputs, o, messages),
                                daemon=True, name=f"hbm {o.key}") for o in outputs}
