@@ -13,8 +13,8 @@ changing the product:
               MUMPS Block Low-Rank at --blr EPS (ICNTL(35) = 2, CNTL(7) = EPS): time,
               entries, and the error of the 3 n_b constraint-mode solves against fem.h5's.
 
-    nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --deck out/wedge200k/rotor67_wedge15.inp
-    nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/wedge200k/run/fem.h5 --blr 1e-8
+    nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --deck out/bench_mesh_import/rotor67_wedge15.inp
+    nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/bench_mesh_import/run/fem.h5 --blr 1e-8
 
 Prints one line per factorisation; the peak resident memory of the process at the end.
 """
