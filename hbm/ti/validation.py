@@ -3,8 +3,11 @@
 
 The ROM is marched n_periods periods T = 2 pi nu / Omega of the orbit (nu: the HBM basis'
 subharmonic) with exact (Lagrange multiplier) contact, from the orbit's state at the instant
-where it is farthest from the casing (hbm.stability.orbit explains why: started inside a
-contact phase, the first step removes the HBM orbit's small penetration in one impulse).
+where it is farthest from the casing: started inside a contact phase, the first step of
+the Lagrange-multiplier scheme would remove the HBM orbit's small penetration (DLFT's Gibbs
+ripple, RL's penalty) in one step, an impulse of penetration / dt that throws the blade off
+any orbit. The casing angle is shifted accordingly (theta_j + s Omega t0): the same problem
+started at t0.
 Two things are measured:
 
 - whether time integration stays on the orbit: the distance to the orbit period by period
@@ -42,7 +45,7 @@ from hbm.ti.sweep import steps_per_revolution
 #: amplitude. Time integration starts on the HBM orbit, which is not its own (DLFT's Gibbs
 #: ripple at the impacts, RL's penalty, the truncation: 10-30 % of the amplitude, max norm,
 #: on the rotor 67 ROM at N_h = 40); on a stable orbit that distance is kept (the last 10
-#: periods at 0.84-0.94 of the first 10, 0.10-0.20 of the amplitude, measured at 1971-1979
+#: periods at 0.93-0.97 of the first 10, 0.11-0.22 of the amplitude, measured at 1971-1979
 #: rad/s), whereas an unstable one is left within a few periods (100 times the amplitude):
 #: 1.5 and 0.6 separate both (tests/hbm/test_stability_rotor67.py).
 GROWTH_TOL = 1.5
