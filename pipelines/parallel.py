@@ -7,32 +7,14 @@ all of them with its message, instead of leaving the others waiting forever.
 """
 from __future__ import annotations
 
-import os
-import sys
 import time
+
+from hbm.processes import mpi_world as world  # noqa: F401 (the stages' name for it)
 
 
 class RankFailed(RuntimeError):
     """Raised on the ranks that did not fail when another rank did (the message says which
     rank and why); the failing rank raises its own exception."""
-
-
-def world():
-    """mpi4py COMM_WORLD when this process runs under an MPI launcher with more than one
-    rank, else None (mpirun -n 1 and plain runs take the serial path).
-
-    mpi4py is imported only when a launcher's environment is seen (or when it already is),
-    so that plain runs never initialise MPI.
-    """
-    launched = any(k in os.environ for k in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS"))
-    if not launched and "mpi4py.MPI" not in sys.modules:
-        return None
-    try:
-        from mpi4py import MPI
-    except ImportError:
-        return None
-    comm = MPI.COMM_WORLD
-    return comm if comm.Get_size() > 1 else None
 
 
 def is_root(comm) -> bool:

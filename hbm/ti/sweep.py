@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 import os
-import sys
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
@@ -28,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.processes import process_context
+from hbm.processes import mpi_world, process_context
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -215,7 +214,7 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
     if not (omegas > 0).all():
         raise ValueError("rotation speeds must be > 0 rad/s")
     mu = contact.mu
-    comm = _mpi_world()
+    comm = mpi_world()
     progress = on_point or (lambda done, total: None)
     if comm is not None:
         mine = list(range(comm.rank, len(omegas), comm.size))
@@ -248,20 +247,3 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
 def _stack(rows: list[SpeedResponse]) -> SweepResult:
     names = [f.name for f in SweepResult.__dataclass_fields__.values()]
     return SweepResult(**{k: np.array([getattr(r, k) for r in rows]) for k in names})
-
-
-def _mpi_world():
-    """COMM_WORLD when this process runs under an MPI launcher with more than one rank, else None.
-
-    mpi4py is imported only when a launcher's environment is seen (or when it already is),
-    so that plain runs never initialise MPI.
-    """
-    launched = any(k in os.environ for k in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS"))
-    if not launched and "mpi4py.MPI" not in sys.modules:
-        return None
-    try:
-        from mpi4py import MPI
-    except ImportError:
-        return None
-    comm = MPI.COMM_WORLD
-    return comm if comm.Get_size() > 1 else None

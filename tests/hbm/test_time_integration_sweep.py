@@ -188,7 +188,7 @@ def test_sweep_workers_and_serial_agree_on_the_standin_rom():
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
 def test_mpi_sweep_equals_the_serial_one(tmp_path):
-    """`mpirun -n 2` splits the points over two ranks (hbm.ti.sweep._mpi_world); every rank
+    """`mpirun -n 2` splits the points over two ranks (hbm.processes.mpi_world); every rank
     gets the whole result, equal to the serial sweep's to the bit (same points, same code).
     Both start from the same ModalSystem arrays: the eigen-decomposition itself differs at
     round-off with the BLAS thread count, which mpirun's process binding changes."""
