@@ -6,15 +6,17 @@ changing the product:
 --deck DECK   the stiffness pattern the deck's own 15-node wedges (or 20-node hexahedra)
               would give without the split into tet10 (no new mid-edge nodes): a matrix
               with that pattern, SPD values (graph Laplacian + shift, times a 3 x 3 SPD
-              block per node pair), root dof (*BOUNDARY) removed, factorised by MUMPS with
-              the product's METIS ordering. Fill and flops depend on the pattern only;
+              block per node pair), root dof (*BOUNDARY) removed, factorised by MUMPS as
+              the product factorises K. Fill and flops depend on the pattern only;
               the time is that of a real factorisation of that size.
 --fem FEM.H5  the stored K (the split mesh's, as the product factorises it), exact or with
               MUMPS Block Low-Rank at --blr EPS (ICNTL(35) = 2, CNTL(7) = EPS): time,
               entries, and the error of the 3 n_b constraint-mode solves against fem.h5's.
+--orderings   the fill-reducing orderings to compare (default: the product's, pord).
 
     nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --deck out/bench_mesh_import/rotor67_wedge15.inp
     nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/bench_mesh_import/run/fem.h5 --blr 1e-8
+    nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/rotor67/fem.h5 --orderings pord,amd,amf,qamd,metis
 
 Prints one line per factorisation; the peak resident memory of the process at the end.
 """
@@ -52,32 +54,24 @@ def native_pattern(deck: Path) -> sp.csr_matrix:
     return K[free][:, free].tocsr()
 
 
-def factorise(K: sp.csr_matrix, blr: float):
-    """(seconds, PETSc factor matrix, KSP) of MUMPS Cholesky, METIS, optionally BLR."""
+def factorise(K: sp.csr_matrix, ordering: str, blr: float):
+    """(seconds, fem.cholesky.CholeskyFactor) of K, with MUMPS Block Low-Rank at dropping
+    tolerance blr (0: exact), set through PETSc's options as the product sets its own."""
     from petsc4py import PETSc
 
-    n = K.shape[0]
-    U = sp.triu(K, format="csr")
-    U.sort_indices()
-    A = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
-                                U.indices.astype(PETSc.IntType), U.data), comm=PETSc.COMM_SELF)
-    A.assemble()
-    ksp = PETSc.KSP().create(PETSc.COMM_SELF)
-    ksp.setOperators(A)
-    ksp.setType("preonly")
-    pc = ksp.getPC()
-    pc.setType("cholesky")
-    pc.setFactorSolverType("mumps")
-    pc.setFactorSetUpSolverType()
-    F = pc.getFactorMatrix()
-    F.setMumpsIcntl(7, 5)
-    F.setMumpsIcntl(24, 0)
-    if blr > 0:
-        F.setMumpsIcntl(35, 2)
-        F.setMumpsCntl(7, blr)
+    from fem.cholesky import CholeskyFactor
+
+    opts = PETSc.Options()
+    given = {"mat_mumps_icntl_35": 2, "mat_mumps_cntl_7": blr} if blr > 0 else {}
+    for k, v in given.items():
+        opts[k] = v
     t = time.perf_counter()
-    ksp.setUp()
-    return time.perf_counter() - t, F, ksp
+    try:
+        factor = CholeskyFactor(K, ordering=ordering)
+    finally:
+        for k in given:
+            opts.delValue(k)
+    return time.perf_counter() - t, factor
 
 
 def main(argv=None) -> None:
@@ -85,11 +79,10 @@ def main(argv=None) -> None:
     ap.add_argument("--deck", type=Path, help="mesh file whose own elements' pattern is factorised")
     ap.add_argument("--fem", type=Path, help="fem.h5 whose K is factorised")
     ap.add_argument("--blr", type=float, default=0.0, help="BLR dropping tolerance (0: exact)")
+    ap.add_argument("--orderings", default="pord", help="comma-separated keys of fem.cholesky.ORDERINGS")
     a = ap.parse_args(argv)
     if (a.deck is None) == (a.fem is None):
         ap.error("give exactly one of --deck and --fem")
-    from petsc4py import PETSc
-
     ref = bd = None
     if a.deck is not None:
         K = native_pattern(a.deck)
@@ -100,24 +93,23 @@ def main(argv=None) -> None:
             K = sp.csr_matrix((f["K/data"][:], f["K/indices"][:], f["K/indptr"][:]))
             bd, ref = f["boundary_dofs"][:], f["constraint_modes"][:]
     n = K.shape[0]
-    seconds, F, ksp = factorise(K, a.blr)
-    print(f"{n} dof, nnz {K.nnz}: factorisation {seconds:.1f} s wall, {F.getMumpsInfog(29):.3e} entries "
-          f"(exact), {F.getMumpsInfog(35):.3e} kept (BLR), {F.getMumpsRinfog(3):.3e} flop (exact), "
-          f"{F.getMumpsRinfog(14):.3e} (BLR)", flush=True)
-    if bd is not None:
-        E = np.zeros((n, len(bd)), order="F")
-        E[bd, np.arange(len(bd))] = 1.0
-        X = np.empty((n, len(bd)), order="F")
-        Bm = PETSc.Mat().createDense(((n, n), (None, len(bd))), array=E, comm=PETSc.COMM_SELF)
-        Xm = PETSc.Mat().createDense(((n, n), (None, len(bd))), array=X, comm=PETSc.COMM_SELF)
-        t = time.perf_counter()
-        F.matSolve(Bm, Xm)
-        solve = time.perf_counter() - t
-        psi = np.linalg.solve(X[bd], X.T).T
-        err = np.abs(psi - ref).max() / np.abs(ref).max()
-        print(f"{len(bd)}-column solve {solve:.1f} s; residual {np.linalg.norm(K @ X - E, axis=0).max():.2e}; "
-              f"constraint modes against fem.h5: {err:.2e} relative", flush=True)
-    ksp.destroy()
+    for ordering in a.orderings.split(","):
+        seconds, factor = factorise(K, ordering, a.blr)
+        F = factor._F  # the MUMPS factor matrix, for the BLR counters the product does not read
+        print(f"{n} dof, nnz {K.nnz}, ordering {ordering} (used: {factor.ordering_used}): factorisation "
+              f"{seconds:.1f} s wall, {factor.factor_entries:.3e} entries (exact), {F.getMumpsInfog(35):.3e} kept "
+              f"(BLR), {factor.factor_flops:.3e} flop (exact), {F.getMumpsRinfog(14):.3e} (BLR)", flush=True)
+        if bd is not None:
+            E = np.zeros((n, len(bd)))
+            E[bd, np.arange(len(bd))] = 1.0
+            t = time.perf_counter()
+            X = factor.solve(E)
+            solve = time.perf_counter() - t
+            psi = np.linalg.solve(X[bd], X.T).T
+            err = np.abs(psi - ref).max() / np.abs(ref).max()
+            print(f"  {len(bd)}-column solve {solve:.1f} s; residual {np.linalg.norm(K @ X - E, axis=0).max():.2e}; "
+                  f"constraint modes against fem.h5: {err:.2e} relative", flush=True)
+        factor.destroy()
     print(f"peak resident memory {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6:.2f} GB")
 
 

@@ -58,7 +58,8 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     boundary_node_index: (n_b,) mesh nodes for the Craig-Bampton basis; None or empty skips it.
     timings: if a dict, receives wall times in s of 'factorisation', 'modes', 'interface'
         (and 'gather' under MPI) and the block-solve counts 'modes_block_solves',
-        'interface_block_solves'; out of core, 'factor_files_mb', the size of the factor's
+        'interface_block_solves'; 'ordering', the fill-reducing ordering MUMPS applied
+        (fem.cholesky.CholeskyFactor.ordering_used); out of core, 'factor_files_mb', the size of the factor's
         files under TMPDIR, MB.
     """
     import tempfile
@@ -83,6 +84,7 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
             scratch.cleanup()
         raise
     timings["factorisation"] = time.perf_counter() - t
+    timings["ordering"] = factor.ordering_used
     if scratch is not None:  # what the factor takes on the disk of TMPDIR, all ranks together
         files = sum(f.stat().st_size for f in Path(scratch.name).rglob("*") if f.is_file())
         timings["factor_files_mb"] = round((layout.comm.allreduce(files) if layout is not None else files) / 1e6)

@@ -11,9 +11,11 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
-# MUMPS ICNTL(7): symmetric permutation for the analysis; 5 = METIS (fewest flops on the
-# quadratic tet meshes measured here), 3 = SCOTCH, 4 = PORD, 0 = AMD.
-ORDERINGS = {"metis": 5, "scotch": 3, "pord": 4, "amd": 0}
+# MUMPS ICNTL(7): symmetric permutation for the analysis ("auto": MUMPS chooses). METIS and
+# SCOTCH exist only where MUMPS was built with them (Debian's sequential analysis has
+# neither: MUMPS then falls back to its own choice, which CholeskyFactor.ordering_used says).
+ORDERINGS = {"pord": 4, "amd": 0, "amf": 2, "qamd": 6, "metis": 5, "scotch": 3, "auto": 7}
+ORDERING_NAMES = {v: k for k, v in ORDERINGS.items()}
 
 
 class CholeskyFactor:
@@ -21,6 +23,8 @@ class CholeskyFactor:
 
     A: a scipy sparse matrix (this process only), or a fem.distributed.DistributedMatrix
     (factorised in parallel by MUMPS on the matrix's communicator).
+    ordering: a key of ORDERINGS; ordering_used: the one MUMPS applied (INFOG(7)), which
+        differs when this MUMPS lacks the one asked for.
     out_of_core: None: the factor stays in memory. A directory: MUMPS writes the factor
         there as it computes it (ICNTL(22) = 1) and reads it back at every solve; the
         memory is then that of the active fronts only, the factor lives in files (and in
@@ -30,7 +34,7 @@ class CholeskyFactor:
     is collective.
     """
 
-    def __init__(self, A, ordering: str = "metis", out_of_core: str | None = None):
+    def __init__(self, A, ordering: str = "pord", out_of_core: str | None = None):
         from petsc4py import PETSc
 
         from fem.distributed import DistributedMatrix
@@ -68,18 +72,21 @@ class CholeskyFactor:
         pc.setFactorSolverType("mumps")
         pc.setFactorSetUpSolverType()
         F = pc.getFactorMatrix()
-        F.setMumpsIcntl(7, ORDERINGS[ordering])
         F.setMumpsIcntl(24, 0)  # no null-pivot detection: K is SPD once the root is clamped
+        # ICNTL(7) through the options database: PETSc 3.18's Cholesky analysis resets a value
+        # set with F.setMumpsIcntl(7, ...) to 7 (MUMPS's choice); the database value is kept
         opts = PETSc.Options()
+        given = {"mat_mumps_icntl_7": ORDERINGS[ordering]}
         if out_of_core is not None:
             F.setMumpsIcntl(22, 1)
-            # the folder is read by PETSc when it hands the matrix to MUMPS, in setUp
-            opts["mat_mumps_ooc_tmpdir"] = str(out_of_core)
+            given["mat_mumps_ooc_tmpdir"] = str(out_of_core)  # read by PETSc in setUp
+        for k, v in given.items():
+            opts[k] = v
         try:
             ksp.setUp()
         finally:
-            if out_of_core is not None:
-                opts.delValue("mat_mumps_ooc_tmpdir")
+            for k in given:
+                opts.delValue(k)
         info = F.getMumpsInfog(1)
         if info < 0:
             raise RuntimeError(f"MUMPS factorisation failed, INFOG(1) = {info}, INFOG(2) = {F.getMumpsInfog(2)}"
@@ -90,6 +97,7 @@ class CholeskyFactor:
         self._ksp, self._F = ksp, F
         self.factor_entries = int(F.getMumpsInfog(29))
         self.factor_flops = float(F.getMumpsRinfog(3))
+        self.ordering_used = ORDERING_NAMES.get(int(F.getMumpsInfog(7)), f"ICNTL(7) = {F.getMumpsInfog(7)}")
 
     def solve(self, B: np.ndarray) -> np.ndarray:
         """A^{-1} B for B (n_local,) or (n_local, k): all k columns in one MUMPS solve

@@ -15,7 +15,10 @@ class FemOptions:
         value keeps modes for ROMs with more of them.
     tol: eigen-solver convergence: largest relative change of a wanted eigenvalue (w^2) in
         the last block step (Ritz values converge monotonically from above).
-    ordering: fill-reducing ordering of the sparse Cholesky (metis, scotch, pord, amd).
+    ordering: fill-reducing ordering of the sparse Cholesky (a key of fem.cholesky.ORDERINGS).
+        PORD by default: on the default blade's K it needs 6.0e11 flop where AMD needs
+        1.45e12 (benchmarks/bench_factor_pattern.py --orderings); METIS and SCOTCH are not in
+        Debian's MUMPS (asked for, MUMPS uses its own choice, and the fem stage says so).
     out_of_core: MUMPS keeps the Cholesky factor of K in files (a temporary folder in the
         system's temp directory, TMPDIR) instead of memory, and reads it back at each block
         solve: the peak memory drops by the factor's size, at the cost of writing it once
@@ -28,7 +31,7 @@ class FemOptions:
     n_modes: int = 12
     n_fixed_interface_modes: int = 12
     tol: float = 1e-10
-    ordering: str = "metis"
+    ordering: str = "pord"
     out_of_core: bool = False
 
     def __post_init__(self):

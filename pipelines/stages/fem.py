@@ -47,6 +47,9 @@ def _compute(ctx: Context, outputs) -> None:
         ctx.log(f"  {result.K.shape[0]} free dof{ranks}; "
                 + ", ".join(f"{k} {v:.1f} s" if isinstance(v, float) else f"{k} {v}" for k, v in timings.items()))
         ctx.log("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
+        asked = ctx.scene.fem.ordering
+        if asked != "auto" and timings.get("ordering", asked) != asked:
+            ctx.log(f"  WARNING: [fem] ordering = \"{asked}\" is not in this MUMPS build; it used {timings['ordering']}")
 
     on_root(comm, write)
 
