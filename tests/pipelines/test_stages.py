@@ -269,7 +269,7 @@ def test_show_prints_a_scene_that_parses_back_to_the_same(tiny, capsys):
         assert getattr(shown, section) == getattr(expected, section), section
     assert (shown.contact.mu, shown.hbm.start, shown.blade.rotation, shown.hbm.methods) == \
         (0.2, "omega_min", "-", ("rl",))
-    assert "max_points = 4000" in text and 'ordering = "metis"' in text  # defaults written out
+    assert "max_points = 4000" in text and 'ordering = "pord"' in text  # defaults written out
 
 
 # -- ParaView files ----------------------------------------------------------------------------
