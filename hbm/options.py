@@ -143,7 +143,11 @@ class ValidationOptions:
     NFRCs' doubled branches, Hill-stable, fall into the friction lock under time
     integration, and so do those of two of DLFT's detached branch; the 820 rad/s one of that
     branch is kept. Each try costs a switch, 2 pd_points continuation points with stability
-    and a march (~2-3 min there).
+    and a march (~2-3 min there). primary_tries: primary points tried until time integration
+    stays on one, each outside the stable stretches of those tried before. Default 3: on the
+    coarse rotor 67 ROM with stored stability, time integration leaves DLFT's largest stable
+    amplitude (1335 rad/s, for the friction lock) and the next stretch's (1461 rad/s), and
+    keeps the third (1655 rad/s). A try costs one march (~1-2 min there).
     """
 
     n_periods: int = 100
@@ -151,13 +155,16 @@ class ValidationOptions:
     n_scan: int = 24
     pd_points: int = 40
     pd_tries: int = 4
+    primary_tries: int = 3
 
     def __post_init__(self):
         if self.n_periods < 3:
             raise ValueError(f"n_periods must be >= 3, got {self.n_periods}")
-        if self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2 or self.pd_tries < 1:
-            raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, pd_tries >= 1, got "
-                             f"{self.n_candidates}, {self.n_scan}, {self.pd_points}, {self.pd_tries}")
+        if (self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2 or self.pd_tries < 1
+                or self.primary_tries < 1):
+            raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, pd_tries >= 1, "
+                             f"primary_tries >= 1, got {self.n_candidates}, {self.n_scan}, {self.pd_points}, "
+                             f"{self.pd_tries}, {self.primary_tries}")
 
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange

@@ -126,6 +126,63 @@ def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligi
                      f"unstable one (|mu| = {tried[i][2]:.4g})")
 
 
+def stable_stretch(residual, omega, x, converged, index: int, stable=None) -> tuple[int, int]:
+    """(first, last): the run of converged branch points around `index` that are stable.
+
+    residual, omega (m,) rad/s, x (m, n_u), converged (m,) bool: the branch, as for
+    choose_point. stable: (m,) bool stored verdicts (the run is read from them), or None:
+    the run's ends are then found by Floquet analyses, stepping out from `index` by doubling
+    steps to the first unstable point and bisecting back to a neighbouring pair (about
+    2 log2 of the run's length analyses each way). Like every gapped schedule, a short
+    unstable stretch between two stable points analysed is not seen. (index, index) when the
+    point itself is not stable.
+    """
+    ok = np.asarray(converged, bool)
+    m, i = len(ok), int(index)
+    lo_ok, hi_ok = i, i
+    while lo_ok > 0 and ok[lo_ok - 1]:
+        lo_ok -= 1
+    while hi_ok + 1 < m and ok[hi_ok + 1]:
+        hi_ok += 1
+    if stable is not None:
+        st = np.asarray(stable, bool)
+        if not st[i]:
+            return i, i
+        lo, hi = i, i
+        while lo > lo_ok and st[lo - 1]:
+            lo -= 1
+        while hi < hi_ok and st[hi + 1]:
+            hi += 1
+        return lo, hi
+    seen: dict[int, bool] = {}
+
+    def is_stable(j):
+        if j not in seen:
+            seen[j] = bool(orbit_spectrum(residual, x[j], float(omega[j]))[0].stable)
+        return seen[j]
+
+    if not is_stable(i):
+        return i, i
+    ends = []
+    for d, bound in ((-1, lo_ok), (1, hi_ok)):
+        good, bad, step = i, None, 1
+        while bad is None and good != bound:
+            j = good + d * step
+            j = max(j, bound) if d < 0 else min(j, bound)
+            if is_stable(j):
+                good, step = j, 2 * step
+            else:
+                bad = j
+        while bad is not None and abs(bad - good) > 1:
+            mid = (good + bad) // 2
+            if is_stable(mid):
+                good = mid
+            else:
+                bad = mid
+        ends.append(good)
+    return ends[0], ends[1]
+
+
 @dataclass(frozen=True)
 class LocatedDoubling:
     """A period doubling of a branch, or why none was found.

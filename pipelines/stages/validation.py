@@ -5,7 +5,8 @@ with both HBM treatments (validation.h5); and the full view of the solution set 
 For each treatment of [hbm] methods:
 - primary: a stable point near the primary resonance of its NFRC (hbm.stability.selection.
   choose_point: the stored verdicts when the NFRC was computed with [hbm] stability, else
-  Floquet analyses of a few points near the peak);
+  Floquet analyses of a few points near the peak); when time integration leaves it, the next
+  one outside its stable stretch, up to [validation] primary_tries in all, until it stays;
 - isola: a point (stable if any) of a branch of isolas.h5 that never meets the primary:
   of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
@@ -198,12 +199,7 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     b, ex = stored.branch, stored.extras
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     tag = method.upper()
-    # primary
-    update(f"{tag}: a stable point near the primary resonance")
-    ch = choose_point(res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
-                      n_candidates=opts.n_candidates)
-    update(f"{tag} primary point: {opts.n_periods} periods of time integration")
-    primary = _validate(ctx, rom, system, "primary", method, ch, res, path.name)
+    primary = _primary(ctx, rom, system, method, res, b, ex, path, update)
     # isola
     isolas = ctx.out / ISOLAS
     found = read_branch_set(isolas, method)
@@ -235,6 +231,46 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     # period doubling
     pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update)
     return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0)
+
+
+def _primary(ctx, rom, system, method: str, res, b, ex, path: Path, update) -> ValidationPoint:
+    """The primary point: choose_point on the NFRC, marched; when time integration leaves it,
+    the next choice outside the stable stretches of the points already tried
+    (hbm.stability.selection.stable_stretch: the stable neighbours of a point that time
+    integration leaves are orbits of the same family, and leave too), up to
+    [validation] primary_tries in all, until it stays (the first try is kept when none does;
+    the reason lists every try)."""
+    from hbm.stability.selection import choose_point, stable_stretch
+
+    scene, opts, tag = ctx.scene, ctx.scene.validation, method.upper()
+    eligible = np.ones(len(b.omega), bool)
+    first, kept, tried = None, None, []
+    for k in range(opts.primary_tries):
+        update(f"{tag}: a stable point near the primary resonance" + (f" (try {k + 1})" if k else ""))
+        ch = choose_point(res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
+                          eligible=eligible, n_candidates=opts.n_candidates)
+        if not ch.found or (first is not None and not ch.stable):
+            first = first or ValidationPoint("primary", method, False, ch.reason, path.name)
+            tried.append(f"no stable point left ({ch.reason})")
+            break
+        update(f"{tag} primary point at {ch.omega:.1f} rad/s: {opts.n_periods} periods of time integration")
+        p = _validate(ctx, rom, system, "primary", method, ch, res, path.name)
+        tried.append(f"{p.omega:.1f} rad/s ({'stable' if p.stable else 'unstable'}), time integration "
+                     f"{ti_verdict(p.ti, rom, scene.contact.mu)}")
+        first = first or p
+        if p.ti is not None and p.ti.stays:
+            kept = p
+            break
+        if not ch.stable or k + 1 == opts.primary_tries:  # unstable: the next choice would be too
+            break
+        update(f"{tag}: the stable stretch of the {ch.omega:.1f} rad/s point")
+        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, ch.index, ex.get("stable"))
+        eligible[lo: hi + 1] = False
+    result = kept or first
+    marched = sum(not t.startswith("no stable point") for t in tried)
+    if len(tried) > 1:
+        result = replace(result, reason=f"{result.reason}; {marched} marched: " + " | ".join(tried))
+    return result
 
 
 def doubling_candidates(branches) -> list:

@@ -67,6 +67,11 @@ def _march(y0, w, n):
 
 def _pd_multiplier(y0, w):
     """Most negative Floquet multiplier of the W-periodic orbit through shooting from y0."""
+    return np.min(_multipliers(y0, w).real)
+
+
+def _multipliers(y0, w):
+    """Both Floquet multipliers of the W-periodic orbit through shooting from y0, (2,) complex."""
     T = 2 * np.pi / w
     y = np.array(y0, dtype=float)
     for _ in range(20):
@@ -76,7 +81,7 @@ def _pd_multiplier(y0, w):
         if np.linalg.norm(r) < 1e-11:
             break
         y = y - np.linalg.solve(Phi - np.eye(2), r)
-    return np.min(np.linalg.eigvals(Phi).real)
+    return np.linalg.eigvals(Phi)
 
 
 @pytest.fixture(scope="module")

@@ -165,3 +165,97 @@ def test_a_crossing_far_past_minus_one_is_refined_on_the_branch(oscillator):
     assert mu < -1.0 and np.log(abs(mu)) <= REFINE_BEYOND + 0.02, mu  # HBM's N_h = 30 vs shooting
     db, _ = continue_doubled_branch(res, loc.u, loc.omega, loc.bifurcation, opts, n_points=10)
     assert db.found, db.reason
+
+
+# -- the stable stretch of a point, and the primary point tried again outside it ---------------
+@pytest.fixture(scope="module")
+def long_branch(oscillator):
+    """The oscillator's branch continued down to W = 2: two stable stretches (above the period
+    doubling near 4.33, and below ~2.36, where the amplitude is largest), unstable between."""
+    res, br, _, opts = oscillator
+    b = continue_branch(res, br.x[0], 4.6, replace(opts, omega_min=2.0, ds_max=0.03))
+    amp = np.array([nfrc_extras(res, x)["le_amplitude"] for x in b.x])
+    return res, b, amp
+
+
+def test_stable_stretch_ends_where_shooting_sees_stability_change(long_branch, monkeypatch):
+    from test_period_doubling import _multipliers, _state
+
+    import hbm.stability.selection as selection
+    from hbm.stability.selection import stable_stretch
+
+    res, b, amp = long_branch
+    m = len(b.omega)
+    calls = []
+    spectrum = selection.orbit_spectrum
+    monkeypatch.setattr(selection, "orbit_spectrum", lambda *a, **k: calls.append(1) or spectrum(*a, **k))
+    largest = lambda j: np.abs(_multipliers(_state(res, b.x[j], b.omega[j]), b.omega[j])).max()  # noqa: E731
+    found = {}
+    for i in (m - 1, 2):  # the peak (W = 2) and a point above the period doubling
+        calls.clear()
+        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, i)
+        assert lo <= i <= hi and hi - lo >= 5
+        # the ends by shooting (another method): inside the unit circle at both ends of the
+        # stretch, outside one point past each end that is not the branch's own end
+        for j in (lo, hi):
+            assert largest(j) < 1.0, (i, j)
+        for j in (lo - 1, hi + 1):
+            if 0 <= j < m:
+                assert largest(j) > 1.0, (i, j)
+        assert len(calls) < (hi - lo + 1)  # bisection, not every point
+        found[i] = (lo, hi)
+    assert found[m - 1][1] == m - 1 and found[2][0] == 0 and found[2][1] < found[m - 1][0]
+    # an unstable point is its own stretch
+    mid = (found[2][1] + found[m - 1][0]) // 2
+    assert stable_stretch(res, b.omega, b.x, b.converged, mid) == (mid, mid)
+    # stored verdicts are read, not recomputed
+    calls.clear()
+    st = np.zeros(m, bool)
+    st[10:20] = True
+    assert stable_stretch(res, b.omega, b.x, b.converged, 15, st) == (10, 19) and not calls
+    conv = np.ones(m, bool)
+    conv[17] = False  # an unconverged point ends the run
+    assert stable_stretch(res, b.omega, b.x, conv, 12, st) == (10, 16)
+
+
+def test_the_primary_point_is_tried_again_outside_the_stretch_time_integration_left(long_branch, monkeypatch):
+    """pipelines.stages.validation._primary, with the march replaced by a rule (time
+    integration keeps the orbits above W = 3 only): the first try, the peak, is left; the
+    second is the largest stored-stable amplitude outside the peak's stable stretch, and kept;
+    with [validation] primary_tries = 1 the first is kept; when every march leaves, the first
+    is kept and the reason lists the tries."""
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+    from hbm.stability.selection import stable_stretch
+
+    res, b, amp = long_branch
+    m = len(b.omega)
+    st = np.zeros(m, bool)
+    for i in (m - 1, 2):
+        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, i)
+        st[lo: hi + 1] = True
+    marched = []
+
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, branch, keep=lambda w: w > 3.0):
+        marched.append(ch.index)
+        stays = keep(ch.omega)
+        ti = SimpleNamespace(stays=stays, outcome="leaves", verdict=lambda: "stays" if stays else "leaves")
+        return stage.ValidationPoint(kind, method, True, ch.reason, branch, ch.index, ch.omega, le_amplitude=ch.le_amplitude,
+                                     stable=ch.stable, ti=ti)
+
+    def run(tries, keep=lambda w: w > 3.0):
+        marched.clear()
+        monkeypatch.setattr(stage, "_validate", lambda *a: fake_validate(*a, keep=keep))
+        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(primary_tries=tries, n_candidates=8),
+                                                    contact=SimpleNamespace(mu=0.0)))
+        return stage._primary(ctx, None, None, "rl", res, b, {"le_amplitude": amp, "stable": st}, Path("nfrc_rl.h5"),
+                              lambda text: None)
+
+    p = run(3)
+    assert marched[0] == m - 1 and len(marched) == 2  # the peak, then one outside its stretch
+    assert st[p.index] and p.omega > 4.3 and p.ti.stays and p.index == np.flatnonzero(st[:20])[-1]
+    assert "2 marched" in p.reason and "2.0 rad/s (stable), time integration leaves" in p.reason
+    p = run(1)
+    assert marched == [m - 1] and not p.ti.stays and "marched" not in p.reason
+    p = run(3, keep=lambda w: False)
+    assert len(marched) == 2 and p.index == m - 1 and "2 marched" in p.reason and "no stable point left" in p.reason
