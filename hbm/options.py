@@ -147,7 +147,11 @@ class ValidationOptions:
     stays on one, each outside the stable stretches of those tried before. Default 3: on the
     coarse rotor 67 ROM with stored stability, time integration leaves DLFT's largest stable
     amplitude (1335 rad/s, for the friction lock) and the next stretch's (1461 rad/s), and
-    keeps the third (1655 rad/s). A try costs one march (~1-2 min there).
+    keeps the third (1655 rad/s). A try costs one march (~1-2 min there). isola_tries: the
+    same for the isola point, over the stable stretches of all the isola search's branches
+    of kind isola, then detached. Default 3: on the default rotor 67 scene time integration
+    leaves the largest stable amplitude of the 3 Omega = omega_1 isola, at its end (878 rad/s,
+    next to a fold), for a state of half its amplitude.
     """
 
     n_periods: int = 100
@@ -156,15 +160,16 @@ class ValidationOptions:
     pd_points: int = 40
     pd_tries: int = 4
     primary_tries: int = 3
+    isola_tries: int = 3
 
     def __post_init__(self):
         if self.n_periods < 3:
             raise ValueError(f"n_periods must be >= 3, got {self.n_periods}")
         if (self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2 or self.pd_tries < 1
-                or self.primary_tries < 1):
+                or self.primary_tries < 1 or self.isola_tries < 1):
             raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, pd_tries >= 1, "
-                             f"primary_tries >= 1, got {self.n_candidates}, {self.n_scan}, {self.pd_points}, "
-                             f"{self.pd_tries}, {self.primary_tries}")
+                             f"primary_tries >= 1, isola_tries >= 1, got {self.n_candidates}, {self.n_scan}, "
+                             f"{self.pd_points}, {self.pd_tries}, {self.primary_tries}, {self.isola_tries}")
 
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange

@@ -11,7 +11,8 @@ For each treatment of [hbm] methods:
   of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
   integration keeps, where the closed isolas have one stable stretch or none), when that
-  file exists and holds one (else the reason is recorded);
+  file exists and holds one (else the reason is recorded); tried again as the primary
+  point is, up to [validation] isola_tries;
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan), the period-doubled branch switched to there and continued both
   ways (stored here), and a point of it (stable if any); when time integration leaves that
@@ -189,7 +190,6 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch) -> Valid
 
 def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     from hbm.harmonic.residual import build_residual
-    from hbm.stability.selection import choose_point
     from pipelines.branch_store import load_branch
 
     scene, opts = ctx.scene, ctx.scene.validation
@@ -199,7 +199,9 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     b, ex = stored.branch, stored.extras
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     tag = method.upper()
-    primary = _primary(ctx, rom, system, method, res, b, ex, path, update)
+    nfrc = Candidate(path.name, res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"))
+    update(f"{tag}: a stable point near the primary resonance")
+    primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
     isolas = ctx.out / ISOLAS
     found = read_branch_set(isolas, method)
@@ -211,63 +213,92 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
                                                          f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}")
     else:
         update(f"{tag}: a point on an isola")
-        best = None
-        for br in branches:
-            r_b = build_residual(rom, scene.casing, scene.contact,
-                                 _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic), method=method)
-            ch = choose_point(r_b, br.omega, br.x, br.le_amplitude, br.converged, br.stable,
-                              n_candidates=opts.n_candidates)
-            if ch.found and (best is None or (ch.stable and not best[1].stable)):
-                best = (br, ch, r_b)
-            if best is not None and best[1].stable:
-                break
-        if best is None:
-            isola = ValidationPoint("isola", method, False, f"no converged point on the {len(branches)} branch(es) "
-                                                             f"off the primary")
-        else:
-            br, ch, r_b = best
-            update(f"{tag} isola point: {opts.n_periods} periods of time integration")
-            isola = _validate(ctx, rom, system, "isola", method, ch, r_b, f"{ISOLAS} {method}/branches/{br.name}")
+        cands = [Candidate(f"{ISOLAS} {method}/branches/{br.name}",
+                           build_residual(rom, scene.casing, scene.contact,
+                                          _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic),
+                                          method=method),
+                           br.omega, br.x, br.le_amplitude, br.converged, br.stable) for br in branches]
+        isola = _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
     # period doubling
     pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update)
     return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0)
 
 
-def _primary(ctx, rom, system, method: str, res, b, ex, path: Path, update) -> ValidationPoint:
-    """The primary point: choose_point on the NFRC, marched; when time integration leaves it,
-    the next choice outside the stable stretches of the points already tried
-    (hbm.stability.selection.stable_stretch: the stable neighbours of a point that time
-    integration leaves are orbits of the same family, and leave too), up to
-    [validation] primary_tries in all, until it stays (the first try is kept when none does;
-    the reason lists every try)."""
-    from hbm.stability.selection import choose_point, stable_stretch
+@dataclass(eq=False)
+class Candidate:
+    """A branch a validation point may be taken from. where: its file and group, in words.
+    residual: its HarmonicBalanceResidual. omega (m,) rad/s, x (m, n_u), amplitude (m,) m,
+    converged (m,) bool, stable (m,) bool or None: the branch. eligible: (m,) bool, the
+    points not yet ruled out (the stable stretches of points time integration left)."""
 
-    scene, opts, tag = ctx.scene, ctx.scene.validation, method.upper()
-    eligible = np.ones(len(b.omega), bool)
-    first, kept, tried = None, None, []
-    for k in range(opts.primary_tries):
-        update(f"{tag}: a stable point near the primary resonance" + (f" (try {k + 1})" if k else ""))
-        ch = choose_point(res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
-                          eligible=eligible, n_candidates=opts.n_candidates)
-        if not ch.found or (first is not None and not ch.stable):
-            first = first or ValidationPoint("primary", method, False, ch.reason, path.name)
-            tried.append(f"no stable point left ({ch.reason})")
+    where: str
+    residual: object
+    omega: np.ndarray
+    x: np.ndarray
+    amplitude: np.ndarray
+    converged: np.ndarray
+    stable: np.ndarray | None
+    eligible: np.ndarray = None
+
+    def __post_init__(self):
+        if self.eligible is None:
+            self.eligible = np.ones(len(self.omega), bool)
+
+    def choose(self, n_candidates: int):
+        from hbm.stability.selection import choose_point
+
+        return choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
+                            eligible=self.eligible, n_candidates=n_candidates)
+
+    def rule_out(self, index: int) -> None:
+        """Rule out the stable stretch of point `index` (hbm.stability.selection.stable_stretch)."""
+        from hbm.stability.selection import stable_stretch
+
+        lo, hi = stable_stretch(self.residual, self.omega, self.x, self.converged, index, self.stable)
+        self.eligible[lo: hi + 1] = False
+
+
+def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, tries: int, update) -> ValidationPoint:
+    """The primary or isola point: a stable point chosen on the candidate branches (the first
+    branch with a stable choice, else the first with any), marched; when time integration
+    leaves it, the next choice outside the stable stretches of the points already tried (the
+    stable neighbours of a point that time integration leaves are orbits of the same family,
+    and leave too), up to `tries` marches in all, until it stays. The first try is kept when
+    none stays; the reason lists every try."""
+    opts, tag = ctx.scene.validation, method.upper()
+    first, kept, tried, marched = None, None, [], 0
+    while marched < tries:
+        best, none = None, []
+        for c in candidates:
+            ch = c.choose(opts.n_candidates)
+            if not ch.found:
+                none.append(ch.reason)
+            elif best is None or (ch.stable and not best[1].stable):
+                best = (c, ch)
+            if best is not None and best[1].stable:
+                break
+        if best is None or (first is not None and not best[1].stable):
+            why = (best[1].reason if best else none[0] if len(none) == 1 else
+                   f"no converged point left on the {len(candidates)} branches")
+            first = first or ValidationPoint(kind, method, False, why, candidates[0].where)
+            tried.append(f"no stable point left ({why})")
             break
-        update(f"{tag} primary point at {ch.omega:.1f} rad/s: {opts.n_periods} periods of time integration")
-        p = _validate(ctx, rom, system, "primary", method, ch, res, path.name)
-        tried.append(f"{p.omega:.1f} rad/s ({'stable' if p.stable else 'unstable'}), time integration "
-                     f"{ti_verdict(p.ti, rom, scene.contact.mu)}")
+        c, ch = best
+        update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: {opts.n_periods} periods of time integration")
+        p = _validate(ctx, rom, system, kind, method, ch, c.residual, c.where)
+        marched += 1
+        tried.append(f"{p.omega:.1f} rad/s{'' if len(candidates) == 1 else ' of ' + c.where} "
+                     f"({'stable' if p.stable else 'unstable'}), time integration "
+                     f"{ti_verdict(p.ti, rom, ctx.scene.contact.mu)}")
         first = first or p
         if p.ti is not None and p.ti.stays:
             kept = p
             break
-        if not ch.stable or k + 1 == opts.primary_tries:  # unstable: the next choice would be too
+        if not ch.stable or marched == tries:  # unstable: the next choice would be too
             break
         update(f"{tag}: the stable stretch of the {ch.omega:.1f} rad/s point")
-        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, ch.index, ex.get("stable"))
-        eligible[lo: hi + 1] = False
+        c.rule_out(ch.index)
     result = kept or first
-    marched = sum(not t.startswith("no stable point") for t in tried)
     if len(tried) > 1:
         result = replace(result, reason=f"{result.reason}; {marched} marched: " + " | ".join(tried))
     return result

@@ -218,12 +218,13 @@ def test_stable_stretch_ends_where_shooting_sees_stability_change(long_branch, m
     assert stable_stretch(res, b.omega, b.x, conv, 12, st) == (10, 16)
 
 
-def test_the_primary_point_is_tried_again_outside_the_stretch_time_integration_left(long_branch, monkeypatch):
-    """pipelines.stages.validation._primary, with the march replaced by a rule (time
-    integration keeps the orbits above W = 3 only): the first try, the peak, is left; the
-    second is the largest stored-stable amplitude outside the peak's stable stretch, and kept;
-    with [validation] primary_tries = 1 the first is kept; when every march leaves, the first
-    is kept and the reason lists the tries."""
+def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long_branch, monkeypatch):
+    """pipelines.stages.validation._try_until_kept (the primary and isola points), with the
+    march replaced by a rule (time integration keeps the orbits above W = 3 only): the first
+    try, the peak, is left; the second is the largest stored-stable amplitude outside the
+    peak's stable stretch, and kept; with one try the first is kept; when every march leaves,
+    the first is kept and the reason lists the tries; over two branches (the isola point's
+    case) the second branch is tried once the first has no stable point left."""
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
     from hbm.stability.selection import stable_stretch
@@ -236,26 +237,33 @@ def test_the_primary_point_is_tried_again_outside_the_stretch_time_integration_l
         st[lo: hi + 1] = True
     marched = []
 
-    def fake_validate(ctx, rom, system, kind, method, ch, residual, branch, keep=lambda w: w > 3.0):
-        marched.append(ch.index)
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where, keep=lambda w: w > 3.0):
+        marched.append((where, ch.index))
         stays = keep(ch.omega)
         ti = SimpleNamespace(stays=stays, outcome="leaves", verdict=lambda: "stays" if stays else "leaves")
-        return stage.ValidationPoint(kind, method, True, ch.reason, branch, ch.index, ch.omega, le_amplitude=ch.le_amplitude,
-                                     stable=ch.stable, ti=ti)
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
+                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
 
-    def run(tries, keep=lambda w: w > 3.0):
+    def run(tries, keep=lambda w: w > 3.0, branches=None):
         marched.clear()
         monkeypatch.setattr(stage, "_validate", lambda *a: fake_validate(*a, keep=keep))
-        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(primary_tries=tries, n_candidates=8),
+        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8),
                                                     contact=SimpleNamespace(mu=0.0)))
-        return stage._primary(ctx, None, None, "rl", res, b, {"le_amplitude": amp, "stable": st}, Path("nfrc_rl.h5"),
-                              lambda text: None)
+        cands = [stage.Candidate(name, res, b.omega, b.x, amp, b.converged, flags)
+                 for name, flags in (branches or [("nfrc_rl.h5", st)])]
+        return stage._try_until_kept(ctx, None, None, "primary", "rl", cands, tries, lambda text: None)
 
     p = run(3)
-    assert marched[0] == m - 1 and len(marched) == 2  # the peak, then one outside its stretch
+    assert [i for _, i in marched][0] == m - 1 and len(marched) == 2  # the peak, then one outside its stretch
     assert st[p.index] and p.omega > 4.3 and p.ti.stays and p.index == np.flatnonzero(st[:20])[-1]
     assert "2 marched" in p.reason and "2.0 rad/s (stable), time integration leaves" in p.reason
     p = run(1)
-    assert marched == [m - 1] and not p.ti.stays and "marched" not in p.reason
+    assert marched == [("nfrc_rl.h5", m - 1)] and not p.ti.stays and "marched" not in p.reason
     p = run(3, keep=lambda w: False)
     assert len(marched) == 2 and p.index == m - 1 and "2 marched" in p.reason and "no stable point left" in p.reason
+    # two branches: the first holds only the low stretch; once it is ruled out, the second's
+    # upper stretch is tried
+    low = st & (b.omega < 3.0)
+    p = run(3, branches=[("isolas.h5 rl/branches/000", low), ("isolas.h5 rl/branches/001", st & (b.omega > 3.0))])
+    assert [w for w, _ in marched] == ["isolas.h5 rl/branches/000", "isolas.h5 rl/branches/001"]
+    assert p.ti.stays and p.branch == "isolas.h5 rl/branches/001" and "of isolas.h5 rl/branches/000" in p.reason
