@@ -222,9 +222,10 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
     """pipelines.stages.validation._try_until_kept (the primary and isola points), with the
     march replaced by a rule (time integration keeps the orbits above W = 3 only): the first
     try, the peak, is left; the second is the largest stored-stable amplitude outside the
-    peak's stable stretch, and kept; with one try the first is kept; when every march leaves,
-    the first is kept and the reason lists the tries; over two branches (the isola point's
-    case) the second branch is tried once the first has no stable point left."""
+    peak's stable stretch with a decisive verdict, and kept; with one try the first is kept;
+    when every march leaves, the first is kept and the reason lists the tries; over two
+    branches (the isola point's case) the second branch is tried once the first has no
+    stable point left."""
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
     from hbm.stability.selection import stable_stretch
@@ -244,10 +245,10 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
         return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
                                      le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
 
-    def run(tries, keep=lambda w: w > 3.0, branches=None):
+    def run(tries, keep=lambda w: w > 3.0, branches=None, n_periods=100):
         marched.clear()
         monkeypatch.setattr(stage, "_validate", lambda *a: fake_validate(*a, keep=keep))
-        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8),
+        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8, n_periods=n_periods),
                                                     contact=SimpleNamespace(mu=0.0)))
         cands = [stage.Candidate(name, res, b.omega, b.x, amp, b.converged, flags)
                  for name, flags in (branches or [("nfrc_rl.h5", st)])]
@@ -255,8 +256,20 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
 
     p = run(3)
     assert [i for _, i in marched][0] == m - 1 and len(marched) == 2  # the peak, then one outside its stretch
-    assert st[p.index] and p.omega > 4.3 and p.ti.stays and p.index == np.flatnonzero(st[:20])[-1]
+    assert st[p.index] and p.omega > 4.3 and p.ti.stays
     assert "2 marched" in p.reason and "2.0 rad/s (stable), time integration leaves" in p.reason
+    # a retry asks for a decisive verdict: by shooting, the kept point's multipliers (0.965)
+    # shrink a perturbation by e^3 over the 100 periods of the march; over a march of 50
+    # periods no point of the upper stretch would (|mu| > e^-0.06 = 0.942 at every one), so
+    # there is no retry
+    from test_period_doubling import _multipliers, _state
+
+    largest = lambda j: np.abs(_multipliers(_state(res, b.x[j], b.omega[j]), b.omega[j])).max()  # noqa: E731
+    assert largest(p.index) < np.exp(-stage.DECISIVE_DECAY / 100)
+    upper = np.flatnonzero(st[:20])
+    assert all(largest(j) > np.exp(-stage.DECISIVE_DECAY / 50) for j in upper[::3])
+    p = run(3, n_periods=50)
+    assert len(marched) == 1 and p.index == m - 1 and "no stable point left" in p.reason
     p = run(1)
     assert marched == [("nfrc_rl.h5", m - 1)] and not p.ti.stays and "marched" not in p.reason
     p = run(3, keep=lambda w: False)
