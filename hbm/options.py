@@ -144,14 +144,16 @@ class ValidationOptions:
     integration, and so do those of two of DLFT's detached branch; the 820 rad/s one of that
     branch is kept. Each try costs a switch, 2 pd_points continuation points with stability
     and a march (~2-3 min there). primary_tries: primary points tried until time integration
-    stays on one, each outside the stable stretches of those tried before. Default 3: on the
-    coarse rotor 67 ROM with stored stability, time integration leaves DLFT's largest stable
-    amplitude (1335 rad/s, for the friction lock) and the next stretch's (1461 rad/s), and
-    keeps the third (1655 rad/s). A try costs one march (~1-2 min there). isola_tries: the
-    same for the isola point, over the stable stretches of all the isola search's branches
-    of kind isola, then detached. Default 3: on the default rotor 67 scene time integration
-    leaves the largest stable amplitude of the 3 Omega = omega_1 isola, at its end (878 rad/s,
-    next to a fold), for a state of half its amplitude.
+    stays on one, each outside the stable stretches of those tried before, the retries with a
+    verdict the march can check (pipelines.stages.validation.DECISIVE_DECAY). Default 3: on
+    the coarse rotor 67 ROM with stored stability time integration leaves DLFT's largest
+    stable amplitude (1335 rad/s) for the friction lock and keeps the retry (1647 rad/s); on
+    the default scene it leaves DLFT's (1088 rad/s) and keeps the retry (1339 rad/s). A try
+    costs one march (~1-2 min there). isola_tries: the same for the isola point, over the
+    stable stretches of all the isola search's branches of kind isola, then detached.
+    Default 3: on the default scene time integration leaves the largest stable amplitude of
+    the 3 Omega = omega_1 isola, at its end next to a fold (DLFT 878 rad/s, RL 883 rad/s),
+    for a state of half its amplitude; DLFT's third try is kept, none of RL's three.
     """
 
     n_periods: int = 100
