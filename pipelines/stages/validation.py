@@ -6,7 +6,8 @@ For each treatment of [hbm] methods:
 - primary: a stable point near the primary resonance of its NFRC (hbm.stability.selection.
   choose_point: the stored verdicts when the NFRC was computed with [hbm] stability, else
   Floquet analyses of a few points near the peak); when time integration leaves it, the next
-  one outside its stable stretch, up to [validation] primary_tries in all, until it stays;
+  one outside its stable stretch whose verdict the march can check (DECISIVE_DECAY), up to
+  [validation] primary_tries in all, until it stays;
 - isola: a point (stable if any) of a branch of isolas.h5 that never meets the primary:
   of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
