@@ -240,16 +240,22 @@ class Candidate:
     converged: np.ndarray
     stable: np.ndarray | None
     eligible: np.ndarray = None
+    _chosen: dict = field(default_factory=dict, repr=False)  # margin -> ChosenPoint, until rule_out
 
     def __post_init__(self):
         if self.eligible is None:
             self.eligible = np.ones(len(self.omega), bool)
 
     def choose(self, n_candidates: int, margin: float):
+        """choose_point on the eligible points; kept until rule_out, so that a branch passed
+        over on one try is not analysed again on the next."""
         from hbm.stability.selection import choose_point
 
-        return choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
-                            eligible=self.eligible, n_candidates=n_candidates, margin=margin)
+        if margin not in self._chosen:
+            self._chosen[margin] = choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged,
+                                                self.stable, eligible=self.eligible, n_candidates=n_candidates,
+                                                margin=margin)
+        return self._chosen[margin]
 
     def rule_out(self, index: int) -> None:
         """Rule out the stable stretch of point `index` (hbm.stability.selection.stable_stretch)."""
@@ -257,6 +263,7 @@ class Candidate:
 
         lo, hi = stable_stretch(self.residual, self.omega, self.x, self.converged, index, self.stable)
         self.eligible[lo: hi + 1] = False
+        self._chosen.clear()
 
 
 #: A retry asks for a verdict the march can check: its largest multiplier must shrink a
