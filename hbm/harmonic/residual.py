@@ -97,6 +97,20 @@ class HarmonicBalanceResidual:
         self.n_c = self.basis.n_coeffs
         self.size = self.n_c * self.n_r
 
+    def refined(self, factor: int = 2) -> "HarmonicBalanceResidual":
+        """The same problem (law, filter, forcing, obstacle, scaling) with factor times the
+        harmonics and AFT samples: to ask whether a solution is converged in N_h. Unknowns
+        carry over by padding: to_unknowns of to_coefficients(u) with zero rows appended."""
+        if int(factor) < 2:
+            raise ValueError(f"factor must be an integer >= 2, got {factor!r}")
+        opts = replace(self.options, n_harmonics=int(factor) * self.basis.n_harmonics,
+                       n_time=int(factor) * self.basis.n_time)
+        fine = HarmonicBalanceResidual(self.rom, self.casing, self.contact, opts, method=self.method,
+                                       forcing=self.forcing, alpha=self.alpha, friction=self.friction,
+                                       distance=self._distance)
+        fine.set_obstacle_scale(self.obstacle_scale)
+        return fine
+
     def fundamental(self, omega: float) -> float:
         """The basis' fundamental Omega / nu, rad/s, at rotation speed omega = Omega."""
         return float(omega) / self.nu
