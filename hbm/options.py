@@ -151,9 +151,15 @@ class ValidationOptions:
     the default scene it leaves DLFT's (1088 rad/s) and keeps the retry (1339 rad/s). A try
     costs one march (~1-2 min there). isola_tries: the same for the isola point, over the
     stable stretches of all the isola search's branches of kind isola, then detached.
-    Default 3: on the default scene time integration leaves the largest stable amplitude of
-    the 3 Omega = omega_1 isola, at its end next to a fold (DLFT 878 rad/s, RL 883 rad/s),
-    for a state of half its amplitude; DLFT's third try is kept, none of RL's three.
+    Default 3: without harmonic_checks, on the default scene time integration leaves the
+    largest stable amplitude of the 3 Omega = omega_1 isola, at its end next to a fold (DLFT
+    878 rad/s, RL 883 rad/s), for a state of half its amplitude; DLFT's third try is kept,
+    none of RL's three. With them both are kept at the first march.
+    harmonic_checks: most points per primary or isola point checked before they are
+    marched (hbm.stability.selection.check_harmonics: solved again with 2 N_h, and for RL
+    stable there too); a point that fails is not marched and its stable stretch is ruled out,
+    as for a march that leaves. 0: none. A check costs 2-12 s at N_h = 40 on rotor 67 against
+    ~40 s for a march; default 6: the default scene's RL isola point is the fifth choice.
     """
 
     n_periods: int = 100
@@ -163,6 +169,7 @@ class ValidationOptions:
     pd_tries: int = 4
     primary_tries: int = 3
     isola_tries: int = 3
+    harmonic_checks: int = 6
 
     def __post_init__(self):
         if self.n_periods < 3:
@@ -172,6 +179,8 @@ class ValidationOptions:
             raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, pd_tries >= 1, "
                              f"primary_tries >= 1, isola_tries >= 1, got {self.n_candidates}, {self.n_scan}, "
                              f"{self.pd_points}, {self.pd_tries}, {self.primary_tries}, {self.isola_tries}")
+        if self.harmonic_checks < 0:
+            raise ValueError(f"harmonic_checks must be >= 0, got {self.harmonic_checks}")
 
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange

@@ -7,7 +7,8 @@ For each treatment of [hbm] methods:
   choose_point: the stored verdicts when the NFRC was computed with [hbm] stability, else
   Floquet analyses of a few points near the peak); when time integration leaves it, the next
   one outside its stable stretch whose verdict the march can check (DECISIVE_DECAY), up to
-  [validation] primary_tries in all, until it stays;
+  [validation] primary_tries in all, until it stays; a stable choice is first solved again
+  with 2 N_h (check_harmonics) and passed over, unmarched, when it is not converged in N_h;
 - isola: a point (stable if any) of a branch of isolas.h5 that never meets the primary:
   of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
@@ -281,11 +282,15 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
     leaves it, the next choice outside the stable stretches of the points already tried (the
     stable neighbours of a point that time integration leaves are orbits of the same family,
     and leave too), with a decisive verdict (DECISIVE_DECAY), up to `tries` marches in all,
-    until it stays. The first try is kept when none stays; the reason lists every try."""
-    from hbm.stability.selection import STABILITY_MARGIN
+    until it stays. Before a stable choice is marched it is solved again with twice the
+    harmonics (check_harmonics, up to [validation] harmonic_checks per point): one that is not
+    converged in N_h is not marched, and its stretch is ruled out as a left one's. The first
+    try is kept when none stays; the reason lists every try and check that failed."""
+    from hbm.stability.selection import STABILITY_MARGIN, check_harmonics
 
     opts, tag = ctx.scene.validation, method.upper()
-    first, kept, tried, marched = None, None, [], 0
+    first, kept, tried, marched, checked = None, None, [], 0, 0
+    fallback = None  # the first stable choice that failed its check: marched when nothing else is left
     while marched < tries:
         best, none = None, []
         margin = STABILITY_MARGIN if marched == 0 else max(STABILITY_MARGIN, DECISIVE_DECAY / opts.n_periods)
@@ -297,13 +302,29 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
                 best = (c, ch)
             if best is not None and best[1].stable:
                 break
-        if best is None or (first is not None and not best[1].stable):
-            why = (best[1].reason if best else none[0] if len(none) == 1 else
-                   f"no converged point left on the {len(candidates)} branches")
-            first = first or ValidationPoint(kind, method, False, why, candidates[0].where)
-            tried.append(f"no stable point left ({why})")
-            break
+        unchecked = False
+        if best is None or (not best[1].stable and (first is not None or fallback is not None)):
+            if first is None and fallback is not None:  # nothing marched yet: rather a point than none
+                best, fallback, unchecked = fallback, None, True
+                tried.append("no stable point left that passes the check: the first checked is marched")
+            else:
+                why = (best[1].reason if best else none[0] if len(none) == 1 else
+                       f"no converged point left on the {len(candidates)} branches")
+                first = first or ValidationPoint(kind, method, False, why, candidates[0].where)
+                tried.append(f"no stable point left ({why})")
+                break
         c, ch = best
+        if ch.stable and not unchecked and checked < opts.harmonic_checks:
+            update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: solved again with twice the harmonics")
+            check = check_harmonics(c.residual, ch.u, ch.omega)
+            checked += 1
+            if not check.passed:  # not an orbit of the ODE: no march; its stable neighbours lie by the same fold
+                tried.append(f"{ch.omega:.1f} rad/s{'' if len(candidates) == 1 else ' of ' + c.where} (stable), "
+                             f"not marched: {check.reason}")
+                fallback = fallback or (c, ch)
+                update(f"{tag}: the stable stretch of the {ch.omega:.1f} rad/s point")
+                c.rule_out(ch.index)
+                continue
         update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: {opts.n_periods} periods of time integration")
         p = _validate(ctx, rom, system, kind, method, ch, c.residual, c.where)
         marched += 1
@@ -320,7 +341,8 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
         c.rule_out(ch.index)
     result = kept or first
     if len(tried) > 1:
-        result = replace(result, reason=f"{result.reason}; {marched} marched: " + " | ".join(tried))
+        result = replace(result, reason=f"{result.reason}; {marched} marched, {checked} checked with 2 N_h: "
+                                        + " | ".join(tried))
     return result
 
 

@@ -280,3 +280,110 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
     p = run(3, branches=[("isolas.h5 rl/branches/000", low), ("isolas.h5 rl/branches/001", st & (b.omega > 3.0))])
     assert [w for w, _ in marched] == ["isolas.h5 rl/branches/000", "isolas.h5 rl/branches/001"]
     assert p.ti.stays and p.branch == "isolas.h5 rl/branches/001" and "of isolas.h5 rl/branches/000" in p.reason
+
+
+# -- a point not converged in N_h is not marched -------------------------------------------------
+def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator):
+    """check_harmonics on the RL obstacle oscillator at N_h = 3 (continued from W = 4.6 down to
+    0.3: its superharmonic resonances need more harmonics than 3). At stable points (Hill, N_h
+    = 3) time integration (scipy's solve_ivp, another method) marched 200 periods from the
+    orbit ends within 0.2 of the amplitude of it where the check passes, and 0.6 or more away
+    where it fails (measured 0.11-0.14 and 0.93-1.8); on the main resonance (N_h = 30) the
+    check passes and its multiplier with 60 harmonics is shooting's."""
+    from test_period_doubling import _multipliers, _state
+
+    from hbm.stability.selection import check_harmonics
+    from hbm.stability.spectrum import orbit_spectrum
+
+    res30, br30, _, _ = oscillator
+    low = replace(res30.options, n_harmonics=3, n_time=64)
+    res = build_residual(res30.rom, res30.casing, res30.contact, low, method="rl", forcing=res30.forcing, alpha=1.0,
+                         distance=res30._distance)
+    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    br = continue_branch(res, sol.x, 4.6, ContinuationOptions(omega_min=0.3, omega_max=4.6, ds=0.01, ds_max=0.05,
+                                                              direction=-1, newton=NOPT, closed_loop_tol=None,
+                                                              omega_scale=1.0))
+
+    def ti_distance(j, n=200):
+        xr = res.to_coefficients(br.x[j])[:, 0]
+        k, w = np.arange(1, 4), float(br.omega[j])
+        T = 2 * np.pi / w
+        x_at = lambda t: xr[0] + np.sum(xr[1::2] * np.cos(k * w * t) + xr[2::2] * np.sin(k * w * t))  # noqa: E731
+        ts = np.linspace((n - 1) * T, n * T, 65)
+        y = solve_ivp(_rhs, (0, n * T), [x_at(0.0), np.sum(k * w * xr[2::2])], args=(w,), t_eval=ts, rtol=1e-9,
+                      atol=1e-11, method="DOP853").y[0]
+        ref = np.array([x_at(t) for t in ts])
+        return np.abs(y - ref).max() / (0.5 * np.ptp(ref))
+
+    # the main resonance's upper stretch, then the superharmonic resonances near W = 0.74 and 0.49
+    picks = [i for i in (300, 1000, 1500, 1880, 1884, 2026, 2028, 2030, 2033) if i < len(br.omega)]
+    verdicts = {}
+    for j in picks:
+        assert orbit_spectrum(res, br.x[j], br.omega[j])[0].stable, j
+        ch = check_harmonics(res, br.x[j], br.omega[j], stable=False)
+        d = ti_distance(j)
+        verdicts[j] = ch.passed
+        assert (d < 0.2) if ch.passed else (d > 0.6), (j, br.omega[j], ch.reason, d)
+    assert sum(verdicts.values()) >= 3 and sum(not v for v in verdicts.values()) >= 3, verdicts
+    # N_h = 30 is converged on the main resonance: the check passes, and with 60 harmonics
+    # its largest multiplier is shooting's (another method)
+    j = 2
+    ch = check_harmonics(res30, br30.x[j], br30.omega[j])
+    assert ch.passed and ch.n_harmonics == 60 and ch.moved < 1e-6, ch.reason
+    shoot = np.abs(_multipliers(_state(res30, br30.x[j], br30.omega[j]), br30.omega[j])).max()
+    assert abs(ch.multiplier - shoot) < 1e-5, (ch.multiplier, shoot)
+
+
+def test_a_point_that_fails_the_harmonic_check_is_not_marched(long_branch, monkeypatch):
+    """_try_until_kept with the check replaced by a rule (the orbits below W = 3 are not
+    converged in N_h) and the march by one that keeps everything: the peak (W = 2) is checked,
+    not marched, its stretch ruled out, and the upper stretch's point marched and kept, one
+    march in all; with [validation] harmonic_checks = 0 the peak is marched; when every
+    stable choice fails its check, the first one is marched."""
+    import hbm.stability.selection as selection
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+    from hbm.stability.selection import HarmonicCheck, stable_stretch
+
+    res, b, amp = long_branch
+    m = len(b.omega)
+    st = np.zeros(m, bool)
+    for i in (m - 1, 2):
+        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, i)
+        st[lo: hi + 1] = True
+    marched, checked = [], []
+
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
+        marched.append(ch.index)
+        ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
+                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
+
+    passes = {"rule": lambda w: w > 3.0}
+
+    def fake_check(residual, u, omega, **kw):
+        checked.append(omega)
+        return HarmonicCheck(passes["rule"](omega), "rule", 60)
+
+    monkeypatch.setattr(stage, "_validate", fake_validate)
+    monkeypatch.setattr(selection, "check_harmonics", fake_check)
+
+    def run(checks):
+        marched.clear()
+        checked.clear()
+        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8, harmonic_checks=checks),
+                                                    contact=SimpleNamespace(mu=0.0)))
+        cands = [stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, st)]
+        return stage._try_until_kept(ctx, None, None, "primary", "rl", cands, 3, lambda text: None)
+
+    p = run(6)
+    assert len(checked) == 2 and checked[0] == b.omega[m - 1] and marched == [p.index]
+    assert p.omega > 4.3 and p.ti.stays and "1 marched, 2 checked with 2 N_h" in p.reason
+    assert "2.0 rad/s (stable), not marched: rule" in p.reason
+    p = run(0)
+    assert not checked and marched == [m - 1]
+    # when every stable choice fails, the first one checked is marched rather than none
+    passes["rule"] = lambda w: False
+    p = run(6)
+    assert len(checked) == 2 and marched == [m - 1] and p.found and p.index == m - 1
+    assert "the first checked is marched" in p.reason
