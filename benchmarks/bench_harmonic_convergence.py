@@ -1,0 +1,114 @@
+"""Are the validation stage's points converged in the number of harmonics? Every point the
+stage marched from (the primary and isola points and each of their tries, read from
+OUT/validation.h5) is solved again with `--factor` times the harmonics (and AFT samples) by
+damped Newton at the same Omega from its own harmonics, padded with zeros; then Hill's
+method at both resolutions.
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_harmonic_convergence.py OUT [--scene scenes/rotor67.toml]
+        [--factor 2] [--methods dlft rl]
+
+Needs OUT/rom.h5, OUT/validation.h5 and the branch files its points come from (nfrc_*.h5,
+isolas.h5), e.g. from `bladerub run SCENE --out OUT --set hbm.stability=true`. Prints one line
+per marched point: what time integration did (the stage's verdict), the largest multiplier
+modulus at N_h, whether a solution exists at factor x N_h, how far it moved (relative
+2-norm of the first N_h harmonics of the condensed unknowns) and its largest multiplier
+modulus there, and the CPU time of that check.
+"""
+from __future__ import annotations
+
+import argparse
+import re
+import sys
+import time
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+#: one try in a validation point's reason: "882.9 rad/s (stable), time integration leaves"
+TRY = re.compile(r"(\d+\.\d) rad/s(?: of [^(]+)? \((stable|unstable)\), time integration ([^|;]+)")
+
+
+def _branch(out: Path, where: str, method: str):
+    """(omega (m,), x (m, n_u), stable (m,) bool or None) of the branch named by a point's
+    'branch' attribute ("nfrc_rl.h5", "isolas.h5 rl/branches/000")."""
+    from pipelines.branch_store import load_branch
+    from pipelines.stages.validation import read_branch_set
+
+    if where.startswith("isolas.h5"):
+        name = where.split("/")[-1]
+        br = next(b for b in read_branch_set(out / "isolas.h5", method) if b.name == name)
+        return br.omega, br.x, br.stable
+    stored = load_branch(out / where.split()[0])
+    return stored.branch.omega, stored.branch.x, stored.extras.get("stable")
+
+
+def main() -> None:
+    import h5py
+
+    from hbm.continuation.newton import NewtonOptions
+    from hbm.harmonic.residual import build_residual
+    from hbm.harmonic.solver import HbmSolver
+    from hbm.harmonic.start import damped_newton
+    from hbm.stability.spectrum import orbit_spectrum
+    from pipelines.scene import load_scene
+    from pipelines.stages.rom import read_rom
+
+    ap = argparse.ArgumentParser()
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67_coarse.toml")
+    ap.add_argument("--factor", type=int, default=2)
+    ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    args = ap.parse_args()
+    scene = load_scene(args.scene)
+    rom = read_rom(args.out)
+    n_r = 3 * rom.n_boundary
+    newton = NewtonOptions(tol_residual=scene.hbm.tolerance, max_iter=30)
+    print(f"{'method':6} {'point':8} {'Omega':>8} {'time integration':40} {'|mu| N_h':>9} {'x' + str(args.factor) + ' N_h':>9} "
+          f"{'moved':>7} {'|mu|':>7} {'CPU s':>6}")
+    with h5py.File(args.out / "validation.h5", "r") as f:
+        for method in args.methods:
+            for kind in ("primary", "isola"):
+                g = f[f"{method}/{kind}"]
+                if not g["found"][()]:
+                    continue
+                where, reason = g.attrs["branch"], g.attrs["reason"]
+                nu = int(g["subharmonic"][()])
+                tries = [(float(w), st == "stable", v.strip()) for w, st, v in TRY.findall(reason)]
+                if not tries:  # one march: the point itself
+                    tries = [(float(g["omega"][()]), bool(g["stable"][()]), "(the point)")]
+                omega_b, x_b, stable_b = _branch(args.out, where, method)
+                nh = (x_b.shape[1] // n_r - 1) // 2
+                coarse = build_residual(rom, scene.casing, scene.contact,
+                                        replace(scene.hbm, subharmonic=nu, n_harmonics=nh), method=method)
+                fine = build_residual(rom, scene.casing, scene.contact,
+                                      replace(scene.hbm, subharmonic=nu, n_harmonics=args.factor * nh,
+                                              n_time=args.factor * coarse.options.n_time), method=method)
+                for omega, stable, verdict in tries:
+                    # the branch point the reason names (rounded to 0.1 rad/s; among the stable
+                    # ones when the branch says which: a fold may put several points there)
+                    pool = np.flatnonzero(np.asarray(stable_b, bool) == stable) if stable_b is not None else None
+                    pool = pool if pool is not None and len(pool) else np.arange(len(omega_b))
+                    i = int(pool[np.argmin(np.abs(omega_b[pool] - omega))])
+                    w, u = float(omega_b[i]), x_b[i]
+                    mu0 = np.abs(orbit_spectrum(coarse, u, w)[0].multipliers).max()
+                    c0 = time.process_time()
+                    xr = coarse.to_coefficients(u)
+                    lifted = np.zeros((fine.n_c, n_r))
+                    lifted[: len(xr)] = xr
+                    sol = damped_newton(fine, fine.to_unknowns(lifted), w, newton, HbmSolver(atol=0.1 * scene.hbm.tolerance))
+                    if sol.converged:
+                        moved = np.linalg.norm(fine.to_coefficients(sol.x)[: len(xr)] - xr) / np.linalg.norm(xr)
+                        mu1 = np.abs(orbit_spectrum(fine, sol.x, w)[0].multipliers).max()
+                        tail = f"{'yes':>9} {moved:7.3f} {mu1:7.3f}"
+                    else:
+                        tail = f"{'no':>9} {'-':>7} {'-':>7}"
+                    print(f"{method:6} {kind:8} {w:8.1f} {verdict[:40]:40} {mu0:9.3f} {tail} "
+                          f"{time.process_time() - c0:6.1f}", flush=True)
+
+
+if __name__ == "__main__":
+    main()
