@@ -178,6 +178,18 @@ def long_branch(oscillator):
     return res, b, amp
 
 
+def _stable_flags(res, b):
+    """(m,) bool: the long branch's two stable stretches (around the peak and point 2), as a
+    branch file computed with stability would store them."""
+    from hbm.stability.selection import stable_stretch
+
+    st = np.zeros(len(b.omega), bool)
+    for i in (len(b.omega) - 1, 2):
+        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, i)
+        st[lo: hi + 1] = True
+    return st
+
+
 def test_stable_stretch_ends_where_shooting_sees_stability_change(long_branch, monkeypatch):
     from test_period_doubling import _multipliers, _state
 
@@ -228,14 +240,10 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
     stable point left."""
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
-    from hbm.stability.selection import stable_stretch
 
     res, b, amp = long_branch
     m = len(b.omega)
-    st = np.zeros(m, bool)
-    for i in (m - 1, 2):
-        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, i)
-        st[lo: hi + 1] = True
+    st = _stable_flags(res, b)
     marched = []
 
     def fake_validate(ctx, rom, system, kind, method, ch, residual, where, keep=lambda w: w > 3.0):
@@ -343,14 +351,11 @@ def test_a_point_that_fails_the_harmonic_check_is_not_marched(long_branch, monke
     import hbm.stability.selection as selection
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
-    from hbm.stability.selection import HarmonicCheck, stable_stretch
+    from hbm.stability.selection import HarmonicCheck
 
     res, b, amp = long_branch
     m = len(b.omega)
-    st = np.zeros(m, bool)
-    for i in (m - 1, 2):
-        lo, hi = stable_stretch(res, b.omega, b.x, b.converged, i)
-        st[lo: hi + 1] = True
+    st = _stable_flags(res, b)
     marched, checked = [], []
 
     def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
