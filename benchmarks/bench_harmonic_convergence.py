@@ -5,14 +5,16 @@ damped Newton at the same Omega from its own harmonics, padded with zeros; then 
 method at both resolutions.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_harmonic_convergence.py OUT [--scene scenes/rotor67.toml]
-        [--factor 2] [--methods dlft rl]
+        [--factor 2] [--methods dlft rl] [--branch rl/000 --every 5]
 
 Needs OUT/rom.h5, OUT/validation.h5 and the branch files its points come from (nfrc_*.h5,
 isolas.h5), e.g. from `bladerub run SCENE --out OUT --set hbm.stability=true`. Prints one line
 per marched point: what time integration did (the stage's verdict), the largest multiplier
 modulus at N_h, whether a solution exists at factor x N_h, how far it moved (relative
 2-norm of the first N_h harmonics of the condensed unknowns) and its largest multiplier
-modulus there, and the CPU time of that check.
+modulus there, and the CPU time of that check. With --branch METHOD/NAME, every --every-th
+converged point of that branch of OUT/isolas.h5 instead, and a summary: how many have no
+solution next to them with factor x N_h, moved by more than 25 %, or change stability verdict.
 """
 from __future__ import annotations
 
@@ -46,14 +48,58 @@ def _branch(out: Path, where: str, method: str):
     return stored.branch.omega, stored.branch.x, stored.extras.get("stable")
 
 
+def refine(coarse, fine, u, omega, newton):
+    """(largest |mu| at N_h, solution exists at the finer N_h, moved, largest |mu| there, CPU s)."""
+    from hbm.harmonic.solver import HbmSolver
+    from hbm.harmonic.start import damped_newton
+    from hbm.stability.spectrum import orbit_spectrum
+
+    mu0 = np.abs(orbit_spectrum(coarse, u, omega)[0].multipliers).max()
+    c0 = time.process_time()
+    xr = coarse.to_coefficients(u)
+    lifted = np.zeros((fine.n_c, fine.n_r))
+    lifted[: len(xr)] = xr
+    sol = damped_newton(fine, fine.to_unknowns(lifted), omega, newton, HbmSolver(atol=0.1 * newton.tol_residual))
+    if not sol.converged:
+        return mu0, False, np.nan, np.nan, time.process_time() - c0
+    moved = np.linalg.norm(fine.to_coefficients(sol.x)[: len(xr)] - xr) / np.linalg.norm(xr)
+    mu1 = np.abs(orbit_spectrum(fine, sol.x, omega)[0].multipliers).max()
+    return mu0, True, moved, mu1, time.process_time() - c0
+
+
+def branch_points(args, scene, rom, newton) -> None:
+    """--branch: every --every-th converged point of one branch of isolas.h5."""
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.selection import HARMONIC_MOVE_TOL
+    from pipelines.stages.validation import read_branch_set
+
+    method, name = args.branch.split("/")
+    br = next(b for b in read_branch_set(args.out / "isolas.h5", method) if b.name == name)
+    nh = (br.x.shape[1] // (3 * rom.n_boundary) - 1) // 2
+    coarse = build_residual(rom, scene.casing, scene.contact,
+                            replace(scene.hbm, subharmonic=br.subharmonic, n_harmonics=nh), method=method)
+    fine = coarse.refined(args.factor)
+    rows = []
+    print(f"{'point':>5} {'Omega':>8} {'|mu| N_h':>9} {'exists':>7} {'moved':>7} {'|mu|':>7} {'CPU s':>6}")
+    for i in np.flatnonzero(br.converged)[:: args.every]:
+        w = float(br.omega[i])
+        mu0, ok, moved, mu1, cpu = refine(coarse, fine, br.x[i], w, newton)
+        rows.append((mu0, ok, moved, mu1, cpu))
+        print(f"{i:5d} {w:8.1f} {mu0:9.3f} {'yes' if ok else 'no':>7} {moved:7.3f} {mu1:7.3f} {cpu:6.1f}", flush=True)
+    mu0, ok, moved, mu1, cpu = (np.array(c) for c in zip(*rows))
+    same = ok & (moved <= HARMONIC_MOVE_TOL)
+    flips = same & ((mu0 < 1.0) != (mu1 < 1.0))
+    print(f"{args.branch}: {len(rows)} points checked with N_h = {fine.basis.n_harmonics}: {int((~ok).sum())} without a "
+          f"solution next to them, {int((ok & ~same).sum())} moved by more than {HARMONIC_MOVE_TOL:.0%}; of the "
+          f"{int(same.sum())} others, {int(flips.sum())} change verdict ({int((flips & (mu0 < 1)).sum())} stable -> "
+          f"unstable); stable at N_h: {int((mu0 < 1).sum())}; median CPU {np.median(cpu):.1f} s")
+
+
 def main() -> None:
     import h5py
 
     from hbm.continuation.newton import NewtonOptions
     from hbm.harmonic.residual import build_residual
-    from hbm.harmonic.solver import HbmSolver
-    from hbm.harmonic.start import damped_newton
-    from hbm.stability.spectrum import orbit_spectrum
     from pipelines.scene import load_scene
     from pipelines.stages.rom import read_rom
 
@@ -62,11 +108,15 @@ def main() -> None:
     ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67_coarse.toml")
     ap.add_argument("--factor", type=int, default=2)
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    ap.add_argument("--branch", help="METHOD/NAME of a branch of OUT/isolas.h5, e.g. rl/000")
+    ap.add_argument("--every", type=int, default=5)
     args = ap.parse_args()
     scene = load_scene(args.scene)
     rom = read_rom(args.out)
     n_r = 3 * rom.n_boundary
     newton = NewtonOptions(tol_residual=scene.hbm.tolerance, max_iter=30)
+    if args.branch:
+        return branch_points(args, scene, rom, newton)
     print(f"{'method':6} {'point':8} {'Omega':>8} {'time integration':40} {'|mu| N_h':>9} {'x' + str(args.factor) + ' N_h':>9} "
           f"{'moved':>7} {'|mu|':>7} {'CPU s':>6}")
     with h5py.File(args.out / "validation.h5", "r") as f:
@@ -84,30 +134,17 @@ def main() -> None:
                 nh = (x_b.shape[1] // n_r - 1) // 2
                 coarse = build_residual(rom, scene.casing, scene.contact,
                                         replace(scene.hbm, subharmonic=nu, n_harmonics=nh), method=method)
-                fine = build_residual(rom, scene.casing, scene.contact,
-                                      replace(scene.hbm, subharmonic=nu, n_harmonics=args.factor * nh,
-                                              n_time=args.factor * coarse.options.n_time), method=method)
+                fine = coarse.refined(args.factor)
                 for omega, stable, verdict in tries:
                     # the branch point the reason names (rounded to 0.1 rad/s; among the stable
                     # ones when the branch says which: a fold may put several points there)
                     pool = np.flatnonzero(np.asarray(stable_b, bool) == stable) if stable_b is not None else None
                     pool = pool if pool is not None and len(pool) else np.arange(len(omega_b))
                     i = int(pool[np.argmin(np.abs(omega_b[pool] - omega))])
-                    w, u = float(omega_b[i]), x_b[i]
-                    mu0 = np.abs(orbit_spectrum(coarse, u, w)[0].multipliers).max()
-                    c0 = time.process_time()
-                    xr = coarse.to_coefficients(u)
-                    lifted = np.zeros((fine.n_c, n_r))
-                    lifted[: len(xr)] = xr
-                    sol = damped_newton(fine, fine.to_unknowns(lifted), w, newton, HbmSolver(atol=0.1 * scene.hbm.tolerance))
-                    if sol.converged:
-                        moved = np.linalg.norm(fine.to_coefficients(sol.x)[: len(xr)] - xr) / np.linalg.norm(xr)
-                        mu1 = np.abs(orbit_spectrum(fine, sol.x, w)[0].multipliers).max()
-                        tail = f"{'yes':>9} {moved:7.3f} {mu1:7.3f}"
-                    else:
-                        tail = f"{'no':>9} {'-':>7} {'-':>7}"
-                    print(f"{method:6} {kind:8} {w:8.1f} {verdict[:40]:40} {mu0:9.3f} {tail} "
-                          f"{time.process_time() - c0:6.1f}", flush=True)
+                    w = float(omega_b[i])
+                    mu0, ok, moved, mu1, cpu = refine(coarse, fine, x_b[i], w, newton)
+                    tail = (f"{'yes':>9} {moved:7.3f} {mu1:7.3f}" if ok else f"{'no':>9} {'-':>7} {'-':>7}")
+                    print(f"{method:6} {kind:8} {w:8.1f} {verdict[:40]:40} {mu0:9.3f} {tail} {cpu:6.1f}", flush=True)
 
 
 if __name__ == "__main__":
