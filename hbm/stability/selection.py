@@ -223,7 +223,8 @@ def check_harmonics(residual, u: np.ndarray, omega: float, *, factor: int = 2, s
     kept exists at N_h = 80, moved by at most 8 % (benchmarks/bench_harmonic_convergence.py).
     DLFT's verdict is not re-checked: its law is not differentiable and Hill's multiplier at a
     point time integration keeps moves from 0.95 at N_h = 40 to 1.08 at 80 (1338 rad/s there).
-    max_iter: Newton iterations (converged points take 3 to 8 there).
+    max_iter: Newton iterations (converged points take 3 to 8 there; 20 halves the cost of a
+    point with no solution against damped_newton's default 40).
     """
     from hbm.harmonic.start import damped_newton
 
@@ -233,8 +234,8 @@ def check_harmonics(residual, u: np.ndarray, omega: float, *, factor: int = 2, s
     lifted[: len(xr)] = xr
     nh = fine.basis.n_harmonics
     tol = residual.options.tolerance
-    sol = damped_newton(fine, fine.to_unknowns(lifted), float(omega), NewtonOptions(tol_residual=tol, max_iter=max_iter),
-                        HbmSolver(atol=0.1 * tol))
+    sol = damped_newton(fine, fine.to_unknowns(lifted), float(omega), NewtonOptions(tol_residual=tol),
+                        HbmSolver(atol=0.1 * tol), max_iter=max_iter)
     if not sol.converged:
         return HarmonicCheck(False, f"no solution with N_h = {nh} next to it ({sol.reason})", nh)
     moved = float(np.linalg.norm(fine.to_coefficients(sol.x)[: len(xr)] - xr) / max(np.linalg.norm(xr), 1e-300))
