@@ -114,7 +114,7 @@ def main() -> None:
     scene = load_scene(args.scene)
     rom = read_rom(args.out)
     n_r = 3 * rom.n_boundary
-    newton = NewtonOptions(tol_residual=scene.hbm.tolerance, max_iter=30)
+    newton = NewtonOptions(tol_residual=scene.hbm.tolerance)  # damped_newton: up to 40 iterations
     if args.branch:
         return branch_points(args, scene, rom, newton)
     print(f"{'method':6} {'point':8} {'Omega':>8} {'time integration':40} {'|mu| N_h':>9} {'x' + str(args.factor) + ' N_h':>9} "
