@@ -294,9 +294,9 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
 def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator):
     """check_harmonics on the RL obstacle oscillator at N_h = 3 (continued from W = 4.6 down to
     0.3: its superharmonic resonances need more harmonics than 3). At stable points (Hill, N_h
-    = 3) time integration (scipy's solve_ivp, another method) marched 200 periods from the
+    = 3) time integration (scipy's solve_ivp, another method) marched 100 periods from the
     orbit ends within 0.2 of the amplitude of it where the check passes, and 0.6 or more away
-    where it fails (measured 0.11-0.14 and 0.93-1.8); on the main resonance (N_h = 30) the
+    where it fails (measured 0.11-0.14 and 1.09-1.67); on the main resonance (N_h = 30) the
     check passes and its multiplier with 60 harmonics is shooting's."""
     from test_period_doubling import _multipliers, _state
 
@@ -312,7 +312,7 @@ def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator
                                                               direction=-1, newton=NOPT, closed_loop_tol=None,
                                                               omega_scale=1.0))
 
-    def ti_distance(j, n=200):
+    def ti_distance(j, n=100):
         xr = res.to_coefficients(br.x[j])[:, 0]
         k, w = np.arange(1, 4), float(br.omega[j])
         T = 2 * np.pi / w
@@ -324,7 +324,7 @@ def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator
         return np.abs(y - ref).max() / (0.5 * np.ptp(ref))
 
     # the main resonance's upper stretch, then the superharmonic resonances near W = 0.74 and 0.49
-    picks = [i for i in (300, 1000, 1500, 1880, 1884, 2026, 2028, 2030, 2033) if i < len(br.omega)]
+    picks = [i for i in (300, 1000, 1500, 1884, 2026, 2033) if i < len(br.omega)]
     verdicts = {}
     for j in picks:
         assert orbit_spectrum(res, br.x[j], br.omega[j])[0].stable, j
