@@ -48,26 +48,23 @@ def _branch(out: Path, where: str, method: str):
     return stored.branch.omega, stored.branch.x, stored.extras.get("stable")
 
 
-def refine(coarse, fine, u, omega, newton):
-    """(largest |mu| at N_h, solution exists at the finer N_h, moved, largest |mu| there, CPU s)."""
-    from hbm.harmonic.solver import HbmSolver
-    from hbm.harmonic.start import damped_newton
+def refine(coarse, fine, u, omega):
+    """(largest |mu| at N_h, solution exists at the finer N_h, moved, largest |mu| there, CPU s):
+    check_harmonics with damped_newton's default 40 iterations, then Hill's method on the
+    finer solution whatever the treatment."""
+    from hbm.stability.selection import check_harmonics
     from hbm.stability.spectrum import orbit_spectrum
 
     mu0 = np.abs(orbit_spectrum(coarse, u, omega)[0].multipliers).max()
     c0 = time.process_time()
-    xr = coarse.to_coefficients(u)
-    lifted = np.zeros((fine.n_c, fine.n_r))
-    lifted[: len(xr)] = xr
-    sol = damped_newton(fine, fine.to_unknowns(lifted), omega, newton, HbmSolver(atol=0.1 * newton.tol_residual))
-    if not sol.converged:
+    check = check_harmonics(coarse, u, omega, stable=False, max_iter=40, fine=fine)
+    if not check.u.size:
         return mu0, False, np.nan, np.nan, time.process_time() - c0
-    moved = np.linalg.norm(fine.to_coefficients(sol.x)[: len(xr)] - xr) / np.linalg.norm(xr)
-    mu1 = np.abs(orbit_spectrum(fine, sol.x, omega)[0].multipliers).max()
-    return mu0, True, moved, mu1, time.process_time() - c0
+    mu1 = np.abs(orbit_spectrum(fine, check.u, omega)[0].multipliers).max()
+    return mu0, True, check.moved, mu1, time.process_time() - c0
 
 
-def branch_points(args, scene, rom, newton) -> None:
+def branch_points(args, scene, rom) -> None:
     """--branch: every --every-th converged point of one branch of isolas.h5."""
     from hbm.harmonic.residual import build_residual
     from hbm.stability.selection import HARMONIC_MOVE_TOL
@@ -83,7 +80,7 @@ def branch_points(args, scene, rom, newton) -> None:
     print(f"{'point':>5} {'Omega':>8} {'|mu| N_h':>9} {'exists':>7} {'moved':>7} {'|mu|':>7} {'CPU s':>6}")
     for i in np.flatnonzero(br.converged)[:: args.every]:
         w = float(br.omega[i])
-        mu0, ok, moved, mu1, cpu = refine(coarse, fine, br.x[i], w, newton)
+        mu0, ok, moved, mu1, cpu = refine(coarse, fine, br.x[i], w)
         rows.append((mu0, ok, moved, mu1, cpu))
         print(f"{i:5d} {w:8.1f} {mu0:9.3f} {'yes' if ok else 'no':>7} {moved:7.3f} {mu1:7.3f} {cpu:6.1f}", flush=True)
     mu0, ok, moved, mu1, cpu = (np.array(c) for c in zip(*rows))
@@ -98,7 +95,6 @@ def branch_points(args, scene, rom, newton) -> None:
 def main() -> None:
     import h5py
 
-    from hbm.continuation.newton import NewtonOptions
     from hbm.harmonic.residual import build_residual
     from pipelines.scene import load_scene
     from pipelines.stages.rom import read_rom
@@ -114,9 +110,8 @@ def main() -> None:
     scene = load_scene(args.scene)
     rom = read_rom(args.out)
     n_r = 3 * rom.n_boundary
-    newton = NewtonOptions(tol_residual=scene.hbm.tolerance)  # damped_newton: up to 40 iterations
     if args.branch:
-        return branch_points(args, scene, rom, newton)
+        return branch_points(args, scene, rom)
     print(f"{'method':6} {'point':8} {'Omega':>8} {'time integration':40} {'|mu| N_h':>9} {'x' + str(args.factor) + ' N_h':>9} "
           f"{'moved':>7} {'|mu|':>7} {'CPU s':>6}")
     with h5py.File(args.out / "validation.h5", "r") as f:
@@ -142,7 +137,7 @@ def main() -> None:
                     pool = pool if pool is not None and len(pool) else np.arange(len(omega_b))
                     i = int(pool[np.argmin(np.abs(omega_b[pool] - omega))])
                     w = float(omega_b[i])
-                    mu0, ok, moved, mu1, cpu = refine(coarse, fine, x_b[i], w, newton)
+                    mu0, ok, moved, mu1, cpu = refine(coarse, fine, x_b[i], w)
                     tail = (f"{'yes':>9} {moved:7.3f} {mu1:7.3f}" if ok else f"{'no':>9} {'-':>7} {'-':>7}")
                     print(f"{method:6} {kind:8} {w:8.1f} {verdict[:40]:40} {mu0:9.3f} {tail} {cpu:6.1f}", flush=True)
 

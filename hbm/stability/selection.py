@@ -199,7 +199,8 @@ class HarmonicCheck:
     passed: it exists there and, when checked, is stable there too. n_harmonics: the finer
     N_h. moved: relative 2-norm change of its first N_h harmonics (condensed unknowns), 1
     (nan when there is no solution). multiplier: largest |mu| over the minimal period with
-    the finer N_h (nan when not analysed). reason: in words.
+    the finer N_h (nan when not analysed). u: the finer solution's unknowns, scaled as the
+    finer residual's ((2 factor N_h + 1) n_r,), empty when there is none. reason: in words.
     """
 
     passed: bool
@@ -207,10 +208,11 @@ class HarmonicCheck:
     n_harmonics: int = field(default=0, metadata={"unit": "1"})
     moved: float = field(default=math.nan, metadata={"unit": "1"})
     multiplier: float = field(default=math.nan, metadata={"unit": "1"})
+    u: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
 
 
 def check_harmonics(residual, u: np.ndarray, omega: float, *, factor: int = 2, stable: bool = True,
-                    max_iter: int = 20) -> HarmonicCheck:
+                    max_iter: int = 20, fine=None) -> HarmonicCheck:
     """Whether the solution u at omega is converged in the number of harmonics: damped Newton
     at the same Omega with factor times the harmonics (residual.refined), from u padded with
     zeros, must converge to a solution whose first N_h harmonics moved by at most
@@ -224,11 +226,12 @@ def check_harmonics(residual, u: np.ndarray, omega: float, *, factor: int = 2, s
     DLFT's verdict is not re-checked: its law is not differentiable and Hill's multiplier at a
     point time integration keeps moves from 0.95 at N_h = 40 to 1.08 at 80 (1338 rad/s there).
     max_iter: Newton iterations (converged points take 3 to 8 there; 20 halves the cost of a
-    point with no solution against damped_newton's default 40).
+    point with no solution against damped_newton's default 40). fine: residual.refined(factor)
+    when the caller has it already (checking many points of one branch).
     """
     from hbm.harmonic.start import damped_newton
 
-    fine = residual.refined(factor)
+    fine = residual.refined(factor) if fine is None else fine
     xr = residual.to_coefficients(u)
     lifted = np.zeros((fine.n_c, fine.n_r))
     lifted[: len(xr)] = xr
@@ -241,14 +244,15 @@ def check_harmonics(residual, u: np.ndarray, omega: float, *, factor: int = 2, s
     moved = float(np.linalg.norm(fine.to_coefficients(sol.x)[: len(xr)] - xr) / max(np.linalg.norm(xr), 1e-300))
     if moved > HARMONIC_MOVE_TOL:
         return HarmonicCheck(False, f"the solution with N_h = {nh} next to it is another orbit (moved {moved:.0%})",
-                             nh, moved)
+                             nh, moved, u=sol.x)
     if not (stable and residual.method == "rl"):
-        return HarmonicCheck(True, f"exists with N_h = {nh} (moved {moved:.1%})", nh, moved)
+        return HarmonicCheck(True, f"exists with N_h = {nh} (moved {moved:.1%})", nh, moved, u=sol.x)
     spec, _ = orbit_spectrum(fine, sol.x, float(omega))
     mu = float(np.abs(spec.multipliers).max(initial=0.0))
     if not spec.stable:
-        return HarmonicCheck(False, f"unstable with N_h = {nh} (|mu| = {mu:.4g}, moved {moved:.1%})", nh, moved, mu)
-    return HarmonicCheck(True, f"stable with N_h = {nh} (|mu| = {mu:.4g}, moved {moved:.1%})", nh, moved, mu)
+        return HarmonicCheck(False, f"unstable with N_h = {nh} (|mu| = {mu:.4g}, moved {moved:.1%})", nh, moved, mu,
+                             sol.x)
+    return HarmonicCheck(True, f"stable with N_h = {nh} (|mu| = {mu:.4g}, moved {moved:.1%})", nh, moved, mu, sol.x)
 
 
 @dataclass(frozen=True)

@@ -337,8 +337,9 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
             break
         if not ch.stable or marched == tries:  # unstable: the next choice would be too
             break
-        update(f"{tag}: the stable stretch of the {ch.omega:.1f} rad/s point")
-        c.rule_out(ch.index)
+        if not unchecked:  # the fallback's stretch was ruled out when its check failed
+            update(f"{tag}: the stable stretch of the {ch.omega:.1f} rad/s point")
+            c.rule_out(ch.index)
     result = kept or first
     if len(tried) > 1:
         result = replace(result, reason=f"{result.reason}; {marched} marched, {checked} checked with 2 N_h: "
