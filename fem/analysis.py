@@ -58,8 +58,8 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     boundary_node_index: (n_b,) mesh nodes for the Craig-Bampton basis; None or empty skips it.
     timings: if a dict, receives wall times in s of 'factorisation', 'modes', 'interface'
         (and 'gather' under MPI) and the block-solve counts 'modes_block_solves',
-        'interface_block_solves'; 'ordering', the fill-reducing ordering MUMPS applied
-        (fem.cholesky.CholeskyFactor.ordering_used); out of core, 'factor_files_mb', the size of the factor's
+        'interface_block_solves'; 'solver', the package that factorised K, and 'ordering', the
+        fill-reducing ordering it applied (fem.cholesky.CholeskyFactor.solver_used, .ordering_used); out of core, 'factor_files_mb', the size of the factor's
         files under TMPDIR, MB.
     """
     import tempfile
@@ -78,12 +78,14 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     scratch = tempfile.TemporaryDirectory(prefix="bladerub-mumps-") if options.out_of_core else None
     t = time.perf_counter()
     try:
-        factor = CholeskyFactor(K, ordering=options.ordering, out_of_core=scratch.name if scratch else None)
+        factor = CholeskyFactor(K, ordering=options.ordering, out_of_core=scratch.name if scratch else None,
+                                solver=options.solver)
     except BaseException:
         if scratch is not None:
             scratch.cleanup()
         raise
     timings["factorisation"] = time.perf_counter() - t
+    timings["solver"] = factor.solver_used
     timings["ordering"] = factor.ordering_used
     if scratch is not None:  # what the factor takes on the disk of TMPDIR, all ranks together
         files = sum(f.stat().st_size for f in Path(scratch.name).rglob("*") if f.is_file())

@@ -1,10 +1,19 @@
-"""Sparse Cholesky factorisation of the stiffness (MUMPS through PETSc), reused for many solves.
+"""Sparse Cholesky factorisation of the stiffness (CHOLMOD or MUMPS through PETSc), reused
+for many solves.
 
 On the default blade (~600k dof) the factorisation is the single most expensive step of
-mesh -> ROM (about 1.6e12 flop, two minutes of CPU), while a block solve with 12 right-hand
-sides costs about as much as one with a single one (the triangular factor, ~5 GB, is read
-from memory once per block). Everything downstream therefore factorises K once and feeds
-it blocks of right-hand sides.
+mesh -> ROM (about 6e11 flop), while a block solve with 12 right-hand sides costs about as
+much as one with a single one (the triangular factor, ~2.5 GB, is read from memory once per
+block). Everything downstream therefore factorises K once and feeds it blocks of
+right-hand sides.
+
+Two factorisations, both in Debian's PETSc: CHOLMOD (SuiteSparse, supernodal, its own
+choice of AMD or METIS) in one process with the factor in memory, and MUMPS (multifrontal)
+under MPI or with the factor out of core, which CHOLMOD cannot do. Where both can, CHOLMOD
+is the default ("auto"): on the ~200k-node rotor 67 wedge deck (952 890 dof) it factorises
+in 83 s where MUMPS takes 207 s (3.3e12 against 3.5e12 flop: METIS against MUMPS's PORD,
+and CHOLMOD's supernodal BLAS-3 runs at ~40 Gflop/s on 2 cores where MUMPS's fronts reach
+~17), and its block solves are faster too (benchmarks/bench_factor_pattern.py --solvers).
 """
 from __future__ import annotations
 
@@ -17,14 +26,37 @@ import scipy.sparse as sp
 ORDERINGS = {"pord": 4, "amd": 0, "amf": 2, "qamd": 6, "metis": 5, "scotch": 3, "auto": 7}
 ORDERING_NAMES = {v: k for k, v in ORDERINGS.items()}
 
+#: [fem] solver: "auto" = CHOLMOD in one process with the factor in memory, else MUMPS.
+SOLVERS = ("auto", "cholmod", "mumps")
+#: CholeskyFactor.ordering_used with CHOLMOD, which keeps the better of AMD and METIS by fill
+#: and does not say which (PETSc exposes no CHOLMOD statistics but through a viewer).
+CHOLMOD_ORDERING = "cholmod (AMD or METIS)"
+
+
+def resolve_solver(solver: str, distributed: bool, out_of_core: bool) -> str:
+    """The factorisation package that `solver` (a key of SOLVERS) names for a matrix on one
+    process or distributed, with the factor in memory or out of core: "cholmod" or "mumps".
+    Raises ValueError for CHOLMOD where it cannot run (it is sequential and in core only)."""
+    if solver not in SOLVERS:
+        raise ValueError(f"unknown solver '{solver}'; known: {', '.join(SOLVERS)}")
+    if solver == "auto":
+        return "mumps" if distributed or out_of_core else "cholmod"
+    if solver == "cholmod" and distributed:
+        raise ValueError('solver "cholmod" factorises on one process; under MPI use "mumps" (or "auto")')
+    if solver == "cholmod" and out_of_core:
+        raise ValueError('solver "cholmod" keeps the factor in memory; out of core needs "mumps" (or "auto")')
+    return solver
+
 
 class CholeskyFactor:
-    """LDL^T (MUMPS, symmetric positive definite) of a sparse matrix.
+    """Cholesky factor (CHOLMOD LL^T or MUMPS LDL^T, symmetric positive definite) of a sparse matrix.
 
     A: a scipy sparse matrix (this process only), or a fem.distributed.DistributedMatrix
     (factorised in parallel by MUMPS on the matrix's communicator).
-    ordering: a key of ORDERINGS; ordering_used: the one MUMPS applied (INFOG(7)), which
-        differs when this MUMPS lacks the one asked for.
+    solver: a key of SOLVERS (resolve_solver); `solver_used` says which package factorised.
+    ordering: a key of ORDERINGS, for MUMPS; ordering_used: the one MUMPS applied
+        (INFOG(7)), which differs when this MUMPS lacks the one asked for; CHOLMOD_ORDERING
+        with CHOLMOD, which chooses its own.
     out_of_core: None: the factor stays in memory. A directory: MUMPS writes the factor
         there as it computes it (ICNTL(22) = 1) and reads it back at every solve; the
         memory is then that of the active fronts only, the factor lives in files (and in
@@ -34,13 +66,14 @@ class CholeskyFactor:
     is collective.
     """
 
-    def __init__(self, A, ordering: str = "pord", out_of_core: str | None = None):
+    def __init__(self, A, ordering: str = "pord", out_of_core: str | None = None, solver: str = "auto"):
         from petsc4py import PETSc
 
         from fem.distributed import DistributedMatrix
 
         if ordering not in ORDERINGS:
             raise ValueError(f"unknown ordering '{ordering}'; known: {', '.join(ORDERINGS)}")
+        self.solver_used = resolve_solver(solver, isinstance(A, DistributedMatrix), out_of_core is not None)
         if isinstance(A, DistributedMatrix):  # distributed: MUMPS reads the upper triangle of the AIJ rows
             self.n = int(A.shape[0])
             self.n_local = A.layout.n_local
@@ -54,8 +87,8 @@ class CholeskyFactor:
                 raise ValueError(f"matrix must be square, got shape {A.shape}")
             self.n = self.n_local = n
             comm = PETSc.COMM_SELF
-            # MUMPS reads only the upper triangle of a symmetric matrix: hand it just that
-            # (SBAIJ), half the memory of a full AIJ copy.
+            # both packages read only the upper triangle of a symmetric matrix: hand them just
+            # that (SBAIJ), half the memory of a full AIJ copy.
             U = sp.triu(A, format="csr")
             U.sort_indices()
             self._A = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
@@ -69,9 +102,39 @@ class CholeskyFactor:
         ksp.setType("preonly")
         pc = ksp.getPC()
         pc.setType("cholesky")
-        pc.setFactorSolverType("mumps")
+        pc.setFactorSolverType(self.solver_used)
         pc.setFactorSetUpSolverType()
         F = pc.getFactorMatrix()
+        if self.solver_used == "cholmod":
+            self._setup_cholmod(ksp, F)
+        else:
+            self._setup_mumps(ksp, F, ordering, out_of_core)
+        self._ksp, self._F = ksp, F
+
+    def _setup_cholmod(self, ksp, F) -> None:
+        from petsc4py import PETSc
+
+        # supernodal always: it is LL^T and stops at a non-positive pivot, where CHOLMOD's
+        # simplicial LDL^T (its choice for small, sparse factors) would factorise an
+        # indefinite K without a word
+        opts = PETSc.Options()
+        opts["mat_cholmod_factor"] = "supernodal"
+        try:
+            ksp.setUp()
+        except PETSc.Error as exc:
+            if exc.ierr == 81:  # PETSC_ERR_MAT_CH_ZRPVT: a pivot <= 0 in the Cholesky factorisation
+                raise np.linalg.LinAlgError("stiffness is not positive definite (CHOLMOD stopped at a pivot <= 0): "
+                                            "is the structure clamped?") from None
+            raise RuntimeError(f"CHOLMOD factorisation failed (PETSc error {exc.ierr})") from None
+        finally:
+            opts.delValue("mat_cholmod_factor")
+        self.factor_entries = int(F.getInfo()["nz_used"])
+        self.factor_flops = float("nan")  # CHOLMOD's count is printed by a viewer only
+        self.ordering_used = CHOLMOD_ORDERING
+
+    def _setup_mumps(self, ksp, F, ordering: str, out_of_core: str | None) -> None:
+        from petsc4py import PETSc
+
         F.setMumpsIcntl(24, 0)  # no null-pivot detection: K is SPD once the root is clamped
         # ICNTL(7) through the options database: PETSc 3.18's Cholesky analysis resets a value
         # set with F.setMumpsIcntl(7, ...) to 7 (MUMPS's choice); the database value is kept
@@ -94,13 +157,12 @@ class CholeskyFactor:
         n_neg = F.getMumpsInfog(12)  # negative pivots: K not positive definite
         if n_neg > 0:
             raise np.linalg.LinAlgError(f"stiffness is not positive definite ({n_neg} negative pivots)")
-        self._ksp, self._F = ksp, F
         self.factor_entries = int(F.getMumpsInfog(29))
         self.factor_flops = float(F.getMumpsRinfog(3))
         self.ordering_used = ORDERING_NAMES.get(int(F.getMumpsInfog(7)), f"ICNTL(7) = {F.getMumpsInfog(7)}")
 
     def solve(self, B: np.ndarray) -> np.ndarray:
-        """A^{-1} B for B (n_local,) or (n_local, k): all k columns in one MUMPS solve
+        """A^{-1} B for B (n_local,) or (n_local, k): all k columns in one block solve
         (MatMatSolve; under MPI the block is centralised on rank 0 for MUMPS and the
         solution scattered back)."""
         from petsc4py import PETSc
@@ -136,7 +198,7 @@ class CholeskyFactor:
     def destroy(self) -> None:
         """Free the factor (several GB on the default blade) now rather than at garbage collection.
         The factor matrix is released here too (this object holds a reference to it): only
-        then does MUMPS free it and delete its out-of-core files."""
+        then is the factor freed (and MUMPS's out-of-core files deleted)."""
         for obj in (self._ksp, self._F, self._A):
             if obj is not None:
                 obj.destroy()

@@ -185,10 +185,17 @@ def run_scene(scene, out: Path, until: str = STAGES[-1], force: bool = False,
     if until not in STAGES:
         raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
     comm = world()
+    names = STAGES[: STAGES.index(until) + 1]
+    if comm is not None and "fem" in names:  # before the folder is touched: CHOLMOD is one process only
+        from fem.cholesky import resolve_solver
+
+        try:
+            resolve_solver(scene.fem.solver, True, scene.fem.out_of_core)
+        except ValueError as exc:
+            raise ValueError(f"[fem] {exc}") from None
     progress = progress or Progress(quiet=not is_root(comm))
     out = on_root(comm, lambda: folder.prepare(Path(out)))
     command = command or f"bladerub run {scene.path} --out {out} --until {until}"
-    names = STAGES[: STAGES.index(until) + 1]
     expected = expected_inputs(scene, names)
     with ExitStack() as lock:
         def hold() -> None:  # rank 0 holds the folder for the whole run

@@ -29,6 +29,7 @@ def _compute(ctx: Context, outputs) -> None:
     factorise together (fem.analysis), rank 0 gets the result in the serial numbering and
     writes fem.h5, the same file as one process writes."""
     from fem.analysis import analyse_blade
+    from fem.options import FemOptions
     from pipelines.parallel import on_root, world
 
     comm = world()
@@ -47,8 +48,12 @@ def _compute(ctx: Context, outputs) -> None:
         ctx.log(f"  {result.K.shape[0]} free dof{ranks}; "
                 + ", ".join(f"{k} {v:.1f} s" if isinstance(v, float) else f"{k} {v}" for k, v in timings.items()))
         ctx.log("  full-model frequencies, Hz: " + " ".join(f"{f:.2f}" for f in result.frequencies_hz[:6]))
-        asked = ctx.scene.fem.ordering
-        if asked != "auto" and timings.get("ordering", asked) != asked:
+        asked, default = ctx.scene.fem.ordering, FemOptions().ordering
+        if timings.get("solver") == "cholmod":
+            if asked != default:
+                ctx.log(f"  NOTE: [fem] ordering = \"{asked}\" is MUMPS's; CHOLMOD factorised K with its own choice "
+                        f"of AMD or METIS ([fem] solver = \"mumps\" applies it)")
+        elif asked != "auto" and timings.get("ordering", asked) != asked:
             ctx.log(f"  WARNING: [fem] ordering = \"{asked}\" is not in this MUMPS build; it used {timings['ordering']}")
 
     on_root(comm, write)

@@ -145,6 +145,16 @@ def test_failure_on_rank_zero_ends_every_rank(tmp_path):
     assert not (tmp_path / "out" / "mesh.h5").exists()
 
 
+def test_cholmod_asked_for_under_mpirun_is_refused_before_anything_is_written(tmp_path):
+    # CHOLMOD factorises on one process: [fem] solver = "cholmod" under mpirun is refused
+    # with exit 2, once, naming the key, before the output folder is made
+    proc = _mpirun(2, "-m", "pipelines.cli", "run", str(COARSE), "--out", str(tmp_path / "out"), "--until", "rom",
+                   "--set", "fem.solver=cholmod", timeout=120)
+    assert proc.returncode == 2, proc.stdout + proc.stderr
+    assert proc.stderr.count('[fem] solver "cholmod" factorises on one process') == 1, proc.stderr
+    assert not (tmp_path / "out").exists()
+
+
 def test_rank_helpers_run_where_they_should(tmp_path):
     # on_root: rank 0 alone runs the step, every rank gets its value; on_all: a failure on
     # rank 1 reaches rank 0 as RankFailed naming rank 1 and the message
