@@ -12,11 +12,14 @@ changing the product:
 --fem FEM.H5  the stored K (the split mesh's, as the product factorises it), exact or with
               MUMPS Block Low-Rank at --blr EPS (ICNTL(35) = 2, CNTL(7) = EPS): time,
               entries, and the error of the 3 n_b constraint-mode solves against fem.h5's.
---orderings   the fill-reducing orderings to compare (default: the product's, pord).
+--orderings   the fill-reducing orderings to compare (default: the product's, pord), for MUMPS.
+--solvers     the factorisation packages to compare (default: mumps; cholmod: CHOLMOD with
+              its own ordering, once, whatever --orderings says).
 
     nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --deck out/bench_mesh_import/rotor67_wedge15.inp
     nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/bench_mesh_import/run/fem.h5 --blr 1e-8
     nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/rotor67/fem.h5 --orderings pord,amd,amf,qamd,metis
+    nice -n 10 .venv/bin/python benchmarks/bench_factor_pattern.py --fem out/rotor67/fem.h5 --solvers cholmod,mumps
 
 Prints one line per factorisation; the peak resident memory of the process at the end.
 """
@@ -54,9 +57,9 @@ def native_pattern(deck: Path) -> sp.csr_matrix:
     return K[free][:, free].tocsr()
 
 
-def factorise(K: sp.csr_matrix, ordering: str, blr: float):
-    """(seconds, fem.cholesky.CholeskyFactor) of K, with MUMPS Block Low-Rank at dropping
-    tolerance blr (0: exact), set through PETSc's options as the product sets its own."""
+def factorise(K: sp.csr_matrix, ordering: str, blr: float, solver: str = "mumps"):
+    """(seconds, fem.cholesky.CholeskyFactor) of K by `solver`, with MUMPS Block Low-Rank at
+    dropping tolerance blr (0: exact), set through PETSc's options as the product sets its own."""
     from petsc4py import PETSc
 
     from fem.cholesky import CholeskyFactor
@@ -67,7 +70,7 @@ def factorise(K: sp.csr_matrix, ordering: str, blr: float):
         opts[k] = v
     t = time.perf_counter()
     try:
-        factor = CholeskyFactor(K, ordering=ordering)
+        factor = CholeskyFactor(K, ordering=ordering, solver=solver)
     finally:
         for k in given:
             opts.delValue(k)
@@ -80,6 +83,7 @@ def main(argv=None) -> None:
     ap.add_argument("--fem", type=Path, help="fem.h5 whose K is factorised")
     ap.add_argument("--blr", type=float, default=0.0, help="BLR dropping tolerance (0: exact)")
     ap.add_argument("--orderings", default="pord", help="comma-separated keys of fem.cholesky.ORDERINGS")
+    ap.add_argument("--solvers", default="mumps", help="comma-separated: mumps, cholmod")
     a = ap.parse_args(argv)
     if (a.deck is None) == (a.fem is None):
         ap.error("give exactly one of --deck and --fem")
@@ -93,21 +97,31 @@ def main(argv=None) -> None:
             K = sp.csr_matrix((f["K/data"][:], f["K/indices"][:], f["K/indptr"][:]))
             bd, ref = f["boundary_dofs"][:], f["constraint_modes"][:]
     n = K.shape[0]
-    for ordering in a.orderings.split(","):
-        seconds, factor = factorise(K, ordering, a.blr)
-        F = factor._F  # the MUMPS factor matrix, for the BLR counters the product does not read
-        print(f"{n} dof, nnz {K.nnz}, ordering {ordering} (used: {factor.ordering_used}): factorisation "
-              f"{seconds:.1f} s wall, {factor.factor_entries:.3e} entries (exact), {F.getMumpsInfog(35):.3e} kept "
-              f"(BLR), {factor.factor_flops:.3e} flop (exact), {F.getMumpsRinfog(14):.3e} (BLR)", flush=True)
+    runs = [(solver, ordering) for solver in a.solvers.split(",")
+            for ordering in (a.orderings.split(",") if solver == "mumps" else ["-"])]
+    for solver, ordering in runs:
+        seconds, factor = factorise(K, "pord" if ordering == "-" else ordering, a.blr, solver)
+        if solver == "mumps":
+            F = factor._F  # the MUMPS factor matrix, for the BLR counters the product does not read
+            print(f"{n} dof, nnz {K.nnz}, MUMPS, ordering {ordering} (used: {factor.ordering_used}): factorisation "
+                  f"{seconds:.1f} s wall, {factor.factor_entries:.3e} entries (exact), {F.getMumpsInfog(35):.3e} kept "
+                  f"(BLR), {factor.factor_flops:.3e} flop (exact), {F.getMumpsRinfog(14):.3e} (BLR)", flush=True)
+        else:
+            print(f"{n} dof, nnz {K.nnz}, CHOLMOD ({factor.ordering_used}): factorisation {seconds:.1f} s wall, "
+                  f"{factor.factor_entries:.3e} entries", flush=True)
         if bd is not None:
             E = np.zeros((n, len(bd)))
             E[bd, np.arange(len(bd))] = 1.0
             t = time.perf_counter()
             X = factor.solve(E)
             solve = time.perf_counter() - t
+            t = time.perf_counter()
+            factor.solve(E[:, :14])
+            solve14 = time.perf_counter() - t
             psi = np.linalg.solve(X[bd], X.T).T
             err = np.abs(psi - ref).max() / np.abs(ref).max()
-            print(f"  {len(bd)}-column solve {solve:.1f} s; residual {np.linalg.norm(K @ X - E, axis=0).max():.2e}; "
+            res = np.linalg.norm(K @ X - E, axis=0).max()
+            print(f"  {len(bd)}-column solve {solve:.1f} s, 14-column {solve14:.1f} s; residual {res:.2e}; "
                   f"constraint modes against fem.h5: {err:.2e} relative", flush=True)
         factor.destroy()
     print(f"peak resident memory {resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e6:.2f} GB")

@@ -1,7 +1,7 @@
 """Bring your own mesh: figures for the README.
 
     .venv/bin/python benchmarks/bench_mesh_import.py --boxes
-    nice -n 10 .venv/bin/python benchmarks/bench_mesh_import.py --rotor67 [--size 0.0014 --layers 115] [--out-of-core]
+    nice -n 10 .venv/bin/python benchmarks/bench_mesh_import.py --rotor67 [--size 0.0014 --layers 115] [--out-of-core] [--solver S]
 
 --boxes: the clamped slender box of the tests (L = 0.3 m, b = 0.02 m, t = 0.01 m,
 Ti-6Al-4V) as wedge15 and hex20 decks of three sizes: the product's first frequencies
@@ -23,7 +23,8 @@ the table. Then `bladerub run SCENE --until rom` on a scene naming the deck is t
 child process; its peak memory is the largest stage peak of the run's summary. The
 frequencies are printed beside those of the table-built default mesh (README).
 --out-of-core: the scene sets [fem] out_of_core = true (MUMPS keeps the Cholesky factor
-of K in files). --ranks N: the run under `mpirun -n N` (one BLAS thread per rank); the
+of K in files). --solver S: the scene sets [fem] solver = S (default: the scene's default,
+auto: CHOLMOD in one process in core, else MUMPS). --ranks N: the run under `mpirun -n N` (one BLAS thread per rank); the
 peak memory is then also given as the largest sum over the ranks of their proportional
 set sizes (PSS, shared pages split between the processes that map them), sampled every
 0.5 s from /proc.
@@ -198,7 +199,7 @@ def rotor67(args):
           f"({deck.stat().st_size / 1e6:.1f} MB)", flush=True)
     scene = out / "scene.toml"
     scene.write_text('name = "rotor67_wedge15"\n[blade]\nmesh = "rotor67_wedge15.inp"\nunits = "mm"\naxis = "z"\n'
-                     'root = "boundary"\n' + ("[fem]\nout_of_core = true\n" if args.out_of_core else ""))
+                     'root = "boundary"\n' + fem_section(args))
     if args.deck_only:
         return
     if args.steps:
@@ -234,6 +235,12 @@ def rotor67(args):
           f"{ru.ru_utime + ru.ru_stime:.1f} s (all threads; wall depends on the machine's other jobs), "
           f"peak memory {max(peaks, default=float('nan')):.2f} GB (largest stage peak of the run summary, rank 0), "
           f"{sampler.peak / 1e9:.2f} GB summed over the run's processes (PSS, sampled)")
+
+
+def fem_section(args) -> str:
+    """The scene's [fem] section for --out-of-core and --solver ("" when neither is given)."""
+    keys = (["out_of_core = true"] if args.out_of_core else []) + ([f'solver = "{args.solver}"'] if args.solver else [])
+    return "[fem]\n" + "\n".join(keys) + "\n" if keys else ""
 
 
 class TreeMemory(threading.Thread):
@@ -320,6 +327,7 @@ def main(argv=None):
     p.add_argument("--out", default=str(ROOT / "out" / "bench_mesh_import"))
     p.add_argument("--until", default="rom")
     p.add_argument("--out-of-core", action="store_true", help="[fem] out_of_core = true in the scene")
+    p.add_argument("--solver", default=None, help="[fem] solver in the scene: auto, cholmod or mumps")
     p.add_argument("--ranks", type=int, default=1, help="run under mpirun -n RANKS")
     p.add_argument("--deck-only", action="store_true", help="write the deck and the scene, do not run")
     p.add_argument("--steps", action="store_true", help="run import, assembly, FEM and ROM in this process, "

@@ -1,12 +1,13 @@
 """Mesh -> FEM -> Craig-Bampton ROM: wall time per step, peak memory, frequencies, ROM error.
 
-    .venv/bin/python benchmarks/bench_mesh_to_rom.py [--scene coarse|default] [--box SIZE] [--rhs]
+    .venv/bin/python benchmarks/bench_mesh_to_rom.py [--scene coarse|default] [--box SIZE] [--rhs] [--solver S]
     mpirun -n 2 .venv/bin/python benchmarks/bench_mesh_to_rom.py ...      (the FEM stage on 2 ranks)
 
 --scene: the rotor 67 blade meshed by mesh.blade.mesh_blade with scenes/rotor67_coarse.toml
 (coarse) or scenes/rotor67.toml (default, about 200 000 nodes).
 --box SIZE: instead of the blade, a 0.2 x 0.1 x 0.01 m box of tet10 with edge SIZE m
 (0.0019 gives ~220 000 nodes, ~655 000 dof), clamped at x = 0.
+--solver: [fem] solver (auto: CHOLMOD in one process, MUMPS under mpirun; or cholmod, mumps).
 --rhs: after the run, factorise K again and time one block solve of 14 right-hand sides
 (MatMatSolve, what the FEM stage uses) against 14 single solves (a KSP loop).
 Under mpirun (more than one rank) rank 0 meshes, all ranks assemble, factorise and solve
@@ -68,7 +69,7 @@ def make_mesh(args):
     return mesh_blade(scene.blade, mopt, scene.resolve(scene.blade.geometry)), f"rotor 67, scene {args.scene}"
 
 
-def compare_rhs(system, n_rhs: int = 14) -> tuple[float, float, float]:
+def compare_rhs(system, n_rhs: int = 14, solver: str = "auto") -> tuple[float, float, float]:
     """Seconds of (factorisation, one block solve of n_rhs columns, n_rhs single solves)."""
     from fem.cholesky import CholeskyFactor
     from fem.distributed import Local
@@ -76,7 +77,7 @@ def compare_rhs(system, n_rhs: int = 14) -> tuple[float, float, float]:
     layout = getattr(system, "layout", None) or Local(system.n_free)
     B = layout.take(np.random.default_rng(1).standard_normal((system.n_free, n_rhs)))
     t = time.perf_counter()
-    factor = CholeskyFactor(system.K)
+    factor = CholeskyFactor(system.K, solver=solver)
     t_fact = time.perf_counter() - t
     try:
         t = time.perf_counter()
@@ -96,6 +97,7 @@ def main(argv=None):
     p.add_argument("--scene", choices=("coarse", "default"), default="coarse")
     p.add_argument("--box", type=float, default=None)
     p.add_argument("--rhs", action="store_true", help="also time a block solve against a loop of single solves")
+    p.add_argument("--solver", default="auto", help="[fem] solver: auto, cholmod or mumps")
     p.add_argument("--tmp", type=Path, default=None, help="folder for the timed fem.h5 write (default: a temp dir)")
     args = p.parse_args(argv)
 
@@ -129,7 +131,7 @@ def main(argv=None):
         system = assemble_distributed(mesh.nodes, mesh.cells, mesh.root_facets, Material(), comm)
     wall["assembly"] = time.perf_counter() - t
     timings: dict = {}
-    fem = solve_system(system, FemOptions(), mesh.boundary_node_index, timings)
+    fem = solve_system(system, FemOptions(solver=args.solver), mesh.boundary_node_index, timings)
     events = {k: PETSc.Log.Event(e).getPerfInfo() for k, e in
               (("analysis", "MatCholFctrSym"), ("numeric", "MatCholFctrNum"), ("solve", "MatMatSolve"),
                ("matmult", "MatMatMultNum"))}
@@ -137,7 +139,7 @@ def main(argv=None):
         if k in timings:
             wall[{"modes": "full modes", "interface": "interface basis",
                   "gather": "gather to rank 0"}.get(k, k)] = timings[k]
-    rhs = compare_rhs(system) if args.rhs else None
+    rhs = compare_rhs(system, solver=args.solver) if args.rhs else None
     if comm is not None:
         system.destroy()
     del system
@@ -163,7 +165,7 @@ def main(argv=None):
         return
 
     n_free = fem.K.shape[0]
-    print(f"{n_free} free dof, nnz(K) {fem.K.nnz}; block solves: modes {timings['modes_block_solves']}, "
+    print(f"{n_free} free dof, nnz(K) {fem.K.nnz}; factorised by {timings['solver']}; block solves: modes {timings['modes_block_solves']}, "
           f"interface {timings.get('interface_block_solves', 0)}")
     print(f"{'step':<24}{'wall s':>9}")
     for k, v in wall.items():

@@ -20,6 +20,8 @@ from __future__ import annotations
 import numpy as np
 import scipy.sparse as sp
 
+from fem.memory import return_freed_memory
+
 # MUMPS ICNTL(7): symmetric permutation for the analysis ("auto": MUMPS chooses). METIS and
 # SCOTCH exist only where MUMPS was built with them (Debian's sequential analysis has
 # neither: MUMPS then falls back to its own choice, which CholeskyFactor.ordering_used says).
@@ -78,7 +80,6 @@ class CholeskyFactor:
             self.n = int(A.shape[0])
             self.n_local = A.layout.n_local
             comm = A.petsc.comm
-            self._A = None
             mat = A.petsc
         else:
             A = sp.csr_matrix(A)
@@ -91,11 +92,10 @@ class CholeskyFactor:
             # that (SBAIJ), half the memory of a full AIJ copy.
             U = sp.triu(A, format="csr")
             U.sort_indices()
-            self._A = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
-                                              U.indices.astype(PETSc.IntType), U.data), comm=comm)
-            self._A.assemble()
+            mat = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
+                                          U.indices.astype(PETSc.IntType), U.data), comm=comm)
+            mat.assemble()
             del U
-            mat = self._A
         self._comm = comm
         ksp = PETSc.KSP().create(comm)
         ksp.setOperators(mat)
@@ -105,11 +105,20 @@ class CholeskyFactor:
         pc.setFactorSolverType(self.solver_used)
         pc.setFactorSetUpSolverType()
         F = pc.getFactorMatrix()
-        if self.solver_used == "cholmod":
-            self._setup_cholmod(ksp, F)
-        else:
-            self._setup_mumps(ksp, F, ordering, out_of_core)
-        self._ksp, self._F = ksp, F
+        try:
+            if self.solver_used == "cholmod":
+                self._setup_cholmod(ksp, F)
+            else:
+                self._setup_mumps(ksp, F, ordering, out_of_core)
+        finally:
+            # the solves need the factor only: the solver and our copy of the matrix (the upper
+            # triangle, half a GB on the ~200k deck) go now, not when the factor is freed
+            pc.destroy()  # this handle's reference: the PC holds one on the factor
+            ksp.destroy()
+            if mat is not getattr(A, "petsc", None):
+                mat.destroy()
+        self._F = F
+        return_freed_memory()  # the factorisation's workspace
 
     def _setup_cholmod(self, ksp, F) -> None:
         from petsc4py import PETSc
@@ -175,7 +184,7 @@ class CholeskyFactor:
         if B.ndim == 1:
             b = PETSc.Vec().createWithArray(np.ascontiguousarray(B), size=sizes, comm=self._comm)
             x = b.duplicate()
-            self._ksp.solve(b, x)
+            self._F.solve(b, x)
             return x.getArray().copy()
         k = B.shape[1]
         if k == 0:
@@ -191,7 +200,7 @@ class CholeskyFactor:
         return X
 
     def solve_columns(self, B: np.ndarray) -> np.ndarray:
-        """The same as `solve` for B (n_local, k), one KSP solve per column: the alternative
+        """The same as `solve` for B (n_local, k), one solve per column: the alternative
         to the block solve, kept for benchmarks/bench_mesh_to_rom.py --mpi to compare."""
         return np.column_stack([self.solve(np.ascontiguousarray(b)) for b in np.asarray(B).T])
 
@@ -199,6 +208,7 @@ class CholeskyFactor:
         """Free the factor (several GB on the default blade) now rather than at garbage collection.
         The factor matrix is released here too (this object holds a reference to it): only
         then is the factor freed (and MUMPS's out-of-core files deleted)."""
-        for obj in (self._ksp, self._F, self._A):
-            if obj is not None:
-                obj.destroy()
+        if self._F is not None:
+            self._F.destroy()
+            self._F = None
+        return_freed_memory()

@@ -98,15 +98,17 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         X0[:, :k0] = start[:, :k0]
     W, MW = m_orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n_loc, 0)), np.empty((n_loc, 0)))
     del X0
-    # Basis V, M V and A V (A = K^{-1} M, constrained) in preallocated buffers that grow
-    # rarely: appending with hstack would copy all three at each step (~1 GB each on the
-    # default blade), which set the peak memory.
+    # Basis V and M V in preallocated buffers that grow rarely: appending with hstack would
+    # copy both at each step (~1 GB each on the default blade), which set the peak memory.
+    # A V (A = K^{-1} M, constrained) is needed for its newest block only: the new columns
+    # of H and the next Krylov block (keeping all of it cost 0.85 GB more on the ~200k
+    # deck, the FEM stage's peak).
     # Column-major, so that a block of columns is one contiguous slab: np.empty pages become
     # resident only when written, and a generous capacity costs nothing until used (8 block
     # steps are typical on the blade, 16 leave room). Row-major buffers would have every
     # page touched by the first block (measured: +1.2 GB peak on the 655k-dof box).
     cap = 16 * b
-    Vb, MVb, Zb = (np.empty((n_loc, cap), order="F") for _ in range(3))
+    Vb, MVb = (np.empty((n_loc, cap), order="F") for _ in range(2))
     m = 0
     H, Gm = np.zeros((0, 0)), np.zeros((0, 0))
     n_solves = 1
@@ -115,19 +117,18 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         k_new = W.shape[1]
         if m + k_new > cap:
             cap = 2 * cap
-            Vb, MVb, Zb = (np.asfortranarray(np.hstack([B[:, :m], np.empty((n_loc, cap - m))]))
-                           for B in (Vb, MVb, Zb))
+            Vb, MVb = (np.asfortranarray(np.hstack([B[:, :m], np.empty((n_loc, cap - m))])) for B in (Vb, MVb))
         Vb[:, m:m + k_new], MVb[:, m:m + k_new] = W, MW
-        Zb[:, m:m + k_new] = apply_inverse(MW)
+        Z = apply_inverse(MW)  # A applied to the newest block
         n_solves += 1
         m += k_new
-        V, MV, Z = Vb[:, :m], MVb[:, :m], Zb[:, :m]
+        V, MV = Vb[:, :m], MVb[:, :m]
         # Rayleigh-Ritz on the inverse operator: theta = 1 / lam. Projecting K itself would
         # lose the lowest eigenvalues to cancellation (x^T K x carries a round-off of
         # eps * lam_max / lam_1, ~1e-7 on a thin blade); V^T M K^{-1} M V does not.
         # Only the new columns are computed (n m b flop, not n m^2): H = V^T M K^{-1} M V is
         # symmetric, so its new rows are the new columns transposed.
-        Hc, Gc = layout.dot(MV, Z[:, m - k_new:]), layout.dot(MV, V[:, m - k_new:])
+        Hc, Gc = layout.dot(MV, Z), layout.dot(MV, V[:, m - k_new:])
         H, Gm = _grow(H, Hc), _grow(Gm, Gc)
         theta, Y = scipy.linalg.eigh(H, Gm)
         theta, Y = theta[::-1], Y[:, ::-1]
@@ -137,7 +138,7 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         lam_old = lam
         if layout.agree(bool(k == n_modes and np.all(change < tol))):
             X = V @ Y[:, :k]
-            del Vb, MVb, Zb, V, MV, Z
+            del Vb, MVb, V, MV, Z
             # An eigenvector's sign is arbitrary, and eigh may flip it for a round-off change
             # of H (seen between 1 and 2 MPI ranks): fix it by r^T x > 0 for a fixed random
             # r, which no round-off flips (|r^T x| ~ ||x||), so that every rank count, BLAS
@@ -149,7 +150,8 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
             res = layout.column_norms(R) / layout.column_norms(restrict(KX))
             return EigenResult(eigenvalues=lam, vectors=X, residuals=res, n_solves=n_solves)
         # next Krylov block: A applied to the newest block
-        W, MW = m_orthonormalise(Zb[:, m - k_new:m].copy(), V, MV)
+        W, MW = m_orthonormalise(Z, V, MV)
+        del Z
     raise RuntimeError(f"eigen-solver did not converge in {max_steps} block steps: "
                        f"Ritz value changes {change} (tol {tol})")
 
