@@ -11,9 +11,9 @@ Two factorisations, both in Debian's PETSc: CHOLMOD (SuiteSparse, supernodal, it
 choice of AMD or METIS) in one process with the factor in memory, and MUMPS (multifrontal)
 under MPI or with the factor out of core, which CHOLMOD cannot do. Where both can, CHOLMOD
 is the default ("auto"): on the ~200k-node rotor 67 wedge deck (952 890 dof) it factorises
-in 83 s where MUMPS takes 207 s (3.3e12 against 3.5e12 flop: METIS against MUMPS's PORD,
-and CHOLMOD's supernodal BLAS-3 runs at ~40 Gflop/s on 2 cores where MUMPS's fronts reach
-~17), and its block solves are faster too (benchmarks/bench_factor_pattern.py --solvers).
+in 97 s where MUMPS takes 141 s (one run of benchmarks/bench_factor_pattern.py --solvers:
+3.3e12 against 3.5e12 flop, 9.6e8 against 1.17e9 entries), its block solves cost the same,
+and the FEM stage's peak stays at 13 GB where MUMPS in core needs ~16.
 """
 from __future__ import annotations
 

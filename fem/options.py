@@ -17,10 +17,10 @@ class FemOptions:
         the last block step (Ritz values converge monotonically from above).
     solver: the sparse Cholesky (a key of fem.cholesky.SOLVERS): "auto" (default) takes
         CHOLMOD in one process with the factor in memory and MUMPS under MPI or out of
-        core; "cholmod" or "mumps" ask for one. CHOLMOD because it is 2.5 times faster on
-        the ~200k-node wedge deck (83 against 207 s) and ~20 % faster on the default blade,
-        with less memory (fem.cholesky); MUMPS because it alone runs distributed and out of
-        core.
+        core; "cholmod" or "mumps" ask for one. CHOLMOD because it factorises 1.45 times
+        faster on the ~200k-node wedge deck (97 against 141 s) and ~1.25 times on the
+        default blade, with a smaller peak (fem.cholesky); MUMPS because it alone runs
+        distributed and out of core.
     ordering: fill-reducing ordering of MUMPS's sparse Cholesky (a key of
         fem.cholesky.ORDERINGS; CHOLMOD keeps the better of AMD and METIS). PORD by default: on the default blade's K it needs 6.0e11 flop where AMD needs
         1.45e12 (benchmarks/bench_factor_pattern.py --orderings); METIS and SCOTCH are not in

@@ -69,12 +69,13 @@ def fem_bytes(scene, nodes: float) -> float:
 
 
 def _estimate(scene, out, outputs) -> Estimate | None:
-    # Peak memory ~35 kB per node (MUMPS factor, eigen bases): 0.83 GB for the coarse mesh
-    # (24 104 nodes), ~7 GB for the default one (197 000); time measured on 2 cores. With
-    # the factor out of core ~23 kB per node: 4.5e9 and 6.9e9 B (FEM stage peaks of
-    # `bladerub run`) for the rotor 67 wedge decks split into 197 685 and 319 011 tet10
-    # nodes (in core 10.8e9 B for the first: the uniformly fine split meshes have a larger
-    # factor per node than the table meshes).
+    # Peak memory: K, M and the block eigen-solver's bases, ~15 kB per node, plus the
+    # Cholesky factor when it stays in memory (factor_bytes, an upper bound from the split
+    # decks), else ~23 kB per node with the factor out of core. Measured peaks (CHOLMOD in
+    # core): 0.75 GB for the coarse table mesh (24 175 nodes; estimate 0.76), 5.3 GB for the
+    # default one (196 955; 7.9), 13.0 GB for the ~200k wedge deck split into 319 011 tet10
+    # nodes (14.7); out of core (MUMPS) 4.5e9 and 6.9e9 B for the decks of 197 685 and
+    # 319 011 nodes. Time measured on 2 cores.
     from pipelines.guard import count
 
     n, exact = node_count(scene, out)
@@ -83,9 +84,9 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     advice = f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers"
     if not scene.fem.out_of_core:
         advice += ", or set [fem] out_of_core = true"
-    per_node = 23e3 if scene.fem.out_of_core else 35e3
+    memory = 0.2e9 + (23e3 * n if scene.fem.out_of_core else 15e3 * n + factor_bytes(n))
     return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof",
-                    memory=0.2e9 + per_node * n, seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n), advice=advice,
+                    memory=memory, seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n), advice=advice,
                     scratch=factor_bytes(n) if scene.fem.out_of_core else 0.0,
                     scratch_what="the out-of-core Cholesky factor",
                     scratch_advice="set [fem] out_of_core = false where the memory allows")
