@@ -59,8 +59,9 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     timings: if a dict, receives wall times in s of 'factorisation', 'modes', 'interface'
         (and 'gather' under MPI) and the block-solve counts 'modes_block_solves',
         'interface_block_solves'; 'solver', the package that factorised K, and 'ordering', the
-        fill-reducing ordering it applied (fem.cholesky.CholeskyFactor.solver_used, .ordering_used); out of core, 'factor_files_mb', the size of the factor's
-        files under TMPDIR, MB.
+        fill-reducing ordering it applied (fem.cholesky.CholeskyFactor.solver_used,
+        .ordering_used); out of core, 'factor_files_mb', the size of the factor's files
+        under TMPDIR, MB.
     """
     import tempfile
     import time

@@ -22,8 +22,9 @@ class FemOptions:
         default blade, with a smaller peak (fem.cholesky); MUMPS because it alone runs
         distributed and out of core.
     ordering: fill-reducing ordering of MUMPS's sparse Cholesky (a key of
-        fem.cholesky.ORDERINGS; CHOLMOD keeps the better of AMD and METIS). PORD by default: on the default blade's K it needs 6.0e11 flop where AMD needs
-        1.45e12 (benchmarks/bench_factor_pattern.py --orderings); METIS and SCOTCH are not in
+        fem.cholesky.ORDERINGS; CHOLMOD keeps the better of AMD and METIS). PORD by default:
+        on the default blade's K it needs 6.0e11 flop where AMD needs 1.45e12
+        (benchmarks/bench_factor_pattern.py --orderings); METIS and SCOTCH are not in
         Debian's MUMPS (asked for, MUMPS uses its own choice, and the fem stage says so).
     out_of_core: MUMPS keeps the Cholesky factor of K in files (a temporary folder in the
         system's temp directory, TMPDIR) instead of memory, and reads it back at each block

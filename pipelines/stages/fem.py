@@ -74,8 +74,7 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     # decks), else ~23 kB per node with the factor out of core. Measured peaks (CHOLMOD in
     # core): 0.75 GB for the coarse table mesh (24 175 nodes; estimate 0.76), 5.3 GB for the
     # default one (196 955; 7.9), 13.0 GB for the ~200k wedge deck split into 319 011 tet10
-    # nodes (14.7); out of core (MUMPS) 4.5e9 and 6.9e9 B for the decks of 197 685 and
-    # 319 011 nodes. Time measured on 2 cores.
+    # nodes (14.7); out of core (MUMPS) 5.1 GB for that deck (7.5). Time measured on 2 cores.
     from pipelines.guard import count
 
     n, exact = node_count(scene, out)
@@ -83,7 +82,7 @@ def _estimate(scene, out, outputs) -> Estimate | None:
         return None
     advice = f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers"
     if not scene.fem.out_of_core:
-        advice += ", or set [fem] out_of_core = true"
+        advice += ", or set [fem] out_of_core = true" + (' and solver = "auto"' if scene.fem.solver == "cholmod" else "")
     memory = 0.2e9 + (23e3 * n if scene.fem.out_of_core else 15e3 * n + factor_bytes(n))
     return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof",
                     memory=memory, seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n), advice=advice,
