@@ -72,7 +72,7 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     # Peak memory: K, M and the block eigen-solver's bases, ~15 kB per node, plus the
     # Cholesky factor when it stays in memory (factor_bytes, an upper bound from the split
     # decks), else ~23 kB per node with the factor out of core. Measured peaks (CHOLMOD in
-    # core): 0.75 GB for the coarse table mesh (24 175 nodes; estimate 0.76), 5.3 GB for the
+    # core): 0.61 GB for the coarse table mesh (24 104 nodes; estimate 0.76), 5.3 GB for the
     # default one (196 955; 7.9), 13.0 GB for the ~200k wedge deck split into 319 011 tet10
     # nodes (14.7); out of core (MUMPS) 5.1 GB for that deck (7.5). Time measured on 2 cores.
     from pipelines.guard import count
