@@ -24,10 +24,10 @@ child process; its peak memory is the largest stage peak of the run's summary. T
 frequencies are printed beside those of the table-built default mesh (README).
 --out-of-core: the scene sets [fem] out_of_core = true (MUMPS keeps the Cholesky factor
 of K in files). --solver S: the scene sets [fem] solver = S (default: the scene's default,
-auto: CHOLMOD in one process in core, else MUMPS). --ranks N: the run under `mpirun -n N` (one BLAS thread per rank); the
-peak memory is then also given as the largest sum over the ranks of their proportional
-set sizes (PSS, shared pages split between the processes that map them), sampled every
-0.5 s from /proc.
+auto: CHOLMOD in one process in core, else MUMPS). --ranks N: the run under `mpirun -n N`
+(one BLAS thread per rank); the peak memory is then also given as the largest sum over the
+ranks of their proportional set sizes (PSS, shared pages split between the processes that
+map them), sampled every 0.5 s from /proc.
 """
 from __future__ import annotations
 

@@ -165,8 +165,8 @@ def main(argv=None):
         return
 
     n_free = fem.K.shape[0]
-    print(f"{n_free} free dof, nnz(K) {fem.K.nnz}; factorised by {timings['solver']}; block solves: modes {timings['modes_block_solves']}, "
-          f"interface {timings.get('interface_block_solves', 0)}")
+    print(f"{n_free} free dof, nnz(K) {fem.K.nnz}; factorised by {timings['solver']}; block solves: "
+          f"modes {timings['modes_block_solves']}, interface {timings.get('interface_block_solves', 0)}")
     print(f"{'step':<24}{'wall s':>9}")
     for k, v in wall.items():
         print(f"{k:<24}{v:9.1f}")

@@ -46,7 +46,8 @@ def resolve_solver(solver: str, distributed: bool, out_of_core: bool) -> str:
     if solver == "cholmod" and distributed:
         raise ValueError('solver "cholmod" factorises on one process; under MPI use "mumps" (or "auto")')
     if solver == "cholmod" and out_of_core:
-        raise ValueError('solver "cholmod" keeps the factor in memory; out of core needs "mumps" (or "auto")')
+        raise ValueError('solver "cholmod" keeps the factor in memory: out of core (out_of_core = true) needs '
+                         '"mumps" (or "auto")')
     return solver
 
 
@@ -75,8 +76,9 @@ class CholeskyFactor:
 
         if ordering not in ORDERINGS:
             raise ValueError(f"unknown ordering '{ordering}'; known: {', '.join(ORDERINGS)}")
-        self.solver_used = resolve_solver(solver, isinstance(A, DistributedMatrix), out_of_core is not None)
-        if isinstance(A, DistributedMatrix):  # distributed: MUMPS reads the upper triangle of the AIJ rows
+        distributed = isinstance(A, DistributedMatrix)
+        self.solver_used = resolve_solver(solver, distributed, out_of_core is not None)
+        if distributed:  # MUMPS reads the upper triangle of the AIJ rows
             self.n = int(A.shape[0])
             self.n_local = A.layout.n_local
             comm = A.petsc.comm
@@ -115,7 +117,7 @@ class CholeskyFactor:
             # triangle, half a GB on the ~200k deck) go now, not when the factor is freed
             pc.destroy()  # this handle's reference: the PC holds one on the factor
             ksp.destroy()
-            if mat is not getattr(A, "petsc", None):
+            if not distributed:  # our SBAIJ copy; a distributed matrix is its owner's
                 mat.destroy()
         self._F = F
         return_freed_memory()  # the factorisation's workspace

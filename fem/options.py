@@ -3,7 +3,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from fem.cholesky import ORDERINGS, SOLVERS
+from fem.cholesky import ORDERINGS, resolve_solver
 
 
 @dataclass(frozen=True)
@@ -49,10 +49,6 @@ class FemOptions:
             raise ValueError(f"n_fixed_interface_modes must be >= 0, got {self.n_fixed_interface_modes}")
         if not 0 < self.tol < 1e-2:
             raise ValueError(f"tol must be in (0, 1e-2), got {self.tol}")
-        if self.solver not in SOLVERS:
-            raise ValueError(f"unknown solver '{self.solver}'; known: {', '.join(SOLVERS)}")
-        if self.solver == "cholmod" and self.out_of_core:
-            raise ValueError('solver = "cholmod" keeps the factor in memory: out_of_core = true needs '
-                             'solver = "mumps" (or "auto")')
+        resolve_solver(self.solver, distributed=False, out_of_core=self.out_of_core)  # its rules, in one place
         if self.ordering not in ORDERINGS:
             raise ValueError(f"unknown ordering '{self.ordering}'; known: {', '.join(ORDERINGS)}")
