@@ -13,12 +13,11 @@ under MPI or with the factor out of core, which CHOLMOD cannot do. Where both ca
 is the default ("auto"): on the ~200k-node rotor 67 wedge deck (952 890 dof) it factorises
 in 97 s where MUMPS takes 141 s (one run of benchmarks/bench_factor_pattern.py --solvers:
 3.3e12 against 3.5e12 flop, 9.6e8 against 1.17e9 entries), its block solves cost the same,
-and the FEM stage's peak stays at 13 GB where MUMPS in core needs ~16.
+and the FEM stage's peak stays at 11.5 GB where MUMPS in core needs ~16.
 """
 from __future__ import annotations
 
 import numpy as np
-import scipy.sparse as sp
 
 from fem.memory import return_freed_memory
 
@@ -54,8 +53,9 @@ def resolve_solver(solver: str, distributed: bool, out_of_core: bool) -> str:
 class CholeskyFactor:
     """Cholesky factor (CHOLMOD LL^T or MUMPS LDL^T, symmetric positive definite) of a sparse matrix.
 
-    A: a scipy sparse matrix (this process only), or a fem.distributed.DistributedMatrix
-    (factorised in parallel by MUMPS on the matrix's communicator).
+    A: a fem.symmetric.SymmetricMatrix or a scipy sparse matrix (its upper triangle is read;
+    this process only), or a fem.distributed.DistributedMatrix (factorised in parallel by
+    MUMPS on the matrix's communicator).
     solver: a key of SOLVERS (resolve_solver); `solver_used` says which package factorised.
     ordering: a key of ORDERINGS, for MUMPS; ordering_used: the one MUMPS applied
         (INFOG(7)), which differs when this MUMPS lacks the one asked for; CHOLMOD_ORDERING
@@ -73,6 +73,7 @@ class CholeskyFactor:
         from petsc4py import PETSc
 
         from fem.distributed import DistributedMatrix
+        from fem.symmetric import SymmetricMatrix
 
         if ordering not in ORDERINGS:
             raise ValueError(f"unknown ordering '{ordering}'; known: {', '.join(ORDERINGS)}")
@@ -84,18 +85,17 @@ class CholeskyFactor:
             comm = A.petsc.comm
             mat = A.petsc
         else:
-            A = sp.csr_matrix(A)
+            if not isinstance(A, SymmetricMatrix):
+                A = SymmetricMatrix.from_csr(A)  # (which refuses a matrix that is not square)
             n = A.shape[0]
-            if A.shape != (n, n):
-                raise ValueError(f"matrix must be square, got shape {A.shape}")
             self.n = self.n_local = n
             comm = PETSc.COMM_SELF
             # both packages read only the upper triangle of a symmetric matrix: hand them just
             # that (SBAIJ), half the memory of a full AIJ copy.
-            U = sp.triu(A, format="csr")
-            U.sort_indices()
-            mat = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(U.indptr.astype(PETSc.IntType),
-                                          U.indices.astype(PETSc.IntType), U.data), comm=comm)
+            U = A.upper()
+            # (asarray: no copy of the index arrays when they already have PETSc's integer type)
+            mat = PETSc.Mat().createSBAIJ(size=(n, n), bsize=1, csr=(np.asarray(U.indptr, dtype=PETSc.IntType),
+                                          np.asarray(U.indices, dtype=PETSc.IntType), U.data), comm=comm)
             mat.assemble()
             del U
         self._comm = comm
@@ -199,6 +199,9 @@ class CholeskyFactor:
         self._F.matSolve(Bm, Xm)
         Bm.destroy()
         Xm.destroy()
+        # the solve's workspace comes in blocks below glibc's mmap threshold: kept by the
+        # allocator it stayed resident through the eigen-solves (0.3 to 0.8 GB on the ~200k deck)
+        return_freed_memory()
         return X
 
     def solve_columns(self, B: np.ndarray) -> np.ndarray:
