@@ -93,8 +93,9 @@ def compute_interface_basis(K: sp.spmatrix, M: sp.spmatrix, boundary_dofs: np.nd
         return InterfaceBasis(boundary_dofs=bd, constraint_modes=Psi,
                               fixed_interface_modes=np.zeros((layout.n_local, 0)),
                               fixed_interface_frequencies=np.zeros(0))
+    # no residuals: InterfaceBasis does not keep them, and K need not be read for them
     r = solve_eigenproblem(K, M, n_fixed_modes, apply_inverse_ii, fixed=bd_loc, tol=tol, start=start,
-                           layout=layout)
+                           layout=layout, residuals=False)
     return InterfaceBasis(boundary_dofs=bd, constraint_modes=Psi, fixed_interface_modes=r.vectors,
                           fixed_interface_frequencies=np.sqrt(np.clip(r.eigenvalues, 0.0, None)),
                           n_solves=1 + r.n_solves)

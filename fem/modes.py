@@ -11,6 +11,13 @@ subspace error). Convergence is declared when no wanted Ritz value moves by more
 thin blades a residual test stalls at ~1e-7 for the first mode, a round-off floor of the
 cancellation in K x - lam M x, long after the eigenvalue has converged to 1e-14.)
 The spectrum of A (1 / w^2) decays fast, so a few block steps suffice.
+
+Memory: beside the factor, the basis is the eigen-solve's whole cost (n rows, 8 bytes per
+entry). It is kept Euclidean-orthonormal, so that M V need not be stored (the Ritz problem
+becomes H y = theta Gm y with Gm = V^T M V, and each block step multiplies by M once
+more), and capped at n_modes + 4 blocks by a thick restart that keeps the best Ritz
+vectors (see solve_eigenproblem). On the ~200k-node deck this took the FEM stage's peak
+from 13.7 to 11.3 GB (with fem.symmetric's upper triangles) for the same solves.
 """
 from __future__ import annotations
 
@@ -26,7 +33,8 @@ import scipy.sparse as sp
 class EigenResult:
     """eigenvalues: (k,) w^2, rad^2/s^2, ascending. vectors: (n, k), M-orthonormal (kg^-1/2),
     each signed so that r^T x > 0 for a fixed random r (see solve_eigenproblem).
-    residuals: (k,) ||K x - lam M x|| / ||K x||. n_solves: block solves used."""
+    residuals: (k,) ||K x - lam M x|| / ||K x||, NaN where not asked for. n_solves: block
+    solves used."""
 
     eigenvalues: np.ndarray = field(metadata={"unit": "rad^2/s^2"})
     vectors: np.ndarray = field(metadata={"unit": "kg^-0.5"})
@@ -48,17 +56,24 @@ def _grow(H: np.ndarray, cols: np.ndarray) -> np.ndarray:
 def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
                        apply_inverse: Callable[[np.ndarray], np.ndarray], *,
                        fixed: np.ndarray | None = None, block_size: int | None = None,
-                       tol: float = 1e-10, max_steps: int = 40, seed: int = 0,
-                       start: np.ndarray | None = None, layout=None) -> EigenResult:
+                       max_basis: int | None = None, tol: float = 1e-10, max_steps: int = 40, seed: int = 0,
+                       start: np.ndarray | None = None, layout=None, residuals: bool = True) -> EigenResult:
     """Lowest `n_modes` eigenpairs of K x = lam M x (K, M: (n, n) SPD sparse).
 
     apply_inverse(B): (n, k) -> K^{-1} B, or the constrained inverse when `fixed` is given.
     fixed: dof indices held at zero (the problem is then the one on the other dof); the
         vectors keep those rows at 0 and apply_inverse must return them at 0.
     block_size: right-hand sides per solve (default n_modes + 2, at least 6).
+    max_basis: most columns the Krylov basis holds (default n_modes + 4 block_size). When the
+        next block would not fit, the basis restarts from its n_modes + block_size best Ritz
+        vectors (thick restart, see below): the basis is the eigen-solve's memory (7.6 MB
+        per column on the ~200k deck), and without a cap the fixed-interface solve held 126
+        columns at the FEM stage's peak.
     tol: bound on the relative change of every wanted Ritz value in the last block step.
     start: (n, k) start block (e.g. modes of a nearby problem); random columns fill it up
         to block_size.
+    residuals: compute the residuals (one product with K, which is used for nothing else:
+        a K waiting on disk, fem.symmetric, is read back for it).
     layout: fem.distributed.Distributed when K, M (DistributedMatrix), the blocks of
         apply_inverse, `start`, `fixed` (local row numbers) and the returned vectors are
         this rank's rows; None: everything on this process. The random start block is
@@ -80,55 +95,56 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
             X[fixed] = 0.0
         return X
 
-    def m_orthonormalise(W, V, MV):
-        # against the basis (classical Gram-Schmidt twice: once loses orthogonality, twice
-        # is enough), then within the block, dropping directions already in the basis
+    def orthonormalise(W, V):
+        # Euclidean, against the basis (classical Gram-Schmidt twice: once loses
+        # orthogonality, twice is enough), then within the block, dropping directions
+        # already in the basis. Euclidean rather than M-orthonormal so that no M V is kept.
         for _ in range(2):
-            W = W - V @ layout.dot(MV, W)
-        MW = M @ W
-        G = layout.dot(W, MW)
-        s, U = np.linalg.eigh(0.5 * (G + G.T))
+            W = W - V @ layout.dot(V, W)
+        s, U = np.linalg.eigh(layout.dot(W, W))
         keep = s > 1e-12 * s.max()
-        T = U[:, keep] / np.sqrt(s[keep])
-        return W @ T, MW @ T
+        return W @ (U[:, keep] / np.sqrt(s[keep]))
 
     X0 = layout.take(rng.standard_normal((n, b)))
     if start is not None:
         k0 = min(start.shape[1], b)
         X0[:, :k0] = start[:, :k0]
-    W, MW = m_orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n_loc, 0)), np.empty((n_loc, 0)))
+    W = orthonormalise(apply_inverse(M @ restrict(X0)), np.empty((n_loc, 0)))
     del X0
-    # Basis V and M V in preallocated buffers that grow rarely: appending with hstack would
-    # copy both at each step (~1 GB each on the default blade), which set the peak memory.
-    # A V (A = K^{-1} M, constrained) is needed for its newest block only: the new columns
-    # of H and the next Krylov block (keeping all of it cost 0.85 GB more on the ~200k
-    # deck, the FEM stage's peak).
+    # The basis V lives in a preallocated buffer of `cap` columns: appending with hstack
+    # would copy it at each step (~1 GB on the default blade). A V (A = K^{-1} M,
+    # constrained) is needed for its newest block only: the new columns of H and the next
+    # Krylov block. M V is not kept: its new columns are recomputed (one more product with M
+    # per block step, ~1.3 s on the ~200k deck, where keeping M V held 0.96 GB at the FEM
+    # stage's peak).
     # Column-major, so that a block of columns is one contiguous slab: np.empty pages become
-    # resident only when written, and a generous capacity costs nothing until used (8 block
-    # steps are typical on the blade, 16 leave room). Row-major buffers would have every
-    # page touched by the first block (measured: +1.2 GB peak on the 655k-dof box).
-    cap = 16 * b
-    Vb, MVb = (np.empty((n_loc, cap), order="F") for _ in range(2))
+    # resident only when written, so a solve that converges early never pays for the whole
+    # capacity. Row-major buffers would have every page touched by the first block
+    # (measured: +1.2 GB peak on the 655k-dof box).
+    n_keep = min(n_modes + b, n - 1)
+    cap = max(max_basis or n_modes + 4 * b, n_keep + b)
+    Vb = np.empty((n_loc, cap), order="F")
     m = 0
     H, Gm = np.zeros((0, 0)), np.zeros((0, 0))
     n_solves = 1
     lam_old = np.zeros(0)
     for step in range(max_steps):
         k_new = W.shape[1]
-        if m + k_new > cap:
-            cap = 2 * cap
-            Vb, MVb = (np.asfortranarray(np.hstack([B[:, :m], np.empty((n_loc, cap - m))])) for B in (Vb, MVb))
-        Vb[:, m:m + k_new], MVb[:, m:m + k_new] = W, MW
-        Z = apply_inverse(MW)  # A applied to the newest block
-        n_solves += 1
+        Vb[:, m:m + k_new] = W
         m += k_new
-        V, MV = Vb[:, :m], MVb[:, :m]
-        # Rayleigh-Ritz on the inverse operator: theta = 1 / lam. Projecting K itself would
-        # lose the lowest eigenvalues to cancellation (x^T K x carries a round-off of
-        # eps * lam_max / lam_1, ~1e-7 on a thin blade); V^T M K^{-1} M V does not.
-        # Only the new columns are computed (n m b flop, not n m^2): H = V^T M K^{-1} M V is
-        # symmetric, so its new rows are the new columns transposed.
-        Hc, Gc = layout.dot(MV, Z), layout.dot(MV, V[:, m - k_new:])
+        V = Vb[:, :m]
+        # Rayleigh-Ritz on the inverse operator: theta = 1 / lam, from
+        # H = V^T M K^{-1} M V and Gm = V^T M V. Projecting K itself would lose the lowest
+        # eigenvalues to cancellation (x^T K x carries a round-off of eps * lam_max / lam_1,
+        # ~1e-7 on a thin blade); V^T M K^{-1} M V does not.
+        # Only the new columns are computed (n m b flop, not n m^2): both are symmetric, so
+        # their new rows are the new columns transposed.
+        MW = M @ W
+        Gc = layout.dot(V, MW)
+        Z = apply_inverse(MW)  # A applied to the newest block
+        del MW
+        n_solves += 1
+        Hc = layout.dot(V, M @ Z)
         H, Gm = _grow(H, Hc), _grow(Gm, Gc)
         theta, Y = scipy.linalg.eigh(H, Gm)
         theta, Y = theta[::-1], Y[:, ::-1]
@@ -137,20 +153,36 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
         change = np.abs(lam - lam_old[:k]) / lam if len(lam_old) >= k else np.full(k, np.inf)
         lam_old = lam
         if layout.agree(bool(k == n_modes and np.all(change < tol))):
-            X = V @ Y[:, :k]
-            del Vb, MVb, V, MV, Z
+            X = V @ Y[:, :k]  # M-orthonormal: Y^T Gm Y = I
+            del Vb, V, Z
             # An eigenvector's sign is arbitrary, and eigh may flip it for a round-off change
             # of H (seen between 1 and 2 MPI ranks): fix it by r^T x > 0 for a fixed random
             # r, which no round-off flips (|r^T x| ~ ||x||), so that every rank count, BLAS
             # and machine stores the same modes and the same ROM coupling blocks.
             r = layout.take(np.random.default_rng(seed + 1).standard_normal((n, 1)))
             X *= np.where(layout.dot(r, X)[0] < 0, -1.0, 1.0)
-            KX = K @ X
-            R = restrict(KX - (M @ X) * lam)
-            res = layout.column_norms(R) / layout.column_norms(restrict(KX))
+            res = np.full(k, np.nan)
+            if residuals:
+                KX = K @ X
+                R = restrict(KX - (M @ X) * lam)
+                res = layout.column_norms(R) / layout.column_norms(restrict(KX))
             return EigenResult(eigenvalues=lam, vectors=X, residuals=res, n_solves=n_solves)
+        if m + b > cap:
+            # Thick restart: keep the n_keep best Ritz vectors, and as the next block the
+            # part of Z that is M-orthogonal to the whole old basis, Z - V Gm^{-1} V^T M Z
+            # (V^T M Z is Hc). The residual of every Ritz vector, A x - theta x, lies in
+            # that part's span (Galerkin: it is M-orthogonal to V, and lies in span(V, Z)), so
+            # the new space holds A x for each kept x and the iteration goes on as a Krylov
+            # one would for them (block thick-restart Lanczos, Wu and Simon's idea).
+            Z -= V @ scipy.linalg.solve(Gm, Hc, assume_a="pos")
+            Q = np.linalg.qr(Y[:, :n_keep])[0]  # V Q: Euclidean-orthonormal again
+            for r0 in range(0, n_loc, 65536):  # in place, a slab of rows at a time
+                Vb[r0:r0 + 65536, :n_keep] = Vb[r0:r0 + 65536, :m] @ Q
+            H, Gm = Q.T @ H @ Q, Q.T @ Gm @ Q
+            m = n_keep
+            V = Vb[:, :m]
         # next Krylov block: A applied to the newest block
-        W, MW = m_orthonormalise(Z, V, MV)
+        W = orthonormalise(Z, V)
         del Z
     raise RuntimeError(f"eigen-solver did not converge in {max_steps} block steps: "
                        f"Ritz value changes {change} (tol {tol})")
