@@ -52,7 +52,9 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
                  timings: dict | None = None) -> FemResult | None:
     """Modes and interface basis of an assembled system (one factorisation of K).
 
-    system: fem.assembly.FemSystem (all on this process), or DistributedSystem: then the
+    system: fem.assembly.FemSystem (all on this process; K and M scipy sparse or
+        fem.symmetric.SymmetricMatrix, which lets the caller free the whole matrices: the
+        result holds them again as CSR), or DistributedSystem: then the
         call is collective over its ranks, K is factorised by MUMPS in parallel, and the
         result comes back whole, in the serial numbering, on rank 0 (None on the others).
     boundary_node_index: (n_b,) mesh nodes for the Craig-Bampton basis; None or empty skips it.
@@ -69,7 +71,9 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     from fem.assembly import DistributedSystem
     from fem.cholesky import CholeskyFactor
     from fem.interface import boundary_dofs_of, compute_interface_basis
+    from fem.memory import return_freed_memory
     from fem.modes import compute_modes
+    from fem.symmetric import SymmetricMatrix
 
     timings = {} if timings is None else timings
     layout = system.layout if isinstance(system, DistributedSystem) else None
@@ -77,13 +81,26 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     want_basis = boundary_node_index is not None and len(boundary_node_index) > 0
     bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
     scratch = tempfile.TemporaryDirectory(prefix="bladerub-mumps-") if options.out_of_core else None
+    waiting = None
+    M_solve = M
+    if layout is None:
+        # In one process K and M are held as upper triangles (fem.symmetric), and wait on
+        # disk from the factorisation on: K is read from its file for the residuals only,
+        # M for fem.h5 at the end; the eigen-solves multiply by M without its structural
+        # zeros (two thirds of its entries; a quarter faster), read back once K is factorised.
+        K, M = (A if isinstance(A, SymmetricMatrix) else SymmetricMatrix.from_csr(A) for A in (K, M))
+        waiting = tempfile.TemporaryDirectory(prefix="bladerub-fem-")
+        for name, A in (("K", K), ("M", M)):
+            (Path(waiting.name) / name).mkdir()
+            A.spill(Path(waiting.name) / name)
     t = time.perf_counter()
     try:
         factor = CholeskyFactor(K, ordering=options.ordering, out_of_core=scratch.name if scratch else None,
                                 solver=options.solver)
     except BaseException:
-        if scratch is not None:
-            scratch.cleanup()
+        for folder in (scratch, waiting):
+            if folder is not None:
+                folder.cleanup()
         raise
     timings["factorisation"] = time.perf_counter() - t
     timings["solver"] = factor.solver_used
@@ -92,13 +109,16 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
         files = sum(f.stat().st_size for f in Path(scratch.name).rglob("*") if f.is_file())
         timings["factor_files_mb"] = round((layout.comm.allreduce(files) if layout is not None else files) / 1e6)
     try:
+        if waiting is not None:
+            M_solve = M.without_zeros()
         t = time.perf_counter()
-        modal = compute_modes(K, M, options.n_modes, factor=factor, tol=options.tol, layout=layout)
+        modal = compute_modes(K, M_solve, options.n_modes, factor=factor, tol=options.tol, layout=layout)
         timings["modes"] = time.perf_counter() - t
         timings["modes_block_solves"] = modal.n_solves
+        return_freed_memory()  # the eigen-solve's small temporaries, kept by the allocator (fem.memory)
         t = time.perf_counter()
         if want_basis:
-            basis = compute_interface_basis(K, M, bd, options.n_fixed_interface_modes, factor,
+            basis = compute_interface_basis(K, M_solve, bd, options.n_fixed_interface_modes, factor,
                                             start=modal.vectors, tol=options.tol, layout=layout)
             psi, phi, wfi = basis.constraint_modes, basis.fixed_interface_modes, basis.fixed_interface_frequencies
             timings["interface_block_solves"] = basis.n_solves
@@ -109,6 +129,11 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
         factor.destroy()
         if scratch is not None:
             scratch.cleanup()
+        if waiting is not None:  # whole matrices for fem.h5, now that the factor is gone
+            try:
+                K, M = K.to_csr(), M.to_csr()
+            finally:
+                waiting.cleanup()
     vectors = modal.vectors
     if layout is not None:
         # everything to rank 0, in the serial numbering the row blocks already use
@@ -143,11 +168,15 @@ def analyse_blade(mesh, material: Material, options: FemOptions = FemOptions(),
     import time
 
     from fem.memory import return_freed_memory
+    from fem.symmetric import SymmetricMatrix
 
     timings = {} if timings is None else timings
     t = time.perf_counter()
     if comm is None or comm.size == 1:
         system = assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, material)
+        # upper triangles from here on, the whole matrices freed (solve_system)
+        system = FemSystem(K=SymmetricMatrix.from_csr(system.K), M=SymmetricMatrix.from_csr(system.M),
+                           node_dofs=system.node_dofs)
         return_freed_memory()  # the assembly's temporaries: 2.7 GB on the ~200k deck (fem.memory)
         timings["assembly"] = time.perf_counter() - t
         return solve_system(system, options, mesh.boundary_node_index, timings)

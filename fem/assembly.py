@@ -21,6 +21,7 @@ class FemSystem:
     """Free-dof stiffness and mass of the clamped blade.
 
     K: stiffness, (n_free, n_free) scipy CSR, N/m. M: consistent mass, (n_free, n_free) CSR, kg.
+        (fem.analysis also holds them as fem.symmetric.SymmetricMatrix, their upper triangles.)
     node_dofs: (n_nodes, 3) int64, free-dof index of each mesh node's x, y, z
         displacement, -1 on clamped (root) nodes. Free dof are numbered node-major in mesh
         node order: node_dofs[node_dofs >= 0] == arange(n_free).

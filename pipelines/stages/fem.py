@@ -69,12 +69,13 @@ def fem_bytes(scene, nodes: float) -> float:
 
 
 def _estimate(scene, out, outputs) -> Estimate | None:
-    # Peak memory: K, M and the block eigen-solver's bases, ~15 kB per node, plus the
-    # Cholesky factor when it stays in memory (factor_bytes, an upper bound from the split
-    # decks), else ~23 kB per node with the factor out of core. Measured peaks (CHOLMOD in
-    # core): 0.61 GB for the coarse table mesh (24 104 nodes; estimate 0.76), 5.3 GB for the
-    # default one (196 955; 7.9), 13.0 GB for the ~200k wedge deck split into 319 011 tet10
-    # nodes (14.7); out of core (MUMPS) 5.1 GB for that deck (7.5). Time measured on 2 cores.
+    # Peak memory: in core, the Cholesky factor (factor_bytes, an upper bound from the split
+    # decks) beside K and M's upper triangles, the eigen-solver's capped basis and its
+    # blocks, ~8 kB per node, and 0.4 GB of libraries; out of core (MUMPS), ~23 kB per node.
+    # Measured peaks (CHOLMOD in core): COARSE for the coarse table mesh (24 104 nodes;
+    # estimate 0.79), DEFAULT for the default one (196 955; 6.7), 11.5 GB for the ~200k wedge
+    # deck split into 319 011 tet10 nodes (12.7); out of core (MUMPS) 5.1 GB for that deck
+    # (7.5). Time measured on 2 cores.
     from pipelines.guard import count
 
     n, exact = node_count(scene, out)
@@ -83,7 +84,7 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     advice = f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers"
     if not scene.fem.out_of_core:
         advice += ", or set [fem] out_of_core = true" + (' and solver = "auto"' if scene.fem.solver == "cholmod" else "")
-    memory = 0.2e9 + (23e3 * n if scene.fem.out_of_core else 15e3 * n + factor_bytes(n))
+    memory = 0.2e9 + 23e3 * n if scene.fem.out_of_core else 0.4e9 + 8e3 * n + factor_bytes(n)
     return Estimate(size=f"{nodes_text(n, exact)}, {'' if exact else '~'}{count(3 * n)} dof",
                     memory=memory, seconds=0.033 * n ** 0.65, disk=fem_bytes(scene, n), advice=advice,
                     scratch=factor_bytes(n) if scene.fem.out_of_core else 0.0,
