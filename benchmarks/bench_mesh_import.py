@@ -298,7 +298,7 @@ def steps(deck: Path, out_of_core: bool = False):
     from rom.options import RomOptions
 
     def peak():
-        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024 ** 2
+        return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * 1024 / 1e9  # kB -> GB
 
     t = time.perf_counter()
     m = import_blade(BladeOptions(mesh=deck.name, units="mm"), MeshOptions(), deck)

@@ -171,7 +171,7 @@ def main(argv=None):
     for k, v in wall.items():
         print(f"{k:<24}{v:9.1f}")
     print(f"{'total mesh -> ROM':<24}{total:9.1f}")
-    print("peak memory per rank, GB: " + " ".join(f"{m / 1024:.2f}" for m in peaks)
+    print("peak memory per rank, GB: " + " ".join(f"{m * 1024**2 / 1e9:.2f}" for m in peaks)
           + "; CPU per rank, s: " + " ".join(f"{c:.0f}" for c in cpus))
     e = events
     print(f"inside (rank 0, PETSc events): factorisation = analysis {e['analysis']['time']:.1f} s (ordering, "

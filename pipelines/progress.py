@@ -149,7 +149,7 @@ class Progress:
         for col, just in (("stage", "left"), ("wall", "right"), ("peak memory", "right"), ("", "left")):
             table.add_column(col, justify=just)
         for r in self.records:
-            mem = f"{r.peak_memory / 2**30:.2f} GB" if r.peak_memory else "-"
+            mem = f"{r.peak_memory / 1e9:.2f} GB" if r.peak_memory else "-"  # decimal, as the guard's
             table.add_row(r.stage, _duration(r.wall), mem, f"{r.action}: {r.why}")
         self.console.print(table)
 
