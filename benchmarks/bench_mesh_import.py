@@ -203,7 +203,7 @@ def rotor67(args):
     if args.deck_only:
         return
     if args.steps:
-        steps(deck, args.out_of_core)
+        steps(deck, args.out_of_core, args.solver)
         return
     cmd = [sys.executable, "-m", "pipelines.cli", "run", str(scene), "--out", str(out / "run"), "--until",
            args.until, "--force"]
@@ -286,10 +286,9 @@ class TreeMemory(threading.Thread):
         self.join()
 
 
-def steps(deck: Path, out_of_core: bool = False):
+def steps(deck: Path, out_of_core: bool = False, solver: str | None = None):
     """The same chain in this process, step by step, with the peak memory after each."""
-    from fem.analysis import solve_system
-    from fem.assembly import assemble_system
+    from fem.analysis import analyse_blade
     from fem.material import Material
     from fem.options import FemOptions
     from mesh.imported import import_blade
@@ -304,13 +303,11 @@ def steps(deck: Path, out_of_core: bool = False):
     m = import_blade(BladeOptions(mesh=deck.name, units="mm"), MeshOptions(), deck)
     print(f"import: {m.n_nodes} tet10 nodes, {len(m.cells)} cells, {time.perf_counter() - t:.1f} s, "
           f"peak {peak():.2f} GB; volume {m.volume:.6e} m^3, file's elements {m.reference_volume:.6e} m^3", flush=True)
-    t = time.perf_counter()
-    system = assemble_system(m.nodes, m.cells, m.root_facets, Material())
-    print(f"assembly: {system.n_free} free dof, nnz(K) {system.K.nnz}, {time.perf_counter() - t:.1f} s, "
-          f"peak {peak():.2f} GB", flush=True)
     timings = {}
-    fem = solve_system(system, FemOptions(out_of_core=out_of_core), m.boundary_node_index, timings)
-    print("; ".join(f"{k} {v:.1f}" for k, v in timings.items()) + f"; peak {peak():.2f} GB", flush=True)
+    options = FemOptions(out_of_core=out_of_core, **({"solver": solver} if solver else {}))
+    fem = analyse_blade(m, Material(), options, timings)  # as the fem stage: assembly, factor, modes, basis
+    print("; ".join(f"{k} {v:.1f}" if isinstance(v, float) else f"{k} {v}" for k, v in timings.items())
+          + f"; peak {peak():.2f} GB", flush=True)
     t = time.perf_counter()
     rom = build_craig_bampton(fem, m, RomOptions())
     print(f"ROM {time.perf_counter() - t:.1f} s, peak {peak():.2f} GB; full-model Hz "
