@@ -17,7 +17,9 @@ entry). It is kept Euclidean-orthonormal, so that M V need not be stored (the Ri
 becomes H y = theta Gm y with Gm = V^T M V, and each block step multiplies by M once
 more), and capped at n_modes + 4 blocks by a thick restart that keeps the best Ritz
 vectors (see solve_eigenproblem). On the ~200k-node deck this took the FEM stage's peak
-from 13.7 to 11.3 GB (with fem.symmetric's upper triangles) for the same solves.
+from 13.7 to 11.2 GB (with fem.symmetric's upper triangles) for the same number of block
+solves and about the same time; on the default table blade, where the solves are cheaper
+beside the products, the eigen-solves take ~25 % longer (README).
 """
 from __future__ import annotations
 
@@ -115,7 +117,7 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
     # would copy it at each step (~1 GB on the default blade). A V (A = K^{-1} M,
     # constrained) is needed for its newest block only: the new columns of H and the next
     # Krylov block. M V is not kept: its new columns are recomputed (one more product with M
-    # per block step, ~1.3 s on the ~200k deck, where keeping M V held 0.96 GB at the FEM
+    # per block step, ~1 s on the ~200k deck, where keeping M V held 0.96 GB at the FEM
     # stage's peak).
     # Column-major, so that a block of columns is one contiguous slab: np.empty pages become
     # resident only when written, so a solve that converges early never pays for the whole
