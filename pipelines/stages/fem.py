@@ -72,10 +72,11 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     # Peak memory: in core, the Cholesky factor (factor_bytes, an upper bound from the split
     # decks) beside K and M's upper triangles, the eigen-solver's capped basis and its
     # blocks, ~8 kB per node, and 0.4 GB of libraries; out of core (MUMPS), ~23 kB per node.
-    # Measured peaks (CHOLMOD in core): COARSE for the coarse table mesh (24 104 nodes;
-    # estimate 0.79), DEFAULT for the default one (196 955; 6.7), 11.5 GB for the ~200k wedge
-    # deck split into 319 011 tet10 nodes (12.7); out of core (MUMPS) 5.1 GB for that deck
-    # (7.5). Time measured on 2 cores.
+    # Measured peaks (CHOLMOD in core, benchmarks/bench_mesh_to_rom.py and
+    # bench_mesh_import.py): 0.66 GB for the coarse table mesh (24 104 nodes; estimate 0.79),
+    # 5.26 GB for the default one (196 955; 6.7), 11.15 GB for the ~200k wedge deck split
+    # into 319 011 tet10 nodes (12.7); out of core (MUMPS) 5.5 GB for that deck (7.5). Time
+    # measured on 2 cores.
     from pipelines.guard import count
 
     n, exact = node_count(scene, out)
