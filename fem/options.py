@@ -32,7 +32,7 @@ class FemOptions:
         and reading it ~20 times (from the page cache when memory allows). Measured on the
         rotor 67 wedge deck of 589 950 dof: peak 4.2 GB instead of 8.8 GB, CPU time 361 s
         instead of 279 s, the same frequencies to 1e-14. Off by default: in core is faster
-        where the memory is there (the default blade needs ~7 GB).
+        where the memory is there (the default blade needs ~4 GB, the ~200k deck ~11).
     """
 
     n_modes: int = 12
