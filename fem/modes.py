@@ -17,7 +17,7 @@ entry). It is kept Euclidean-orthonormal, so that M V need not be stored (the Ri
 becomes H y = theta Gm y with Gm = V^T M V, and each block step multiplies by M once
 more), and capped at n_modes + 4 blocks by a thick restart that keeps the best Ritz
 vectors (see solve_eigenproblem). On the ~200k-node deck this took the FEM stage's peak
-from 13.7 to 11.2 GB (with fem.symmetric's upper triangles) for the same number of block
+from 14.0 to 11.2 GB (with fem.symmetric's upper triangles) for the same number of block
 solves and about the same time; on the default table blade, where the solves are cheaper
 beside the products, the eigen-solves take ~25 % longer (README).
 """

@@ -129,9 +129,7 @@ class SymmetricMatrix:
     @classmethod
     def from_csr(cls, A: sp.spmatrix) -> "SymmetricMatrix":
         """The upper triangle of A (A is taken to be symmetric; its lower triangle is not read)."""
-        A = sp.csr_matrix(A)
-        if A.shape[0] != A.shape[1]:
-            raise ValueError(f"matrix must be square, got shape {A.shape}")
+        A = sp.csr_matrix(A)  # (the constructor refuses a matrix that is not square)
         indptr, indices, data = _upper_part(A.indptr, A.indices, A.data)
         return cls(sp.csr_matrix((data, indices, indptr), shape=A.shape))
 
