@@ -17,7 +17,9 @@ For each treatment of [hbm] methods:
   point is, up to [validation] isola_tries;
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan), the period-doubled branch switched to there and continued both
-  ways (stored here), and a point of it (stable if any); when time integration leaves that
+  ways (stored here), and a point of it (stable if any, checked with 2 N_h as the primary
+  point is: one that fails is passed over for the next stable choice of the same branch,
+  unmarched); when time integration leaves that
   point, the period doublings that end stable stretches of the isola search's branches
   (doubling_candidates), up to [validation] pd_tries in all, until it stays on one.
 From each point time integration is marched [validation] n_periods periods of the orbit
@@ -383,7 +385,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     does; the reason lists every try)."""
     from hbm.harmonic.nfrc import default_continuation
     from hbm.harmonic.residual import build_residual
-    from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
+    from hbm.stability.selection import continue_doubled_branch, locate_period_doubling
 
     scene, opts, tag = ctx.scene, ctx.scene.validation, method.upper()
     sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, _pd_brackets(path))]
@@ -410,12 +412,14 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             else:
                 # points that carry the new frequencies: the start's neighbours are still the old orbit
                 far = pd_branch.new_content >= 0.05
-                ch = choose_point(r_pd, pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
-                                  np.ones(len(pd_branch.omega), bool), pd_branch.stable,
-                                  eligible=far if far.any() else None, n_candidates=opts.n_candidates)
-                update(f"{tag} period-doubled point: {opts.n_periods} periods of time integration")
-                result = (_validate(ctx, rom, system, "period_doubling", method, ch, r_pd,
-                                    f"{VALIDATION.file} period-doubled branch of {method}, from {where}"), pd_branch)
+                doubled = Candidate(f"{VALIDATION.file} period-doubled branch of {method}, from {where}", r_pd,
+                                    pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
+                                    np.ones(len(pd_branch.omega), bool), pd_branch.stable,
+                                    eligible=far.copy() if far.any() else None)
+                # one march per doubled branch, its stable choice checked with 2 N_h first as the
+                # primary's is (the next doubling is the retry, not the next stretch)
+                result = (_try_until_kept(ctx, rom, system, "period_doubling", method, [doubled], 1, update),
+                          pd_branch)
         p = result[0]
         stays = p.found and p.ti is not None and bool(p.ti.stays)
         tried.append(f"{where}: PD at {loc.bifurcation.omega:.1f} rad/s, point at {p.omega:.1f} rad/s, time integration "

@@ -113,11 +113,19 @@ def test_period_doubling_is_located_without_stored_stability(oscillator):
     assert none.bifurcation is None and "period doubling" in none.reason
 
 
-def test_doubled_branch_has_half_frequency_content_and_time_integration_stays_on_it(oscillator):
+@pytest.fixture(scope="module")
+def doubled(oscillator):
+    """(LocatedDoubling, DoubledBranch, its residual): the oscillator's period doubling and
+    the branch switched to there, continued 30 points each way."""
     res, br, amp, opts = oscillator
     loc = locate_period_doubling(res, br.omega, br.x, amp, br.converged, n_scan=12)
     db, new = continue_doubled_branch(res, br.x[loc.index], br.omega[loc.index], loc.bifurcation, opts,
                                       n_points=30)
+    return loc, db, new
+
+
+def test_doubled_branch_has_half_frequency_content_and_time_integration_stays_on_it(doubled):
+    _, db, new = doubled
     assert db.found and new.nu == 2 and db.subharmonic == 2, db.reason
     assert len(db.omega) > 30 and db.omega.min() < 4.2  # both ways, and down away from the bifurcation
     # content at W / 2 (odd harmonics of the new basis): none at the bifurcation, growing on the branch
@@ -137,6 +145,72 @@ def test_doubled_branch_has_half_frequency_content_and_time_integration_stays_on
                   method="DOP853").y[0]
     assert abs(x_at(T) - x_at(0.0)) > 1e-3  # a period-doubled orbit: x(T) != x(0)
     assert np.abs(x[0::2] - x_at(0.0)).max() < 1e-6 and np.abs(x[1::2] - x_at(T)).max() < 1e-6
+
+
+def test_harmonic_check_of_a_doubled_orbit_gives_shootings_multiplier(doubled):
+    """check_harmonics on the basis of W / 2: the chosen point of the doubled branch (N_h = 61
+    of W / 2) exists with 122 harmonics, unmoved, and Hill's largest multiplier there is that
+    of shooting over the orbit's period 2 T (scipy's variational equations, another method)."""
+    from test_period_doubling import _rhs_var, _state
+
+    from hbm.stability.selection import check_harmonics
+
+    _, db, new = doubled
+    ch = choose_point(new, db.omega, db.x, db.le_amplitude, np.ones(len(db.omega), bool), db.stable,
+                      eligible=db.new_content >= 0.05)
+    check = check_harmonics(new, ch.u, ch.omega)
+    assert check.passed and check.n_harmonics == 2 * new.basis.n_harmonics and check.moved < 1e-6, check.reason
+    y = _state(new, ch.u, ch.omega)
+    s = solve_ivp(_rhs_var, (0, 4 * np.pi / ch.omega), np.concatenate([y, np.eye(2).ravel()]), args=(ch.omega,),
+                  rtol=1e-12, atol=1e-12, method="DOP853")
+    assert np.linalg.norm(s.y[:2, -1] - y) < 1e-8  # the orbit closes after 2 T, not after T
+    shoot = np.abs(np.linalg.eigvals(s.y[2:, -1].reshape(2, 2))).max()
+    assert abs(check.multiplier - shoot) < 1e-5, (check.multiplier, shoot)
+
+
+def test_a_doubled_point_that_fails_the_harmonic_check_is_not_marched(oscillator, doubled, tmp_path, monkeypatch):
+    """_period_doubling of the validation stage, with the doubled branch's stable flags cut in
+    two stretches, the check replaced by a rule (the first choice fails) and the march by one
+    that keeps everything: the first choice is checked, not marched, and the march is from
+    the other stretch, a point that carries W / 2 content."""
+    import h5py
+
+    import hbm.stability.selection as selection
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+    from hbm.stability.selection import HarmonicCheck
+
+    res, br, amp, _ = oscillator
+    _, db, new = doubled
+    st = np.asarray(db.stable, bool).copy()
+    st[8:11] = False  # two stretches: 0-7 (the largest amplitudes, next to the fold) and 11-
+    cut = replace(db, stable=st)
+    monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (cut, new))
+    marched, checked = [], []
+
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
+        marched.append(ch.index)
+        ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
+                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
+
+    def fake_check(residual, u, omega, **kw):
+        checked.append(omega)
+        return HarmonicCheck(len(checked) > 1, "rule", 122)
+
+    monkeypatch.setattr(stage, "_validate", fake_validate)
+    monkeypatch.setattr(selection, "check_harmonics", fake_check)
+    nfrc = tmp_path / "nfrc_rl.h5"
+    h5py.File(nfrc, "w").close()  # no stored stability: the doubling is located by a scan
+    ctx = SimpleNamespace(out=tmp_path, scene=SimpleNamespace(
+        validation=ValidationOptions(n_candidates=8, pd_tries=1), hbm=HbmOptions(omega_min=3.4, omega_max=4.6),
+        contact=SimpleNamespace(mu=0.0)))
+    p, pd_branch = stage._period_doubling(ctx, None, None, "rl", res, br, {"le_amplitude": amp}, nfrc,
+                                          lambda text: None)
+    assert np.array_equal(pd_branch.stable, st) and len(checked) == 2 and len(marched) == 1
+    assert checked[0] in db.omega[:8] and checked[1] == db.omega[marched[0]]
+    assert p.found and p.index == marched[0] >= 11 and db.new_content[p.index] >= 0.05
+    assert "not marched: rule" in p.reason and "1 marched, 2 checked with 2 N_h" in p.reason
 
 
 def test_a_crossing_far_past_minus_one_is_refined_on_the_branch(oscillator):
