@@ -147,6 +147,20 @@ def test_doubled_branch_has_half_frequency_content_and_time_integration_stays_on
     assert np.abs(x[0::2] - x_at(0.0)).max() < 1e-6 and np.abs(x[1::2] - x_at(T)).max() < 1e-6
 
 
+def _march_that_stays(marched: list):
+    """A stand-in for the validation stage's _validate: records the chosen point's index in
+    `marched` and says that time integration stays on it."""
+    import pipelines.stages.validation as stage
+
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
+        marched.append(ch.index)
+        ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
+                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
+
+    return fake_validate
+
+
 def test_harmonic_check_of_a_doubled_orbit_gives_shootings_multiplier(doubled):
     """check_harmonics on the basis of W / 2: the chosen point of the doubled branch (N_h = 61
     of W / 2) exists with 122 harmonics, unmoved, and Hill's largest multiplier there is that
@@ -188,17 +202,11 @@ def test_a_doubled_point_that_fails_the_harmonic_check_is_not_marched(oscillator
     monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (cut, new))
     marched, checked = [], []
 
-    def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
-        marched.append(ch.index)
-        ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
-        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
-                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
-
     def fake_check(residual, u, omega, **kw):
         checked.append(omega)
         return HarmonicCheck(len(checked) > 1, "rule", 122)
 
-    monkeypatch.setattr(stage, "_validate", fake_validate)
+    monkeypatch.setattr(stage, "_validate", _march_that_stays(marched))
     monkeypatch.setattr(selection, "check_harmonics", fake_check)
     nfrc = tmp_path / "nfrc_rl.h5"
     h5py.File(nfrc, "w").close()  # no stored stability: the doubling is located by a scan
@@ -432,19 +440,13 @@ def test_a_point_that_fails_the_harmonic_check_is_not_marched(long_branch, monke
     st = _stable_flags(res, b)
     marched, checked = [], []
 
-    def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
-        marched.append(ch.index)
-        ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
-        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
-                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
-
     passes = {"rule": lambda w: w > 3.0}
 
     def fake_check(residual, u, omega, **kw):
         checked.append(omega)
         return HarmonicCheck(passes["rule"](omega), "rule", 60)
 
-    monkeypatch.setattr(stage, "_validate", fake_validate)
+    monkeypatch.setattr(stage, "_validate", _march_that_stays(marched))
     monkeypatch.setattr(selection, "check_harmonics", fake_check)
 
     def run(checks):
