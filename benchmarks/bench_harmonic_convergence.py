@@ -1,6 +1,6 @@
 """Are the validation stage's points converged in the number of harmonics? Every point the
-stage marched from (the primary and isola points and each of their tries, read from
-OUT/validation.h5) is solved again with `--factor` times the harmonics (and AFT samples) by
+stage marched from (the primary, isola and period-doubled points and each of their tries,
+read from OUT/validation.h5) is solved again with `--factor` times the harmonics (and AFT samples) by
 damped Newton at the same Omega from its own harmonics, padded with zeros; then Hill's
 method at both resolutions.
 
@@ -8,7 +8,7 @@ method at both resolutions.
         [--factor 2] [--methods dlft rl] [--branch rl/000 --every 5]
 
 Needs OUT/rom.h5, OUT/validation.h5 and the branch files its points come from (nfrc_*.h5,
-isolas.h5), e.g. from `bladerub run SCENE --out OUT --set hbm.stability=true`. Prints one line
+isolas.h5; the period-doubled branch is validation.h5's own), e.g. from `bladerub run SCENE --out OUT --set hbm.stability=true`. Prints one line
 per marched point: what time integration did (the stage's verdict), the largest multiplier
 modulus at N_h, whether a solution exists at factor x N_h, how far it moved (relative
 2-norm of the first N_h harmonics of the condensed unknowns) and its largest multiplier
@@ -36,10 +36,14 @@ TRY = re.compile(r"(\d+\.\d) rad/s(?: of [^(]+)? \((stable|unstable)\), time int
 
 def _branch(out: Path, where: str, method: str):
     """(omega (m,), x (m, n_u), stable (m,) bool or None) of the branch named by a point's
-    'branch' attribute ("nfrc_rl.h5", "isolas.h5 rl/branches/000")."""
+    'branch' attribute ("nfrc_rl.h5", "isolas.h5 rl/branches/000", "validation.h5
+    period-doubled branch of rl, from ...")."""
     from pipelines.branch_store import load_branch
-    from pipelines.stages.validation import read_branch_set
+    from pipelines.stages.validation import read_branch_set, read_validation
 
+    if where.startswith("validation.h5"):
+        pd = getattr(read_validation(out), method).pd_branch
+        return pd.omega, pd.x, pd.stable
     if where.startswith("isolas.h5"):
         name = where.split("/")[-1]
         br = next(b for b in read_branch_set(out / "isolas.h5", method) if b.name == name)
@@ -116,7 +120,7 @@ def main() -> None:
           f"{'moved':>7} {'|mu|':>7} {'CPU s':>6}")
     with h5py.File(args.out / "validation.h5", "r") as f:
         for method in args.methods:
-            for kind in ("primary", "isola"):
+            for kind in ("primary", "isola", "period_doubling"):
                 g = f[f"{method}/{kind}"]
                 if not g["found"][()]:
                     continue
