@@ -75,6 +75,11 @@ class ContinuationOptions:
       beyond the last: its error is O(ds^3) instead of O(ds^2), which saves about one
       Newton iteration per point on smooth parts; the secant still gives the direction
       for the max_turn_deg test, and the first steps use it).
+    iter_reject: refuse a correction that converged in more than this many iterations and
+      shrink ds, except at the step floor (None: never). A slow correction at a large step
+      is the other way a corrector lands on another sheet (hbm.harmonic.nfrc.
+      default_continuation says where it happened: 9 iterations, a turn of 39 deg, under
+      max_turn_deg).
     crawl_points: end the branch (STATUS_CRAWL) after this many successive points taken
       with a step below crawl_ratio ds_min; None (the default): never. A branch that
       creeps along at the floor for long costs many corrections for little arc length
@@ -99,6 +104,7 @@ class ContinuationOptions:
     turn_shrink_deg: float = 30.0
     rejoin_check: bool = True
     rejoin_tol: float = 1e-3
+    iter_reject: int | None = None
     closed_loop_tol: float | None = 1e-2
     land_on_bounds: bool = True
     predictor: str = "secant"
@@ -118,6 +124,8 @@ class ContinuationOptions:
             raise ValueError("x_scale and omega_scale must be > 0")
         if not (self.grow >= 1.0 and 0 < self.shrink < 1.0):
             raise ValueError(f"need grow >= 1 and 0 < shrink < 1, got {self.grow}, {self.shrink}")
+        if self.iter_reject is not None and self.iter_reject < 1:
+            raise ValueError(f"iter_reject must be None or >= 1, got {self.iter_reject}")
         if self.predictor not in ("secant", "quadratic"):
             raise ValueError(f"predictor must be 'secant' or 'quadratic', got {self.predictor!r}")
         if not 0 < self.max_turn_deg <= 180:
@@ -375,7 +383,10 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             c = _correct(residual, xp, wp, last.x, last.omega, ds, sc, opt.newton, solver)
             cx, cw = c.x[:n], float(c.x[n])
             floor = ds * opt.shrink < opt.ds_min
-            if c.converged:
+            if c.converged and not floor and opt.iter_reject is not None and c.iterations > opt.iter_reject:
+                c = c._replace(converged=False, reason=f"correction took {c.iterations} iterations (more than "
+                                                       f"{opt.iter_reject}) near omega={cw:.6g}")
+            elif c.converged:
                 d = sc.dist(cx, cw, last.x, last.omega)
                 cos = (float(((cx - last.x) / sc.sx) @ tx) + (cw - last.omega) / sc.sw * tw) / max(d, 1e-300)
                 turn = math.degrees(math.acos(max(-1.0, min(1.0, cos))))

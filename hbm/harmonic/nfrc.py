@@ -108,13 +108,20 @@ def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
     on a flat branch. predictor = "quadratic": at N_h = 40 on the coarse rotor 67 ROM, RL
     956 -> 865 points, DLFT 513 -> 504 against the secant, same peaks to 0.05 %
     (iter_grow = 4 on top sent RL back up from 400 rad/s on another sheet). ds_min = 1e-5:
-    the sharpest turns of the rotor 67 branches pass at ds ~ 1e-4.
+    the sharpest turns of the rotor 67 branches pass at ds ~ 1e-4. iter_reject = 8 (a
+    corrector iteration cap, as AUTO's and MATCONT's, above which the step is halved; the
+    Newton itself may take 12 at the step floor): on the default rotor 67 scene without it
+    RL left its NFRC at 968 rad/s by a 9-iteration correction at ds_max onto a nearby
+    sheet and ended there at the step floor (1218 points), and DLFT ended at 402 rad/s;
+    with it both reach 400 rad/s (RL 1932, DLFT 1365 points; the coarse ROM's NFRCs keep
+    their peaks, RL 1017 -> 985 points, DLFT 641 -> 640). A cap makes such a jump less
+    likely, it cannot exclude it: a nearby sheet can also be reached in few iterations.
     """
     return ContinuationOptions(omega_min=hbm.omega_min, omega_max=hbm.omega_max, ds=0.05, ds_min=1e-5,
                                ds_max=hbm.ds_max, direction=-1 if hbm.start == "omega_max" else 1,
                                max_points=hbm.max_points, x_scale=1.0, omega_scale=100.0,
                                newton=NewtonOptions(tol_residual=hbm.tolerance, max_iter=12), iter_grow=3,
-                               iter_shrink=6, closed_loop_tol=1e-3, predictor="quadratic")
+                               iter_shrink=6, iter_reject=8, closed_loop_tol=1e-3, predictor="quadratic")
 
 
 def nfrc_extras(res: HarmonicBalanceResidual, u: np.ndarray) -> dict:

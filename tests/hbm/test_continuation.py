@@ -86,6 +86,25 @@ def test_quadratic_predictor_saves_newton_iterations(duffing):
     assert its["quadratic"] < 0.9 * its["secant"]
 
 
+def test_slow_corrections_are_refused_above_the_step_floor(duffing):
+    """iter_reject = 2: a correction that needs more iterations is refused and the step halved,
+    so every point above the step floor converged in at most 2 (without the cap, some took
+    more at the same steps), and the branch is still the exact one through both folds."""
+    base = continue_branch(duffing, np.zeros(2), 0.5, opts(0.5, 2.5, ds_max=0.2, ds_min=1e-4))
+    capped = continue_branch(duffing, np.zeros(2), 0.5, opts(0.5, 2.5, ds_max=0.2, ds_min=1e-4, iter_reject=2))
+    for b in (base, capped):
+        assert b.status == STATUS_OMEGA_MAX and b.converged.all() and len(reversals(b.omega)) == 2
+        A = np.hypot(b.x[:, 0], b.x[:, 1])
+        G = duffing.relation(A, b.omega)
+        assert np.all(np.abs(G) <= 1.01 * (2 * duffing.force * b.residual_norm + b.residual_norm ** 2) + 1e-15)
+    assert base.iterations[1:].max() > 2
+    above_floor = capped.step[1:] >= 2e-4
+    assert above_floor.all() and capped.iterations[1:].max() <= 2
+    assert len(capped) > len(base)  # the refused steps were taken shorter
+    with pytest.raises(ValueError, match="iter_reject"):
+        opts(0.5, 2.5, iter_reject=0)
+
+
 def test_unknown_predictor_is_refused():
     with pytest.raises(ValueError, match="predictor"):
         opts(0.5, 2.5, predictor="tangent")
