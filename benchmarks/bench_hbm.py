@@ -3,7 +3,7 @@
 Usage:
   .venv/bin/python benchmarks/bench_hbm.py [--rom out/.../rom.h5] [--repeat 3]
       [--penetration 1.25e-4] [--table] [--nh 10 20 40 60] [--nt 256 512 1024 2048]
-      [--methods dlft rl] [--no-default] [--stability {off,on,both}]
+      [--methods dlft rl] [--no-default] [--stability {off,on,both}] [--iter-reject {8,none}]
   .venv/bin/python benchmarks/bench_hbm.py --stage [--scene scenes/rotor67_coarse.toml] [--rom ...] [--repeat 2]
 
 Without --rom the 39-dof stand-in of tests/support.py is used (not a blade: figures
@@ -17,6 +17,8 @@ drawn a little earlier or later gives a large local difference). --no-default sk
 each repeat runs without, then with (alternating, so that the machine's load hits both
 alike), and the table gives both medians, the stability monitor's own time, the analyses,
 and the bifurcations found.
+--iter-reject: the continuation's corrector iteration cap (ContinuationOptions.iter_reject;
+default: default_continuation's), "none" for no cap.
 --stage: the hbm stage itself on a scene (default the coarse rotor 67 scene with the ROM of
 tests/data), its treatments one after the other in this process and then at once in one
 process each (its default), alternated --repeat times; wall time, CPU time (this process
@@ -35,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 sys.path.insert(0, str(ROOT / "tests"))
 
-from hbm.harmonic.nfrc import compute_nfrc  # noqa: E402
+from hbm.harmonic.nfrc import compute_nfrc, default_continuation  # noqa: E402
 from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
 
 
@@ -48,9 +50,14 @@ def load(path: str | None):
     return load_rom(path)
 
 
-def run(rom, method, nh, nt, casing, stability=False):
-    return compute_nfrc(rom, casing, ContactOptions(), HbmOptions(n_harmonics=nh, n_time=nt), method,
-                        stability=stability)
+def run(rom, method, nh, nt, casing, stability=False, cap="default"):
+    """One NFRC; cap: the corrector iteration cap (--iter-reject), "default" for
+    default_continuation's."""
+    from dataclasses import replace
+
+    hbm = HbmOptions(n_harmonics=nh, n_time=nt)
+    co = None if cap == "default" else replace(default_continuation(hbm), iter_reject=None if cap == "none" else int(cap))
+    return compute_nfrc(rom, casing, ContactOptions(), hbm, method, stability=stability, continuation=co)
 
 
 def main():
@@ -67,6 +74,7 @@ def main():
     ap.add_argument("--stability", choices=["off", "on", "both"], default="off")
     ap.add_argument("--stage", action="store_true", help="time the hbm stage, serial against concurrent")
     ap.add_argument("--scene", default=str(ROOT / "scenes" / "rotor67_coarse.toml"))
+    ap.add_argument("--iter-reject", default="default", help="corrector iteration cap: an integer or none")
     a = ap.parse_args()
     if a.stage:
         stage_table(a)
@@ -81,7 +89,7 @@ def main():
           "| factorisations | status |")
     print("|---|---|---|---|---|---|---|---|---|")
     for m in a.methods if a.default else ():
-        runs = [run(rom, m, 40, 1024, casing) for _ in range(a.repeat)]
+        runs = [run(rom, m, 40, 1024, casing, cap=a.iter_reject) for _ in range(a.repeat)]
         r = runs[-1]
         i = int(np.argmax(r.le_amplitude))
         print(f"| {m} | 40 | 1024 | {statistics.median(x.wall_time for x in runs):.1f} | {len(r.omega)} | "
@@ -94,7 +102,7 @@ def main():
         for nh in a.nh:  # one line per cell as it finishes (the whole table takes long)
             for nt in a.nt:
                 if nt >= 2 * nh + 2:
-                    r = res[(nh, nt)] = run(rom, m, nh, nt, casing)
+                    r = res[(nh, nt)] = run(rom, m, nh, nt, casing, cap=a.iter_reject)
                     i = int(np.argmax(r.le_amplitude))
                     print(f"  {m} N_h={nh} N_t={nt}: {r.wall_time:.1f} s, {len(r.omega)} points, max LE amplitude "
                           f"{1e3 * r.le_amplitude[i]:.4f} mm at {r.omega[i]:.1f} rad/s, {r.status}", flush=True)
@@ -134,8 +142,8 @@ def stability_table(rom, a, casing):
         off, on = [], []
         for _ in range(a.repeat):
             if a.stability == "both":
-                off.append(run(rom, m, 40, 1024, casing, False))
-            on.append(run(rom, m, 40, 1024, casing, True))
+                off.append(run(rom, m, 40, 1024, casing, False, a.iter_reject))
+            on.append(run(rom, m, 40, 1024, casing, True, a.iter_reject))
             print(f"  {m}: without {off[-1].wall_time if off else float('nan'):.1f} s, with {on[-1].wall_time:.1f} s "
                   f"(monitor {on[-1].stability_time:.1f} s, {on[-1].n_stability_analyses} analyses)", flush=True)
         t_off = statistics.median(r.wall_time for r in off) if off else float("nan")
