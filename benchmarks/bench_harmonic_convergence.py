@@ -1,18 +1,19 @@
 """Are the validation stage's points converged in the number of harmonics? Every point the
 stage marched from (the primary, isola and period-doubled points and each of their tries,
-read from OUT/validation.h5) is solved again with `--factor` times the harmonics (and AFT samples) by
-damped Newton at the same Omega from its own harmonics, padded with zeros; then Hill's
-method at both resolutions.
+read from OUT/validation.h5) is solved again with `--factor` times the harmonics (and AFT
+samples) by damped Newton at the same Omega from its own harmonics, padded with zeros; then
+Hill's method at both resolutions.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_harmonic_convergence.py OUT [--scene scenes/rotor67.toml]
         [--factor 2] [--methods dlft rl] [--branch rl/000 --every 5]
 
 Needs OUT/rom.h5, OUT/validation.h5 and the branch files its points come from (nfrc_*.h5,
-isolas.h5; the period-doubled branch is validation.h5's own), e.g. from `bladerub run SCENE --out OUT --set hbm.stability=true`. Prints one line
-per marched point: what time integration did (the stage's verdict), the largest multiplier
-modulus at N_h, whether a solution exists at factor x N_h, how far it moved (relative
-2-norm of the first N_h harmonics of the condensed unknowns) and its largest multiplier
-modulus there, and the CPU time of that check. With --branch METHOD/NAME, every --every-th
+isolas.h5; the period-doubled branch is validation.h5's own), e.g. from `bladerub run SCENE
+--out OUT --set hbm.stability=true`. Prints one line per marched point: what time
+integration did (the stage's verdict), the largest multiplier modulus at N_h, whether a
+solution exists at factor x N_h, how far it moved (relative 2-norm of the first N_h
+harmonics of the condensed unknowns) and its largest multiplier modulus there, and the CPU
+time of that check. With --branch METHOD/NAME, every --every-th
 converged point of that branch of OUT/isolas.h5 instead, and a summary: how many have no
 solution next to them with factor x N_h, moved by more than 25 %, or change stability verdict.
 """

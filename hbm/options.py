@@ -158,8 +158,9 @@ class ValidationOptions:
     harmonic_checks: most points per primary, isola or period-doubled point (per doubled
     branch) checked before they are marched (hbm.stability.selection.check_harmonics:
     solved again with 2 N_h, and for RL stable there too); a point that fails is not
-    marched and its stable stretch is ruled out, as for a march that leaves. 0: none. A check costs 2-9 s at N_h = 40 on rotor 67 against
-    ~40 s for a march; default 6: the default scene's RL isola point is the fifth choice.
+    marched and its stable stretch is ruled out, as for a march that leaves. 0: none. A
+    check costs 2-9 s at N_h = 40 on rotor 67 against ~40 s for a march; default 6: the
+    default scene's RL isola point is the fifth choice.
     """
 
     n_periods: int = 100

@@ -77,9 +77,8 @@ class ContinuationOptions:
       for the max_turn_deg test, and the first steps use it).
     iter_reject: refuse a correction that converged in more than this many iterations and
       shrink ds, except at the step floor (None: never). A slow correction at a large step
-      is the other way a corrector lands on another sheet (hbm.harmonic.nfrc.
-      default_continuation says where it happened: 9 iterations, a turn of 39 deg, under
-      max_turn_deg).
+      is the other way a corrector lands on another sheet, with a turn under max_turn_deg
+      (the NFRC's default_continuation says where it happened).
     crawl_points: end the branch (STATUS_CRAWL) after this many successive points taken
       with a step below crawl_ratio ds_min; None (the default): never. A branch that
       creeps along at the floor for long costs many corrections for little arc length

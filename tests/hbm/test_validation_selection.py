@@ -197,7 +197,7 @@ def test_a_doubled_point_that_fails_the_harmonic_check_is_not_marched(oscillator
     res, br, amp, _ = oscillator
     _, db, new = doubled
     st = np.asarray(db.stable, bool).copy()
-    st[8:11] = False  # two stretches: 0-7 (the largest amplitudes, next to the fold) and 11-
+    st[8:11] = False  # two stretches: 0-7 and 11-
     cut = replace(db, stable=st)
     monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (cut, new))
     marched, checked = [], []
