@@ -415,7 +415,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                 doubled = Candidate(f"{VALIDATION.file} period-doubled branch of {method}, from {where}", r_pd,
                                     pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
                                     np.ones(len(pd_branch.omega), bool), pd_branch.stable,
-                                    eligible=far.copy() if far.any() else None)
+                                    eligible=far if far.any() else None)
                 # one march per doubled branch, its stable choice checked with 2 N_h first as the
                 # primary's is (the next doubling is the retry, not the next stretch)
                 result = (_try_until_kept(ctx, rom, system, "period_doubling", method, [doubled], 1, update),
