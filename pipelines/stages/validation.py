@@ -23,7 +23,10 @@ For each treatment of [hbm] methods:
   point, the period doublings that end stable stretches of the isola search's branches
   (doubling_candidates), up to [validation] pd_tries in all, until it stays on one.
 From each point time integration is marched [validation] n_periods periods of the orbit
-(hbm.ti.validation.march_from_hbm) and its last period compared with the orbit itself and
+(hbm.ti.validation.march_from_hbm); when it leaves a stable point for anything but the
+friction lock, it is marched again with [ti] dt / [validation] dt_refinement, and that march
+is the verdict (the step's error, not the orbit, may be what left). Its last period is
+compared with the orbit itself and
 with the other treatment's orbit at the same Omega, corrected by damped Newton from the
 point (not the nearest point of the other NFRC: the other treatment's branch need not pass
 there, e.g. on an isola or the period-doubled branch).
@@ -66,6 +69,10 @@ class ValidationPoint:
     unknowns, (n_u,). le_amplitude: m. stable, verdict, n_unstable, multiplier: its stability
     (hbm.stability.selection.ChosenPoint). ti: the march from it; dlft, rl: each treatment's
     orbit at that Omega against the march (hbm.ti.validation), absent when not found.
+    refined_from: when the march with [ti] dt left a stable point for anything but the
+    friction lock and the point was marched again with dt / [validation] dt_refinement (ti,
+    dlft and rl are then from that march, ti.dt its step): the first march's verdict and
+    step, in words; "" otherwise.
     """
 
     kind: str
@@ -85,6 +92,7 @@ class ValidationPoint:
     ti: OrbitValidation | None = None
     dlft: OrbitComparison | None = None
     rl: OrbitComparison | None = None
+    refined_from: str = ""
 
 
 @dataclass(frozen=True)
@@ -156,8 +164,9 @@ def _options_for(hbm, n_u: int, n_r: int, nu: int):
     return replace(hbm, subharmonic=int(nu), n_harmonics=int(n_h), n_time=max(hbm.n_time * ratio, 2 * n_h + 2))
 
 
-def _validate(ctx, rom, system, kind, method, chosen, residual, branch) -> ValidationPoint:
-    """March from a chosen point and compare with both treatments' orbits at its Omega."""
+def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: float | None = None) -> ValidationPoint:
+    """March from a chosen point with step dt (s; None: [ti] dt) and compare with both
+    treatments' orbits at its Omega."""
     from hbm.harmonic.residual import build_residual
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
@@ -169,7 +178,8 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch) -> Valid
         return ValidationPoint(kind, method, False, chosen.reason, branch)
     u, omega, nu = chosen.u, chosen.omega, residual.nu
     ti = march_from_hbm(system, scene.casing, scene.contact.mu, residual.expand_harmonics(u, omega), omega,
-                        subharmonic=nu, n_periods=scene.validation.n_periods, dt=scene.ti.dt)
+                        subharmonic=nu, n_periods=scene.validation.n_periods,
+                        dt=scene.ti.dt if dt is None else dt)
     comps = {}
     for m in ("dlft", "rl"):
         if m == method:
@@ -330,9 +340,17 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
         update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: {opts.n_periods} periods of time integration")
         p = _validate(ctx, rom, system, kind, method, ch, c.residual, c.where)
         marched += 1
+        if _worth_refining(p, rom, ctx.scene.contact.mu, opts.dt_refinement):
+            fine = ctx.scene.ti.dt / opts.dt_refinement
+            update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: time integration left it; marched again "
+                   f"with dt = {fine:.3g} s")
+            first_words = f"{ti_verdict(p.ti, rom, ctx.scene.contact.mu)} with dt = {p.ti.dt:.3g} s"
+            p = replace(_validate(ctx, rom, system, kind, method, ch, c.residual, c.where, dt=fine),
+                        refined_from=first_words)
         tried.append(f"{p.omega:.1f} rad/s{'' if len(candidates) == 1 else ' of ' + c.where} "
                      f"({'stable' if p.stable else 'unstable'}), time integration "
-                     f"{ti_verdict(p.ti, rom, ctx.scene.contact.mu)}")
+                     + (f"{p.refined_from}, {ti_verdict(p.ti, rom, ctx.scene.contact.mu)} with dt = {p.ti.dt:.3g} s"
+                        if p.refined_from else ti_verdict(p.ti, rom, ctx.scene.contact.mu)))
         first = first or p
         if p.ti is not None and p.ti.stays:
             kept = p
@@ -436,13 +454,28 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     return result
 
 
+def _friction_lock(ti: OrbitValidation, rom, mu: float) -> bool:
+    """Whether the march ended in permanent contact with mu at or above the ROM's contact-set
+    limit mu_set (rom.friction_lock): the lock, a state of the model, not of the step."""
+    lock = getattr(rom, "friction_lock", None)
+    return ti is not None and ti.outcome == "permanent contact" and lock is not None and mu >= lock.mu_set
+
+
+def _worth_refining(p: ValidationPoint, rom, mu: float, refinement: int) -> bool:
+    """Whether a march that left point p is repeated with a finer step: p is stable by Hill's
+    method and time integration left it for anything but the friction lock. On heavy-contact
+    orbits the forward-increment multipliers' O(dt) error at each impact can move the march
+    off a stable orbit whose basin is small ([validation] dt_refinement says by how much)."""
+    return (refinement > 1 and p.found and bool(p.stable) and p.ti is not None and not p.ti.stays
+            and not _friction_lock(p.ti, rom, mu))
+
+
 def ti_verdict(ti: OrbitValidation, rom, mu: float) -> str:
     """ti.verdict(), and when it ends in permanent contact with mu at or above the ROM's
     contact-set limit mu_set (rom.friction_lock), that this is the friction lock."""
     words = ti.verdict() if ti is not None else "not marched"
-    lock = getattr(rom, "friction_lock", None)
-    if ti is not None and ti.outcome == "permanent contact" and lock is not None and mu >= lock.mu_set:
-        words += f": the friction lock, mu = {mu:g} >= mu_set = {lock.mu_set:.3g}"
+    if _friction_lock(ti, rom, mu):
+        words += f": the friction lock, mu = {mu:g} >= mu_set = {rom.friction_lock.mu_set:.3g}"
     return words
 
 
@@ -456,7 +489,8 @@ def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
         s = (f"Omega = {p.omega:.1f} rad/s, nu = {p.subharmonic}, {'stable' if p.stable else 'UNSTABLE'} "
              f"(|mu| {p.multiplier:.4g}); TI {ti_verdict(p.ti, rom, mu).replace('leaves', 'LEAVES', 1)} "
              f"(growth {p.ti.growth:.2f}, "
-             f"last deviation {p.ti.deviation[-10:].max():.3f})")
+             f"last deviation {p.ti.deviation[-10:].max():.3f}"
+             + (f"; dt = {p.ti.dt:.3g} s, the first march {p.refined_from})" if p.refined_from else ")"))
         for m in ("dlft", "rl"):
             c = getattr(p, m)
             if c is not None and c.converged:

@@ -152,7 +152,7 @@ def _march_that_stays(marched: list):
     `marched` and says that time integration stays on it."""
     import pipelines.stages.validation as stage
 
-    def fake_validate(ctx, rom, system, kind, method, ch, residual, where):
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None):
         marched.append(ch.index)
         ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
         return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
@@ -338,7 +338,8 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
     def run(tries, keep=lambda w: w > 3.0, branches=None, n_periods=100):
         marched.clear()
         monkeypatch.setattr(stage, "_validate", lambda *a: fake_validate(*a, keep=keep))
-        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8, n_periods=n_periods),
+        ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8, n_periods=n_periods,
+                                                                                    dt_refinement=1),
                                                     contact=SimpleNamespace(mu=0.0)))
         cands = [stage.Candidate(name, res, b.omega, b.x, amp, b.converged, flags)
                  for name, flags in (branches or [("nfrc_rl.h5", st)])]
@@ -370,6 +371,70 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
     p = run(3, branches=[("isolas.h5 rl/branches/000", low), ("isolas.h5 rl/branches/001", st & (b.omega > 3.0))])
     assert [w for w, _ in marched] == ["isolas.h5 rl/branches/000", "isolas.h5 rl/branches/001"]
     assert p.ti.stays and p.branch == "isolas.h5 rl/branches/001" and "of isolas.h5 rl/branches/000" in p.reason
+
+
+def test_a_stable_point_time_integration_leaves_is_marched_again_with_a_finer_step(long_branch, monkeypatch):
+    """_try_until_kept with [validation] dt_refinement = 4 and the march replaced by a rule:
+    time integration keeps the stable peak (W = 2) only with dt <= 2.5e-8 s. A stable point
+    left with [ti] dt = 1e-7 s is marched again with 2.5e-8 s, which is its verdict (one try,
+    refined_from says what the first march did); a march that ends in the friction lock, an
+    unstable point, or dt_refinement = 1 gives no second march; a second march that leaves
+    too rules the stretch out as one march does."""
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+
+    res, b, amp = long_branch
+    m = len(b.omega)
+    st = _stable_flags(res, b)
+    marched = []
+    rule = {"stays": lambda w, dt: dt <= 2.5e-8, "outcome": "leaves"}
+
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None):
+        step = ctx.scene.ti.dt if dt is None else dt
+        marched.append((ch.index, step))
+        stays = rule["stays"](ch.omega, step)
+        outcome = "stays" if stays else rule["outcome"]
+        ti = SimpleNamespace(stays=stays, outcome=outcome, dt=step,
+                             verdict=lambda: "stays" if stays else "leaves" + (" for permanent contact (LE)"
+                                                                                if outcome != "leaves" else ""))
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
+                                     le_amplitude=ch.le_amplitude, stable=rule.get("stable", ch.stable), ti=ti)
+
+    monkeypatch.setattr(stage, "_validate", fake_validate)
+    lock = SimpleNamespace(friction_lock=SimpleNamespace(mu_set=0.1))
+
+    def run(refinement=4, tries=3, flags=st):
+        marched.clear()
+        ctx = SimpleNamespace(scene=SimpleNamespace(
+            validation=ValidationOptions(n_candidates=8, dt_refinement=refinement, harmonic_checks=0),
+            contact=SimpleNamespace(mu=0.15), ti=SimpleNamespace(dt=1e-7)))
+        cands = [stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, flags)]
+        return stage._try_until_kept(ctx, lock, None, "primary", "rl", cands, tries, lambda text: None)
+
+    p = run()
+    assert marched == [(m - 1, 1e-7), (m - 1, 2.5e-8)] and p.index == m - 1 and p.ti.stays and p.ti.dt == 2.5e-8
+    assert p.refined_from == "leaves with dt = 1e-07 s" and "marched" not in p.reason
+    # without refinement the peak is left, and so is the retry from the other stretch
+    p = run(refinement=1)
+    assert len(marched) == 2 and marched[0] == (m - 1, 1e-7) and all(dt == 1e-7 for _, dt in marched)
+    assert p.index == m - 1 and not p.ti.stays
+    assert p.refined_from == ""
+    # the friction lock (mu = 0.15 >= mu_set = 0.1) is a state of the model: no second march
+    rule["outcome"] = "permanent contact"
+    p = run(tries=1)
+    assert marched == [(m - 1, 1e-7)] and not p.ti.stays and p.refined_from == ""
+    rule["outcome"] = "leaves"
+    # an unstable point is not marched again
+    rule["stable"] = False
+    p = run(tries=1)
+    assert len(marched) == 1 and not p.stable and p.refined_from == ""
+    del rule["stable"]
+    # left with both steps: the stretch is ruled out, and the retry (outside it) is refined too
+    rule["stays"] = lambda w, dt: w > 3.0
+    p = run()
+    assert marched[:2] == [(m - 1, 1e-7), (m - 1, 2.5e-8)] and marched[2][0] != m - 1
+    assert p.ti.stays and p.omega > 3.0 and len(marched) == 3 and "2 marched" in p.reason
+    assert "2.0 rad/s (stable), time integration leaves with dt = 1e-07 s, leaves with dt = 2.5e-08 s" in p.reason
 
 
 # -- a point not converged in N_h is not marched -------------------------------------------------
