@@ -241,6 +241,22 @@ def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.
     disp = grid.to_time(c[:, 3 * ti.nodes])
     lam = np.asarray(forces, dtype=float)
     hbm_f = grid.to_time(FourierBasis(nh, lam.shape[0]).to_freq(lam[:, ti.nodes]))
+    return _compared(ti, source, disp, hbm_f)
+
+
+def compare_again(ti: OrbitValidation, previous: OrbitComparison) -> OrbitComparison:
+    """The HBM orbit of `previous` (compared with another march from the same orbit, on the
+    same grid) against the march `ti`: its signals kept, the differences computed again."""
+    if not previous.converged:
+        return previous
+    if previous.displacement.shape[0] != len(ti.tau):
+        raise ValueError(f"the comparison holds {previous.displacement.shape[0]} phases, the march "
+                         f"{len(ti.tau)}: not the same grid")
+    return _compared(ti, previous.source, previous.displacement, previous.force)
+
+
+def _compared(ti: OrbitValidation, source: str, disp: np.ndarray, hbm_f: np.ndarray) -> OrbitComparison:
+    """OrbitComparison of the HBM displacement disp and force hbm_f, (n_time, 3) on ti's grid."""
     ti_f = ti.force
     cols = [0, 2]
     derr = np.abs(ti.displacement - disp).max(axis=0)[cols] / np.abs(disp).max(axis=0)[cols]

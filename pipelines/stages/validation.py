@@ -164,14 +164,16 @@ def _options_for(hbm, n_u: int, n_r: int, nu: int):
     return replace(hbm, subharmonic=int(nu), n_harmonics=int(n_h), n_time=max(hbm.n_time * ratio, 2 * n_h + 2))
 
 
-def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: float | None = None) -> ValidationPoint:
+def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: float | None = None,
+              previous: ValidationPoint | None = None) -> ValidationPoint:
     """March from a chosen point with step dt (s; None: [ti] dt) and compare with both
-    treatments' orbits at its Omega."""
+    treatments' orbits at its Omega (those of `previous`, the same point's earlier march,
+    when given: the orbits do not depend on the step)."""
     from hbm.harmonic.residual import build_residual
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
     from hbm.continuation.newton import NewtonOptions
-    from hbm.ti.validation import compare_with_hbm, march_from_hbm
+    from hbm.ti.validation import compare_again, compare_with_hbm, march_from_hbm
 
     scene = ctx.scene
     if not chosen.found:
@@ -182,6 +184,9 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
                         dt=scene.ti.dt if dt is None else dt)
     comps = {}
     for m in ("dlft", "rl"):
+        if previous is not None:
+            comps[m] = compare_again(ti, getattr(previous, m))
+            continue
         if m == method:
             res, sol_u, src = residual, u, "the point itself"
         else:
@@ -345,12 +350,12 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
             update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: time integration left it; marched again "
                    f"with dt = {fine:.3g} s")
             first_words = f"{ti_verdict(p.ti, rom, ctx.scene.contact.mu)} with dt = {p.ti.dt:.3g} s"
-            p = replace(_validate(ctx, rom, system, kind, method, ch, c.residual, c.where, dt=fine),
+            p = replace(_validate(ctx, rom, system, kind, method, ch, c.residual, c.where, dt=fine, previous=p),
                         refined_from=first_words)
+        words = ti_verdict(p.ti, rom, ctx.scene.contact.mu)
         tried.append(f"{p.omega:.1f} rad/s{'' if len(candidates) == 1 else ' of ' + c.where} "
                      f"({'stable' if p.stable else 'unstable'}), time integration "
-                     + (f"{p.refined_from}, {ti_verdict(p.ti, rom, ctx.scene.contact.mu)} with dt = {p.ti.dt:.3g} s"
-                        if p.refined_from else ti_verdict(p.ti, rom, ctx.scene.contact.mu)))
+                     + (f"{p.refined_from}, {words} with dt = {p.ti.dt:.3g} s" if p.refined_from else words))
         first = first or p
         if p.ti is not None and p.ti.stays:
             kept = p

@@ -389,7 +389,7 @@ def test_a_stable_point_time_integration_leaves_is_marched_again_with_a_finer_st
     marched = []
     rule = {"stays": lambda w, dt: dt <= 2.5e-8, "outcome": "leaves"}
 
-    def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None):
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None, previous=None):
         step = ctx.scene.ti.dt if dt is None else dt
         marched.append((ch.index, step))
         stays = rule["stays"](ch.omega, step)
