@@ -10,7 +10,9 @@ of [contact], linearised at the DLFT solution), and time integration marched fro
 Prints one line per point (largest multiplier modulus by each Jacobian, each march's
 verdict) and, per step, how many points each Jacobian's verdict agrees with time
 integration (stable and stays, or unstable and leaves, the friction lock counted as
-leaving).
+leaving). After each verdict: where the march went in the HBM's unknowns
+(hbm.ti.validation.reached_orbit), the distance of its last period's harmonics to the orbit
+and, after "/", that of the DLFT solution Newton finds from them ("-": Newton failed).
 """
 from __future__ import annotations
 
@@ -45,7 +47,7 @@ def _setup(scene_path: Path, out: Path, name: str) -> None:
 def _point(args):
     """(index, Omega, largest |mu| DLFT, largest |mu| RL law, [TI verdict per dt])."""
     from hbm.stability.spectrum import orbit_spectrum
-    from hbm.ti.validation import march_from_hbm
+    from hbm.ti.validation import march_from_hbm, reached_orbit
 
     i, dts, n_periods = args
     c = _CTX
@@ -56,8 +58,10 @@ def _point(args):
     verdicts = []
     for dt in dts:
         ti = march_from_hbm(c["system"], scene.casing, scene.contact.mu, rd.expand_harmonics(u, w), w,
-                            subharmonic=br.subharmonic, n_periods=n_periods, dt=dt)
-        verdicts.append("stays" if ti.stays else "lock" if ti.outcome == "permanent contact" else "leaves")
+                            subharmonic=br.subharmonic, n_periods=n_periods, dt=dt, record_all=True)
+        went = reached_orbit(rd, ti, u, w)
+        verdicts.append(("stays" if ti.stays else "lock" if ti.outcome == "permanent contact" else "leaves",
+                         went.distance, went.solution_distance))
     return i, w, mu_d, mu_r, verdicts
 
 
@@ -89,17 +93,18 @@ def main() -> None:
     print(f"DLFT branch {a.branch} of {a.out / 'isolas.h5'} ({br.kind}, {br.omega.min():.0f}-{br.omega.max():.0f} "
           f"rad/s): {len(rows)} points, {a.periods} periods of time integration")
     print(f"{'point':>5} {'Omega':>7} {'|mu| DLFT':>9} {'|mu| RL law':>11} "
-          + " ".join(f"{'TI ' + format(dt, 'g'):>11}" for dt in a.dts))
+          + " ".join(f"{'TI ' + format(dt, 'g'):>22}" for dt in a.dts))
     for i, w, md, mr, v in rows:
-        print(f"{i:5d} {w:7.1f} {md:9.3f} {mr:11.3f} " + " ".join(f"{x:>11}" for x in v))
+        print(f"{i:5d} {w:7.1f} {md:9.3f} {mr:11.3f} "
+              + " ".join(f"{x:>7} {d:6.3f}/{'-' if np.isnan(b) else format(b, '.3f'):>6}" for x, d, b in v))
     for k, dt in enumerate(a.dts):
-        stays = np.array([r[4][k] == "stays" for r in rows])
+        stays = np.array([r[4][k][0] == "stays" for r in rows])
         agree_d = int(np.sum((np.array([r[2] for r in rows]) < 1.0) == stays))
         agree_r = int(np.sum((np.array([r[3] for r in rows]) < 1.0) == stays))
         print(f"dt = {dt:g} s: DLFT Jacobian agrees with time integration at {agree_d} of {len(rows)} points, "
               f"the RL law's at {agree_r}")
     if len(a.dts) > 1:
-        moved = sum(len(set(r[4])) > 1 for r in rows)
+        moved = sum(len({x[0] for x in r[4]}) > 1 for r in rows)
         print(f"time integration's verdict changes with the step at {moved} of {len(rows)} points")
 
 

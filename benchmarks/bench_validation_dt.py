@@ -10,7 +10,10 @@ branch of OUT/isolas.h5 nearest given speeds, with each step of --dts, as the st
 Prints, per point and step: the verdict, the growth of the distance to the orbit, that
 distance over the last tenth of the periods (max of LE and TE, relative to the orbit's
 amplitude), the period-to-period drift at the end, the march's LE amplitude (half the peak
-to peak over the last period) against the orbit's, and the march's CPU time.
+to peak over the last period) against the orbit's, the march's CPU time, and where it went in
+the HBM's unknowns (hbm.ti.validation.reached_orbit): the distance of its last period's
+harmonics to the orbit, and that of the solution Newton finds from them ("-" when Newton
+fails).
 """
 from __future__ import annotations
 
@@ -51,7 +54,7 @@ def points(args):
 def main() -> None:
     from hbm.harmonic.residual import build_residual
     from hbm.ti.march import rom_modal_system
-    from hbm.ti.validation import march_from_hbm
+    from hbm.ti.validation import march_from_hbm, reached_orbit
     from pipelines.scene import load_scene
     from pipelines.stages.rom import read_rom
     from pipelines.stages.validation import _options_for
@@ -74,19 +77,21 @@ def main() -> None:
     system = rom_modal_system(rom)
     n_r = 3 * rom.n_boundary
     print(f"{'method':6} {'point':16} {'Omega':>8} {'dt (s)':>8} {'verdict':38} {'growth':>7} {'last dist':>9} "
-          f"{'drift':>7} {'LE amp mm':>9} {'orbit mm':>8} {'CPU s':>6}")
+          f"{'drift':>7} {'LE amp mm':>9} {'orbit mm':>8} {'CPU s':>6} {'u dist':>7} {'Newton':>7}")
     for label, method, omega, u, nu, amplitude in points(args):
         res = build_residual(rom, scene.casing, scene.contact, _options_for(scene.hbm, len(u), n_r, nu), method=method)
         coeffs = res.expand_harmonics(u, omega)
         for dt in args.dts:
             c0 = time.process_time()
             ti = march_from_hbm(system, scene.casing, scene.contact.mu, coeffs, omega, subharmonic=nu,
-                                n_periods=n_periods, dt=dt)
+                                n_periods=n_periods, dt=dt, record_all=True)
             cpu = time.process_time() - c0
+            went = reached_orbit(res, ti, u, omega)
             le = ti.displacement[:, 0]
             last = ti.deviation[-max(1, n_periods // 10):].max()
             print(f"{method:6} {label:16} {omega:8.1f} {ti.dt:8.2e} {ti.verdict()[:38]:38} {ti.growth:7.2f} "
-                  f"{last:9.3f} {np.max(ti.drift):7.3f} {1e3 * 0.5 * np.ptp(le):9.3f} {1e3 * amplitude:8.3f} {cpu:6.1f}",
+                  f"{last:9.3f} {np.max(ti.drift):7.3f} {1e3 * 0.5 * np.ptp(le):9.3f} {1e3 * amplitude:8.3f} {cpu:6.1f} "
+                  f"{went.distance:7.3f} {went.solution_distance if went.converged else '-':>7.3}",
                   flush=True)
 
 
