@@ -56,9 +56,30 @@ from hbm.ti.sweep import steps_per_revolution
 GROWTH_TOL = 1.5
 DEVIATION_TOL = 0.6
 BASELINE_PERIODS = 3
+#: Newton from a march's last period (reached_orbit) finds the orbit itself (1e-13 to 5e-7 of
+#: its norm away, measured on rotor 67) or another solution (20 % or more away): a solution
+#: farther than this from the orbit is another one
+LANDING_TOL = 1e-3
 #: distances below this fraction of the amplitude count as on the orbit in the growth ratio
 #: (an exact orbit's march: round-off, ~1e-12, whose ratio from period to period means nothing)
 DEVIATION_FLOOR = 1e-3
+
+
+@dataclass(frozen=True)
+class ReachedOrbit:
+    """Where a march went, in the HBM's unknowns: the harmonics of its last period against
+    the orbit it started from, and the HBM solution Newton finds from them.
+
+    distance: ||u_TI - u|| / ||u|| (u_TI: every retained dof's last period on the N_h
+    harmonics, scaled as the residual's unknowns), -. converged: whether Newton at the same
+    Omega from u_TI converged. solution_distance: ||u_N - u|| / ||u|| for that solution u_N
+    (nan when it did not converge), -: about 0 when the march's periodic state belongs to the
+    orbit, far from 0 when time integration went to another solution.
+    """
+
+    distance: float = field(metadata={"unit": "1"})
+    converged: bool = field(metadata={"unit": "1"})
+    solution_distance: float = field(metadata={"unit": "1"})
 
 
 @dataclass(frozen=True)
@@ -84,9 +105,11 @@ class OrbitValidation:
     boundary node (LE to TE) carries a normal force, (n_b,), -.
     outcome: "stays" (= stays), "permanent contact" (left the orbit, and a node never lets go
     of the casing over the last tenth of the periods: the friction lock when mu >= the ROM's
-    mu_set) or "leaves" (anything else).
+    mu_set), "another solution" (within the distance bounds, but the HBM solution through
+    the last period is another one: see landed) or "leaves" (anything else).
     last_harmonics: every dof's harmonics over the last period, in the orbit's basis and time
     origin, (2 N_h + 1, n), m, eq. (5) order; empty unless asked for (record_all).
+    reached: where the march went in the HBM's unknowns (reached_orbit), None unless asked.
     """
 
     omega: float = field(metadata={"unit": "rad/s"})
@@ -108,6 +131,7 @@ class OrbitValidation:
     contact_fraction: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
     outcome: str = ""
     last_harmonics: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "m"})
+    reached: ReachedOrbit | None = None
 
     @property
     def locked_nodes(self) -> np.ndarray:
@@ -119,6 +143,9 @@ class OrbitValidation:
         locked nodes (LE, TE, or "node j" counted from the LE at 0)."""
         if self.stays:
             return "stays"
+        if self.outcome == "another solution" and self.reached is not None:
+            return (f"leaves for another solution ({100 * self.reached.solution_distance:.0f} % from the orbit, by "
+                    f"Newton from the last period)")
         if self.outcome != "permanent contact":
             return "leaves"
         nb = len(self.contact_fraction)
@@ -258,23 +285,6 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
                            contact_fraction=in_contact, outcome=outcome, last_harmonics=last)
 
 
-@dataclass(frozen=True)
-class ReachedOrbit:
-    """Where a march went, in the HBM's unknowns: the harmonics of its last period against
-    the orbit it started from, and the HBM solution Newton finds from them.
-
-    distance: ||u_TI - u|| / ||u|| (u_TI: every retained dof's last period on the N_h
-    harmonics, scaled as the residual's unknowns), -. converged: whether Newton at the same
-    Omega from u_TI converged. solution_distance: ||u_N - u|| / ||u|| for that solution u_N
-    (nan when it did not converge), -: about 0 when the march's periodic state belongs to the
-    orbit, far from 0 when time integration went to another solution.
-    """
-
-    distance: float = field(metadata={"unit": "1"})
-    converged: bool = field(metadata={"unit": "1"})
-    solution_distance: float = field(metadata={"unit": "1"})
-
-
 def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> ReachedOrbit:
     """Compare a march recorded with record_all=True (ti) with the orbit u it started from.
 
@@ -294,6 +304,18 @@ def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> Reac
     sol = damped_newton(res, u_ti, omega, NewtonOptions(tol_residual=1e-8, max_iter=12), HbmSolver(atol=1e-9))
     back = float(np.linalg.norm(sol.x - u)) / norm if sol.converged else float("nan")
     return ReachedOrbit(float(np.linalg.norm(u_ti - u)) / norm, bool(sol.converged), back)
+
+
+def confirm_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> OrbitValidation:
+    """ti with `reached` filled in, and a march the distance rule keeps turned into "another
+    solution" when Newton from its last period converges to a solution more than
+    LANDING_TOL from the orbit (ti recorded with record_all=True; arguments as reached_orbit).
+    A Newton that does not converge leaves the verdict as it is: it says nothing of where
+    the march went."""
+    went = reached_orbit(res, ti, u, omega)
+    if ti.stays and went.converged and went.solution_distance > LANDING_TOL:
+        return replace(ti, stays=False, outcome="another solution", reached=went)
+    return replace(ti, reached=went)
 
 
 def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.ndarray | None,

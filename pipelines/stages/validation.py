@@ -41,7 +41,7 @@ import numpy as np
 
 from hbm.stability.bifurcation import PERIOD_DOUBLING
 from hbm.stability.selection import DoubledBranch
-from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, OrbitComparison, OrbitValidation
+from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, OrbitComparison, OrbitValidation
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Figure, Output, Stage
 from pipelines.stages.hbm import nfrc_output
@@ -173,7 +173,7 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
     from hbm.continuation.newton import NewtonOptions
-    from hbm.ti.validation import compare_again, compare_with_hbm, march_from_hbm
+    from hbm.ti.validation import compare_again, compare_with_hbm, confirm_orbit, march_from_hbm
 
     scene = ctx.scene
     if not chosen.found:
@@ -181,7 +181,10 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
     u, omega, nu = chosen.u, chosen.omega, residual.nu
     ti = march_from_hbm(system, scene.casing, scene.contact.mu, residual.expand_harmonics(u, omega), omega,
                         subharmonic=nu, n_periods=scene.validation.n_periods,
-                        dt=scene.ti.dt if dt is None else dt)
+                        dt=scene.ti.dt if dt is None else dt, record_all=True)
+    # the distance rule cannot tell the orbit from another solution next to it: the HBM
+    # solution through the march's last period can
+    ti = confirm_orbit(residual, ti, u, omega)
     comps = {}
     for m in ("dlft", "rl"):
         if previous is not None:
@@ -484,6 +487,17 @@ def ti_verdict(ti: OrbitValidation, rom, mu: float) -> str:
     return words
 
 
+def _landing(ti: OrbitValidation) -> str:
+    """Where the march went in the HBM's unknowns, in words ("" when not known)."""
+    r = ti.reached
+    if r is None:
+        return ""
+    newton = ("Newton from it fails" if not r.converged else "Newton from it finds the orbit"
+              if r.solution_distance <= LANDING_TOL else f"Newton from it finds another solution "
+              f"{100 * r.solution_distance:.0f} % away")
+    return f", last period {100 * r.distance:.1f} % from the orbit in the unknowns, {newton}"
+
+
 def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
     lines = []
     for p in (t.primary, t.isola, t.period_doubling):
@@ -494,7 +508,7 @@ def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
         s = (f"Omega = {p.omega:.1f} rad/s, nu = {p.subharmonic}, {'stable' if p.stable else 'UNSTABLE'} "
              f"(|mu| {p.multiplier:.4g}); TI {ti_verdict(p.ti, rom, mu).replace('leaves', 'LEAVES', 1)} "
              f"(growth {p.ti.growth:.2f}, "
-             f"last deviation {p.ti.deviation[-10:].max():.3f}"
+             f"last deviation {p.ti.deviation[-10:].max():.3f}{_landing(p.ti)}"
              + (f"; dt = {p.ti.dt:.3g} s, the first march {p.refined_from})" if p.refined_from else ")"))
         for m in ("dlft", "rl"):
             c = getattr(p, m)

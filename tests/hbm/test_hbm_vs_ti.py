@@ -18,8 +18,8 @@ from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.ti.sweep import steps_per_revolution
 from hbm.ti.march import Recording, march, rom_modal_system
-from hbm.ti.validation import (DEVIATION_TOL, GROWTH_TOL, compare_with_hbm, departure, march_from_hbm,
-                                reached_orbit)
+from hbm.ti.validation import (DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, compare_with_hbm, confirm_orbit, departure,
+                                march_from_hbm, reached_orbit)
 from rom.model import load_rom
 
 ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
@@ -78,6 +78,14 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     assert went.distance < 0.04 and went.converged and went.solution_distance < 1e-8, went
     r = FourierBasis(N_H, len(ti.tau)).to_time(ti.last_harmonics[:, 3 * ti.nodes])
     assert np.all(np.abs(r - ti.displacement).max(axis=0) < 0.1 * np.ptp(ti.displacement, axis=0))
+    kept = confirm_orbit(res, ti, sol.x, OMEGA)
+    assert kept.stays and kept.outcome == "stays" and kept.reached.solution_distance <= LANDING_TOL
+    # the same march said to start from u = 1.3 x the orbit (not a solution): Newton from its
+    # last period finds the orbit, 0.3 / 1.3 of u away, so the march went to another solution
+    other = confirm_orbit(res, ti, 1.3 * sol.x, OMEGA)
+    assert not other.stays and other.outcome == "another solution"
+    assert other.reached.solution_distance == pytest.approx(0.3 / 1.3, rel=1e-6)
+    assert other.verdict().startswith("leaves for another solution (23 %")
     # a march that kept only the three compared nodes cannot say where it went
     short = march_from_hbm(rom, casing, contact.mu, coeffs, OMEGA, n_periods=3)
     with pytest.raises(ValueError, match="record_all"):

@@ -13,6 +13,7 @@ from pipelines.branch_store import load_branch
 from pipelines.progress import Progress
 from pipelines.runner import run_scene
 from pipelines.scene import load_scene
+from pipelines.stages.rom import read_rom
 from pipelines.stages.validation import read_validation
 
 
@@ -109,10 +110,17 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
     (rec, a), (rec_again, _), (_, b), (rec_changed, _) = done
     # the search of the short scene finds no isola: a recorded reason, not an error
     assert rec["validation"][0] == "computed"
+    rom = read_rom(out)
     for t in (a.dlft, a.rl):
         assert not t.isola.found and "no branch of kind 'isola' or 'detached'" in t.isola.reason
         p = t.primary
         assert p.found and p.ti is not None and p.ti.n_periods == 20 and p.ti.deviation.shape == (20, 2)
+        # where the march went, read back from validation.h5: its last period on the point's
+        # harmonics (every dof of the ROM) and the HBM solution through it
+        assert p.ti.last_harmonics.shape == (len(p.u) // (3 * rom.n_boundary), rom.n_dof) and p.ti.reached is not None
+        assert np.isfinite(p.ti.reached.distance) and (p.ti.outcome == "another solution") == (
+            p.ti.reached.converged and p.ti.reached.solution_distance > 1e-3 and p.ti.growth <= 1.5
+            and p.ti.deviation[-2:].max() <= 0.6)
         # both treatments compared at the point: its own orbit, the other's by Newton (or why not)
         own, other = getattr(p, t.method), getattr(p, "rl" if t.method == "dlft" else "dlft")
         assert own.source == "the point itself" and own.converged
