@@ -11,8 +11,9 @@ Prints one line per point (largest multiplier modulus by each Jacobian, each mar
 verdict) and, per step, how many points each Jacobian's verdict agrees with time
 integration (stable and stays, or unstable and leaves, the friction lock counted as
 leaving). After each verdict: where the march went in the HBM's unknowns
-(hbm.ti.validation.reached_orbit), the distance of its last period's harmonics to the orbit
-and, after "/", that of the DLFT solution Newton finds from them ("-": Newton failed).
+(hbm.ti.validation.confirm_orbit, as the stage judges it), the distance of its last
+period's harmonics to the orbit and, after "/", that of the DLFT solution Newton finds from
+them ("-": Newton failed).
 """
 from __future__ import annotations
 
@@ -47,7 +48,7 @@ def _setup(scene_path: Path, out: Path, name: str) -> None:
 def _point(args):
     """(index, Omega, largest |mu| DLFT, largest |mu| RL law, [TI verdict per dt])."""
     from hbm.stability.spectrum import orbit_spectrum
-    from hbm.ti.validation import march_from_hbm, reached_orbit
+    from hbm.ti.validation import confirm_orbit, march_from_hbm
 
     i, dts, n_periods = args
     c = _CTX
@@ -59,7 +60,8 @@ def _point(args):
     for dt in dts:
         ti = march_from_hbm(c["system"], scene.casing, scene.contact.mu, rd.expand_harmonics(u, w), w,
                             subharmonic=br.subharmonic, n_periods=n_periods, dt=dt, record_all=True)
-        went = reached_orbit(rd, ti, u, w)
+        ti = confirm_orbit(rd, ti, u, w)
+        went = ti.reached
         verdicts.append(("stays" if ti.stays else "lock" if ti.outcome == "permanent contact" else "leaves",
                          went.distance, went.solution_distance))
     return i, w, mu_d, mu_r, verdicts

@@ -11,9 +11,9 @@ Prints, per point and step: the verdict, the growth of the distance to the orbit
 distance over the last tenth of the periods (max of LE and TE, relative to the orbit's
 amplitude), the period-to-period drift at the end, the march's LE amplitude (half the peak
 to peak over the last period) against the orbit's, the march's CPU time, and where it went in
-the HBM's unknowns (hbm.ti.validation.reached_orbit): the distance of its last period's
-harmonics to the orbit, and that of the solution Newton finds from them ("-" when Newton
-fails).
+the HBM's unknowns (hbm.ti.validation.confirm_orbit, as the stage judges it): the distance
+of its last period's harmonics to the orbit, and that of the solution Newton finds from them
+("-" when Newton fails).
 """
 from __future__ import annotations
 
@@ -54,7 +54,7 @@ def points(args):
 def main() -> None:
     from hbm.harmonic.residual import build_residual
     from hbm.ti.march import rom_modal_system
-    from hbm.ti.validation import march_from_hbm, reached_orbit
+    from hbm.ti.validation import confirm_orbit, march_from_hbm
     from pipelines.scene import load_scene
     from pipelines.stages.rom import read_rom
     from pipelines.stages.validation import _options_for
@@ -86,7 +86,8 @@ def main() -> None:
             ti = march_from_hbm(system, scene.casing, scene.contact.mu, coeffs, omega, subharmonic=nu,
                                 n_periods=n_periods, dt=dt, record_all=True)
             cpu = time.process_time() - c0
-            went = reached_orbit(res, ti, u, omega)
+            ti = confirm_orbit(res, ti, u, omega)
+            went = ti.reached
             le = ti.displacement[:, 0]
             last = ti.deviation[-max(1, n_periods // 10):].max()
             print(f"{method:6} {label:16} {omega:8.1f} {ti.dt:8.2e} {ti.verdict()[:38]:38} {ti.growth:7.2f} "
