@@ -106,7 +106,7 @@ class OrbitValidation:
     outcome: "stays" (= stays), "permanent contact" (left the orbit, and a node never lets go
     of the casing over the last tenth of the periods: the friction lock when mu >= the ROM's
     mu_set), "another solution" (within the distance bounds, but the HBM solution through
-    the last period is another one: see landed) or "leaves" (anything else).
+    the last period is another one: see reached) or "leaves" (anything else).
     last_harmonics: every dof's harmonics over the last period, in the orbit's basis and time
     origin, (2 N_h + 1, n), m, eq. (5) order; empty unless asked for (record_all).
     reached: where the march went in the HBM's unknowns (reached_orbit), None unless asked.
