@@ -60,6 +60,12 @@ BASELINE_PERIODS = 3
 #: its norm away, measured on rotor 67) or another solution (20 % or more away): a solution
 #: farther than this from the orbit is another one
 LANDING_TOL = 1e-3
+#: A march that stays has settled when its last period repeats the one before to this fraction
+#: of the amplitude (drift). On rotor 67 settled marches end at 0 to 0.02; those near orbits
+#: whose largest |mu| is 0.989-0.999 end at 0.12-0.37, and 3 to 10 times longer marches
+#: (300 periods at |mu| = 0.989, 1000 at 0.999) leave them unsettled: the verdict says so
+#: rather than calling such a march the orbit's confirmation.
+SETTLED_DRIFT = 0.05
 #: distances below this fraction of the amplitude count as on the orbit in the growth ratio
 #: (an exact orbit's march: round-off, ~1e-12, whose ratio from period to period means nothing)
 DEVIATION_FLOOR = 1e-3
@@ -138,11 +144,17 @@ class OrbitValidation:
         """Boundary nodes (LE = 0) in contact over the whole last tenth of the march, (k,)."""
         return np.flatnonzero(np.asarray(self.contact_fraction) >= 1.0)
 
+    @property
+    def settled(self) -> bool:
+        """Whether the last period repeats the one before within SETTLED_DRIFT (LE and TE)."""
+        return bool(np.max(self.drift) <= SETTLED_DRIFT)
+
     def verdict(self) -> str:
-        """In words: "stays", "leaves", or "leaves for permanent contact (TE)" naming the
-        locked nodes (LE, TE, or "node j" counted from the LE at 0)."""
+        """In words: "stays", "stays, unsettled (drift 0.36)" when the last period does not
+        repeat the one before (SETTLED_DRIFT), "leaves", or "leaves for permanent contact (TE)"
+        naming the locked nodes (LE, TE, or "node j" counted from the LE at 0)."""
         if self.stays:
-            return "stays"
+            return "stays" if self.settled else f"stays, unsettled (drift {np.max(self.drift):.2f})"
         if self.outcome == "another solution" and self.reached is not None:
             return (f"leaves for another solution ({100 * self.reached.solution_distance:.0f} % from the orbit, by "
                     f"Newton from the last period)")
