@@ -133,9 +133,11 @@ class ValidationOptions:
     analyses near a branch's peak to find a stable point (24: on the coarse rotor 67 ROM at
     N_h = 40 DLFT's first stable candidate is among the first 8, whereas RL's whole peak
     region is unstable and 16 candidates find no stable point; 24 find one at 60 % of the
-    peak; ~0.7 s each). n_scan: points analysed along a branch whose
-    file holds no stability, to find where it changes (24: the cost of about 2 % of an NFRC
-    at N_h = 40; a stretch between two scanned points can hide two changes). pd_points: most
+    peak; ~0.7 s each; when none is stable, the NFRC's stability is computed along it).
+    n_scan: points analysed along a branch whose file holds no stability, to find where it
+    changes (24: the cost of about 2 % of an NFRC at N_h = 40; a stretch between two scanned
+    points can hide two changes, and when the scan finds no period doubling whose branch
+    switch converges the NFRC's stability is computed along it). pd_points: most
     points of the period-doubled branch each way from the switch. pd_tries: period doublings
     tried until time integration stays on the doubled branch's point: the NFRC's first, then
     (when the isola search stored stability) those that end a stable stretch of one of its

@@ -5,7 +5,10 @@ with both HBM treatments (validation.h5); and the full view of the solution set 
 For each treatment of [hbm] methods:
 - primary: a stable point near the primary resonance of its NFRC (hbm.stability.selection.
   choose_point: the stored verdicts when the NFRC was computed with [hbm] stability, else
-  Floquet analyses of a few points near the peak); when time integration leaves it, the next
+  Floquet analyses of a few points near the peak, and when none of those is stable the
+  NFRC's stability computed here along the whole branch, as [hbm] stability would have
+  stored it: on rotor 67 the stable stretches of the NFRCs are short and away from the
+  peak); when time integration leaves it, the next
   one outside its stable stretch whose verdict the march can check (DECISIVE_DECAY), up to
   [validation] primary_tries in all, until it stays; a stable choice is first solved again
   with 2 N_h (check_harmonics) and passed over, unmarched, when it is not converged in N_h;
@@ -16,7 +19,8 @@ For each treatment of [hbm] methods:
   file exists and holds one (else the reason is recorded); tried again as the primary
   point is, up to [validation] isola_tries;
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
-  here by a bounded scan), the period-doubled branch switched to there and continued both
+  here by a bounded scan, and from the NFRC's stability computed along it when the scan
+  finds none whose branch switch converges), the period-doubled branch switched to there and continued both
   ways (stored here), and a point of it (stable if any, checked with 2 N_h as the primary
   point is: one that fails is passed over for the next stable choice of the same branch,
   unmarched); when time integration leaves that
@@ -221,7 +225,8 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     b, ex = stored.branch, stored.extras
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     tag = method.upper()
-    nfrc = Candidate(path.name, res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"))
+    nfrc = Candidate(path.name, res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
+                     monitor=_nfrc_monitor(scene.hbm))
     update(f"{tag}: a stable point near the primary resonance")
     primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
@@ -242,7 +247,7 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
                            br.omega, br.x, br.le_amplitude, br.converged, br.stable) for br in branches]
         isola = _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
     # period doubling
-    pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update)
+    pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update, nfrc)
     return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0)
 
 
@@ -251,7 +256,9 @@ class Candidate:
     """A branch a validation point may be taken from. where: its file and group, in words.
     residual: its HarmonicBalanceResidual. omega (m,) rad/s, x (m, n_u), amplitude (m,) m,
     converged (m,) bool, stable (m,) bool or None: the branch. eligible: (m,) bool, the
-    points not yet ruled out (the stable stretches of points time integration left)."""
+    points not yet ruled out (the stable stretches of points time integration left).
+    monitor: (x_scale, omega_scale, StabilityOptions) under which a branch stored without
+    stability may have it computed (stability()), or None: never."""
 
     where: str
     residual: object
@@ -261,7 +268,9 @@ class Candidate:
     converged: np.ndarray
     stable: np.ndarray | None
     eligible: np.ndarray = None
+    monitor: tuple | None = None
     _chosen: dict = field(default_factory=dict, repr=False)  # margin -> ChosenPoint, until rule_out
+    _stability: object = field(default=None, repr=False)
 
     def __post_init__(self):
         if self.eligible is None:
@@ -269,14 +278,36 @@ class Candidate:
 
     def choose(self, n_candidates: int, margin: float):
         """choose_point on the eligible points; kept until rule_out, so that a branch passed
-        over on one try is not analysed again on the next."""
+        over on one try is not analysed again on the next. When the branch holds no
+        stability, none of the candidates near its peak is stable and `monitor` is given,
+        the branch's stability is computed (stability()) and the choice made from it."""
         from hbm.stability.selection import choose_point
 
         if margin not in self._chosen:
-            self._chosen[margin] = choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged,
-                                                self.stable, eligible=self.eligible, n_candidates=n_candidates,
-                                                margin=margin)
+            ch = choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
+                              eligible=self.eligible, n_candidates=n_candidates, margin=margin)
+            if ch.found and not ch.stable and self.stable is None and self.monitor is not None:
+                st = self.stability()
+                ch = choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
+                                  eligible=self.eligible, n_candidates=n_candidates, margin=margin)
+                ch = replace(ch, reason=f"{ch.reason}; the branch file holds no stability and no candidate near "
+                                        f"the peak is stable: computed here along the branch "
+                                        f"({st.n_analyses} Floquet analyses)")
+            self._chosen[margin] = ch
         return self._chosen[margin]
+
+    def stability(self):
+        """hbm.stability.selection.branch_stability of the branch, computed once (monitor:
+        (x_scale, omega_scale, StabilityOptions)); its stable flags become the branch's."""
+        from hbm.stability.selection import branch_stability
+
+        if self._stability is None:
+            x_scale, omega_scale, options = self.monitor
+            self._stability = branch_stability(self.residual, self.omega, self.x, self.converged, x_scale=x_scale,
+                                               omega_scale=omega_scale, options=options)
+            self.stable = self._stability.stable
+            self._chosen.clear()  # choices made without it
+        return self._stability
 
     def rule_out(self, index: int) -> None:
         """Rule out the stable stretch of point `index` (hbm.stability.selection.stable_stretch)."""
@@ -404,17 +435,38 @@ def doubling_candidates(branches) -> list:
     return [(br, i) for _, br, i in out]
 
 
-def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update):
+def _nfrc_monitor(hbm) -> tuple:
+    """Candidate.monitor of an NFRC: the continuation's scales and the scene's stability gap."""
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.stability.monitor import StabilityOptions
+
+    co = default_continuation(hbm)
+    return co.x_scale, co.omega_scale, StabilityOptions(max_gap=hbm.stability_max_gap)
+
+
+def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update, nfrc: Candidate | None = None):
     """(ValidationPoint, DoubledBranch) of the period-doubling point: the NFRC's first period
     doubling, then doubling_candidates of isolas.h5, up to [validation] pd_tries, until time
     integration stays on the doubled branch's chosen point (the first try is kept when none
-    does; the reason lists every try)."""
+    does; the reason lists every try). An NFRC stored without stability: its doublings from
+    the branch stability that nfrc (Candidate of the NFRC with a monitor) computed for the
+    primary point, else from a scan; when the scan finds none, or none whose branch switch
+    converges, from that stability computed here."""
     from hbm.harmonic.nfrc import default_continuation
     from hbm.harmonic.residual import build_residual
+    from hbm.stability.bifurcation import PERIOD_DOUBLING
     from hbm.stability.selection import continue_doubled_branch, locate_period_doubling
 
     scene, opts, tag = ctx.scene, ctx.scene.validation, method.upper()
-    sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, _pd_brackets(path))]
+
+    def computed_brackets():
+        return [bf.index for bf in nfrc.stability().bifurcations if bf.kind == PERIOD_DOUBLING]
+
+    brackets = _pd_brackets(path)
+    if brackets is None and nfrc is not None and nfrc._stability is not None:
+        brackets = computed_brackets()
+    sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets)]
+    monitor_left = brackets is None and nfrc is not None and nfrc.monitor is not None
     if opts.pd_tries > 1:
         for br, i in doubling_candidates(read_branch_set(ctx.out / ISOLAS, method))[: opts.pd_tries - 1]:
             r_b = build_residual(rom, scene.casing, scene.contact,
@@ -425,13 +477,30 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     for where, r_s, omega, x, amp, conv, brackets in sources:
         update(f"{tag}: period doubling of {where}")
         loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan)
+        switched = None
+        if loc.bifurcation is not None:
+            update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
+            switched = continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation,
+                                               default_continuation(scene.hbm), n_points=opts.pd_points)
+        if monitor_left and where == "the NFRC" and (switched is None or not switched[0].found):
+            # the scan of an NFRC stored without stability found nothing to switch to
+            monitor_left = False
+            why = loc.reason if switched is None else f"{loc.reason}; {switched[0].reason}"
+            update(f"{tag}: the NFRC's stability along the whole branch (its file holds none)")
+            again = locate_period_doubling(r_s, omega, x, amp, conv, brackets=computed_brackets())
+            loc = replace(again, reason=f"the scan found nothing to switch to ({why}); from the branch's stability "
+                                        f"computed here ({nfrc.stability().n_analyses} Floquet analyses): "
+                                        f"{again.reason}")
+            switched = None
+            if loc.bifurcation is not None:
+                update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
+                switched = continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation,
+                                                   default_continuation(scene.hbm), n_points=opts.pd_points)
         if loc.bifurcation is None:
             result = (ValidationPoint("period_doubling", method, False, f"{where}: {loc.reason}"),
                       DoubledBranch(False, f"{where}: {loc.reason}"))
         else:
-            update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
-            pd_branch, r_pd = continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation,
-                                                      default_continuation(scene.hbm), n_points=opts.pd_points)
+            pd_branch, r_pd = switched
             pd_branch = replace(pd_branch, reason=f"{where}: {loc.reason}; {pd_branch.reason}")
             if not pd_branch.found:
                 result = (ValidationPoint("period_doubling", method, False, pd_branch.reason), pd_branch)

@@ -533,3 +533,76 @@ def test_a_point_that_fails_the_harmonic_check_is_not_marched(long_branch, monke
     p = run(6)
     assert len(checked) == 2 and marched == [m - 1] and p.found and p.index == m - 1
     assert "the first checked is marched" in p.reason
+
+
+def test_a_branch_stored_without_stability_is_analysed_along_when_its_peak_has_no_stable_point(long_branch):
+    """The NFRC of a scene run without [hbm] stability: when none of the candidates near the
+    peak is stable (here the peak's stable stretch is ruled out, as after a march that left
+    it), the validation stage's Candidate computes the branch's stability
+    (hbm.stability.selection.branch_stability) and chooses from it: the largest amplitude
+    that shooting (another method) calls stable, every point's verdict as shooting's."""
+    from test_period_doubling import _multipliers, _state
+
+    import pipelines.stages.validation as stage
+    from hbm.stability.monitor import StabilityOptions
+    from hbm.stability.selection import STABILITY_MARGIN
+
+    res, b, amp = long_branch
+    m = len(b.omega)
+    shoot = np.array([np.abs(_multipliers(_state(res, b.x[j], b.omega[j]), b.omega[j])).max() for j in range(m)])
+    eligible = b.omega > 2.4
+    plain = choose_point(res, b.omega, b.x, amp, b.converged, None, eligible=eligible, n_candidates=8)
+    assert plain.found and not plain.stable  # what the stage marched before: an unstable point
+    c = stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, None, eligible=eligible,
+                        monitor=(1.0, 1.0, StabilityOptions()))
+    ch = c.choose(8, STABILITY_MARGIN)
+    assert ch.stable and "computed here along the branch" in ch.reason, ch.reason
+    assert shoot[ch.index] < 1.0 and amp[ch.index] == amp[eligible & (shoot < 1.0)].max()
+    st = c.stability()
+    assert np.array_equal(st.stable, shoot < 1.0) and np.array_equal(c.stable, st.stable)
+    assert st.n_analyses < m / 3  # the monitor's gapped schedule, not every point
+    # its period doublings where shooting's largest multiplier crosses the circle
+    pds = [bf for bf in st.bifurcations if bf.kind == PERIOD_DOUBLING]
+    assert len(pds) == 2 and all(shoot[bf.index] < 1.0 < shoot[bf.index + 1] or shoot[bf.index + 1] < 1.0 < shoot[bf.index]
+                                 for bf in pds)
+    # a branch with stored verdicts, or without a monitor, is never analysed along
+    bare = stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, None, eligible=eligible)
+    assert not bare.choose(8, STABILITY_MARGIN).stable and bare._stability is None
+
+
+def test_a_period_doubling_the_scan_misses_is_found_from_the_branch_stability(long_branch, doubled, tmp_path,
+                                                                             monkeypatch):
+    """_period_doubling of the validation stage on the long branch stored without stability,
+    with a scan of its two ends only (both stable: the scan sees no change): the doubling is
+    then taken from the branch's stability computed along it, the first one (shooting's
+    crossing near W = 4.34), and its doubled branch is marched (the switch and the march
+    replaced by stand-ins). Without a monitor the scan's empty answer stands."""
+    import h5py
+
+    import hbm.stability.selection as selection
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+    from hbm.stability.monitor import StabilityOptions
+    from hbm.stability.selection import HarmonicCheck
+
+    res, b, amp = long_branch
+    _, db, new = doubled
+    switched_at, marched = [], []
+    monkeypatch.setattr(selection, "continue_doubled_branch",
+                        lambda r, u, w, bif, *a, **k: switched_at.append(bif.omega) or (db, new))
+    monkeypatch.setattr(selection, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
+    monkeypatch.setattr(stage, "_validate", _march_that_stays(marched))
+    nfrc = tmp_path / "nfrc_rl.h5"
+    h5py.File(nfrc, "w").close()
+    ctx = SimpleNamespace(out=tmp_path, scene=SimpleNamespace(
+        validation=ValidationOptions(n_candidates=8, n_scan=2, pd_tries=1), hbm=HbmOptions(omega_min=2.0, omega_max=4.6),
+        contact=SimpleNamespace(mu=0.0)))
+    p, pd_branch = stage._period_doubling(ctx, None, None, "rl", res, b, {"le_amplitude": amp}, nfrc,
+                                          lambda text: None)
+    assert not p.found and not switched_at and "no change of stability among 2 points" in p.reason  # the scan alone
+    c = stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, None, monitor=(1.0, 1.0, StabilityOptions()))
+    p, pd_branch = stage._period_doubling(ctx, None, None, "rl", res, b, {"le_amplitude": amp}, nfrc,
+                                          lambda text: None, c)
+    assert len(switched_at) == 1 and 4.3 < switched_at[0] < 4.36, switched_at
+    assert p.found and len(marched) == 1 and pd_branch.found
+    assert "from the branch's stability computed here" in pd_branch.reason and c._stability is not None
