@@ -77,12 +77,13 @@ def _candidates(order: np.ndarray, amplitude: np.ndarray, n: int) -> list[int]:
 
 
 def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligible=None, n_candidates: int = 8,
-                 margin: float = STABILITY_MARGIN) -> ChosenPoint:
+                 margin: float = STABILITY_MARGIN, verdicts_from: str = "the branch file") -> ChosenPoint:
     """The stable point of largest LE amplitude among a few candidates of a branch.
 
     residual: the branch's HarmonicBalanceResidual. omega (m,) rad/s, x (m, n_u), amplitude
     (m,) m, converged (m,) bool: the branch. stable: (m,) bool stored verdicts, or None.
     eligible: (m,) bool, points that may be chosen (default all converged ones).
+    verdicts_from: where `stable` comes from, in words, for the reason.
     With stored verdicts the points called stable are tried by decreasing amplitude and the
     first one whose analysis confirms it is chosen; otherwise (or when none is confirmed) the
     n_candidates points near the peak (_candidates: dense at the peak, down to half its
@@ -115,7 +116,7 @@ def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligi
         called = [i for i in order if bool(stable[i])]
         for i in called[:n_candidates]:
             if analyse(i)[0]:
-                return chosen(i, f"largest LE amplitude among the {len(called)} points the branch file calls "
+                return chosen(i, f"largest LE amplitude among the {len(called)} points {verdicts_from} calls "
                                  f"stable, confirmed here")
     candidates = _candidates(order, amplitude, n_candidates)
     for i in candidates:

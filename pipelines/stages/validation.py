@@ -283,16 +283,18 @@ class Candidate:
         the branch's stability is computed (stability()) and the choice made from it."""
         from hbm.stability.selection import choose_point
 
+        def choose():
+            source = ("the branch file" if self._stability is None else
+                      f"the branch's stability computed here ({self._stability.n_analyses} Floquet analyses along "
+                      f"it; its file holds none and no candidate near the peak is stable)")
+            return choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
+                                eligible=self.eligible, n_candidates=n_candidates, margin=margin, verdicts_from=source)
+
         if margin not in self._chosen:
-            ch = choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
-                              eligible=self.eligible, n_candidates=n_candidates, margin=margin)
+            ch = choose()
             if ch.found and not ch.stable and self.stable is None and self.monitor is not None:
-                st = self.stability()
-                ch = choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
-                                  eligible=self.eligible, n_candidates=n_candidates, margin=margin)
-                ch = replace(ch, reason=f"{ch.reason}; the branch file holds no stability and no candidate near "
-                                        f"the peak is stable: computed here along the branch "
-                                        f"({st.n_analyses} Floquet analyses)")
+                self.stability()
+                ch = choose()
             self._chosen[margin] = ch
         return self._chosen[margin]
 

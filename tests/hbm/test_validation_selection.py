@@ -556,7 +556,7 @@ def test_a_branch_stored_without_stability_is_analysed_along_when_its_peak_has_n
     c = stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, None, eligible=eligible,
                         monitor=(1.0, 1.0, StabilityOptions()))
     ch = c.choose(8, STABILITY_MARGIN)
-    assert ch.stable and "computed here along the branch" in ch.reason, ch.reason
+    assert ch.stable and "points the branch's stability computed here" in ch.reason, ch.reason
     assert shoot[ch.index] < 1.0 and amp[ch.index] == amp[eligible & (shoot < 1.0)].max()
     st = c.stability()
     assert np.array_equal(st.stable, shoot < 1.0) and np.array_equal(c.stable, st.stable)
