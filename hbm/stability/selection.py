@@ -310,7 +310,8 @@ class LocatedDoubling:
 
 
 def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets=None, n_scan: int = 24,
-                           max_analyses: int = 80) -> LocatedDoubling:
+                           max_analyses: int = 80,
+                           brackets_from: str = "the branch file's bifurcation table") -> LocatedDoubling:
     """The first period doubling along a branch, with its critical mode.
 
     residual: the branch's HarmonicBalanceResidual. omega (m,) rad/s, x (m, n_u), amplitude
@@ -320,7 +321,8 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
     multipliers between two of them is a bracket. Each bracket is bisected on the stored
     points down to two neighbours, where a StabilityMonitor (hbm.stability.monitor) pairs,
     classifies and locates the crossing (folds told apart by the turn in Omega) and gives
-    its mode. max_analyses bounds the Floquet analyses.
+    its mode. max_analyses bounds the Floquet analyses. brackets_from: where the brackets come
+    from, in words, for the reason.
     """
     omega, x = np.asarray(omega, float), np.asarray(x, float)
     idx = np.flatnonzero(np.asarray(converged, bool))
@@ -344,8 +346,8 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
         if brackets is not None:
             pairs = [(int(i), int(i) + 1) for i in brackets if int(i) in pos and int(i) + 1 in pos]
             if not pairs:
-                return LocatedDoubling(None, -1, "the branch file's bifurcation table holds no period doubling", 0)
-            how = "from the branch file's bifurcation table"
+                return LocatedDoubling(None, -1, f"{brackets_from} holds no period doubling", 0)
+            how = f"from {brackets_from}"
         else:
             scan = idx[np.unique(np.linspace(0, len(idx) - 1, min(n_scan, len(idx))).round().astype(int))]
             pairs = [(int(a), int(b)) for a, b in zip(scan[:-1], scan[1:]) if count(a) != count(b)]

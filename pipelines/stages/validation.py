@@ -284,9 +284,7 @@ class Candidate:
         from hbm.stability.selection import choose_point
 
         def choose():
-            source = ("the branch file" if self._stability is None else
-                      f"the branch's stability computed here ({self._stability.n_analyses} Floquet analyses along "
-                      f"it; its file holds none and no candidate near the peak is stable)")
+            source = "the branch file" if self._stability is None else self.computed_words()
             return choose_point(self.residual, self.omega, self.x, self.amplitude, self.converged, self.stable,
                                 eligible=self.eligible, n_candidates=n_candidates, margin=margin, verdicts_from=source)
 
@@ -297,6 +295,10 @@ class Candidate:
                 ch = choose()
             self._chosen[margin] = ch
         return self._chosen[margin]
+
+    def computed_words(self) -> str:
+        """Where the stable flags of stability() come from, in words."""
+        return f"the branch's stability computed here ({self._stability.n_analyses} Floquet analyses along it)"
 
     def stability(self):
         """hbm.stability.selection.branch_stability of the branch, computed once (monitor:
@@ -464,9 +466,10 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     def computed_brackets():
         return [bf.index for bf in nfrc.stability().bifurcations if bf.kind == PERIOD_DOUBLING]
 
-    brackets = _pd_brackets(path)
+    brackets, nfrc_from = _pd_brackets(path), "the branch file's bifurcation table"
     if brackets is None and nfrc is not None and nfrc._stability is not None:
         brackets = computed_brackets()
+        nfrc_from = nfrc.computed_words()
     sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets)]
     monitor_left = brackets is None and nfrc is not None and nfrc.monitor is not None
     if opts.pd_tries > 1:
@@ -478,7 +481,8 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     first, tried = None, []
     for where, r_s, omega, x, amp, conv, brackets in sources:
         update(f"{tag}: period doubling of {where}")
-        loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan)
+        loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan,
+                                     **({"brackets_from": nfrc_from} if where == "the NFRC" else {}))
         switched = None
         if loc.bifurcation is not None:
             update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
@@ -489,10 +493,10 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             monitor_left = False
             why = loc.reason if switched is None else f"{loc.reason}; {switched[0].reason}"
             update(f"{tag}: the NFRC's stability along the whole branch (its file holds none)")
-            again = locate_period_doubling(r_s, omega, x, amp, conv, brackets=computed_brackets())
-            loc = replace(again, reason=f"the scan found nothing to switch to ({why}); from the branch's stability "
-                                        f"computed here ({nfrc.stability().n_analyses} Floquet analyses): "
-                                        f"{again.reason}")
+            brackets = computed_brackets()
+            again = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets,
+                                           brackets_from=nfrc.computed_words())
+            loc = replace(again, reason=f"the scan found nothing to switch to ({why}); {again.reason}")
             switched = None
             if loc.bifurcation is not None:
                 update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
