@@ -105,7 +105,9 @@ class TreatmentValidation:
 
     method: "dlft" or "rl". cpu_time: process CPU time spent on this treatment, s.
     pd_branch: hbm.stability.selection.DoubledBranch (found False with the reason when there
-    is no period doubling or the switch failed).
+    is no period doubling or the switch failed). nfrc_stable: (m,) bool, the stable flag of
+    each NFRC point when the stage computed the NFRC's stability (its file holding none),
+    else empty; nfrc_stability: where it comes from, in words ("" when not computed).
     """
 
     method: str
@@ -114,6 +116,8 @@ class TreatmentValidation:
     period_doubling: ValidationPoint
     pd_branch: DoubledBranch
     cpu_time: float = field(metadata={"unit": "s"})
+    nfrc_stable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool), metadata={"unit": "1"})
+    nfrc_stability: str = ""
 
 
 @dataclass(frozen=True)
@@ -248,7 +252,9 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
         isola = _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
     # period doubling
     pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update, nfrc)
-    return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0)
+    computed = nfrc._stability is not None  # kept for Fig. 8 and the user: 800-1200 analyses on rotor 67
+    return TreatmentValidation(method, primary, isola, pd, pd_branch, time.process_time() - c0,
+                               nfrc.stable if computed else np.zeros(0, bool), nfrc.computed_words() if computed else "")
 
 
 @dataclass(eq=False)
@@ -666,13 +672,18 @@ def draw_solution_set(ctx: Context) -> None:
     from pipelines.figures import plot_solution_set
 
     scene, out = ctx.scene, ctx.out
+    validation = read_validation(out) if (out / VALIDATION.file).is_file() else None
     curves = {}
     for m in scene.hbm.methods:
         lines, marks = [], []
         path = out / nfrc_output(m).file
+        t = getattr(validation, m) if validation is not None else None
         if path.is_file():
             s = load_branch(path)
-            lines.append(("primary", s.branch.omega, s.extras["le_amplitude"], s.branch.converged, s.extras.get("stable")))
+            stable = s.extras.get("stable")
+            if stable is None and t is not None and len(t.nfrc_stable) == len(s.branch.omega):
+                stable = t.nfrc_stable  # computed by the validation stage
+            lines.append(("primary", s.branch.omega, s.extras["le_amplitude"], s.branch.converged, stable))
             with h5py.File(path, "r") as h5:
                 if "bifurcations" in h5:
                     marks += _stability_bounds({k: v for k, (v, _) in read_table(h5["bifurcations"]).items()},
@@ -682,12 +693,10 @@ def draw_solution_set(ctx: Context) -> None:
                 lines.append((br.kind, br.omega, br.le_amplitude, br.converged, br.stable))
                 if br.bifurcations is not None:
                     marks += _stability_bounds(br.bifurcations, br.stable)
-        if (out / VALIDATION.file).is_file():
-            t = getattr(read_validation(out), m)
-            if t is not None:
-                marks += [("validation point", p.omega, p.le_amplitude) for p in (t.primary, t.isola, t.period_doubling)
-                          if p.found]
-            if t is not None and t.pd_branch.found:
+        if t is not None:
+            marks += [("validation point", p.omega, p.le_amplitude) for p in (t.primary, t.isola, t.period_doubling)
+                      if p.found]
+            if t.pd_branch.found:
                 d = t.pd_branch
                 lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable))
         curves[m.upper()] = (lines, marks)

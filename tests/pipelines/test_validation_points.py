@@ -128,6 +128,9 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
         assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
         # the period doubling: found with its branch, or a reason
         assert t.period_doubling.found == t.pd_branch.found and t.period_doubling.reason
+        # the NFRC file holds no stability: when the stage computed it, one flag per point is kept
+        n = len(load_branch(out / f"nfrc_{t.method}.h5").branch.omega)
+        assert (len(t.nfrc_stable), bool(t.nfrc_stability)) in ((0, False), (n, True)), t.nfrc_stability
     assert a.isolas.endswith("isolas.h5") and a.growth_tol == 1.5 and a.cpu_time > 0
     assert rec_again["validation"][0] == "reused"
     # an isolas.h5 with an isola: the DLFT isola point lies on it
