@@ -8,7 +8,9 @@ from them (hbm.ti.validation), checked against independent references:
 - the forced RL-obstacle oscillator of hbm/test_period_doubling.py (a period doubling near
   W = 4.27, confirmed there by shooting): the period doubling is located without stored
   stability, the doubled branch carries the harmonics of W / 2, and time integration
-  (scipy's solve_ivp) from the chosen point stays on it.
+  (scipy's solve_ivp) from the chosen point stays on it; on its branch stored without
+  stability, the stability the validation stage computes along it gives shooting's verdict
+  at every point, and the period doubling a scan misses.
 """
 from dataclasses import replace
 from pathlib import Path
