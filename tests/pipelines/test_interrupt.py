@@ -50,8 +50,11 @@ def interrupt(scene: Path, out: Path, stage: str, delay: float, *args, slow: boo
     """Start a run, Ctrl-C it `delay` s after "[stage] running"; check the outcome; return
     the line it printed."""
     cmd = [sys.executable, "-c", SLOW, stage] if slow else [sys.executable, "-m", "pipelines.cli"]
+    # a run started from a terminal answers SIGINT; a test run started as a background job of a
+    # non-interactive shell ignores it, and its children would inherit that (exec keeps SIG_IGN)
     p = subprocess.Popen(cmd + ["run", str(scene), "--out", str(out), *args], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True)
+                         stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     for line in p.stdout:
         if line.startswith(f"[{stage}] running"):
             time.sleep(delay)
