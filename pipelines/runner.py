@@ -289,9 +289,13 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
 
 
 def figure_hash(scene, out: Path, fig: Figure) -> str:
+    """What a figure is drawn from: its scene keys, and each input artifact's inputs and the
+    instant it was written (an artifact computed again from the same inputs, after --force or
+    a deleted file, is a new result whose figures must be redrawn)."""
     comp = {f"scene {k}": scene.key_hash(k) for k in fig.depends}
     for name in fig.inputs(scene):
-        comp[f"input {name}"] = art.read_attrs(out / name).get("inputs_hash", "absent")
+        attrs = art.read_attrs(out / name)
+        comp[f"input {name}"] = f"{attrs.get('inputs_hash', 'absent')} {attrs.get('created', '')}"
     return _digest(comp)
 
 

@@ -163,6 +163,19 @@ def test_a_missing_figure_is_redrawn_without_recomputing(tiny, tmp_path):
     assert _stamps(out) == before
 
 
+def test_an_artifact_computed_again_redraws_its_figures(tiny, tmp_path):
+    """The NFRC files computed again from the same inputs (deleted here; --force or a newer
+    code does the same): nfrc.png is drawn again from them, although every input hash is
+    unchanged and the stages after hbm are reused."""
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    for m in ("dlft", "rl"):
+        (out / f"nfrc_{m}.h5").unlink()
+    rec = _records(scene, out)
+    assert rec["hbm"][0] == "computed" and rec["figure nfrc"] == ("computed", "inputs changed")
+    assert rec["ti"][0] == "reused"
+
+
 def test_render_command(tiny, tmp_path, capsys):
     scene, base = tiny
     out = fresh_copy(base, tmp_path / "out")
