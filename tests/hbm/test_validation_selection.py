@@ -567,7 +567,7 @@ def test_a_branch_stored_without_stability_is_analysed_along_when_its_peak_has_n
     pds = [bf for bf in st.bifurcations if bf.kind == PERIOD_DOUBLING]
     assert len(pds) == 2 and all(shoot[bf.index] < 1.0 < shoot[bf.index + 1] or shoot[bf.index + 1] < 1.0 < shoot[bf.index]
                                  for bf in pds)
-    # a branch with stored verdicts, or without a monitor, is never analysed along
+    # without a monitor the branch is never analysed along: the unstable choice stands
     bare = stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, None, eligible=eligible)
     assert not bare.choose(8, STABILITY_MARGIN).stable and bare._stability is None
 
