@@ -20,8 +20,8 @@ For each treatment of [hbm] methods:
   point is, up to [validation] isola_tries;
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan, and from the NFRC's stability computed along it when the scan
-  finds none whose branch switch converges), the period-doubled branch switched to there and continued both
-  ways (stored here), and a point of it (stable if any, checked with 2 N_h as the primary
+  finds none whose branch switch converges), the period-doubled branch switched to there
+  and continued both ways (stored here), and a point of it (stable if any, checked with 2 N_h as the primary
   point is: one that fails is passed over for the next stable choice of the same branch,
   unmarched); when time integration leaves that
   point, the period doublings that end stable stretches of the isola search's branches
@@ -484,16 +484,20 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                                  _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic), method=method)
             sources.append((f"{ISOLAS} {method}/branches/{br.name}", r_b, br.omega, br.x, br.le_amplitude,
                             br.converged, [i]))
+    def switch(r_s, loc, where):
+        """(DoubledBranch, its residual) switched to at loc, or None when nothing was located."""
+        if loc.bifurcation is None:
+            return None
+        update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
+        return continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation, default_continuation(scene.hbm),
+                                       n_points=opts.pd_points)
+
     first, tried = None, []
     for where, r_s, omega, x, amp, conv, brackets in sources:
         update(f"{tag}: period doubling of {where}")
         loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan,
                                      **({"brackets_from": nfrc_from} if where == "the NFRC" else {}))
-        switched = None
-        if loc.bifurcation is not None:
-            update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
-            switched = continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation,
-                                               default_continuation(scene.hbm), n_points=opts.pd_points)
+        switched = switch(r_s, loc, where)
         if monitor_left and where == "the NFRC" and (switched is None or not switched[0].found):
             # the scan of an NFRC stored without stability found nothing to switch to
             monitor_left = False
@@ -503,11 +507,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             again = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets,
                                            brackets_from=nfrc.computed_words())
             loc = replace(again, reason=f"the scan found nothing to switch to ({why}); {again.reason}")
-            switched = None
-            if loc.bifurcation is not None:
-                update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
-                switched = continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation,
-                                                   default_continuation(scene.hbm), n_points=opts.pd_points)
+            switched = switch(r_s, loc, where)
         if loc.bifurcation is None:
             result = (ValidationPoint("period_doubling", method, False, f"{where}: {loc.reason}"),
                       DoubledBranch(False, f"{where}: {loc.reason}"))
