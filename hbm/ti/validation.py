@@ -313,7 +313,8 @@ def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> Reac
     u = np.asarray(u, dtype=float)
     norm = max(float(np.linalg.norm(u)), 1e-300)
     u_ti = res.to_unknowns(ti.last_harmonics[:, : res.n_r])
-    sol = damped_newton(res, u_ti, omega, NewtonOptions(tol_residual=1e-8, max_iter=12), HbmSolver(atol=1e-9))
+    # damped_newton's own cap (40 iterations) applies: an options' max_iter is replaced by it
+    sol = damped_newton(res, u_ti, omega, NewtonOptions(tol_residual=1e-8), HbmSolver(atol=1e-9))
     back = float(np.linalg.norm(sol.x - u)) / norm if sol.converged else float("nan")
     return ReachedOrbit(float(np.linalg.norm(u_ti - u)) / norm, bool(sol.converged), back)
 

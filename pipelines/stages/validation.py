@@ -203,7 +203,7 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
         else:
             res = build_residual(rom, scene.casing, scene.contact, residual.options, method=m)
             sol = damped_newton(res, res.to_unknowns(residual.to_coefficients(u)), omega,
-                                NewtonOptions(tol_residual=scene.hbm.tolerance, max_iter=12),
+                                NewtonOptions(tol_residual=scene.hbm.tolerance),
                                 HbmSolver(atol=0.1 * scene.hbm.tolerance))
             if not sol.converged:
                 comps[m] = compare_with_hbm(ti, None, None, f"damped Newton at the same Omega from the point "
