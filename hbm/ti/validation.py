@@ -175,6 +175,10 @@ class OrbitComparison:
     displacement_error: max_t |r_TI - r_HBM| / max_t |r_HBM| at the LE and TE, (2,), -.
     force_error: max_t |lam_TI,Nh - lam_HBM| / max_t max(|lam_HBM|, |lam_TI,Nh|) at the LE and
     TE, (2,), - (0 where neither is ever in contact).
+    multiplier: largest |mu| of this orbit by Hill's method with its own treatment's Jacobian,
+    over its minimal period, -; n_unstable: its multipliers outside the unit circle. Both treatments
+    are analysed at every point, so a stability verdict of each stands beside time integration's
+    (nan and -1 when the orbit was not analysed).
     """
 
     source: str
@@ -183,6 +187,8 @@ class OrbitComparison:
     force: np.ndarray = field(metadata={"unit": "N"})
     displacement_error: np.ndarray = field(metadata={"unit": "1"})
     force_error: np.ndarray = field(metadata={"unit": "1"})
+    multiplier: float = field(default=float("nan"), metadata={"unit": "1"})
+    n_unstable: int = field(default=-1, metadata={"unit": "1"})
 
 
 def validation_nodes(n_boundary: int) -> np.ndarray:

@@ -181,6 +181,7 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
     from hbm.continuation.newton import NewtonOptions
+    from hbm.stability.spectrum import orbit_spectrum
     from hbm.ti.validation import compare_again, compare_with_hbm, confirm_orbit, march_from_hbm
 
     scene = ctx.scene
@@ -212,7 +213,10 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
             sol_u = sol.x
             dist = np.linalg.norm(sol.x - u) / max(np.linalg.norm(u), 1e-300)
             src = f"damped Newton at the same Omega from the point ({sol.iterations} iterations, moved {dist:.3g})"
-        comps[m] = compare_with_hbm(ti, res.expand_harmonics(sol_u, omega), res.signals(sol_u, omega)["lam"], src)
+        sp, _ = orbit_spectrum(res, sol_u, omega)
+        comps[m] = replace(compare_with_hbm(ti, res.expand_harmonics(sol_u, omega), res.signals(sol_u, omega)["lam"],
+                                            src), multiplier=float(np.abs(sp.multipliers[0])) if len(sp.multipliers)
+                           else 0.0, n_unstable=sp.n_unstable)
     return ValidationPoint(kind, method, True, chosen.reason, branch, chosen.index, omega, nu, np.asarray(u, float),
                            chosen.le_amplitude, chosen.stable, chosen.verdict, chosen.n_unstable, chosen.multiplier,
                            ti, comps["dlft"], comps["rl"])
@@ -579,6 +583,13 @@ def _landing(ti: OrbitValidation) -> str:
     return f", last period {100 * r.distance:.1f} % from the orbit in the unknowns, {newton}"
 
 
+def _hill_words(c) -> str:
+    """A treatment's own Hill verdict on its orbit at the point, in words ("" when not analysed)."""
+    if c.n_unstable < 0:
+        return ""
+    return f", Hill {'stable' if c.n_unstable == 0 else 'UNSTABLE'} (|mu| {c.multiplier:.4g})"
+
+
 def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
     lines = []
     for p in (t.primary, t.isola, t.period_doubling):
@@ -596,7 +607,7 @@ def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
             if c is not None and c.converged:
                 s += (f"; vs {m.upper()}: displacement LE {100 * c.displacement_error[0]:.1f} % TE "
                       f"{100 * c.displacement_error[1]:.1f} %, force LE {100 * c.force_error[0]:.1f} % TE "
-                      f"{100 * c.force_error[1]:.1f} %")
+                      f"{100 * c.force_error[1]:.1f} %{_hill_words(c)}")
             elif c is not None:
                 s += f"; no {m.upper()} orbit ({c.source})"
         lines.append(head + s)

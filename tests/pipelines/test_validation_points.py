@@ -126,6 +126,16 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
         assert own.source == "the point itself" and own.converged
         assert "Newton" in other.source
         assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
+        # each treatment's own Hill verdict on its orbit is kept beside the march; the point's
+        # treatment agrees with the verdict that chose the point (made by the NFRC's monitor
+        # or the stage's selection, not by this analysis)
+        for c in (own, other):
+            if c.converged:
+                assert c.n_unstable >= 0 and c.multiplier > 0.0
+        if p.stable:
+            assert own.n_unstable == 0 and own.multiplier < 1.0
+        if np.isfinite(p.multiplier):
+            assert own.multiplier == pytest.approx(p.multiplier, rel=1e-6)
         # the period doubling: found with its branch, or a reason
         assert t.period_doubling.found == t.pd_branch.found and t.period_doubling.reason
         # the NFRC file holds no stability: when the stage computed it, one flag per point is kept
