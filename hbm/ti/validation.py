@@ -361,13 +361,15 @@ def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.
 
 def compare_again(ti: OrbitValidation, previous: OrbitComparison) -> OrbitComparison:
     """The HBM orbit of `previous` (compared with another march from the same orbit, on the
-    same grid) against the march `ti`: its signals kept, the differences computed again."""
+    same grid) against the march `ti`: its signals and Hill verdict kept, the differences
+    computed again."""
     if not previous.converged:
         return previous
     if previous.displacement.shape[0] != len(ti.tau):
         raise ValueError(f"the comparison holds {previous.displacement.shape[0]} phases, the march "
                          f"{len(ti.tau)}: not the same grid")
-    return _compared(ti, previous.source, previous.displacement, previous.force)
+    return replace(_compared(ti, previous.source, previous.displacement, previous.force),
+                   multiplier=previous.multiplier, n_unstable=previous.n_unstable)
 
 
 def _compared(ti: OrbitValidation, source: str, disp: np.ndarray, hbm_f: np.ndarray) -> OrbitComparison:

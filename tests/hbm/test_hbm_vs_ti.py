@@ -7,6 +7,7 @@ independent codes must then agree on it:
   LE amplitude equals the time-integration one;
 - time marching started from that HBM solution stays on it for 100 periods.
 """
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,8 +19,8 @@ from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.ti.sweep import steps_per_revolution
 from hbm.ti.march import Recording, march, rom_modal_system
-from hbm.ti.validation import (DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, SETTLED_DRIFT, compare_with_hbm, confirm_orbit,
-                                departure, march_from_hbm, reached_orbit)
+from hbm.ti.validation import (DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, SETTLED_DRIFT, compare_again, compare_with_hbm,
+                                confirm_orbit, departure, march_from_hbm, reached_orbit)
 from rom.model import load_rom
 
 ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
@@ -93,6 +94,15 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     late = march_from_hbm(rom, casing, contact.mu, 1.1 * coeffs, OMEGA, n_periods=10)
     assert late.stays and not late.settled and np.max(late.drift) > SETTLED_DRIFT, late.drift
     assert late.verdict() == f"stays, unsettled (drift {np.max(late.drift):.2f})"
+    # the orbit compared again with another march (as the stage does after a march with a
+    # finer step): its signals, source and Hill verdict kept, the differences those of that march
+    v = replace(v, multiplier=0.97, n_unstable=0)
+    again = compare_again(late, v)
+    fresh = compare_with_hbm(late, coeffs, res.signals(sol.x, OMEGA)["lam"], "the HBM solution")
+    assert (again.source, again.multiplier, again.n_unstable) == (v.source, 0.97, 0)
+    assert not np.allclose(again.displacement_error, v.displacement_error)
+    np.testing.assert_allclose(again.displacement_error, fresh.displacement_error, rtol=1e-12)
+    np.testing.assert_allclose(again.force_error, fresh.force_error, rtol=1e-12)
     # a march that kept only the three compared nodes cannot say where it went
     short = march_from_hbm(rom, casing, contact.mu, coeffs, OMEGA, n_periods=3)
     with pytest.raises(ValueError, match="record_all"):
