@@ -50,8 +50,9 @@ from hbm.stability.hill import HillOperator, HillSolver
 GROWTH_TOL = 1e-6
 #: dense_spectrum solves the standard problem of B^-1 A when the second-order term's condition
 #: number is below this (eigenvalues then carry ~cond * eps relative error, 1e-8 at most),
-#: the QZ of the pencil otherwise (massless dof, DLFT's constrained rows): on rotor 67 at
-#: N_h = 5 (cond ~3e6) the standard problem takes a tenth of QZ's time for the same exponents.
+#: the QZ of the pencil otherwise (massless dof, DLFT's constrained rows). On rotor 67 at
+#: N_h = 5 (cond ~3e6) the eigen-solve takes a tenth of QZ's time at size 429 and a whole
+#: analysis a third at size 195, with quadratic residuals of 1e-14 against QZ's 1e-10.
 DENSE_COND_MAX = 1e8
 
 

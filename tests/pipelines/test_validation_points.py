@@ -127,8 +127,8 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
         assert "Newton" in other.source
         assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
         # each treatment's own Hill verdict on its orbit is kept beside the march; the point's
-        # treatment agrees with the verdict that chose the point (made by the NFRC's monitor
-        # or the stage's selection, not by this analysis)
+        # own treatment is analysed at the orbit the choice was made on: a stable choice is
+        # stable there, and a choice the stage analysed has the same largest |mu|
         for c in (own, other):
             if c.converged:
                 assert c.n_unstable >= 0 and c.multiplier > 0.0
