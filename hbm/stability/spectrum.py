@@ -143,7 +143,9 @@ def shift_member(P: np.ndarray, m: int) -> np.ndarray:
     c = exponential_coefficients(P)
     out = np.zeros_like(c)
     n = c.shape[-2]
-    if m >= 0:
+    if abs(m) >= n:  # the whole band shifted out (an Arnoldi pair m omega apart, m > 2 N)
+        pass
+    elif m >= 0:
         out[..., : n - m, :] = c[..., m:, :]
     else:
         out[..., -m:, :] = c[..., : n + m, :]

@@ -77,3 +77,20 @@ def test_arnoldi_exponents_are_the_dense_pencils(operators):
         for lam in centred:
             gap = np.min(np.abs(lam_all - lam))
             assert gap <= 1e-5 * abs(lam), (w, lam, gap)
+
+
+def test_a_family_member_shifted_by_m_harmonics_is_p_times_exp_minus_i_m_omega_t():
+    """shift_member on p(t) = cos t (N = 2): one harmonic gives cos t e^{-i t} = (1 + e^{-2it}) / 2,
+    two give the e^{-3it} part cut off by the band, and a shift past the whole band (an
+    Arnoldi pair m omega apart with m > 2 N, met at N_h = 5) gives zeros rather than an error."""
+    from hbm.stability.spectrum import shift_member
+
+    P = np.zeros((5, 1))
+    P[1, 0] = 1.0  # the cos t coefficient, eq. (5) order [P_0, a_1, b_1, a_2, b_2]
+    np.testing.assert_allclose(shift_member(P, 1)[:, 0], [0.5, 0, 0, 0.5, -0.5j], atol=1e-15)
+    t = np.linspace(0, 2 * np.pi, 7)
+    q = shift_member(P, 2)[:, 0]  # cos t e^{-2it} = (e^{-it} + e^{-3it}) / 2: e^{-3it} is out of the band
+    p = q[0] + q[1] * np.cos(t) + q[2] * np.sin(t) + q[3] * np.cos(2 * t) + q[4] * np.sin(2 * t)
+    np.testing.assert_allclose(p, 0.5 * np.exp(-1j * t), atol=1e-15)
+    for m in (5, 7, -5, -9):
+        assert not np.any(shift_member(P, m))
