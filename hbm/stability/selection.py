@@ -103,7 +103,7 @@ def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligi
     def analyse(i):
         if i not in tried:
             sp, _ = orbit_spectrum(residual, x[i], float(omega[i]))
-            mu = float(np.abs(sp.multipliers[0])) if len(sp.multipliers) else 0.0
+            mu = sp.largest_modulus
             tried[i] = (sp.stable and (mu == 0.0 or math.log(mu) < -margin), sp.n_unstable, mu)
         return tried[i]
 

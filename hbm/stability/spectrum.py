@@ -105,6 +105,11 @@ class FloquetSpectrum:
     def stable(self) -> bool:
         return self.n_unstable == 0
 
+    @property
+    def largest_modulus(self) -> float:
+        """The largest |multiplier|, - (0 when none is listed)."""
+        return float(np.abs(self.multipliers[0])) if len(self.multipliers) else 0.0
+
     def leading(self, k: int) -> np.ndarray:
         """The k largest |multipliers|, (k,), padded with nan, -."""
         out = np.full(k, np.nan)

@@ -213,10 +213,13 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
             sol_u = sol.x
             dist = np.linalg.norm(sol.x - u) / max(np.linalg.norm(u), 1e-300)
             src = f"damped Newton at the same Omega from the point ({sol.iterations} iterations, moved {dist:.3g})"
-        sp, _ = orbit_spectrum(res, sol_u, omega)
+        if m == method and chosen.n_unstable >= 0 and np.isfinite(chosen.multiplier):
+            mu, n_unstable = chosen.multiplier, chosen.n_unstable  # the choice analysed this orbit already
+        else:
+            sp, _ = orbit_spectrum(res, sol_u, omega)
+            mu, n_unstable = sp.largest_modulus, sp.n_unstable
         comps[m] = replace(compare_with_hbm(ti, res.expand_harmonics(sol_u, omega), res.signals(sol_u, omega)["lam"],
-                                            src), multiplier=float(np.abs(sp.multipliers[0])) if len(sp.multipliers)
-                           else 0.0, n_unstable=sp.n_unstable)
+                                            src), multiplier=float(mu), n_unstable=int(n_unstable))
     return ValidationPoint(kind, method, True, chosen.reason, branch, chosen.index, omega, nu, np.asarray(u, float),
                            chosen.le_amplitude, chosen.stable, chosen.verdict, chosen.n_unstable, chosen.multiplier,
                            ti, comps["dlft"], comps["rl"])

@@ -126,9 +126,10 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
         assert own.source == "the point itself" and own.converged
         assert "Newton" in other.source
         assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
-        # each treatment's own Hill verdict on its orbit is kept beside the march; the point's
-        # own treatment is analysed at the orbit the choice was made on: a stable choice is
-        # stable there, and a choice the stage analysed has the same largest |mu|
+        # each treatment's own Hill verdict on its orbit is kept beside the march; for the
+        # point's own treatment it is that of the analysis that chose the point (reused when
+        # the stage made it, computed when the verdict was the branch file's): a stable
+        # choice is stable there
         for c in (own, other):
             if c.converged:
                 assert c.n_unstable >= 0 and c.multiplier > 0.0
