@@ -16,8 +16,10 @@ For each treatment of [hbm] methods:
   of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
   integration keeps, where the closed isolas have one stable stretch or none), when that
-  file exists and holds one (else the reason is recorded); tried again as the primary
-  point is, up to [validation] isola_tries;
+  file exists and holds one (else the reason is recorded); chosen as the primary point is
+  (stored verdicts, else analyses near each branch's peak, and when no branch has a stable
+  point there, each branch's stability computed along it in turn until one has) and tried
+  again as it is, up to [validation] isola_tries;
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan, and from the NFRC's stability computed along it when the scan
   finds none whose branch switch converges), the period-doubled branch switched to there
@@ -237,7 +239,7 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     tag = method.upper()
     nfrc = Candidate(path.name, res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
-                     monitor=_nfrc_monitor(scene.hbm))
+                     monitor=_branch_monitor(scene.hbm))
     update(f"{tag}: a stable point near the primary resonance")
     primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
@@ -255,7 +257,9 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
                            build_residual(rom, scene.casing, scene.contact,
                                           _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic),
                                           method=method),
-                           br.omega, br.x, br.le_amplitude, br.converged, br.stable) for br in branches]
+                           br.omega, br.x, br.le_amplitude, br.converged, br.stable,
+                           monitor=_branch_monitor(_options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic)))
+                 for br in branches]
         isola = _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
     # period doubling
     pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update, nfrc)
@@ -289,11 +293,12 @@ class Candidate:
         if self.eligible is None:
             self.eligible = np.ones(len(self.omega), bool)
 
-    def choose(self, n_candidates: int, margin: float):
+    def choose(self, n_candidates: int, margin: float, analyse_along: bool = True):
         """choose_point on the eligible points; kept until rule_out, so that a branch passed
         over on one try is not analysed again on the next. When the branch holds no
-        stability, none of the candidates near its peak is stable and `monitor` is given,
-        the branch's stability is computed (stability()) and the choice made from it."""
+        stability, none of the candidates near its peak is stable, `monitor` is given and
+        analyse_along, the branch's stability is computed (stability()) and the choice made
+        from it."""
         from hbm.stability.selection import choose_point
 
         def choose():
@@ -302,12 +307,12 @@ class Candidate:
                                 eligible=self.eligible, n_candidates=n_candidates, margin=margin, verdicts_from=source)
 
         if margin not in self._chosen:
-            ch = choose()
-            if ch.found and not ch.stable and self.stable is None and self.monitor is not None:
-                self.stability()
-                ch = choose()
-            self._chosen[margin] = ch
-        return self._chosen[margin]
+            self._chosen[margin] = choose()
+        ch = self._chosen[margin]
+        if (analyse_along and ch.found and not ch.stable and self.stable is None and self.monitor is not None):
+            self.stability()
+            ch = self._chosen[margin] = choose()
+        return ch
 
     def computed_words(self) -> str:
         """Where the stable flags of stability() come from, in words."""
@@ -346,7 +351,8 @@ DECISIVE_DECAY = 3.0
 
 def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, tries: int, update) -> ValidationPoint:
     """The primary or isola point: a stable point chosen on the candidate branches (the first
-    branch with a stable choice, else the first with any), marched; when time integration
+    branch with a stable choice near its peak, else the first whose stability computed along
+    it (Candidate.monitor) gives one, else the first with any), marched; when time integration
     leaves it, the next choice outside the stable stretches of the points already tried (the
     stable neighbours of a point that time integration leaves are orbits of the same family,
     and leave too), with a decisive verdict (DECISIVE_DECAY), up to `tries` marches in all,
@@ -360,14 +366,19 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
     first, kept, tried, marched, checked = None, None, [], 0, 0
     fallback = None  # the first stable choice that failed its check: marched when nothing else is left
     while marched < tries:
-        best, none = None, []
         margin = STABILITY_MARGIN if marched == 0 else max(STABILITY_MARGIN, DECISIVE_DECAY / opts.n_periods)
-        for c in candidates:
-            ch = c.choose(opts.n_candidates, margin)
-            if not ch.found:
-                none.append(ch.reason)
-            elif best is None or (ch.stable and not best[1].stable):
-                best = (c, ch)
+        # the candidates near every branch's peak first; a branch's stability along it (hundreds
+        # of analyses) only when no branch has a stable one there
+        for analyse_along in (False, True):
+            best, none = None, []
+            for c in candidates:
+                ch = c.choose(opts.n_candidates, margin, analyse_along)
+                if not ch.found:
+                    none.append(ch.reason)
+                elif best is None or (ch.stable and not best[1].stable):
+                    best = (c, ch)
+                if best is not None and best[1].stable:
+                    break
             if best is not None and best[1].stable:
                 break
         unchecked = False
@@ -452,8 +463,9 @@ def doubling_candidates(branches) -> list:
     return [(br, i) for _, br, i in out]
 
 
-def _nfrc_monitor(hbm) -> tuple:
-    """Candidate.monitor of an NFRC: the continuation's scales and the scene's stability gap."""
+def _branch_monitor(hbm) -> tuple:
+    """Candidate.monitor of a branch computed with `hbm`: the continuation's scales and the
+    scene's stability gap."""
     from hbm.harmonic.nfrc import default_continuation
     from hbm.stability.monitor import StabilityOptions
 

@@ -572,6 +572,51 @@ def test_a_branch_stored_without_stability_is_analysed_along_when_its_peak_has_n
     assert not bare.choose(8, STABILITY_MARGIN).stable and bare._stability is None
 
 
+def test_isola_branches_stored_without_stability_are_analysed_along_only_when_no_peak_is_stable(long_branch,
+                                                                                                  monkeypatch):
+    """The isola point of a search run without [hbm] stability (_try_until_kept over several
+    branches, each with a monitor): a branch with a stable point near its peak is chosen
+    without analysing any branch along; only when no branch has one, the first branch's
+    stability is computed along it, and the point chosen from it is one shooting calls
+    stable; the second branch is then not analysed."""
+    from test_period_doubling import _multipliers, _state
+
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+    from hbm.stability.monitor import StabilityOptions
+
+    res, b, amp = long_branch
+    monitor = (1.0, 1.0, StabilityOptions())
+    ctx = SimpleNamespace(scene=SimpleNamespace(validation=ValidationOptions(n_candidates=8, dt_refinement=1,
+                                                                             harmonic_checks=0),
+                                                contact=SimpleNamespace(mu=0.0)))
+
+    def stays(ctx, rom, system, kind, method, ch, residual, where):
+        ti = SimpleNamespace(stays=True, outcome="stays", verdict=lambda: "stays")
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega,
+                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
+
+    monkeypatch.setattr(stage, "_validate", stays)
+
+    def branch(name, eligible=None):
+        return stage.Candidate(f"isolas.h5 rl/branches/{name}", res, b.omega, b.x, amp, b.converged, None,
+                               eligible=None if eligible is None else eligible.copy(), monitor=monitor)
+
+    # the peak's stable stretch ruled out on the first branch (no stable candidate near its
+    # peak: see the test above), whole on the second
+    cut = b.omega > 2.4
+    first, second = branch("000", cut), branch("001")
+    p = stage._try_until_kept(ctx, None, None, "isola", "rl", [first, second], 1, lambda text: None)
+    assert p.branch == second.where and p.stable
+    assert first._stability is None and second._stability is None
+    # neither branch has a stable point near its peak: the first is analysed along, not the second
+    first, second = branch("000", cut), branch("001", cut)
+    p = stage._try_until_kept(ctx, None, None, "isola", "rl", [first, second], 1, lambda text: None)
+    assert p.branch == first.where and p.stable and "stability computed here" in p.reason, p.reason
+    assert first._stability is not None and second._stability is None
+    assert np.abs(_multipliers(_state(res, b.x[p.index], b.omega[p.index]), b.omega[p.index])).max() < 1.0
+
+
 def test_a_period_doubling_the_scan_misses_is_found_from_the_branch_stability(long_branch, doubled, tmp_path,
                                                                              monkeypatch):
     """_period_doubling of the validation stage on the long branch stored without stability,
