@@ -59,7 +59,7 @@ def main():
     cas, con = CasingOptions(), ContactOptions()
     opts = TimeIntegrationOptions(stop_when_settled=not a.no_early_stop)
     schemes = a.schemes.split(",")
-    omegas = [float(w) for w in a.omegas.split(",")]
+    omegas = [float(w) for w in a.omegas.split(",") if w]  # "" for none (e.g. --full-sweep alone)
     simulate(system, cas, con.mu, 2000.0, TimeIntegrationOptions(n_revolutions=2, n_keep=1))  # JIT / cache
     print(f"ROM: {label}; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}\n")
     print("| scheme | Omega (rad/s) | dt (s) | steps | CPU time per point (s), median | ns/step | contact steps "

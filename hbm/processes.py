@@ -14,6 +14,18 @@ def process_context():
     return multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
 
 
+def limit_blas_threads() -> None:
+    """Worker-process initializer: BLAS on one thread. The pools run one process per core;
+    a threaded BLAS call in one worker would otherwise wake threads that compete with the
+    other workers for the same cores (and spin after each call)."""
+    from threadpoolctl import threadpool_limits
+
+    _LIMITS.append(threadpool_limits(limits=1, user_api="blas"))
+
+
+_LIMITS: list = []  # keeps the limit alive for the worker's lifetime
+
+
 def mpi_world():
     """mpi4py COMM_WORLD when this process runs under an MPI launcher with more than one
     rank, else None (mpirun -n 1 and plain runs take the serial path).

@@ -48,7 +48,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
-from hbm.processes import process_context
+from hbm.processes import limit_blas_threads, process_context
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -195,14 +195,8 @@ class _Corrector:
 _WORKER: dict = {}
 
 
-def _limit_blas():
-    from threadpoolctl import threadpool_limits
-
-    _WORKER["limits"] = threadpool_limits(limits=1, user_api="blas")  # one process per core
-
-
 def _init_worker(factory, known, options):
-    _limit_blas()
+    limit_blas_threads()
     _WORKER["corrector"] = _Corrector(factory, known, options)
 
 
@@ -545,7 +539,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             found, owner, n_cont, n_pts, cpu2 = branches_phase()
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = process_context()
-            with concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=_limit_blas) as pool:
+            with concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=limit_blas_threads) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
         value, error = None, None

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.processes import mpi_world, process_context
+from hbm.processes import limit_blas_threads, mpi_world, process_context
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -235,7 +235,8 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
             import concurrent.futures
 
             ctx = process_context()
-            with concurrent.futures.ProcessPoolExecutor(min(n_workers, len(omegas)), mp_context=ctx) as pool:
+            with concurrent.futures.ProcessPoolExecutor(min(n_workers, len(omegas)), mp_context=ctx,
+                                                        initializer=limit_blas_threads) as pool:
                 futures = {pool.submit(simulate, system, casing, mu, omegas[i], ti_options): i for i in order}
                 for f in concurrent.futures.as_completed(futures):
                     points[futures[f]] = f.result()
