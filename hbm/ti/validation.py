@@ -16,7 +16,8 @@ Two things are measured:
   leaves, where it goes: a node pressed on the casing over the whole last tenth of the
   march is told apart (`outcome` "permanent contact"): with friction above the
   contact set's friction-lock limit (rom.friction_lock) that is the lock, which a rubbing
-  orbit's stability says nothing about;
+  orbit's stability says nothing about; so is a march that settles on a state repeating
+  every p > 1 periods (`repeat`): another orbit (a period-p orbit), whatever its distance;
 - how the last period compares with each HBM orbit given (the orbit marched from, and the
   other contact treatment's orbit at the same Omega): radial displacement at the LE and TE
   sample by sample, and normal contact force. Forces are not compared sample by sample: the
@@ -61,11 +62,15 @@ BASELINE_PERIODS = 3
 #: farther than this from the orbit is another one
 LANDING_TOL = 1e-3
 #: A march that stays has settled when its last period repeats the one before to this fraction
-#: of the amplitude (drift). On rotor 67 settled marches end at 0 to 0.02; those near orbits
-#: whose largest |mu| is 0.989-0.999 end at 0.12-0.37, and 3 to 10 times longer marches
-#: (300 periods at |mu| = 0.989, 1000 at 0.999) leave them unsettled: the verdict says so
-#: rather than calling such a march the orbit's confirmation.
+#: of the amplitude (drift). On rotor 67 settled marches end at 0 to 0.02; one near an orbit
+#: whose largest |mu| is 0.999 ends at 0.25 after 100 periods and settles after ~1500 (the
+#: verdict says "unsettled" rather than calling such a march the orbit's confirmation).
 SETTLED_DRIFT = 0.05
+#: Lags (in periods) at which the last tenth of a march is tested for repeating (`repeat`): a
+#: march from the coarse rotor 67 ROM's RL primary orbit (1459.5 rad/s, |mu| = 0.989) settles
+#: within 100 periods on a state of period 2 T, 0.35 of the amplitude from the orbit, which
+#: the drift over one period (0.36) alone would call "stays, unsettled".
+MAX_REPEAT = 4
 #: distances below this fraction of the amplitude count as on the orbit in the growth ratio
 #: (an exact orbit's march: round-off, ~1e-12, whose ratio from period to period means nothing)
 DEVIATION_FLOOR = 1e-3
@@ -103,6 +108,10 @@ class OrbitValidation:
     deviation: (n_periods, 2), max over each period of |r_TI - r_HBM| at the LE and TE
     relative to the HBM orbit's half peak-to-peak radial displacement there, -.
     drift: max over the last period of |r(t) - r(t - T)| relative to the same amplitude, (2,), -.
+    repeat: the smallest p <= MAX_REPEAT such that over the last tenth of the periods (at least
+    p + 1 of them) |r(t) - r(t - p T)| <= SETTLED_DRIFT times the amplitude at the LE and TE;
+    0 when there is none (not settled, or a longer period). p > 1: the march left the orbit
+    for a state of period p T, which is not the orbit's (stays is then False).
     growth: deviation over the last tenth of the periods over that of the first
     BASELINE_PERIODS periods (fewer when a tenth is fewer), both raised to DEVIATION_FLOOR (max
     over LE and TE), -. stays: growth <= GROWTH_TOL and that last deviation <= DEVIATION_TOL.
@@ -136,6 +145,7 @@ class OrbitValidation:
     max_penetration: float = field(metadata={"unit": "m"})
     contact_fraction: np.ndarray = field(default_factory=lambda: np.zeros(0), metadata={"unit": "1"})
     outcome: str = ""
+    repeat: int = field(default=0, metadata={"unit": "1"})
     last_harmonics: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "m"})
     reached: ReachedOrbit | None = None
 
@@ -151,10 +161,14 @@ class OrbitValidation:
 
     def verdict(self) -> str:
         """In words: "stays", "stays, unsettled (drift 0.36)" when the last period does not
-        repeat the one before (SETTLED_DRIFT), "leaves", or "leaves for permanent contact (TE)"
+        repeat the one before (SETTLED_DRIFT), "leaves for an orbit of period 2 T" (repeat),
+        "leaves", or "leaves for permanent contact (TE)"
         naming the locked nodes (LE, TE, or "node j" counted from the LE at 0)."""
         if self.stays:
             return "stays" if self.settled else f"stays, unsettled (drift {np.max(self.drift):.2f})"
+        if self.repeat > 1 and self.outcome != "permanent contact":
+            return (f"leaves for an orbit of period {self.repeat} T (the last tenth repeats every {self.repeat} "
+                    f"periods, not every one: drift {np.max(self.drift):.2f})")
         if self.outcome == "another solution" and self.reached is not None:
             return (f"leaves for another solution ({100 * self.reached.solution_distance:.0f} % from the orbit, by "
                     f"Newton from the last period)")
@@ -213,6 +227,25 @@ def departure(deviation: np.ndarray) -> tuple[float, bool]:
     last = d[-n10:].max(axis=0)
     growth = float(np.max(np.maximum(last, DEVIATION_FLOOR) / np.maximum(first, DEVIATION_FLOOR)))
     return growth, bool(growth <= GROWTH_TOL and last.max() <= DEVIATION_TOL)
+
+
+def repeat_period(x: np.ndarray, amplitude: np.ndarray, n_last: int, max_repeat: int = MAX_REPEAT,
+                  tol: float = SETTLED_DRIFT) -> int:
+    """The smallest lag p <= max_repeat (in periods) at which the last max(n_last, p + 1)
+    periods of x repeat: max |x[k] - x[k - p]| <= tol amplitude for every signal; 0 if none.
+
+    x: (n_periods, n_time, k) signals period by period, m. amplitude: (k,) their scale, m.
+    """
+    x = np.asarray(x, dtype=float)
+    scale = np.maximum(np.asarray(amplitude, dtype=float), 1e-300)
+    for p in range(1, max_repeat + 1):
+        n = max(n_last, p + 1)
+        if n > len(x):
+            break
+        w = x[-n:]
+        if (np.abs(w[p:] - w[:-p]).max(axis=(0, 1)) / scale <= tol).all():
+            return p
+    return 0
 
 
 def grid_size(n_harmonics: int, minimum: int = 1024) -> int:
@@ -282,6 +315,8 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     drift = (np.abs(x[-1] - x[-2]).max(axis=0) / amp)[[0, 2]]
     n10 = max(1, n_periods // 10)
     growth, stays = departure(dev)
+    repeat = repeat_period(x[:, :, [0, 2]], amp[[0, 2]], n10)
+    stays = stays and repeat <= 1
     # Permanent contact does not ask the march to have settled: past the friction-lock limit
     # the contact response is not unique, and a locked node's force may wander from period
     # to period (by 1-2 % on the two-node toy of tests/hbm/test_friction_lock_ti.py).
@@ -300,7 +335,7 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
                            t0=float(t0), nodes=nodes, tau=grid.tau, distance=d_all[:, nodes], displacement=disp,
                            force=grid.to_time(grid.to_freq(force)), force_peak=f[-1].max(axis=0), deviation=dev,
                            drift=drift, growth=growth, stays=stays, max_penetration=float(m.max_penetration),
-                           contact_fraction=in_contact, outcome=outcome, last_harmonics=last)
+                           contact_fraction=in_contact, outcome=outcome, repeat=repeat, last_harmonics=last)
 
 
 def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> ReachedOrbit:

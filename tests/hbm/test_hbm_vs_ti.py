@@ -20,7 +20,7 @@ from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.ti.sweep import steps_per_revolution
 from hbm.ti.march import Recording, march, rom_modal_system
 from hbm.ti.validation import (DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, SETTLED_DRIFT, compare_again, compare_with_hbm,
-                                confirm_orbit, departure, march_from_hbm, reached_orbit)
+                                confirm_orbit, departure, march_from_hbm, reached_orbit, repeat_period)
 from rom.model import load_rom
 
 ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
@@ -65,7 +65,7 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     # 100 periods later TI is still T-periodic (it did not drift to another orbit) and as
     # close to the HBM orbit as after the first periods
     assert np.all(ti.drift < 1e-3) and ti.stays, (ti.drift, ti.growth)
-    assert ti.settled and ti.verdict() == "stays"
+    assert ti.settled and ti.verdict() == "stays" and ti.repeat == 1
     # ... and on the HBM signal: the max-norm error is the Gibbs ripple of the truncated
     # DLFT solution at the impacts (7-8 % of the amplitude measured at LE and TE); 12 %.
     assert np.all(v.displacement_error < 0.12), v.displacement_error
@@ -93,6 +93,7 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     # from one period to the next, measured; 0.001 after 100 periods): the verdict says so
     late = march_from_hbm(rom, casing, contact.mu, 1.1 * coeffs, OMEGA, n_periods=10)
     assert late.stays and not late.settled and np.max(late.drift) > SETTLED_DRIFT, late.drift
+    assert late.repeat == 0  # a decaying transient repeats at no lag
     assert late.verdict() == f"stays, unsettled (drift {np.max(late.drift):.2f})"
     # the orbit compared again with another march (as the stage does after a march with a
     # finer step): its signals, source and Hill verdict kept, the differences those of that march
@@ -136,3 +137,35 @@ def test_departure_from_an_orbit_is_judged_against_the_first_periods():
     assert departure(np.full((20, 2), 0.3))[1]
     with pytest.raises(ValueError, match="n_periods"):
         departure(np.zeros(10))
+
+
+def test_a_march_that_repeats_every_few_periods_is_told_apart():
+    """repeat_period on signals with a known period (relative to the tolerance SETTLED_DRIFT =
+    0.05 of the amplitude): a T-periodic state repeats at lag 1; one that alternates between
+    two shapes (a period-doubled state, as the march from the coarse rotor 67 RL primary
+    orbit at 1459.5 rad/s reaches) at lag 2, not 1; period 3 at lag 3; a state quasi-periodic
+    at rotation 0.216 per period (the Neimark-Sacker angle of the default scene's RL
+    period-doubled orbit) at none of the lags up to MAX_REPEAT, unless its modulation is
+    below the tolerance; and a longer period (5) is not claimed."""
+    from hbm.ti.validation import MAX_REPEAT
+
+    tau = np.linspace(0.0, 2 * np.pi, 64, endpoint=False)
+    k = np.arange(100)[:, None, None]
+    base = np.cos(tau)[None, :, None] + np.zeros((100, 1, 2))
+    amp = np.ones(2)
+    assert repeat_period(base, amp, 10) == 1
+    bump = np.sin(2 * tau)[None, :, None]
+    doubled = base + 0.3 * (-1.0) ** k * bump
+    assert repeat_period(doubled, amp, 10) == 2
+    assert repeat_period(base + 0.3 * np.cos(2 * np.pi * k / 3) * bump, amp, 10) == 3
+    five = base + 0.3 * np.cos(2 * np.pi * k / 5) * bump
+    assert MAX_REPEAT < 5 and repeat_period(five, amp, 10) == 0
+    qp = base + 0.2 * np.cos(2 * np.pi * 0.216 * k) * bump
+    assert repeat_period(qp, amp, 10) == 0
+    assert repeat_period(base + 0.001 * np.cos(2 * np.pi * 0.216 * k) * bump, amp, 10) == 1
+    # the worse signal decides: the TE alone alternates
+    te = base.copy()
+    te[:, :, 1] += 0.3 * (-1.0) ** k[:, :, 0] * np.sin(2 * tau)
+    assert repeat_period(te, amp, 10) == 2
+    # a march shorter than p + 1 periods cannot show lag p
+    assert repeat_period(doubled[:2], amp, 1) == 0
