@@ -68,7 +68,7 @@ LANDING_TOL = 1e-3
 SETTLED_DRIFT = 0.05
 #: Lags (in periods) at which the last tenth of a march is tested for repeating (`repeat`): a
 #: march from the coarse rotor 67 ROM's RL primary orbit (1459.5 rad/s, |mu| = 0.989) settles
-#: within 100 periods on a state of period 2 T, 0.35 of the amplitude from the orbit, which
+#: within 100 periods on a state of period 2 T, up to 0.51 of the amplitude from the orbit, which
 #: the drift over one period (0.36) alone would call "stays, unsettled".
 MAX_REPEAT = 4
 #: distances below this fraction of the amplitude count as on the orbit in the growth ratio
