@@ -1,10 +1,11 @@
-"""Does RL's Hill verdict depend on its penalty? At every point of OUT/validation.h5, DLFT's
-orbit at the point's Omega (the point itself, or damped Newton from RL's), then RL's orbit
-for each penalty kappa of --kappas (damped Newton from the previous kappa's orbit, the
-first from the point), and Hill's method on each.
+"""Does RL's Hill verdict depend on its penalty? At every point of OUT/validation.h5 (or, with
+--nfrc METHOD --omegas, at the NFRC points nearest those speeds), DLFT's orbit at the
+point's Omega (the point itself, or damped Newton from RL's), then RL's orbit for each
+penalty kappa of --kappas (damped Newton from the previous kappa's orbit, the first from
+the point), and Hill's method on each.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_rl_penalty.py OUT --scene scenes/rotor67.toml
-        [--kappas 1e9,3e9,1e10,3e10,1e11] [--gamma G]
+        [--kappas 1e9,3e9,1e10,3e10,1e11] [--gamma G] [--nfrc rl --omegas 1459.5]
 
 Needs OUT/rom.h5 and OUT/validation.h5. Prints, per point: DLFT's largest multiplier
 modulus and unstable count, then per kappa the distance of RL's orbit to DLFT's (relative
@@ -39,7 +40,11 @@ def main(argv=None) -> None:
     p.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67.toml")
     p.add_argument("--kappas", default="1e9,3e9,1e10,3e10,1e11", help="RL penalties, N/m, comma-separated")
     p.add_argument("--gamma", type=float, default=None, help="RL regularisation, N (default: the scene's)")
+    p.add_argument("--nfrc", choices=("dlft", "rl"), help="the points of nfrc_METHOD.h5 nearest --omegas instead")
+    p.add_argument("--omegas", type=lambda t: [float(v) for v in t.split(",")], default=[], help="rad/s")
     a = p.parse_args(argv)
+    if a.nfrc and not a.omegas:
+        p.error("--nfrc needs --omegas")
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
     val = read_validation(a.out)
@@ -52,41 +57,58 @@ def main(argv=None) -> None:
         m = np.abs(sp.multipliers)
         return f"{m.max():.3f} ({int((m > 1 + 1e-6).sum())} unstable)"
 
-    for method in ("dlft", "rl"):
-        for kind in KINDS:
-            pt = getattr(getattr(val, method), kind)
-            if not pt.found:
+    for method, kind, pt in points(a, val, KINDS):
+        om = pt.omega
+        opts = _options_for(scene.hbm, len(pt.u), n_r, pt.subharmonic)
+
+        def solve(res, c, om=om):
+            return damped_newton(res, res.to_unknowns(c), om, NewtonOptions(tol_residual=tol), HbmSolver(atol=0.1 * tol))
+
+        dl = build_residual(rom, scene.casing, scene.contact, opts, method="dlft")
+        own = build_residual(rom, scene.casing, scene.contact, opts, method=method)
+        c_pt = own.to_coefficients(pt.u)
+        ti = ti_verdict(pt.ti, rom, scene.contact.mu) if pt.ti is not None else "not marched here"
+        print(f"{method.upper()} {kind} {om:.1f} rad/s (time integration: {ti})")
+        if method == "dlft":
+            c_d = c_pt
+        else:
+            s = solve(dl, c_pt)
+            if not s.converged:
+                print(f"  DLFT: no solution at this Omega ({s.reason})")
                 continue
-            om = pt.omega
-            opts = _options_for(scene.hbm, len(pt.u), n_r, pt.subharmonic)
+            c_d = dl.to_coefficients(s.x)
+        print(f"  DLFT: largest |mu| {verdict(dl, dl.to_unknowns(c_d), om)}")
+        start = c_pt
+        for kappa in kappas:
+            contact = replace(scene.contact, kappa=kappa, **({} if a.gamma is None else {"gamma": a.gamma}))
+            rl = build_residual(rom, scene.casing, contact, opts, method="rl")
+            s = solve(rl, start)
+            if not s.converged:
+                print(f"  RL kappa {kappa:.0e} N/m: no solution ({s.reason})")
+                continue
+            start = rl.to_coefficients(s.x)
+            dist = np.linalg.norm(start - c_d) / np.linalg.norm(c_d)
+            print(f"  RL kappa {kappa:.0e} N/m: {dist:.1%} from DLFT, largest |mu| {verdict(rl, s.x, om)}")
 
-            def solve(res, c, om=om):
-                return damped_newton(res, res.to_unknowns(c), om, NewtonOptions(tol_residual=tol), HbmSolver(atol=0.1 * tol))
 
-            dl = build_residual(rom, scene.casing, scene.contact, opts, method="dlft")
-            own = build_residual(rom, scene.casing, scene.contact, opts, method=method)
-            c_pt = own.to_coefficients(pt.u)
-            print(f"{method.upper()} {kind} {om:.1f} rad/s (time integration: {ti_verdict(pt.ti, rom, scene.contact.mu)})")
-            if method == "dlft":
-                c_d = c_pt
-            else:
-                s = solve(dl, c_pt)
-                if not s.converged:
-                    print(f"  DLFT: no solution at this Omega ({s.reason})")
-                    continue
-                c_d = dl.to_coefficients(s.x)
-            print(f"  DLFT: largest |mu| {verdict(dl, dl.to_unknowns(c_d), om)}")
-            start = c_pt
-            for kappa in kappas:
-                contact = replace(scene.contact, kappa=kappa, **({} if a.gamma is None else {"gamma": a.gamma}))
-                rl = build_residual(rom, scene.casing, contact, opts, method="rl")
-                s = solve(rl, start)
-                if not s.converged:
-                    print(f"  RL kappa {kappa:.0e} N/m: no solution ({s.reason})")
-                    continue
-                start = rl.to_coefficients(s.x)
-                dist = np.linalg.norm(start - c_d) / np.linalg.norm(c_d)
-                print(f"  RL kappa {kappa:.0e} N/m: {dist:.1%} from DLFT, largest |mu| {verdict(rl, s.x, om)}")
+def points(a, val, kinds):
+    """(method, kind, point) of the validation points, or of the NFRC points asked for (point:
+    anything with omega, u, subharmonic and ti)."""
+    from types import SimpleNamespace
+
+    from pipelines.branch_store import load_branch
+
+    if not a.nfrc:
+        for method in ("dlft", "rl"):
+            for kind in kinds:
+                pt = getattr(getattr(val, method), kind)
+                if pt.found:
+                    yield method, kind, pt
+        return
+    b = load_branch(a.out / f"nfrc_{a.nfrc}.h5").branch
+    for w in a.omegas:
+        i = int(np.argmin(np.abs(b.omega - w)))
+        yield a.nfrc, f"NFRC point {i}", SimpleNamespace(omega=float(b.omega[i]), u=b.x[i], subharmonic=1, ti=None)
 
 
 if __name__ == "__main__":
