@@ -14,6 +14,9 @@ def process_context():
     return multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
 
 
+_LIMITS: list = []  # keeps each worker's BLAS limit alive for its lifetime
+
+
 def limit_blas_threads() -> None:
     """Worker-process initializer: BLAS on one thread. The pools run one process per core;
     a threaded BLAS call in one worker would otherwise wake threads that compete with the
@@ -21,9 +24,6 @@ def limit_blas_threads() -> None:
     from threadpoolctl import threadpool_limits
 
     _LIMITS.append(threadpool_limits(limits=1, user_api="blas"))
-
-
-_LIMITS: list = []  # keeps the limit alive for the worker's lifetime
 
 
 def mpi_world():

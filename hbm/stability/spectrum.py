@@ -148,11 +148,10 @@ def shift_member(P: np.ndarray, m: int) -> np.ndarray:
     c = exponential_coefficients(P)
     out = np.zeros_like(c)
     n = c.shape[-2]
-    if abs(m) >= n:  # the whole band shifted out (an Arnoldi pair m omega apart, m > 2 N)
-        pass
-    elif m >= 0:
+    # |m| >= n shifts the whole band out (an Arnoldi pair m omega apart, m > 2 N): zeros
+    if 0 <= m < n:
         out[..., : n - m, :] = c[..., m:, :]
-    else:
+    elif -n < m < 0:
         out[..., -m:, :] = c[..., : n + m, :]
     return real_coefficients(out)
 

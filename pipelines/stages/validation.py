@@ -253,13 +253,13 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
                                                          f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}")
     else:
         update(f"{tag}: a point on an isola")
-        cands = [Candidate(f"{ISOLAS} {method}/branches/{br.name}",
-                           build_residual(rom, scene.casing, scene.contact,
-                                          _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic),
-                                          method=method),
-                           br.omega, br.x, br.le_amplitude, br.converged, br.stable,
-                           monitor=_branch_monitor(_options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic)))
-                 for br in branches]
+        cands = []
+        for br in branches:
+            hbm = _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic)
+            cands.append(Candidate(f"{ISOLAS} {method}/branches/{br.name}",
+                                   build_residual(rom, scene.casing, scene.contact, hbm, method=method),
+                                   br.omega, br.x, br.le_amplitude, br.converged, br.stable,
+                                   monitor=_branch_monitor(hbm)))
         isola = _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
     # period doubling
     pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update, nfrc)
@@ -309,7 +309,7 @@ class Candidate:
         if margin not in self._chosen:
             self._chosen[margin] = choose()
         ch = self._chosen[margin]
-        if (analyse_along and ch.found and not ch.stable and self.stable is None and self.monitor is not None):
+        if analyse_along and ch.found and not ch.stable and self.stable is None and self.monitor is not None:
             self.stability()
             ch = self._chosen[margin] = choose()
         return ch
