@@ -32,7 +32,10 @@ def test_bar_spectrum_with_and_without_restarts(max_basis):
     lu = sla.splu(K)
     r = solve_eigenproblem(SymmetricMatrix.from_csr(K), SymmetricMatrix.from_csr(M), k, lu.solve,
                            block_size=4, max_basis=max_basis)
-    np.testing.assert_allclose(r.eigenvalues, _exact(N, h, k), rtol=1e-10)
+    # the solver stops when no wanted Ritz value moved by more than 1e-10 in the last block
+    # step; the error left is that step's change times rho / (1 - rho), rho the mode's
+    # convergence factor per step, so a few times 1e-10 (1.4e-10 for mode 8 on some CPUs)
+    np.testing.assert_allclose(r.eigenvalues, _exact(N, h, k), rtol=1e-9)
     np.testing.assert_allclose(r.vectors.T @ (M @ r.vectors), np.eye(k), atol=1e-10)
     i = np.arange(1, N + 1)
     for j in range(k):  # the analytic shape, up to sign and scale
