@@ -127,37 +127,43 @@ def rl_seeds(dlft) -> list[Seed]:
     return out
 
 
-#: Periodicity classes of the time-integration points used as seeds: omega = n_l Omega and
-#: omega = Omega, both periodic over one revolution (the nu = 1 basis holds them)
-TI_CLASSES = (PeriodClass.CASING, PeriodClass.REVOLUTION)
-
-
 def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, float], n_lobes: int) -> list[Seed]:
-    """A seed from every periodic time-integration point of class omega = n_l Omega or
-    omega = Omega within omega_range (rad/s): the harmonics of its boundary dof over its
-    last revolution (sweep.boundary, (n_omega, n_s, 3 n_b), m; samples from Omega t = 0),
-    least-squares fitted on the residual's N_h (of Omega / nu). [] when the sweep holds no
-    boundary states (a ti.h5 written before they were kept)."""
+    """A seed from every periodic time-integration point within omega_range (rad/s) whose
+    orbit the residual's basis holds: period p casing periods dividing its nu revolutions
+    (p | nu n_l: omega = n_l Omega and omega = Omega for nu = 1, and omega = Omega / 2 too for
+    nu = 2). The seed is the harmonics of Omega / nu of the point's boundary dof over its last
+    nu revolutions (sweep.boundary, (n_omega, n_held spr, 3 n_b), m, from Omega t = 0 mod 2 pi;
+    spr samples a revolution, read from sweep.times), least-squares fitted on the residual's
+    N_h. [] when the sweep holds no boundary states (a ti.h5 written before they were kept);
+    a point whose nu revolutions the file does not hold gives none.
+
+    The window may start an odd number of revolutions into the march, i.e. at Omega t / nu
+    = pi for nu = 2: the fit then gives the orbit shifted by one revolution, which the
+    casing's period makes a solution as well."""
     B = getattr(sweep, "boundary", None)
     if B is None:
         return []
     B = np.asarray(B, dtype=float)
-    n_s = B.shape[1]
-    tau = 2 * np.pi * np.arange(n_s) / n_s / res.nu  # basis angle Omega t / nu of each sample
-    nh = min(res.basis.n_harmonics, (n_s - 1) // 2)
-    cols = [np.ones(n_s)]
-    for k in range(1, nh + 1):
-        cols += [np.cos(k * tau), np.sin(k * tau)]
-    E = np.column_stack(cols)  # (n_s, 2 nh + 1)
+    nu = int(res.nu)
     out = []
-    for i, (w, c) in enumerate(zip(sweep.omega, sweep.period_class)):
-        if int(c) not in TI_CLASSES or not omega_range[0] <= w <= omega_range[1] or res.nu != 1:
+    for i, (w, p, c) in enumerate(zip(sweep.omega, sweep.period, sweep.period_class)):
+        p = int(p)
+        if p < 1 or (nu * n_lobes) % p or not omega_range[0] <= w <= omega_range[1]:
             continue
-        coef = np.linalg.lstsq(E, B[i], rcond=None)[0]  # (2 nh + 1, 3 n_b)
+        spr = int(round(2.0 * np.pi / (w * (sweep.times[i][1] - sweep.times[i][0]))))
+        n_s = nu * spr
+        if n_s > B.shape[1]:
+            continue
+        tau = 2 * np.pi * np.arange(n_s) / n_s  # basis angle Omega t / nu of each sample
+        nh = min(res.basis.n_harmonics, (n_s - 1) // 2)
+        cols = [np.ones(n_s)]
+        for k in range(1, nh + 1):
+            cols += [np.cos(k * tau), np.sin(k * tau)]
+        coef = np.linalg.lstsq(np.column_stack(cols), B[i, -n_s:], rcond=None)[0]  # (2 nh + 1, 3 n_b)
         xr = np.zeros((res.n_c, res.n_r))
         xr[: len(coef)] = coef
         label = PeriodClass(int(c)).label(n_lobes).replace(" ", "")
-        out.append(Seed(float(w), res.to_unknowns(xr), f"ti class {label} Omega={w:.6g}"))
+        out.append(Seed(float(w), res.to_unknowns(xr), f"ti class {label} period {p} Omega={w:.6g}"))
     return out
 
 

@@ -36,8 +36,9 @@ class IsolaOptions:
       ~1e-5 of arc length. Default 30.
     newton_iterations: Newton iterations allowed per seed (with backtracking): most seeds
       fail or converge fast; a cap keeps the failing ones cheap. Default 12.
-    ti_seeds: also seed from every periodic time-integration point (ti.h5) of class
-      omega = n_l Omega and omega = Omega.
+    ti_seeds: also seed from every periodic time-integration point (ti.h5) whose orbit the
+      HBM basis holds: omega = n_l Omega and omega = Omega, and with [hbm] subharmonic = 2
+      omega = Omega / 2 as well (hbm.isolas.harmonic.ti_seeds).
     workers: processes for the seeds' Newton corrections; None: every core this process
       may use (os.sched_getaffinity). Under mpirun the ranks share the seeds instead.
     """

@@ -37,6 +37,12 @@ from hbm.ti.settle import SUBSECTIONS, settle_test
 _SETTLE_CHECK_STEPS = 30_000
 
 
+#: Revolutions of boundary state kept per speed (SweepResult.boundary): two hold the orbits of
+#: period 2 pi / Omega and those of twice that period (omega = Omega / 2, the period-doubled
+#: branches), which seed an isola search in the basis of Omega / 2 ([hbm] subharmonic = 2).
+BOUNDARY_REVOLUTIONS = 2
+
+
 @dataclass(frozen=True)
 class SpeedResponse:
     """Steady response at one rotation speed (fields as the rows of SweepResult)."""
@@ -90,10 +96,11 @@ class SweepResult:
         no period was found.
     cpu_time: wall time of each point in its worker, (n_omega,), s.
     boundary: every boundary dof (r, theta, z of each contact node, node-major, the HBM's
-        order) over the last revolution of the window, samples_per_revolution samples from
-        a whole revolution (Omega t = 0 mod 2 pi), (n_omega, samples_per_revolution, 3 n_b),
-        m: the state an HBM solution can be started from (hbm.isolas); None in files written
-        before it was kept.
+        order) over the last BOUNDARY_REVOLUTIONS revolutions of the window, samples_per_revolution
+        samples a revolution from a whole revolution (Omega t = 0 mod 2 pi),
+        (n_omega, BOUNDARY_REVOLUTIONS samples_per_revolution, 3 n_b), m: the state an HBM
+        solution can be started from (hbm.isolas); None in files written before it was kept
+        (and one revolution only in files written before two were).
     """
 
     omega: np.ndarray = field(metadata={"unit": "rad/s"})
@@ -135,7 +142,7 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
     n_max = options.n_revolutions
     sub_stride = n_rev // (n_l * SUBSECTIONS)
     # every revolution from the first is recorded: where the window ends is known only at the end.
-    # All 3 n_b boundary dof are recorded (the last revolution seeds the isola search; LE and
+    # All 3 n_b boundary dof are recorded (the last revolutions seed the isola search; LE and
     # TE radial are dof 0 and 3 (n_b - 1)); at a sample per 1/spr revolution this costs
     # nothing next to the steps.
     # Recording positions count from step n_rev: sample i at n_rev + i stride, extreme block b
@@ -179,7 +186,7 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
     rmax, rmin = ext[:, 0].max(axis=0), ext[:, 1].min(axis=0)
     per = verdict.periodicity
     samples = slice(w0 * spr, (w0 + n_keep) * spr)
-    last = slice((w0 + n_keep - 1) * spr, (w0 + n_keep) * spr)
+    last = slice((w0 + n_keep - min(BOUNDARY_REVOLUTIONS, n_keep)) * spr, (w0 + n_keep) * spr)
     nb = m.displacement.shape[1] // 3
     n_sub = (revs - 1) * n_l * SUBSECTIONS + 1
     sections = m.sections[n_sub - 1 - n_keep * n_l * SUBSECTIONS:n_sub:SUBSECTIONS]

@@ -305,6 +305,10 @@ def _compute(ctx: Context, outputs) -> None:
         if sweep.boundary is None and root:
             ctx.progress.warn("ti.h5 holds no boundary states (written by an older version): no seeds from the "
                               "time integration; rerun the ti stage (--force) to get them")
+        elif root and sweep.boundary.shape[1] < hbm.subharmonic * scene.ti.samples_per_revolution:
+            ctx.progress.warn(f"ti.h5 holds {sweep.boundary.shape[1] // scene.ti.samples_per_revolution} revolution(s) "
+                              f"of boundary state, fewer than [hbm] subharmonic = {hbm.subharmonic}: no seeds from "
+                              f"the time integration; rerun the ti stage (--force) to get them")
     lo, hi = iso.omega_range(hbm)
     omegas = np.linspace(lo, hi, iso.n_omega)
     opts = search_options(hbm, iso)

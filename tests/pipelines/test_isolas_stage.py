@@ -67,16 +67,16 @@ def test_layout(searched):
 
 
 def test_the_sweep_keeps_the_boundary_state_and_seeds_from_it(searched):
-    """ti.h5 keeps every boundary dof over the last revolution (the LE radial one is the
-    last revolution of the LE signal), one seed per periodic speed, and DLFT's Newton from
-    those states lands on the primary NFRC (the only solution there)."""
+    """ti.h5 keeps every boundary dof over the last two revolutions (the LE radial one is
+    the last two revolutions of the LE signal), one seed per periodic speed, and DLFT's
+    Newton from those states lands on the primary NFRC (the only solution there)."""
     from pipelines.stages.ti import read_sweep
 
     _, out = searched
     sw = read_sweep(out)
-    assert sw.boundary.shape == (4, 64, 27)  # 4 speeds, 64 samples per revolution, 3 x 9 dof
-    np.testing.assert_array_equal(sw.boundary[:, :, 0], sw.displacement[:, -64:, 0])
-    np.testing.assert_array_equal(sw.boundary[:, :, -3], sw.displacement[:, -64:, 1])  # TE radial
+    assert sw.boundary.shape == (4, 128, 27)  # 4 speeds, 2 revolutions of 64 samples, 3 x 9 dof
+    np.testing.assert_array_equal(sw.boundary[:, :, 0], sw.displacement[:, -128:, 0])
+    np.testing.assert_array_equal(sw.boundary[:, :, -3], sw.displacement[:, -128:, 1])  # TE radial
     with h5py.File(out / "isolas.h5") as h5:
         s = h5["dlft"]["seeds"]
         ti = np.array([o.decode().startswith("ti class") for o in s["origin"][()]])
