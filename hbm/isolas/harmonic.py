@@ -127,7 +127,14 @@ def rl_seeds(dlft) -> list[Seed]:
     return out
 
 
-def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, float], n_lobes: int) -> list[Seed]:
+def doubled_options(hbm: HbmOptions) -> HbmOptions:
+    """hbm in the basis of twice the period, Omega / (2 nu), at the same resolution: 2 N_h
+    harmonics and 2 N_t samples (the period-doubled orbits of the sweep, hbm.isolas.ti_seeds)."""
+    return replace(hbm, subharmonic=2 * hbm.subharmonic, n_harmonics=2 * hbm.n_harmonics, n_time=2 * hbm.n_time)
+
+
+def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, float], n_lobes: int,
+             only_new_to: int | None = None) -> list[Seed]:
     """A seed from every periodic time-integration point within omega_range (rad/s) whose
     orbit the residual's basis holds: period p casing periods dividing its nu revolutions
     (p | nu n_l: omega = n_l Omega and omega = Omega for nu = 1, and omega = Omega / 2 too for
@@ -135,7 +142,9 @@ def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, floa
     nu revolutions (sweep.boundary, (n_omega, n_held spr, 3 n_b), m, from Omega t = 0 mod 2 pi;
     spr samples a revolution, read from sweep.times), least-squares fitted on the residual's
     N_h. [] when the sweep holds no boundary states (a ti.h5 written before they were kept);
-    a point whose nu revolutions the file does not hold gives none.
+    a point whose nu revolutions the file does not hold gives none. only_new_to: skip the
+    points whose orbit the basis of Omega / only_new_to holds already (e.g. 1: only the
+    period-doubled orbits, for a search at nu = 2 beside the one at nu = 1).
 
     The window may start an odd number of revolutions into the march, i.e. at Omega t / nu
     = pi for nu = 2: the fit then gives the orbit shifted by one revolution, which the
@@ -149,6 +158,8 @@ def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, floa
     for i, (w, p, c) in enumerate(zip(sweep.omega, sweep.period, sweep.period_class)):
         p = int(p)
         if p < 1 or (nu * n_lobes) % p or not omega_range[0] <= w <= omega_range[1]:
+            continue
+        if only_new_to is not None and (only_new_to * n_lobes) % p == 0:
             continue
         spr = int(round(2.0 * np.pi / (w * (sweep.times[i][1] - sweep.times[i][0]))))
         n_s = nu * spr

@@ -39,6 +39,11 @@ class IsolaOptions:
     ti_seeds: also seed from every periodic time-integration point (ti.h5) whose orbit the
       HBM basis holds: omega = n_l Omega and omega = Omega, and with [hbm] subharmonic = 2
       omega = Omega / 2 as well (hbm.isolas.harmonic.ti_seeds).
+    ti_period_doubled: with ti_seeds, also a second search in the basis of twice the
+      period (Omega / (2 nu), 2 N_h harmonics), seeded only from the sweep's orbits of that
+      period (omega = Omega / 2 for nu = 1), with every branch found so far known: the
+      period-doubled branches time integration lands on. Its branches are written with the
+      treatment's others (attribute subharmonic = 2 nu).
     workers: processes for the seeds' Newton corrections; None: every core this process
       may use (os.sched_getaffinity). Under mpirun the ranks share the seeds instead.
     """
@@ -54,6 +59,7 @@ class IsolaOptions:
     crawl_points: int = 30
     newton_iterations: int = 12
     ti_seeds: bool = True
+    ti_period_doubled: bool = True
     workers: int | None = None
 
     def __post_init__(self):

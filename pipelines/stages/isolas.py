@@ -2,16 +2,22 @@
 
 Per contact treatment: seeds from eq. (31) and from the periodic time-integration points
 (ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). With both
-treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_seeds). Every branch is
+treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_seeds).
+Then, with [isolas] ti_period_doubled, a second search in the basis of twice the period
+(Omega / (2 nu), 2 N_h harmonics) from the sweep's orbits of that period only (omega =
+Omega / 2), with the primary and the branches just found known (embedded there): the
+period-doubled branches time integration lands on. Every branch is
 written to isolas.partial.h5 as soon as it is finished (and the seeds' corrections once
-done); an interrupted run of the same inputs resumes from them without recomputing. The
-final file is written atomically.
+done), under the treatment's name or NAME.period_doubled; an interrupted run of the same
+inputs resumes from them without recomputing. The final file is written atomically, both
+searches of a treatment in its group.
 
 Layout of isolas.h5 (root: the usual provenance attributes):
   /<method>/ per treatment ("dlft", "rl"); attrs n_seeds, n_converged, n_distinct,
       n_branches, cpu_time (s), wall_time (s), status (str)
   /<method>/seeds/ omega (s,) rad/s; origin (s,) fixed-length ASCII; converged (s,) bool;
-      branch (s,) int (the branch it lies on; -1 not converged, -2 on the primary NFRC)
+      branch (s,) int (the branch it lies on; -1 not converged, -2 on the primary NFRC);
+      the period-doubled search's seeds last, their branches numbered after the first's
   /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
       le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; with
       [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
@@ -226,6 +232,43 @@ def _count_branches(h5) -> None:
     h5.attrs["n_branches"] = sum(int(h5[m].attrs.get("n_branches", 0)) for m in h5)
 
 
+def _merged(parts):
+    """One treatment's searches as one: (seeds, converged (s,) bool, seed_branch (s,) int,
+    [(FoundBranch, nu)]), the branches numbered on from part to part. A seed of a later part
+    (the period-doubled one) that lies on a known branch other than the first (the primary)
+    lies on a branch of the first part, embedded: it gets that branch's number."""
+    from hbm.isolas.search import ON_KNOWN
+
+    seeds, converged, seed_branch, branches = [], [], [], []
+    first = len(parts[0][0].branches)
+    for r, res in parts:
+        sb = np.array(r.seed_branch, dtype=np.int64)
+        sb[sb >= 0] += len(branches)
+        if branches:  # known branches: [primary, the first part's branches in order]
+            c = r.corrections
+            on = np.array(c.on_known, dtype=np.int64)
+            dup = np.asarray(c.same_as) >= 0
+            on[dup] = on[np.asarray(c.same_as)[dup]]  # a duplicate lies where its representative does
+            moved = (sb == ON_KNOWN) & (on >= 1) & (on <= first)
+            sb[moved] = on[moved] - 1
+        seeds += list(r.seeds)
+        converged.append(np.asarray(r.corrections.converged, bool))
+        seed_branch.append(sb)
+        branches += [(fb, res.nu) for fb in r.branches]
+    return seeds, np.concatenate(converged), np.concatenate(seed_branch), branches
+
+
+def _embedded(branch, res, target):
+    """A KnownBranch of res's unknowns in those of `target`, whose fundamental is an integer
+    fraction of res's (hbm.stability.switching.embed_harmonics: an exact solution there too)."""
+    from hbm.isolas.membership import KnownBranch
+    from hbm.stability.switching import embed_harmonics
+
+    ratio = target.nu // res.nu
+    x = np.array([embed_harmonics(u, res.n_r, ratio, target.basis.n_harmonics) for u in branch.x])
+    return KnownBranch(branch.omega, x.reshape(len(branch.omega), -1), branch.label)
+
+
 def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
     """content: {method: [branch_content of each branch]} (hbm.harmonic.content, eqs. 32-34)."""
     import h5py
@@ -240,21 +283,22 @@ def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
             h5.attrs["created"] = art.now()
             for k, v in provenance["extra_attrs"].items():
                 h5.attrs[k] = v
-            for method, (res, nu, status, cpu, wall) in results.items():
+            for method, (parts, status, cpu, wall) in results.items():
+                seeds, converged, seed_branch, branches = _merged(parts)
                 g = h5.create_group(method)
-                g.attrs.update({"n_seeds": len(res.seeds), "n_converged": res.n_converged,
-                                "n_distinct": res.n_distinct, "n_branches": len(res.branches),
+                g.attrs.update({"n_seeds": len(seeds), "n_converged": int(converged.sum()),
+                                "n_distinct": sum(r.n_distinct for r, _ in parts), "n_branches": len(branches),
                                 "cpu_time": float(cpu), "wall_time": float(wall), "status": status})
                 s = g.create_group("seeds")
-                s.create_dataset("omega", data=np.array([sd.omega for sd in res.seeds], float)).attrs["unit"] = "rad/s"
+                s.create_dataset("omega", data=np.array([sd.omega for sd in seeds], float)).attrs["unit"] = "rad/s"
                 # fixed-length ASCII: plain bytes, which the checksums read as they are
-                origins = [sd.origin.encode("ascii", "replace") for sd in res.seeds]
+                origins = [sd.origin.encode("ascii", "replace") for sd in seeds]
                 width = max([len(o) for o in origins] + [1])
                 s.create_dataset("origin", data=np.array(origins, dtype=f"S{width}")).attrs["unit"] = "-"
-                s.create_dataset("converged", data=res.corrections.converged).attrs["unit"] = "1"
-                s.create_dataset("branch", data=res.seed_branch).attrs["unit"] = "1"
+                s.create_dataset("converged", data=converged).attrs["unit"] = "1"
+                s.create_dataset("branch", data=seed_branch).attrs["unit"] = "1"
                 b = g.create_group("branches")
-                for k, fb in enumerate(res.branches):
+                for k, (fb, nu) in enumerate(branches):
                     _write_branch(b.create_group(f"{k:03d}"), fb, nu, content.get(method, [None] * (k + 1))[k])
         art.add_checksums(tmp)
 
@@ -286,8 +330,9 @@ def _known(out, method: str):
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the seeds' Newton corrections are shared among the ranks, rank 0
     continues the branches and writes."""
-    from hbm.isolas.harmonic import (BranchDescriber, HbmProblem, dominant_harmonic, modal_seeds, rl_seeds,
-                                     search_options, ti_seeds)
+    from hbm.isolas.harmonic import (BranchDescriber, HbmProblem, dominant_harmonic, doubled_options, modal_seeds,
+                                     rl_seeds, search_options, ti_seeds)
+    from hbm.isolas.membership import KnownBranch
     from hbm.isolas.search import search
     from pipelines.branch_store import partial_path
     from pipelines.parallel import is_root, on_root, world
@@ -320,28 +365,23 @@ def _compute(ctx: Context, outputs) -> None:
         stab = StabilityOptions(max_gap=hbm.stability_max_gap)
     final = out / ISOLAS.file
     partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
-    results = {}  # method -> (IsolaSearch, nu, status, cpu, wall), in hbm.methods' order when written
+    results = {}  # method -> ([(IsolaSearch, its residual), ...], status, cpu, wall), in hbm.methods' order
+    mains = {}  # method -> its search in the scene's basis
     content = {}  # method -> the dynamical content of each branch
     from hbm.harmonic.content import branch_content, rom_modes
 
     modes = rom_modes(rom.K, rom.M)
-    for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
-        problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
+    def run_part(key, problem, seeds, known, bif, label):
+        """One search (a treatment, or its period-doubled part): resumed from and saved to
+        isolas.partial.h5 under `key`. -> (IsolaSearch, residual, CPU s, wall s)."""
         res, _ = problem()
-        if method == "rl" and "dlft" in results:
-            seeds = rl_seeds(results["dlft"][0])
-        else:
-            seeds = modal_seeds(res, rom, iso, omegas)
-        if sweep is not None:
-            seeds += ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes)
-        known, bif = _known(out, method)
-        corrections, done = partial.resume(method) if root else (None, [])
+        corrections, done = partial.resume(key) if root else (None, [])
         if comm is not None:
             corrections, done = comm.bcast((corrections, done), root=0)
         if root and corrections is not None:
-            ctx.log(f"  {method}: resuming: seeds corrected, {len(done)} branches on disk")
+            ctx.log(f"  {label}: resuming: seeds corrected, {len(done)} branches on disk")
         t0 = time.perf_counter()
-        with ctx.progress.step(f"isolas {method}", len(seeds)) as update:
+        with ctx.progress.step(f"isolas {label}", len(seeds)) as update:
             def on_progress(phase, d, total):
                 if phase == "seeds":
                     update(f"seeds {d}/{total}", completed=d)
@@ -351,19 +391,18 @@ def _compute(ctx: Context, outputs) -> None:
             result = search(problem, seeds, known, opts, comm=comm, corrections=corrections,
                             seed_factory=problem.for_seeds(), branches=done,
                             bifurcation_points=bif,
-                            describe=BranchDescriber(problem, hbm.stability, (co.x_scale, co.omega_scale), stab),
-                            on_corrections=lambda c, m=method: partial.corrections(m, c) if root else None,
-                            on_branch=lambda i, fb, m=method: partial.branch(m, i, fb, res.nu) if root else None,
+                            describe=BranchDescriber(problem, problem.hbm.stability, (co.x_scale, co.omega_scale),
+                                                     stab),
+                            on_corrections=lambda c: partial.corrections(key, c) if root else None,
+                            on_branch=lambda i, fb: partial.branch(key, i, fb, res.nu) if root else None,
                             on_progress=on_progress)
         wall = time.perf_counter() - t0
         cpu = result.cpu_time + sum(b.cpu_time for b in done)
-        results[method] = (result, res.nu, "complete", cpu, wall)
         if root:
-            content[method] = [branch_content(res, rom, b.x, b.omega, modes) for b in result.branches]
             kinds = {}
             for b in result.branches:
                 kinds[b.kind] = kinds.get(b.kind, 0) + 1
-            ctx.log(f"  {method}: {len(seeds)} seeds, {result.n_converged} converged ({result.n_distinct} distinct), "
+            ctx.log(f"  {label}: {len(seeds)} seeds, {result.n_converged} converged ({result.n_distinct} distinct), "
                     f"{len(result.branches)} branches (" + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items()))
                                                            or "none") + f"), CPU {cpu:.0f} s, wall {wall:.0f} s")
             for k, b in enumerate(result.branches):
@@ -372,7 +411,40 @@ def _compute(ctx: Context, outputs) -> None:
                 dom = dominant_harmonic(h[ok]) if h is not None else 0
                 ctx.log(f"    branch {k:03d}: {b.kind}{' (closed)' if b.closed else ''}, Omega "
                         f"{b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} rad/s, {int(ok.sum())} points, "
-                        f"dominant harmonic {dom}, {len(b.seeds)} seeds")
+                        f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds")
+        return result, res, cpu, wall
+
+    for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
+        problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
+        res, _ = problem()
+        if method == "rl" and "dlft" in results:
+            seeds = rl_seeds(mains["dlft"])
+        else:
+            seeds = modal_seeds(res, rom, iso, omegas)
+        if sweep is not None:
+            seeds += ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes)
+        known, bif = _known(out, method)
+        result, res, cpu, wall = run_part(method, problem, seeds, known, bif, method)
+        mains[method] = result
+        parts = [(result, res)]
+        if sweep is not None and iso.ti_period_doubled:
+            # the sweep's orbits of twice the basis' period, in the basis of Omega / (2 nu) with
+            # 2 N_h harmonics (the same resolution); the branches found so far, embedded there,
+            # are known: a seed that falls back to an orbit without the new harmonics is on one
+            pd_problem = HbmProblem(rom, scene.casing, scene.contact, doubled_options(hbm), method)
+            pd_res, _ = pd_problem()
+            pd_seeds = ti_seeds(pd_res, sweep, (lo, hi), scene.casing.n_lobes, only_new_to=res.nu)
+            if pd_seeds:
+                pd_known = [_embedded(k, res, pd_res) for k in known + [
+                    KnownBranch.of(b.omega, b.x, f"branch {i:03d}", b.converged) for i, b in enumerate(result.branches)]]
+                pd_bif = _embedded(bif, res, pd_res) if bif is not None else None
+                pd = run_part(f"{method}.period_doubled", pd_problem, pd_seeds, pd_known, pd_bif,
+                              f"{method}, period-doubled orbits of the sweep")
+                parts.append(pd[:2])
+                cpu, wall = cpu + pd[2], wall + pd[3]
+        results[method] = (parts, "complete", cpu, wall)
+        if root:
+            content[method] = [branch_content(r, rom, b.x, b.omega, modes) for part, r in parts for b in part.branches]
 
     def write():
         _write_final(final, results, ctx.provenance(ISOLAS, "isolas"), content)
