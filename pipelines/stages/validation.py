@@ -12,8 +12,8 @@ For each treatment of [hbm] methods:
   one outside its stable stretch whose verdict the march can check (DECISIVE_DECAY), up to
   [validation] primary_tries in all, until it stays; a stable choice is first solved again
   with 2 N_h (check_harmonics) and passed over, unmarched, when it is not converged in N_h;
-- isola: a point (stable if any) of a branch of isolas.h5 that never meets the primary:
-  of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
+- isola: a point (stable if any) of a branch of isolas.h5 in the scene's basis (not the
+  search's period-doubled ones) that never meets the primary: of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
   integration keeps, where the closed isolas have one stable stretch or none), when that
   file exists and holds one (else the reason is recorded); chosen as the primary point is
@@ -244,7 +244,9 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
     isolas = ctx.out / ISOLAS
-    found = read_branch_set(isolas, method)
+    # the isolas of the scene's basis: the search's period-doubled branches (subharmonic 2 nu)
+    # are orbits of another kind, the period-doubling point's
+    found = [br for br in read_branch_set(isolas, method) if br.subharmonic == scene.hbm.subharmonic]
     branches = [br for kind in ISOLA_KINDS for br in found if br.kind == kind]
     if not isolas.is_file():
         isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
@@ -715,8 +717,9 @@ def draw_solution_set(ctx: Context) -> None:
                     marks += _stability_bounds({k: v for k, (v, _) in read_table(h5["bifurcations"]).items()},
                                                s.extras.get("stable"))
         for br in read_branch_set(out / ISOLAS, m):
-            if br.kind != "primary":
-                lines.append((br.kind, br.omega, br.le_amplitude, br.converged, br.stable))
+            if br.kind != "primary":  # the search's branches of twice the period drawn as period-doubled ones
+                kind = "period-doubled" if br.subharmonic > scene.hbm.subharmonic else br.kind
+                lines.append((kind, br.omega, br.le_amplitude, br.converged, br.stable))
                 if br.bifurcations is not None:
                     marks += _stability_bounds(br.bifurcations, br.stable)
         if t is not None:

@@ -1,0 +1,100 @@
+"""The period-doubled branches of an isola search, and the sweep's omega = Omega / 2 orbits they
+come from (prints markdown tables).
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_period_doubled.py OUT [--scene scenes/rotor67.toml]
+        [--methods dlft rl]
+
+Needs OUT/rom.h5, OUT/ti.h5 and OUT/isolas.h5 of that scene (`bladerub run SCENE --out OUT
+--until isolas`). Two tables:
+1. every branch of isolas.h5 in the basis of twice the scene's period (subharmonic 2 nu):
+   kind, Omega span, points, LE amplitude range, and the share of the LE radial harmonic
+   energy at odd multiples of the basis' fundamental (the Omega / 2 content: 0 for an orbit
+   of period 2 pi / Omega), median and smallest;
+2. every sweep point whose orbit is twice the scene's period: Newton at its Omega (damped,
+   the validation stage's) from the harmonics of its last two revolutions (the isola
+   search's seed, hbm.isolas.harmonic.ti_seeds), in the basis of Omega / 2 with 2 N_h
+   harmonics; distance moved in the unknowns, Omega / 2 share of the seed and of the
+   solution, LE amplitude against time integration's, and Hill's largest multiplier modulus.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def odd_share(h: np.ndarray) -> np.ndarray:
+    """Share of the harmonic energy (mean excluded) at odd harmonics; h (..., 2 N_h + 1)."""
+    h = np.asarray(h, dtype=float)
+    n_h = (h.shape[-1] - 1) // 2
+    odd = sum(h[..., 2 * k - 1] ** 2 + h[..., 2 * k] ** 2 for k in range(1, n_h + 1, 2))
+    return odd / np.sum(h[..., 1:] ** 2, axis=-1)
+
+
+def main() -> None:
+    from hbm.continuation.newton import NewtonOptions
+    from hbm.harmonic.residual import build_residual
+    from hbm.harmonic.solver import HbmSolver
+    from hbm.harmonic.start import damped_newton
+    from hbm.isolas.harmonic import doubled_options, ti_seeds
+    from hbm.stability.spectrum import orbit_spectrum
+    from pipelines.scene import load_scene
+    from pipelines.stages.isolas import read_isolas
+    from pipelines.stages.ti import read_sweep
+    from rom.model import load_rom
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scene", default="scenes/rotor67.toml")
+    ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    a = ap.parse_args()
+    scene = load_scene(a.scene)
+    hbm = scene.hbm
+    found = read_isolas(a.out / "isolas.h5")
+    print("| treatment | branch | kind | Omega (rad/s) | points | LE amplitude (mm) | Omega/2 share: median | min |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- |")
+    for m in a.methods:
+        for b in found.get(m, []):
+            if b.subharmonic != 2 * hbm.subharmonic:
+                continue
+            ok = b.converged
+            share = odd_share(b.harmonics[ok][:, :, 0])  # LE radial
+            amp = 1e3 * b.le_amplitude[ok]
+            print(f"| {m} | {b.name} | {b.kind}{' (closed)' if b.closed else ''} | {b.omega[ok].min():.0f}-"
+                  f"{b.omega[ok].max():.0f} | {int(ok.sum())} | {amp.min():.2f}-{amp.max():.2f} | "
+                  f"{np.median(share):.2f} | {share.min():.2f} |", flush=True)
+    rom = load_rom(a.out / "rom.h5")
+    sweep = read_sweep(a.out)
+    lo, hi = hbm.omega_min, hbm.omega_max
+    print()
+    print("| treatment | Omega (rad/s) | Newton | iterations | moved | Omega/2 share, seed / solution | "
+          "LE amplitude HBM / TI - 1 | largest abs mu (unstable) | CPU s |")
+    print("| --- | --- | --- | --- | --- | --- | --- | --- | --- |")
+    for m in a.methods:
+        res = build_residual(rom, scene.casing, scene.contact, doubled_options(hbm), method=m)
+        for sd in ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes, only_new_to=hbm.subharmonic):
+            i = int(np.argmin(np.abs(sweep.omega - sd.omega)))
+            t = time.process_time()
+            sol = damped_newton(res, sd.x, sd.omega, NewtonOptions(tol_residual=hbm.tolerance),
+                                HbmSolver(atol=0.1 * hbm.tolerance))
+            s0 = odd_share(res.to_coefficients(sd.x)[:, 0])
+            if not sol.converged:
+                print(f"| {m} | {sd.omega:.0f} | no ({sol.reason[:40]}) | {sol.iterations} | - | {s0:.2f} / - | - | - | "
+                      f"{time.process_time() - t:.1f} |", flush=True)
+                continue
+            sp, _ = orbit_spectrum(res, sol.x, sd.omega)
+            le = res.signals(sol.x, sd.omega)["displacement"][:, 0]
+            moved = np.linalg.norm(sol.x - sd.x) / np.linalg.norm(sd.x)
+            print(f"| {m} | {sd.omega:.0f} | yes | {sol.iterations} | {moved:.3f} | {s0:.2f} / "
+                  f"{odd_share(res.to_coefficients(sol.x)[:, 0]):.2f} | {0.5 * np.ptp(le) / sweep.amplitude[i] - 1:+.3f} | "
+                  f"{sp.largest_modulus:.3f} ({sp.n_unstable}) | {time.process_time() - t:.1f} |", flush=True)
+
+
+if __name__ == "__main__":
+    main()
