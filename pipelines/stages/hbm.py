@@ -162,8 +162,14 @@ def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
         # an interrupted run of exactly these inputs: keep its points and go on from them
         try:
             resume = load_branch(part, allow_partial=True)
-            store = BranchStore.reopen(part)
-            say.log(f"  {method}: resuming from {store.n_points} points on disk")
+            if not np.asarray(resume.branch.converged, dtype=bool)[:1].any():
+                # interrupted before its start point was on disk: nothing to go on from (the
+                # file is replaced by the first point)
+                resume = None
+                say.log(f"  {method}: {part.name} holds no start point: the NFRC starts over")
+            else:
+                store = BranchStore.reopen(part)
+                say.log(f"  {method}: resuming from {store.n_points} points on disk")
         except (OSError, ValueError, KeyError) as exc:  # a run killed inside an HDF5 write
             resume, store = None, None
             say.warn(f"{part.name} cannot be read ({art.first_line(exc)}): the {method} NFRC starts over")

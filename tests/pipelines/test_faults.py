@@ -195,6 +195,35 @@ def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path,
     assert load_branch(tmp_path / "nfrc_rl.h5").complete and art.verify(tmp_path / "nfrc_rl.h5") is None
 
 
+def test_a_partial_file_without_its_start_point_starts_over(coarse_run, coarse_nfrc, tmp_path, monkeypatch, capsys):
+    """Ctrl-C between the creation of NAME.partial.h5 and its first point (the file holds no
+    point): the next run does not stop on it (it used to fail, and every run after it, on
+    "resume: the branch to continue has no converged start point"); it computes that NFRC
+    from the start, as an uninterrupted run does."""
+    from pipelines import branch_store
+    from pipelines.stages import hbm
+
+    monkeypatch.setattr(hbm, "_workers", lambda n: 1)
+    scene = clone(coarse_run[1], tmp_path)
+    real = branch_store.BranchStore.append
+
+    def ctrl_c_at_the_start(self, point, extras=None):
+        if self.path.name == "nfrc_dlft.h5" and self.n_points == 0:
+            raise KeyboardInterrupt
+        real(self, point, extras)
+
+    monkeypatch.setattr(branch_store.BranchStore, "append", ctrl_c_at_the_start)
+    assert run(scene, tmp_path, "--until", "hbm") == 130
+    assert load_branch(tmp_path / "nfrc_dlft.partial.h5", allow_partial=True).branch.omega.size == 0
+    capsys.readouterr()
+    monkeypatch.undo()
+    assert run(scene, tmp_path, "--until", "hbm") == 0
+    assert "dlft: nfrc_dlft.partial.h5 holds no start point: the NFRC starts over" in capsys.readouterr().out
+    done, ref = load_branch(tmp_path / "nfrc_dlft.h5"), load_branch(coarse_nfrc[1] / "nfrc_dlft.h5")
+    assert done.complete and art.verify(tmp_path / "nfrc_dlft.h5") is None
+    np.testing.assert_array_equal(done.branch.omega, ref.branch.omega)  # the same points as the uninterrupted run
+
+
 #: `bladerub run` with a full disk in RL's process at its 4th point (a fresh interpreter that
 #: starts at the hbm stage has not initialised MPI, so the treatments' processes are forked
 #: and inherit the patch).

@@ -46,9 +46,11 @@ def _group(pgid: int) -> list[int]:
     return found
 
 
-def interrupt(scene: Path, out: Path, stage: str, delay: float, *args, slow: bool = False) -> str:
-    """Start a run, Ctrl-C it `delay` s after "[stage] running"; check the outcome; return
-    the line it printed."""
+def interrupt(scene: Path, out: Path, stage: str, delay: float, *args, slow: bool = False,
+              once: tuple[str, ...] = ()) -> str:
+    """Start a run, Ctrl-C it `delay` s after "[stage] running" (with `once`: as soon as one of
+    these files of `out` exists, checked every 10 ms, at most `delay` s later); check the
+    outcome; return the line it printed."""
     cmd = [sys.executable, "-c", SLOW, stage] if slow else [sys.executable, "-m", "pipelines.cli"]
     # a run started from a terminal answers SIGINT; a test run started as a background job of a
     # non-interactive shell ignores it, and its children would inherit that (exec keeps SIG_IGN)
@@ -57,7 +59,9 @@ def interrupt(scene: Path, out: Path, stage: str, delay: float, *args, slow: boo
                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     for line in p.stdout:
         if line.startswith(f"[{stage}] running"):
-            time.sleep(delay)
+            end = time.perf_counter() + delay
+            while not (once and any((out / f).exists() for f in once)) and time.perf_counter() < end:
+                time.sleep(0.01)
             os.killpg(p.pid, signal.SIGINT)
             break
     else:
@@ -119,7 +123,8 @@ def test_ctrl_c_in_rom(coarse_run, tmp_path):
 
 def test_ctrl_c_in_hbm(coarse_run, coarse_nfrc, tmp_path, capsys):
     scene = clone(coarse_run[1], tmp_path)
-    line = interrupt(scene, tmp_path, "hbm", 2.0, "--until", "hbm")
+    # once the first points are on disk: a fixed delay outlasted the whole stage on a fast host
+    line = interrupt(scene, tmp_path, "hbm", 30.0, "--until", "hbm", once=("nfrc_dlft.partial.h5", "nfrc_rl.partial.h5"))
     kept = line.split("; kept: ")[1].split(";")[0]
     assert kept.startswith("mesh.h5, fem.h5, rom.h5")
     assert main(["run", str(scene), "--out", str(tmp_path), "--until", "hbm"]) == 0
