@@ -350,10 +350,13 @@ def _compute(ctx: Context, outputs) -> None:
         if sweep.boundary is None and root:
             ctx.progress.warn("ti.h5 holds no boundary states (written by an older version): no seeds from the "
                               "time integration; rerun the ti stage (--force) to get them")
-        elif root and sweep.boundary.shape[1] < hbm.subharmonic * scene.ti.samples_per_revolution:
-            ctx.progress.warn(f"ti.h5 holds {sweep.boundary.shape[1] // scene.ti.samples_per_revolution} revolution(s) "
-                              f"of boundary state, fewer than [hbm] subharmonic = {hbm.subharmonic}: no seeds from "
-                              f"the time integration; rerun the ti stage (--force) to get them")
+        else:
+            held = sweep.boundary.shape[1] // scene.ti.samples_per_revolution
+            need = hbm.subharmonic * (2 if iso.ti_period_doubled else 1)
+            if root and held < need:
+                ctx.progress.warn(f"ti.h5 holds {held} revolution(s) of boundary state per speed, fewer than the "
+                                  f"{need} that its orbits of period {need} revolutions need: no seeds from those "
+                                  f"(a ti.h5 of an older version holds 1: rerun the ti stage with --force)")
     lo, hi = iso.omega_range(hbm)
     omegas = np.linspace(lo, hi, iso.n_omega)
     opts = search_options(hbm, iso)
