@@ -168,22 +168,28 @@ def test_interruption_between_artifact_and_figure(coarse_nfrc, tmp_path, monkeyp
     assert "[figures] drawn: nfrc" in capsys.readouterr().out
 
 
-def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path, monkeypatch, capsys):
-    """The treatments one after the other (one core): Ctrl-C in the second keeps the first.
-    (At once, each in its own process, a real Ctrl-C: test_interrupt.py.)"""
+def _ctrl_c_before_point(monkeypatch, name: str, n_points: int) -> None:
+    """The treatments one after the other in this process (one core: the patch reaches them),
+    and Ctrl-C (KeyboardInterrupt) when NAME's store is about to append its point n_points + 1."""
     from pipelines import branch_store
     from pipelines.stages import hbm
 
-    monkeypatch.setattr(hbm, "_workers", lambda n: 1)  # this process: the patch below reaches it
-    scene = clone(coarse_run[1], tmp_path)
+    monkeypatch.setattr(hbm, "_workers", lambda n: 1)
     real = branch_store.BranchStore.append
 
-    def ctrl_c_in_rl(self, point, extras=None):
-        if self.path.name == "nfrc_rl.h5" and self.n_points == 3:
+    def append(self, point, extras=None):
+        if self.path.name == name and self.n_points == n_points:
             raise KeyboardInterrupt
         real(self, point, extras)
 
-    monkeypatch.setattr(branch_store.BranchStore, "append", ctrl_c_in_rl)
+    monkeypatch.setattr(branch_store.BranchStore, "append", append)
+
+
+def test_interrupting_the_second_treatment_keeps_the_first(coarse_run, tmp_path, monkeypatch, capsys):
+    """The treatments one after the other (one core): Ctrl-C in the second keeps the first.
+    (At once, each in its own process, a real Ctrl-C: test_interrupt.py.)"""
+    scene = clone(coarse_run[1], tmp_path)
+    _ctrl_c_before_point(monkeypatch, "nfrc_rl.h5", 3)
     assert run(scene, tmp_path, "--until", "hbm") == 130
     assert "kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, 3 points of nfrc_rl.partial.h5;" in capsys.readouterr().err
     dlft = (tmp_path / "nfrc_dlft.h5").read_bytes()
@@ -200,19 +206,8 @@ def test_a_partial_file_without_its_start_point_starts_over(coarse_run, coarse_n
     point): the next run does not stop on it (it used to fail, and every run after it, on
     "resume: the branch to continue has no converged start point"); it computes that NFRC
     from the start, as an uninterrupted run does."""
-    from pipelines import branch_store
-    from pipelines.stages import hbm
-
-    monkeypatch.setattr(hbm, "_workers", lambda n: 1)
     scene = clone(coarse_run[1], tmp_path)
-    real = branch_store.BranchStore.append
-
-    def ctrl_c_at_the_start(self, point, extras=None):
-        if self.path.name == "nfrc_dlft.h5" and self.n_points == 0:
-            raise KeyboardInterrupt
-        real(self, point, extras)
-
-    monkeypatch.setattr(branch_store.BranchStore, "append", ctrl_c_at_the_start)
+    _ctrl_c_before_point(monkeypatch, "nfrc_dlft.h5", 0)
     assert run(scene, tmp_path, "--until", "hbm") == 130
     assert load_branch(tmp_path / "nfrc_dlft.partial.h5", allow_partial=True).branch.omega.size == 0
     capsys.readouterr()
