@@ -14,7 +14,12 @@ Needs OUT/rom.h5, OUT/ti.h5 and OUT/isolas.h5 of that scene (`bladerub run SCENE
    the validation stage's) from the harmonics of its last two revolutions (the isola
    search's seed, hbm.isolas.harmonic.ti_seeds), in the basis of Omega / 2 with 2 N_h
    harmonics; distance moved in the unknowns, Omega / 2 share of the seed and of the
-   solution, LE amplitude against time integration's, and Hill's largest multiplier modulus.
+   solution, LE amplitude against time integration's, and Hill's largest multiplier modulus;
+3. every such branch's point of least Omega / 2 share: Newton in the basis of Omega from its
+   even harmonics (the orbit it is closest to without the new harmonics), how far that moved,
+   and the branch of the scene's basis it lies on by the search's own membership test
+   (hbm.isolas.search.lies_on: polyline distance, then Newton from the nearest point), i.e.
+   the branch whose period doubling the doubled branch passes through.
 """
 from __future__ import annotations
 
@@ -42,7 +47,10 @@ def main() -> None:
     from hbm.harmonic.residual import build_residual
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
-    from hbm.isolas.harmonic import doubled_options, ti_seeds
+    from hbm.isolas.harmonic import doubled_options, search_options, ti_seeds
+    from hbm.isolas.membership import KnownBranch
+    from hbm.isolas.search import lies_on
+    from pipelines.branch_store import load_branch
     from hbm.stability.spectrum import orbit_spectrum
     from pipelines.scene import load_scene
     from pipelines.stages.isolas import read_isolas
@@ -94,6 +102,39 @@ def main() -> None:
             print(f"| {m} | {sd.omega:.0f} | yes | {sol.iterations} | {moved:.3f} | {s0:.2f} / "
                   f"{odd_share(res.to_coefficients(sol.x)[:, 0]):.2f} | {0.5 * np.ptp(le) / sweep.amplitude[i] - 1:+.3f} | "
                   f"{sp.largest_modulus:.3f} ({sp.n_unstable}) | {time.process_time() - t:.1f} |", flush=True)
+
+    print()
+    print("| treatment | branch | Omega (rad/s) | Omega/2 share | Newton in the basis of Omega | moved | lies on |")
+    print("| --- | --- | --- | --- | --- | --- | --- |")
+    opts = search_options(hbm, scene.isolas)
+    for m in a.methods:
+        res = build_residual(rom, scene.casing, scene.contact, hbm, method=m)
+        pd_res = build_residual(rom, scene.casing, scene.contact, doubled_options(hbm), method=m)
+        b0 = load_branch(a.out / f"nfrc_{m}.h5").branch
+        known = [KnownBranch.of(b0.omega, b0.x, "the primary", b0.converged)] + [
+            KnownBranch.of(b.omega, b.x, f"branch {b.name}", b.converged)
+            for b in found.get(m, []) if b.subharmonic == hbm.subharmonic]
+        for b in found.get(m, []):
+            if b.subharmonic != 2 * hbm.subharmonic:
+                continue
+            ok = b.converged
+            share = odd_share(b.harmonics[ok][:, :, 0])
+            i = int(np.argmin(share))
+            w = float(b.omega[ok][i])
+            xr2 = pd_res.to_coefficients(b.x[ok][i])  # (4 N_h + 1, n_r), harmonics of Omega / 2
+            xr = np.zeros((res.n_c, res.n_r))
+            xr[0] = xr2[0]
+            for k in range(1, hbm.n_harmonics + 1):  # harmonic 2k of Omega / 2 is harmonic k of Omega
+                xr[2 * k - 1], xr[2 * k] = xr2[4 * k - 1], xr2[4 * k]
+            u = res.to_unknowns(xr)
+            solver = HbmSolver(atol=0.1 * hbm.tolerance)
+            sol = damped_newton(res, u, w, NewtonOptions(tol_residual=hbm.tolerance), solver)
+            if not sol.converged:
+                print(f"| {m} | {b.name} | {w:.1f} | {share[i]:.3f} | no | - | - |", flush=True)
+                continue
+            k = lies_on(res, sol.x, w, known, opts, solver)
+            print(f"| {m} | {b.name} | {w:.1f} | {share[i]:.3f} | yes | {np.linalg.norm(sol.x - u) / np.linalg.norm(u):.3f} "
+                  f"| {known[k].label if k >= 0 else 'none'} |", flush=True)
 
 
 if __name__ == "__main__":
