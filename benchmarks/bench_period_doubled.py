@@ -93,14 +93,15 @@ def main() -> None:
                                 HbmSolver(atol=0.1 * hbm.tolerance))
             s0 = odd_share(res.to_coefficients(sd.x)[:, 0])
             if not sol.converged:
-                print(f"| {m} | {sd.omega:.0f} | no ({sol.reason[:40]}) | {sol.iterations} | - | {s0:.2f} / - | - | - | "
-                      f"{time.process_time() - t:.1f} |", flush=True)
+                print(f"| {m} | {sd.omega:.0f} | no ({sol.reason[:40]}) | {sol.iterations} | - | {s0:.2f} / - | - | "
+                      f"- | {time.process_time() - t:.1f} |", flush=True)
                 continue
             sp, _ = orbit_spectrum(res, sol.x, sd.omega)
             le = res.signals(sol.x, sd.omega)["displacement"][:, 0]
             moved = np.linalg.norm(sol.x - sd.x) / np.linalg.norm(sd.x)
-            print(f"| {m} | {sd.omega:.0f} | yes | {sol.iterations} | {moved:.3f} | {s0:.2f} / "
-                  f"{odd_share(res.to_coefficients(sol.x)[:, 0]):.2f} | {0.5 * np.ptp(le) / sweep.amplitude[i] - 1:+.3f} | "
+            s1 = odd_share(res.to_coefficients(sol.x)[:, 0])
+            ratio = 0.5 * np.ptp(le) / sweep.amplitude[i] - 1
+            print(f"| {m} | {sd.omega:.0f} | yes | {sol.iterations} | {moved:.3f} | {s0:.2f} / {s1:.2f} | {ratio:+.3f} | "
                   f"{sp.largest_modulus:.3f} ({sp.n_unstable}) | {time.process_time() - t:.1f} |", flush=True)
 
     print()
@@ -133,8 +134,9 @@ def main() -> None:
                 print(f"| {m} | {b.name} | {w:.1f} | {share[i]:.3f} | no | - | - |", flush=True)
                 continue
             k = lies_on(res, sol.x, w, known, opts, solver)
-            print(f"| {m} | {b.name} | {w:.1f} | {share[i]:.3f} | yes | {np.linalg.norm(sol.x - u) / np.linalg.norm(u):.3f} "
-                  f"| {known[k].label if k >= 0 else 'none'} |", flush=True)
+            moved = np.linalg.norm(sol.x - u) / np.linalg.norm(u)
+            print(f"| {m} | {b.name} | {w:.1f} | {share[i]:.3f} | yes | {moved:.3f} | "
+                  f"{known[k].label if k >= 0 else 'none'} |", flush=True)
 
 
 if __name__ == "__main__":

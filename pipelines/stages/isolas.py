@@ -438,8 +438,9 @@ def _compute(ctx: Context, outputs) -> None:
             pd_res, _ = pd_problem()
             pd_seeds = ti_seeds(pd_res, sweep, (lo, hi), scene.casing.n_lobes, only_new_to=res.nu)
             if pd_seeds:
-                pd_known = [_embedded(k, res, pd_res) for k in known + [
-                    KnownBranch.of(b.omega, b.x, f"branch {i:03d}", b.converged) for i, b in enumerate(result.branches)]]
+                found = [KnownBranch.of(b.omega, b.x, f"branch {i:03d}", b.converged)
+                         for i, b in enumerate(result.branches)]
+                pd_known = [_embedded(k, res, pd_res) for k in known + found]
                 pd_bif = _embedded(bif, res, pd_res) if bif is not None else None
                 pd = run_part(f"{method}.period_doubled", pd_problem, pd_seeds, pd_known, pd_bif,
                               f"{method}, period-doubled orbits of the sweep")

@@ -13,7 +13,8 @@ For each treatment of [hbm] methods:
   [validation] primary_tries in all, until it stays; a stable choice is first solved again
   with 2 N_h (check_harmonics) and passed over, unmarched, when it is not converged in N_h;
 - isola: a point (stable if any) of a branch of isolas.h5 in the scene's basis (not the
-  search's period-doubled ones) that never meets the primary: of kind "isola" first, then "detached" (an isola that the Omega range cuts: on the coarse
+  search's period-doubled ones) that never meets the primary: of kind "isola" first, then
+  "detached" (an isola that the Omega range cuts: on the coarse
   rotor 67 ROM the detached 400-1188 rad/s branch carries stable orbits that time
   integration keeps, where the closed isolas have one stable stretch or none), when that
   file exists and holds one (else the reason is recorded); chosen as the primary point is

@@ -124,7 +124,8 @@ def test_ctrl_c_in_rom(coarse_run, tmp_path):
 def test_ctrl_c_in_hbm(coarse_run, coarse_nfrc, tmp_path, capsys):
     scene = clone(coarse_run[1], tmp_path)
     # once the first points are on disk: a fixed delay outlasted the whole stage on a fast host
-    line = interrupt(scene, tmp_path, "hbm", 30.0, "--until", "hbm", once=("nfrc_dlft.partial.h5", "nfrc_rl.partial.h5"))
+    line = interrupt(scene, tmp_path, "hbm", 30.0, "--until", "hbm",
+                     once=("nfrc_dlft.partial.h5", "nfrc_rl.partial.h5"))
     kept = line.split("; kept: ")[1].split(";")[0]
     assert kept.startswith("mesh.h5, fem.h5, rom.h5")
     assert main(["run", str(scene), "--out", str(tmp_path), "--until", "hbm"]) == 0
