@@ -34,20 +34,12 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 
-def odd_share(h: np.ndarray) -> np.ndarray:
-    """Share of the harmonic energy (mean excluded) at odd harmonics; h (..., 2 N_h + 1)."""
-    h = np.asarray(h, dtype=float)
-    n_h = (h.shape[-1] - 1) // 2
-    odd = sum(h[..., 2 * k - 1] ** 2 + h[..., 2 * k] ** 2 for k in range(1, n_h + 1, 2))
-    return odd / np.sum(h[..., 1:] ** 2, axis=-1)
-
-
 def main() -> None:
     from hbm.continuation.newton import NewtonOptions
     from hbm.harmonic.residual import build_residual
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
-    from hbm.isolas.harmonic import doubled_options, search_options, ti_seeds
+    from hbm.isolas.harmonic import coarsened, doubled_options, new_share, search_options, ti_seeds
     from hbm.isolas.membership import KnownBranch
     from hbm.isolas.search import lies_on
     from pipelines.branch_store import load_branch
@@ -72,7 +64,7 @@ def main() -> None:
             if b.subharmonic != 2 * hbm.subharmonic:
                 continue
             ok = b.converged
-            share = odd_share(b.harmonics[ok][:, :, 0])  # LE radial
+            share = new_share(b.harmonics[ok])  # LE radial
             amp = 1e3 * b.le_amplitude[ok]
             print(f"| {m} | {b.name} | {b.kind}{' (closed)' if b.closed else ''} | {b.omega[ok].min():.0f}-"
                   f"{b.omega[ok].max():.0f} | {int(ok.sum())} | {amp.min():.2f}-{amp.max():.2f} | "
@@ -91,7 +83,7 @@ def main() -> None:
             t = time.process_time()
             sol = damped_newton(res, sd.x, sd.omega, NewtonOptions(tol_residual=hbm.tolerance),
                                 HbmSolver(atol=0.1 * hbm.tolerance))
-            s0 = odd_share(res.to_coefficients(sd.x)[:, 0])
+            s0 = new_share(res.to_coefficients(sd.x)[None])[0]
             if not sol.converged:
                 print(f"| {m} | {sd.omega:.0f} | no ({sol.reason[:40]}) | {sol.iterations} | - | {s0:.2f} / - | - | "
                       f"- | {time.process_time() - t:.1f} |", flush=True)
@@ -99,7 +91,7 @@ def main() -> None:
             sp, _ = orbit_spectrum(res, sol.x, sd.omega)
             le = res.signals(sol.x, sd.omega)["displacement"][:, 0]
             moved = np.linalg.norm(sol.x - sd.x) / np.linalg.norm(sd.x)
-            s1 = odd_share(res.to_coefficients(sol.x)[:, 0])
+            s1 = new_share(res.to_coefficients(sol.x)[None])[0]
             ratio = 0.5 * np.ptp(le) / sweep.amplitude[i] - 1
             print(f"| {m} | {sd.omega:.0f} | yes | {sol.iterations} | {moved:.3f} | {s0:.2f} / {s1:.2f} | {ratio:+.3f} | "
                   f"{sp.largest_modulus:.3f} ({sp.n_unstable}) | {time.process_time() - t:.1f} |", flush=True)
@@ -119,15 +111,10 @@ def main() -> None:
             if b.subharmonic != 2 * hbm.subharmonic:
                 continue
             ok = b.converged
-            share = odd_share(b.harmonics[ok][:, :, 0])
+            share = new_share(b.harmonics[ok])
             i = int(np.argmin(share))
             w = float(b.omega[ok][i])
-            xr2 = pd_res.to_coefficients(b.x[ok][i])  # (4 N_h + 1, n_r), harmonics of Omega / 2
-            xr = np.zeros((res.n_c, res.n_r))
-            xr[0] = xr2[0]
-            for k in range(1, hbm.n_harmonics + 1):  # harmonic 2k of Omega / 2 is harmonic k of Omega
-                xr[2 * k - 1], xr[2 * k] = xr2[4 * k - 1], xr2[4 * k]
-            u = res.to_unknowns(xr)
+            u = coarsened(pd_res, res, b.x[ok][i])  # its even harmonics of Omega / 2: those of Omega
             solver = HbmSolver(atol=0.1 * hbm.tolerance)
             sol = damped_newton(res, u, w, NewtonOptions(tol_residual=hbm.tolerance), solver)
             if not sol.converged:

@@ -6,7 +6,9 @@ treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_s
 Then, with [isolas] ti_period_doubled, a second search in the basis of twice the period
 (Omega / (2 nu), 2 N_h harmonics) from the sweep's orbits of that period only (omega =
 Omega / 2), with the primary and the branches just found known (embedded there): the
-period-doubled branches time integration lands on. Every branch is
+period-doubled branches time integration lands on. A doubled branch that passes through an
+orbit of a known branch (the period doubling it is born at, hbm.isolas.harmonic.doubling_origin)
+is "bifurcated". Every branch is
 written to isolas.partial.h5 as soon as it is finished (and the seeds' corrections once
 done), under the treatment's name or NAME.period_doubled; an interrupted run of the same
 inputs resumes from them without recomputing. The final file is written atomically, both
@@ -258,6 +260,29 @@ def _merged(parts):
     return seeds, np.concatenate(converged), np.concatenate(seed_branch), branches
 
 
+def _born_at_doublings(result, res, pd_res, known, options, ctx=None):
+    """The doubled search's result with each branch that passes through an orbit of a known
+    branch of res's basis (hbm.isolas.harmonic.doubling_origin: the continuation's own join
+    test misses these crossings) made "bifurcated", the crossing named in its status."""
+    from dataclasses import replace
+
+    from hbm.harmonic.solver import HbmSolver
+    from hbm.isolas.harmonic import doubling_origin
+
+    solver = HbmSolver(atol=0.1 * res.options.tolerance)
+    out = []
+    for i, fb in enumerate(result.branches):
+        hit = doubling_origin(res, pd_res, solver, fb, known, options) if fb.kind != "bifurcated" else None
+        if hit is not None:
+            k, w = hit
+            fb = replace(fb, kind="bifurcated",
+                         status=f"{fb.status}; born at a period doubling of {known[k].label} near {w:.1f} rad/s")
+            if ctx is not None:
+                ctx.log(f"    doubled branch {i:03d}: a period doubling of {known[k].label} near {w:.1f} rad/s: bifurcated")
+        out.append(fb)
+    return replace(result, branches=tuple(out))
+
+
 def _embedded(branch, res, target):
     """A KnownBranch of res's unknowns in those of `target`, whose fundamental is an integer
     fraction of res's (hbm.stability.switching.embed_harmonics: an exact solution there too)."""
@@ -444,7 +469,8 @@ def _compute(ctx: Context, outputs) -> None:
                 pd_bif = _embedded(bif, res, pd_res) if bif is not None else None
                 pd = run_part(f"{method}.period_doubled", pd_problem, pd_seeds, pd_known, pd_bif,
                               f"{method}, period-doubled orbits of the sweep")
-                parts.append(pd[:2])
+                pd_result = _born_at_doublings(pd[0], res, pd_res, known + found, opts, ctx if root else None)
+                parts.append((pd_result, pd[1]))
                 cpu, wall = cpu + pd[2], wall + pd[3]
         results[method] = (parts, "complete", cpu, wall)
         if root:

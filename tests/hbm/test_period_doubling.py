@@ -196,3 +196,37 @@ def test_a_branch_computed_without_stability_gets_it_afterwards(branch):
     assert np.array_equal(d["n_unstable"], (om < w_exact).astype(int))
     assert d["stability_analysed"].sum() < 0.35 * len(om), (d["stability_analysed"].sum(), len(om))
     assert np.all(np.isfinite(d["leading_multipliers"][d["stability_analysed"], 0]))
+
+
+def test_a_doubled_branch_through_the_period_doubling_is_traced_to_it(branch):
+    """hbm.isolas.harmonic.doubling_origin: the switched branch continued back through the
+    period doubling passes through an orbit without W / 2 content, which lies on the
+    W-periodic branch, at the located doubling's Omega (within 0.05, the branch's step
+    ds_max is 0.02); its part below 4.45 rad/s against only the W-periodic branch's part
+    above 4.5 rad/s, far from the doubling, is traced to nothing."""
+    from hbm.continuation.arclength import ContinuationOptions as CO
+    from hbm.isolas.harmonic import DOUBLING_SHARE, doubling_origin, new_share
+    from hbm.isolas.membership import KnownBranch
+    from hbm.isolas.search import SearchOptions
+
+    res, br, bifs, _ = branch
+    pd = bifs[0]
+    i = pd.index + 1
+    st = switch_branch(res, br.x[i], br.omega[i], pd)
+    opts = CO(omega_min=3.9, omega_max=4.6, ds=0.005, ds_max=0.02, direction=1, newton=NOPT, closed_loop_tol=None,
+              omega_scale=1.0, max_points=60)
+    b2 = continue_branch(st.residual, st.u, st.omega, opts)
+    harmonics = np.array([nfrc_extras(st.residual, x)["harmonics"] for x in b2.x])
+    doubled = SimpleNamespace(x=b2.x, omega=b2.omega, converged=b2.converged, extras={"harmonics": harmonics})
+    assert new_share(harmonics[b2.converged]).min() < DOUBLING_SHARE
+    known = [KnownBranch.of(br.omega, br.x, "W-periodic", br.converged)]
+    search = SearchOptions(tolerance=1e-2, continuation=opts, newton=NOPT)
+    hit = doubling_origin(res, st.residual, None, doubled, known, search)
+    assert hit is not None and hit[0] == 0 and abs(hit[1] - pd.omega) < 0.05
+    above = br.omega > 4.5
+    far = [KnownBranch.of(br.omega[above], br.x[above], "W-periodic above 4.5", br.converged[above])]
+    cut = b2.omega < 4.45
+    part = SimpleNamespace(x=b2.x[cut], omega=b2.omega[cut], converged=b2.converged[cut],
+                           extras={"harmonics": harmonics[cut]})
+    assert doubling_origin(res, st.residual, None, part, far, search) is None
+    assert doubling_origin(res, st.residual, None, part, known, search)[0] == 0
