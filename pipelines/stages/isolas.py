@@ -399,10 +399,10 @@ def _compute(ctx: Context, outputs) -> None:
     from hbm.harmonic.content import branch_content, rom_modes
 
     modes = rom_modes(rom.K, rom.M)
-    def run_part(key, problem, seeds, known, bif, label):
-        """One search (a treatment, or its period-doubled part): resumed from and saved to
-        isolas.partial.h5 under `key`. -> (IsolaSearch, residual, CPU s, wall s)."""
-        res, _ = problem()
+    def run_part(key, problem, res, seeds, known, bif, label):
+        """One search (a treatment, or its period-doubled part; res: problem's residual, built
+        once by the caller for its seeds): resumed from and saved to isolas.partial.h5 under
+        `key`. -> (IsolaSearch, CPU s, wall s)."""
         corrections, done = partial.resume(key) if root else (None, [])
         if comm is not None:
             corrections, done = comm.bcast((corrections, done), root=0)
@@ -440,7 +440,7 @@ def _compute(ctx: Context, outputs) -> None:
                 ctx.log(f"    branch {k:03d}: {b.kind}{' (closed)' if b.closed else ''}, Omega "
                         f"{b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} rad/s, {int(ok.sum())} points, "
                         f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds")
-        return result, res, cpu, wall
+        return result, cpu, wall
 
     for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
         problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
@@ -452,7 +452,7 @@ def _compute(ctx: Context, outputs) -> None:
         if sweep is not None:
             seeds += ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes)
         known, bif = _known(out, method)
-        result, res, cpu, wall = run_part(method, problem, seeds, known, bif, method)
+        result, cpu, wall = run_part(method, problem, res, seeds, known, bif, method)
         mains[method] = result
         parts = [(result, res)]
         if sweep is not None and iso.ti_period_doubled:
@@ -467,11 +467,11 @@ def _compute(ctx: Context, outputs) -> None:
                          for i, b in enumerate(result.branches)]
                 pd_known = [_embedded(k, res, pd_res) for k in known + found]
                 pd_bif = _embedded(bif, res, pd_res) if bif is not None else None
-                pd = run_part(f"{method}.period_doubled", pd_problem, pd_seeds, pd_known, pd_bif,
-                              f"{method}, period-doubled orbits of the sweep")
-                pd_result = _born_at_doublings(pd[0], res, pd_res, known + found, opts, ctx if root else None)
-                parts.append((pd_result, pd[1]))
-                cpu, wall = cpu + pd[2], wall + pd[3]
+                pd_result, pd_cpu, pd_wall = run_part(f"{method}.period_doubled", pd_problem, pd_res, pd_seeds,
+                                                      pd_known, pd_bif, f"{method}, period-doubled orbits of the sweep")
+                pd_result = _born_at_doublings(pd_result, res, pd_res, known + found, opts, ctx if root else None)
+                parts.append((pd_result, pd_res))
+                cpu, wall = cpu + pd_cpu, wall + pd_wall
         results[method] = (parts, "complete", cpu, wall)
         if root:
             content[method] = [branch_content(r, rom, b.x, b.omega, modes) for part, r in parts for b in part.branches]
