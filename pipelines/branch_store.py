@@ -191,6 +191,12 @@ class BranchStore:
         self._h5.flush()
         self.n_points = m + 1
 
+    def write_tables(self, tables: dict) -> None:
+        """Write (or replace) whole-branch tables {group: {name: (array, unit)}} in the partial
+        file and flush them: what a resumed run reads back (read_tables)."""
+        write_tables(self._h5, tables)
+        self._h5.flush()
+
     def finalize(self, status: str, detail: str = "", tables: dict | None = None) -> Path:
         """Record why the branch stopped, mark complete, add the datasets' checksums
         (pipelines.artifacts.verify), rename to NAME.h5; returns that path.
@@ -264,6 +270,14 @@ def write_tables(parent, tables: dict) -> None:
             if value.dtype == object:
                 value = np.array([str(v) for v in value], dtype=h5py.string_dtype())
             g.create_dataset(name, data=value).attrs["unit"] = unit
+
+
+def read_tables(path: Path | str) -> dict:
+    """{group: {name: array}} of the whole-branch tables in a branch file, complete or partial
+    (those BranchStore.write_tables or finalize wrote)."""
+    with h5py.File(path, "r") as h5:
+        return {name: {k: v for k, (v, _) in read_table(g).items()} for name, g in h5.items()
+                if isinstance(g, h5py.Group) and name != "extras"}
 
 
 def read_table(group) -> dict:

@@ -71,8 +71,8 @@ class NfrcResult:
     the failed last point); stability_analysed (m,) bool, computed there (else inferred
     from the analysed neighbours, hbm.stability.monitor); leading_multipliers (m, k), the
     k largest |multipliers| (nan where not analysed). bifurcations: the located
-    hbm.stability.bifurcation.Bifurcation, in branch order (after a resume: of the new part
-    only). n_stability_analyses: Floquet analyses made; stability_time: their wall time, s.
+    hbm.stability.bifurcation.Bifurcation, in branch order (after a resume: with the
+    resume_bifurcations given). n_stability_analyses: Floquet analyses made; stability_time: their wall time, s.
     """
 
     method: str
@@ -98,6 +98,10 @@ class NfrcResult:
     bifurcations: tuple = ()
     n_stability_analyses: int = 0
     stability_time: float = 0.0
+
+
+def _in_branch_order(bifurcations) -> tuple:
+    return tuple(sorted(bifurcations, key=lambda b: (b.index, b.fraction)))
 
 
 def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
@@ -141,7 +145,9 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                  continuation: ContinuationOptions | None = None, forcing: HarmonicForcing | None = None,
                  residual: HarmonicBalanceResidual | None = None, solver: LinearSolver | None = None,
                  resume=None, guess: tuple[float, np.ndarray] | None = None,
-                 stability: bool | StabilityOptions | None = None) -> NfrcResult:
+                 stability: bool | StabilityOptions | None = None,
+                 resume_bifurcations: tuple = (),
+                 on_bifurcations: Callable[[tuple], None] | None = None) -> NfrcResult:
     """NFRC over Omega in [hbm.omega_min, hbm.omega_max] for one method.
 
     rom: RomModel (node 0 = LE). casing, contact, hbm: scene options. method: "dlft" | "rl".
@@ -173,6 +179,14 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       once its stability is known (up to StabilityOptions.max_gap points later), its extras
       completed with stable, n_unstable, stability_analysed, leading_multipliers and
       period_ratio (the failed last point: n_unstable -1).
+    resume_bifurcations: with resume and stability, the bifurcations located along the
+      resumed points (hbm.stability.bifurcation.bifurcations_from_arrays of the interrupted
+      run's table); those between two resumed points are kept (the others cannot have been
+      located: they need a point not on disk) and the result's bifurcations include them.
+    on_bifurcations(bifurcations): with stability, called with every bifurcation located so
+      far (the Bifurcation tuple in branch order) each time that set changes, after on_point
+      has seen the points they lie between: an interrupted run's points and bifurcations then
+      agree, and resume_bifurcations takes them back.
     """
     res = residual or build_residual(rom, casing, contact, hbm, method=method, forcing=forcing)
     opts = continuation or default_continuation(hbm)
@@ -186,11 +200,16 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     per_point = {}  # index -> stability extras
     t_stab = [0.0]
 
+    told = [[]]  # ids of the bifurcations on_bifurcations last saw
+
     def hand_on(items):
         for q, exq in items:
             per_point[q.index] = exq
             if on_point is not None:
                 on_point(q, exq)
+        if on_bifurcations is not None and [id(b) for b in monitor.bifurcations] != told[0]:
+            told[0] = [id(b) for b in monitor.bifurcations]
+            on_bifurcations(_in_branch_order(monitor.bifurcations))
 
     def row(p: ContinuationPoint, reason: str):
         ex = nfrc_extras(res, p.x)
@@ -241,6 +260,9 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                                            float(old.time[i])) for i in range(max(0, m0 - 3), m0)]
                 t = time.perf_counter()
                 monitor.seed(seeds, [nfrc_extras(res, q.x) for q in seeds])
+                # a crossing or a fold lies before the last of the points it was located from
+                monitor.bifurcations.extend(b for b in resume_bifurcations if b.index <= m0 - 2)
+                told[0] = [id(b) for b in monitor.bifurcations]
                 t_stab[0] += time.perf_counter() - t
             branch = continue_branch(res, None, None, opts, on_point=record, solver=fac, resume=old)
         elif guess is not None:
@@ -285,7 +307,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                     stability_analysed=col("stability_analysed", False, bool),
                     leading_multipliers=np.array([np.asarray(per_point.get(p.index, {}).get(
                         "leading_multipliers", np.full(k, np.nan)), dtype=float) for p in pts]).reshape(m, k),
-                    bifurcations=tuple(sorted(monitor.bifurcations, key=lambda b: (b.index, b.fraction))),
+                    bifurcations=_in_branch_order(monitor.bifurcations),
                     n_stability_analyses=monitor.n_analyses, stability_time=t_stab[0])
     return NfrcResult(
         method=method, omega=np.array([p.omega for p in pts]),

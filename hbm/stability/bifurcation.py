@@ -160,3 +160,17 @@ def bifurcation_arrays(bifurcations) -> dict:
         "direction": (np.array([x.direction for x in b], dtype=np.int64), "-"),
         "period_ratio": (np.array([x.period_ratio for x in b], dtype=np.int64), "-"),
     }
+
+
+def bifurcations_from_arrays(table: dict) -> tuple:
+    """The Bifurcation tuple of a table read back from a file ({name: array} of the columns
+    bifurcation_arrays writes): what a resumed branch starts from. The file holds no
+    exponent, mode or eigenvector: those stay at their defaults."""
+    n = len(np.asarray(table["omega"]))
+    col = {k: np.asarray(v) for k, v in table.items()}
+    return tuple(Bifurcation(
+        kind=str(col["kind"][i]), omega=float(col["omega"][i]), le_amplitude=float(col["le_amplitude"][i]),
+        index=int(col["index"][i]), fraction=float(col["fraction"][i]),
+        omega_bracket=(float(col["omega_low"][i]), float(col["omega_high"][i])),
+        multiplier=complex(float(col["multiplier_real"][i]), float(col["multiplier_imag"][i])),
+        direction=int(col["direction"][i]), period_ratio=int(col["period_ratio"][i])) for i in range(n))

@@ -151,13 +151,14 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
 
 def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
     from hbm.harmonic.nfrc import compute_nfrc
-    from pipelines.branch_store import BranchStore, load_branch, partial_path
+    from hbm.stability.bifurcation import bifurcation_arrays, bifurcations_from_arrays
+    from pipelines.branch_store import BranchStore, load_branch, partial_path, read_tables
 
     scene, method = ctx.scene, output.key
     final = ctx.out / output.file
     part = partial_path(final)
     attrs = {**ctx.attrs(output, "hbm"), "method": method}
-    resume, store = None, None
+    resume, store, resumed_bifurcations = None, None, ()
     if part.is_file() and art.read_attrs(part).get("inputs_hash") == ctx.hashes[output.file]:
         # an interrupted run of exactly these inputs: keep its points and go on from them
         try:
@@ -169,7 +170,10 @@ def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
                 say.log(f"  {method}: {part.name} holds no start point: the NFRC starts over")
             else:
                 store = BranchStore.reopen(part)
-                say.log(f"  {method}: resuming from {store.n_points} points on disk")
+                table = read_tables(part).get("bifurcations")
+                resumed_bifurcations = bifurcations_from_arrays(table) if table else ()
+                say.log(f"  {method}: resuming from {store.n_points} points on disk"
+                        + (f" and {len(resumed_bifurcations)} bifurcations" if resumed_bifurcations else ""))
         except (OSError, ValueError, KeyError) as exc:  # a run killed inside an HDF5 write
             resume, store = None, None
             say.warn(f"{part.name} cannot be read ({art.first_line(exc)}): the {method} NFRC starts over")
@@ -183,9 +187,13 @@ def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
         store.append(point, {**extras, **content(point)})
         say.update(f"\u03a9 = {point.omega:.1f} rad/s, {point.index + 1} points, ds = {point.step:.3g}")
 
+    def on_bifurcations(bifurcations):  # kept with the points, for a resume
+        store.write_tables({"bifurcations": bifurcation_arrays(bifurcations)})
+
     try:
         result = compute_nfrc(rom, scene.casing, scene.contact, scene.hbm, method=method, on_point=on_point,
-                              resume=resume)
+                              resume=resume, resume_bifurcations=resumed_bifurcations,
+                              on_bifurcations=on_bifurcations)
     finally:
         if store is not None:
             store.close()
@@ -194,8 +202,6 @@ def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
                            attrs=attrs, units=EXTRA_UNITS).close()
     tables = {"modes": {"frequencies": (mode_frequencies, "rad/s")}}
     if scene.hbm.stability:  # the bifurcations located along the branch
-        from hbm.stability.bifurcation import bifurcation_arrays
-
         tables["bifurcations"] = bifurcation_arrays(result.bifurcations)
     BranchStore.reopen(part).finalize(result.status, tables=tables)
     ok = int(result.converged.sum())

@@ -219,6 +219,38 @@ def test_a_partial_file_without_its_start_point_starts_over(coarse_run, coarse_n
     np.testing.assert_array_equal(done.branch.omega, ref.branch.omega)  # the same points as the uninterrupted run
 
 
+def test_an_interrupted_nfrc_with_stability_keeps_its_bifurcations(coarse_run, tmp_path, monkeypatch, capsys):
+    """[hbm] stability: Ctrl-C at DLFT's 41st point, after the folds near 1975 and 1979 rad/s
+    and before the Neimark-Sacker points further down: the partial file holds the
+    bifurcations located between its points, and the resumed run's table is the
+    uninterrupted run's, kind by kind and Omega by Omega (to the continuation's resampling
+    after the resume). The resume used to drop every bifurcation located before the
+    interruption."""
+    from pipelines.branch_store import read_tables
+
+    # every point analysed: a gapped schedule restarted at the resume may find a pair of
+    # crossings inside one of the uninterrupted run's gaps (README, stability schedule)
+    stab = ("--set", "hbm.stability=true", "--set", "hbm.stability_max_gap=1", "--set", 'hbm.methods=["dlft"]',
+            "--until", "hbm")
+    ref_dir = tmp_path / "ref"
+    ref_scene = clone(coarse_run[1], ref_dir)
+    assert run(ref_scene, ref_dir, *stab) == 0
+    ref = read_tables(ref_dir / "nfrc_dlft.h5")["bifurcations"]
+    assert len(ref["kind"]) >= 4 and np.sum(ref["index"] < 40) >= 2, ref  # some before the interruption, some after
+    scene = clone(coarse_run[1], tmp_path / "cut")
+    _ctrl_c_before_point(monkeypatch, "nfrc_dlft.h5", 40)
+    assert run(scene, tmp_path / "cut", *stab) == 130
+    part = read_tables(tmp_path / "cut" / "nfrc_dlft.partial.h5")["bifurcations"]
+    assert list(part["kind"]) == list(ref["kind"][ref["index"] < 38]), part  # located between points on disk
+    capsys.readouterr()
+    monkeypatch.undo()
+    assert run(scene, tmp_path / "cut", *stab) == 0
+    assert f"dlft: resuming from 40 points on disk and {len(part['kind'])} bifurcations" in capsys.readouterr().out
+    done = read_tables(tmp_path / "cut" / "nfrc_dlft.h5")["bifurcations"]
+    assert list(done["kind"]) == list(ref["kind"])
+    np.testing.assert_allclose(done["omega"], ref["omega"], atol=0.5)
+
+
 #: `bladerub run` with a full disk in RL's process at its 4th point (a fresh interpreter that
 #: starts at the hbm stage has not initialised MPI, so the treatments' processes are forked
 #: and inherit the patch).
