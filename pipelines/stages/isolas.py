@@ -32,7 +32,7 @@ Layout of isolas.h5 (root: the usual provenance attributes):
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -244,6 +244,7 @@ def _merged(parts):
     seeds, converged, seed_branch, branches = [], [], [], []
     first = len(parts[0][0].branches)
     for r, res in parts:
+        offset = len(seeds)  # a part's seed indices count from its own first seed
         sb = np.array(r.seed_branch, dtype=np.int64)
         sb[sb >= 0] += len(branches)
         if branches:  # known branches: [primary, the first part's branches in order]
@@ -253,10 +254,14 @@ def _merged(parts):
             on[dup] = on[np.asarray(c.same_as)[dup]]  # a duplicate lies where its representative does
             moved = (sb == ON_KNOWN) & (on >= 1) & (on <= first)
             sb[moved] = on[moved] - 1
+            for i in np.flatnonzero(moved):  # the branch carries the seeds that lie on it
+                fb, nu = branches[sb[i]]
+                branches[sb[i]] = (replace(fb, seeds=tuple(sorted(fb.seeds + (offset + int(i),)))), nu)
         seeds += list(r.seeds)
         converged.append(np.asarray(r.corrections.converged, bool))
         seed_branch.append(sb)
-        branches += [(fb, res.nu) for fb in r.branches]
+        branches += [(replace(fb, start=fb.start + offset, seeds=tuple(offset + s for s in fb.seeds)), res.nu)
+                     for fb in r.branches]
     return seeds, np.concatenate(converged), np.concatenate(seed_branch), branches
 
 

@@ -76,19 +76,29 @@ def test_the_sweep_point_seeds_one_period_doubled_branch(searched):
 def test_the_two_searches_of_a_treatment_are_written_as_one():
     """_merged numbers the second search's branches after the first's, and gives a seed of
     the second that lies on an embedded branch of the first (known branch 1 + k) that
-    branch's number, a duplicate as its representative, one on the primary (known 0) -2."""
+    branch's number, a duplicate as its representative, one on the primary (known 0) -2.
+    Every branch's seeds and start are indices into the merged seeds: the branch's seeds are
+    exactly those whose seed_branch is its number."""
     from types import SimpleNamespace as NS
 
+    from hbm.isolas.search import FoundBranch
     from pipelines.stages.isolas import _merged
 
-    first = NS(seeds=("a", "b", "c"), branches=("A0", "A1"), seed_branch=np.array([0, -2, -1]),
+    def found(name, start, seeds):
+        return FoundBranch(np.zeros(1), np.zeros((1, 1)), np.ones(1, bool), name, False, "", start, seeds)
+
+    first = NS(seeds=("a", "b", "c"), branches=(found("A0", 0, (0,)), found("A1", 1, ())),
+               seed_branch=np.array([0, -2, -1]),
                corrections=NS(converged=np.array([True, True, False]), on_known=np.array([-1, 0, -1]),
                               same_as=np.array([-1, -1, -1])))
-    second = NS(seeds=("d", "e", "f", "g"), branches=("B0",), seed_branch=np.array([0, -2, -2, -2]),
+    second = NS(seeds=("d", "e", "f", "g"), branches=(found("B0", 0, (0,)),), seed_branch=np.array([0, -2, -2, -2]),
                 corrections=NS(converged=np.array([True, True, True, True]), on_known=np.array([-1, 2, -1, 0]),
                                same_as=np.array([-1, -1, 1, -1])))
     seeds, converged, seed_branch, branches = _merged([(first, NS(nu=1)), (second, NS(nu=2))])
     assert seeds == ["a", "b", "c", "d", "e", "f", "g"]
     assert converged.tolist() == [True, True, False, True, True, True, True]
     assert seed_branch.tolist() == [0, -2, -1, 2, 1, 1, -2]
-    assert branches == [("A0", 1), ("A1", 1), ("B0", 2)]
+    assert [(fb.kind, nu) for fb, nu in branches] == [("A0", 1), ("A1", 1), ("B0", 2)]
+    for k, (fb, _) in enumerate(branches):
+        assert list(fb.seeds) == np.flatnonzero(seed_branch == k).tolist()
+    assert [fb.start for fb, _ in branches] == [0, 1, 3]
