@@ -26,9 +26,10 @@ For each treatment of [hbm] methods:
   finds none whose branch switch converges), the period-doubled branch switched to there
   and continued both ways (stored here), and a point of it (stable if any, checked with 2 N_h as the primary
   point is: one that fails is passed over for the next stable choice of the same branch,
-  unmarched); when time integration leaves that
-  point, the period doublings that end stable stretches of the isola search's branches
-  (doubling_candidates), up to [validation] pd_tries in all, until it stays on one.
+  unmarched); when time integration leaves that point, the isola search's own branches of
+  twice the period (searched_doubled_branches: its second search, seeded from the sweep),
+  then the period doublings that end stable stretches of its branches (doubling_candidates),
+  up to [validation] pd_tries in all, until it stays on one.
 From each point time integration is marched [validation] n_periods periods of the orbit
 (hbm.ti.validation.march_from_hbm); when it leaves a stable point for anything but the
 friction lock, it is marched again with [ti] dt / [validation] dt_refinement, and that march
@@ -466,6 +467,40 @@ def doubling_candidates(branches) -> list:
     return [(br, i) for _, br, i in out]
 
 
+def searched_doubled_branches(branches, nu: int) -> list:
+    """The isola search's branches in the basis of twice the scene's period (subharmonic 2 nu:
+    its second search, seeded from the sweep's omega = Omega / 2 points), those that more sweep
+    points landed on first. Why first: time integration from rest ended on them, so they hold
+    the doubled orbits a blade is found on, where a doubling of the NFRC may lead into the
+    friction lock (coarse rotor 67 ROM)."""
+    doubled = [br for br in branches if br.subharmonic == 2 * nu]
+    return sorted(doubled, key=lambda br: -len(br.seeds))  # stable: file order among equals
+
+
+def _searched_point(ctx, rom, system, method: str, n_r: int, where: str, br, update):
+    """(ValidationPoint, DoubledBranch) of a doubled branch of the isola search (IsolaBranch):
+    a point carrying the Omega / 2 harmonics, chosen and marched as the switched branches' are."""
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.selection import new_content
+
+    scene = ctx.scene
+    hbm = _options_for(scene.hbm, br.x.shape[1], n_r, br.subharmonic)
+    r_b = build_residual(rom, scene.casing, scene.contact, hbm, method=method)
+    content = np.array([new_content(r_b, u, 2) for u in br.x])
+    far = (content >= 0.05) & np.asarray(br.converged, bool)  # as on a switched branch: not the old orbit
+    c = Candidate(where, r_b, br.omega, br.x, br.le_amplitude, br.converged, br.stable,
+                  eligible=far if far.any() else None, monitor=_branch_monitor(hbm))
+    p = _try_until_kept(ctx, rom, system, "period_doubling", method, [c], 1, update)
+    stable = c.stable if c.stable is not None else np.zeros(0, bool)
+    n_unstable = br.n_unstable if br.n_unstable is not None else np.zeros(0, int)
+    reason = (f"{where}: a {br.kind} branch of the isola search in the basis of Omega / {br.subharmonic} "
+              f"({len(br.seeds)} seed(s); {br.status})")
+    return p, DoubledBranch(True, reason, subharmonic=br.subharmonic, n_harmonics=hbm.n_harmonics,
+                            n_time=hbm.n_time, omega=np.asarray(br.omega, float), x=np.asarray(br.x, float),
+                            le_amplitude=np.asarray(br.le_amplitude, float), stable=np.asarray(stable, bool),
+                            n_unstable=np.asarray(n_unstable, int), new_content=content)
+
+
 def _branch_monitor(hbm) -> tuple:
     """Candidate.monitor of a branch computed with `hbm`: the continuation's scales and the
     scene's stability gap."""
@@ -478,7 +513,8 @@ def _branch_monitor(hbm) -> tuple:
 
 def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update, nfrc: Candidate | None = None):
     """(ValidationPoint, DoubledBranch) of the period-doubling point: the NFRC's first period
-    doubling, then doubling_candidates of isolas.h5, up to [validation] pd_tries, until time
+    doubling, then searched_doubled_branches and doubling_candidates of isolas.h5, up to
+    [validation] pd_tries, until time
     integration stays on the doubled branch's chosen point (the first try is kept when none
     does; the reason lists every try). An NFRC stored without stability: its doublings from
     the branch stability that nfrc (Candidate of the NFRC with a monitor) computed for the
@@ -501,11 +537,17 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets)]
     monitor_left = brackets is None and nfrc is not None and nfrc.monitor is not None
     if opts.pd_tries > 1:
-        for br, i in doubling_candidates(read_branch_set(ctx.out / ISOLAS, method))[: opts.pd_tries - 1]:
+        found = read_branch_set(ctx.out / ISOLAS, method)
+        # the search's own doubled branches first (time integration from rest ended on them),
+        # then the doublings of its branches, each switched to here
+        for br in searched_doubled_branches(found, scene.hbm.subharmonic):
+            sources.append((f"{ISOLAS} {method}/branches/{br.name}", br))
+        for br, i in doubling_candidates(found)[: max(0, opts.pd_tries - len(sources))]:
             r_b = build_residual(rom, scene.casing, scene.contact,
                                  _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic), method=method)
             sources.append((f"{ISOLAS} {method}/branches/{br.name}", r_b, br.omega, br.x, br.le_amplitude,
                             br.converged, [i]))
+        del sources[opts.pd_tries:]
     def switch(r_s, loc, where):
         """(DoubledBranch, its residual) switched to at loc, or None when nothing was located."""
         if loc.bifurcation is None:
@@ -515,7 +557,18 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                                        n_points=opts.pd_points)
 
     first, tried = None, []
-    for where, r_s, omega, x, amp, conv, brackets in sources:
+    for where, *source in sources:
+        if len(source) == 1:  # a doubled branch of the isola search: no switch
+            update(f"{tag}: the isola search's period-doubled branch {where}")
+            result = _searched_point(ctx, rom, system, method, res.n_r, where, source[0], update)
+            p = result[0]
+            tried.append(f"{where} (the search's), point at {p.omega:.1f} rad/s, time integration "
+                         f"{ti_verdict(p.ti, rom, scene.contact.mu)}" if p.found else f"{where}: none ({p.reason})")
+            first = first or result
+            if p.found and p.ti is not None and bool(p.ti.stays):
+                break
+            continue
+        r_s, omega, x, amp, conv, brackets = source
         update(f"{tag}: period doubling of {where}")
         loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan,
                                      **({"brackets_from": nfrc_from} if where == "the NFRC" else {}))
@@ -726,7 +779,7 @@ def draw_solution_set(ctx: Context) -> None:
         if t is not None:
             marks += [("validation point", p.omega, p.le_amplitude) for p in (t.primary, t.isola, t.period_doubling)
                       if p.found]
-            if t.pd_branch.found:
+            if t.pd_branch.found and not t.period_doubling.branch.startswith(ISOLAS):  # else drawn above
                 d = t.pd_branch
                 lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable))
         curves[m.upper()] = (lines, marks)

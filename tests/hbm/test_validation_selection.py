@@ -653,3 +653,59 @@ def test_a_period_doubling_the_scan_misses_is_found_from_the_branch_stability(lo
     assert len(switched_at) == 1 and 4.3 < switched_at[0] < 4.36, switched_at
     assert p.found and len(marched) == 1 and pd_branch.found
     assert "from the branch's stability computed here" in pd_branch.reason and c._stability is not None
+
+
+def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, doubled, tmp_path, monkeypatch):
+    """_period_doubling with an isolas.h5 that holds two branches in the basis of W / 2 (the
+    isola search's second search, seeded from time integration) and one in the scene's: when
+    time integration leaves the NFRC's doubled branch, the search's doubled branch that more
+    seeds landed on is tried next, as it is (no switch), at a point that carries the W / 2
+    harmonics, and kept when time integration stays; its DoubledBranch reports the same
+    W / 2 share as the switch computed for those orbits. The switch, the check with 2 N_h
+    and the march are stand-ins; the choice's Floquet analyses are real."""
+    import h5py
+
+    import hbm.harmonic.residual as residual_module
+    import hbm.stability.selection as selection
+    import pipelines.stages.validation as stage
+    from hbm.options import ValidationOptions
+    from hbm.stability.selection import HarmonicCheck
+    from pipelines.stages.isolas import IsolaBranch
+
+    res, br, amp, _ = oscillator
+    _, db, new = doubled
+
+    def branch(index, nu, seeds):
+        return IsolaBranch("rl", index, "isola", True, "+: closed loop", nu, np.array(seeds), db.omega, db.x,
+                           np.ones(len(db.omega), bool), db.le_amplitude, np.zeros((len(db.omega), 1, 1)))
+
+    found = [branch(0, 1, [1, 2, 3]), branch(1, 2, [4]), branch(2, 2, [5, 6])]
+    monkeypatch.setattr(stage, "read_branch_set", lambda path, method: found)
+    monkeypatch.setattr(residual_module, "build_residual", lambda *a, **k: new)
+    monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (db, new))
+    monkeypatch.setattr(selection, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
+    marched = []
+
+    def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None):
+        marched.append((where, ch.index))
+        stays = where.startswith("isolas.h5")
+        ti = SimpleNamespace(stays=stays, outcome="stays" if stays else "leaves",
+                             verdict=lambda: "stays" if stays else "leaves")
+        return stage.ValidationPoint(kind, method, True, ch.reason, where, ch.index, ch.omega, 2,
+                                     le_amplitude=ch.le_amplitude, stable=ch.stable, ti=ti)
+
+    monkeypatch.setattr(stage, "_validate", fake_validate)
+    nfrc = tmp_path / "nfrc_rl.h5"
+    h5py.File(nfrc, "w").close()  # no stored stability: the NFRC's doubling is located by a scan
+    ctx = SimpleNamespace(out=tmp_path, scene=SimpleNamespace(
+        validation=ValidationOptions(n_candidates=8, pd_tries=3, dt_refinement=1),
+        hbm=HbmOptions(omega_min=3.4, omega_max=4.6), contact=SimpleNamespace(mu=0.0), casing=None))
+    assert [b.index for b in stage.searched_doubled_branches(found, 1)] == [2, 1]
+    p, pd_branch = stage._period_doubling(ctx, None, None, "rl", res, br, {"le_amplitude": amp}, nfrc,
+                                          lambda text: None)
+    assert [w for w, _ in marched] == [marched[0][0], "isolas.h5 rl/branches/002"]
+    assert marched[0][0].startswith("validation.h5")
+    assert p.found and p.branch == "isolas.h5 rl/branches/002" and p.stable and p.ti.stays
+    assert db.new_content[p.index] >= 0.05 and "tried 2" in p.reason, p.reason
+    assert pd_branch.found and pd_branch.subharmonic == 2 and "2 seed(s)" in pd_branch.reason
+    assert np.allclose(pd_branch.new_content, db.new_content, atol=1e-9)
