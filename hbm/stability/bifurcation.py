@@ -127,15 +127,20 @@ def crossings(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: float = 
 
 def parabola_vertex(s: np.ndarray, y: np.ndarray, z: np.ndarray | None = None):
     """Vertex of the parabola y(s) through three points, and z(s) on the parabola through
-    (s, z) there: (s*, y*, z*). s, y, z: (3,)."""
-    c = np.polyfit(s, y, 2)
+    (s, z) there: (s*, y*, z*). s, y, z: (3,).
+
+    The fit is made in t = (s - s_1) / max |s - s_1| (in [-1, 1]): along a long branch s is
+    large and the three points close (arc length ~1e3 apart by 1e-5 near a crawl), where a
+    fit in s itself is ill-conditioned (numpy's RankWarning) and loses the vertex."""
+    s, y = np.asarray(s, float), np.asarray(y, float)
+    scale = float(np.max(np.abs(s - s[1])))
+    c = np.polyfit((s - s[1]) / scale, y, 2) if scale > 0.0 else np.zeros(3)
     if c[0] == 0.0:
         k = int(np.argmax(np.abs(y - y.mean())))
         return float(s[k]), float(y[k]), (float(z[k]) if z is not None else None)
-    ss = -c[1] / (2.0 * c[0])
-    ss = float(np.clip(ss, s.min(), s.max()))
-    zz = float(np.polyval(np.polyfit(s, z, 2), ss)) if z is not None else None
-    return ss, float(np.polyval(c, ss)), zz
+    tt = float(np.clip(-c[1] / (2.0 * c[0]), (s.min() - s[1]) / scale, (s.max() - s[1]) / scale))
+    zz = float(np.polyval(np.polyfit((s - s[1]) / scale, np.asarray(z, float), 2), tt)) if z is not None else None
+    return s[1] + scale * tt, float(np.polyval(c, tt)), zz
 
 
 def bifurcation_arrays(bifurcations) -> dict:

@@ -51,3 +51,22 @@ def test_a_short_unstable_stretch_is_found_where_it_is(name, log_mod):
         assert b.direction == (1 if log_mod(i + 1) > 0 else -1)
     assert flags == {i: log_mod(i) <= 0 for i in range(n)}
     assert mon.n_analyses < n / 3  # the quiet stretches are skipped
+
+
+def test_a_fold_far_along_a_branch_is_placed_at_the_parabola_s_vertex():
+    """parabola_vertex on three points 1e-5 apart in arc length at s ~ 2e3 (a fold reached
+    crawling, far along a long branch): the vertex of Omega(s) = 1500 - 3e8 (s - s_v)^2 and
+    the amplitude there, exactly (analytic), without numpy's RankWarning; a fit in s itself
+    is ill-conditioned there."""
+    import warnings
+
+    from hbm.stability.bifurcation import parabola_vertex
+
+    s_v = 2345.678901234
+    s = s_v + np.array([-1.3e-5, 0.2e-5, 1.1e-5])
+    w = 1500.0 - 3e8 * (s - s_v) ** 2
+    amp = 1e-3 + 2.0 * (s - s_v)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        ss, ww, aa = parabola_vertex(s, w, amp)
+    assert abs(ss - s_v) < 1e-9 and abs(ww - 1500.0) < 1e-9 and abs(aa - 1e-3) < 1e-9
