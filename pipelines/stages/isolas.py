@@ -65,7 +65,8 @@ class IsolaBranch:
     (m, n) and harmonic_contribution (m, N_h + 1), m: the dynamical content of each point
     (hbm.harmonic.content, eqs. 32-34), or None in files without it. bifurcations: the
     branch's table {column: array} (hbm.stability.bifurcation.bifurcation_arrays; index
-    counts this branch's points), or None without stability.
+    counts this branch's points), or None without stability. seed_omega (k,) rad/s: Omega of
+    each of its seeds (a sweep point's speed for the seeds from time integration).
     """
 
     method: str
@@ -85,6 +86,7 @@ class IsolaBranch:
     modal_contribution: np.ndarray | None = None
     harmonic_contribution: np.ndarray | None = None
     bifurcations: dict | None = None
+    seed_omega: np.ndarray | None = None
 
     @property
     def name(self) -> str:
@@ -107,20 +109,23 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
             if not isinstance(g, h5py.Group) or "branches" not in g:
                 continue
             rows = []
+            seed_omega = g["seeds/omega"][()] if "seeds/omega" in g else np.zeros(0)
             for name in sorted(g["branches"]):
                 b = g["branches"][name]
                 a = b.attrs
+                seeds = np.asarray(a["seeds"], dtype=np.int64).reshape(-1)
                 rows.append(IsolaBranch(
                     method=method, index=int(name), kind=_text(a["kind"]), closed=bool(a["closed"]),
                     status=_text(a["status"]), subharmonic=int(a["subharmonic"]),
-                    seeds=np.asarray(a["seeds"], dtype=np.int64).reshape(-1), omega=b["omega"][()], x=b["x"][()],
+                    seeds=seeds, omega=b["omega"][()], x=b["x"][()],
                     converged=b["converged"][()].astype(bool), le_amplitude=b["le_amplitude"][()],
                     harmonics=b["harmonics"][()], stable=b["stable"][()].astype(bool) if "stable" in b else None,
                     n_unstable=b["n_unstable"][()] if "n_unstable" in b else None,
                     modal_contribution=b["modal_contribution"][()] if "modal_contribution" in b else None,
                     harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None,
                     bifurcations=({k: v for k, (v, _) in read_table(b["bifurcations"]).items()}
-                                  if "bifurcations" in b else None)))
+                                  if "bifurcations" in b else None),
+                    seed_omega=seed_omega[seeds[(seeds >= 0) & (seeds < len(seed_omega))]]))
             out[method] = rows
     return out
 

@@ -477,9 +477,17 @@ def searched_doubled_branches(branches, nu: int) -> list:
     return sorted(doubled, key=lambda br: -len(br.seeds))  # stable: file order among equals
 
 
+#: A doubled branch of the isola search is validated near the speeds of its seeds, within
+#: this fraction of them: time integration from rest ended on its orbit there, whereas its
+#: largest stable amplitude elsewhere may lead into the friction lock (coarse rotor 67 ROM,
+#: DLFT: the points at 811.7 and 702.3 rad/s of the branches seeded at 850 and 1110 rad/s).
+SEED_WINDOW = 0.02
+
+
 def _searched_point(ctx, rom, system, method: str, n_r: int, where: str, br, update):
     """(ValidationPoint, DoubledBranch) of a doubled branch of the isola search (IsolaBranch):
-    a point carrying the Omega / 2 harmonics, chosen and marched as the switched branches' are."""
+    a point carrying the Omega / 2 harmonics within SEED_WINDOW of a seed's speed (anywhere
+    on the branch when there is none), chosen and marched as the switched branches' are."""
     from hbm.harmonic.residual import build_residual
     from hbm.stability.selection import new_content
 
@@ -488,6 +496,9 @@ def _searched_point(ctx, rom, system, method: str, n_r: int, where: str, br, upd
     r_b = build_residual(rom, scene.casing, scene.contact, hbm, method=method)
     content = np.array([new_content(r_b, u, 2) for u in br.x])
     far = (content >= 0.05) & np.asarray(br.converged, bool)  # as on a switched branch: not the old orbit
+    seeds = np.asarray(br.seed_omega if br.seed_omega is not None else [], float)
+    near = far & np.any(np.abs(np.asarray(br.omega)[:, None] - seeds[None, :]) <= SEED_WINDOW * seeds[None, :], axis=1)
+    far = near if near.any() else far
     c = Candidate(where, r_b, br.omega, br.x, br.le_amplitude, br.converged, br.stable,
                   eligible=far if far.any() else None, monitor=_branch_monitor(hbm))
     p = _try_until_kept(ctx, rom, system, "period_doubling", method, [c], 1, update)

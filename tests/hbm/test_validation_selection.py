@@ -660,7 +660,7 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     isola search's second search, seeded from time integration) and one in the scene's: when
     time integration leaves the NFRC's doubled branch, the search's doubled branch that more
     seeds landed on is tried next, as it is (no switch), at a point that carries the W / 2
-    harmonics, and kept when time integration stays; its DoubledBranch reports the same
+    harmonics near a seed's speed, and kept when time integration stays; its DoubledBranch reports the same
     W / 2 share as the switch computed for those orbits. The switch, the check with 2 N_h
     and the march are stand-ins; the choice's Floquet analyses are real."""
     import h5py
@@ -675,11 +675,19 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     res, br, amp, _ = oscillator
     _, db, new = doubled
 
-    def branch(index, nu, seeds):
+    def branch(index, nu, seeds, seed_omega):
         return IsolaBranch("rl", index, "isola", True, "+: closed loop", nu, np.array(seeds), db.omega, db.x,
-                           np.ones(len(db.omega), bool), db.le_amplitude, np.zeros((len(db.omega), 1, 1)))
+                           np.ones(len(db.omega), bool), db.le_amplitude, np.zeros((len(db.omega), 1, 1)),
+                           seed_omega=np.array(seed_omega))
 
-    found = [branch(0, 1, [1, 2, 3]), branch(1, 2, [4]), branch(2, 2, [5, 6])]
+    # the seeds of branch 2 at the speed of the doubled orbits (W / 2 share >= 0.05) farthest
+    # from the largest amplitude that a choice over the whole branch would take
+    whole = choose_point(new, db.omega, db.x, db.le_amplitude, np.ones(len(db.omega), bool), None,
+                         eligible=db.new_content >= 0.05, n_candidates=8)
+    w_doubled = db.omega[db.new_content >= 0.05]
+    w_seed = w_doubled[np.argmax(np.abs(w_doubled - whole.omega))]
+    assert abs(whole.omega - w_seed) > stage.SEED_WINDOW * w_seed
+    found = [branch(0, 1, [1, 2, 3], [4.0] * 3), branch(1, 2, [4], [4.0]), branch(2, 2, [5, 6], [w_seed, 9.0])]
     monkeypatch.setattr(stage, "read_branch_set", lambda path, method: found)
     monkeypatch.setattr(residual_module, "build_residual", lambda *a, **k: new)
     monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (db, new))
@@ -707,5 +715,6 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     assert marched[0][0].startswith("validation.h5")
     assert p.found and p.branch == "isolas.h5 rl/branches/002" and p.stable and p.ti.stays
     assert db.new_content[p.index] >= 0.05 and "tried 2" in p.reason, p.reason
+    assert abs(p.omega - w_seed) <= stage.SEED_WINDOW * w_seed  # where time integration found the orbit
     assert pd_branch.found and pd_branch.subharmonic == 2 and "2 seed(s)" in pd_branch.reason
     assert np.allclose(pd_branch.new_content, db.new_content, atol=1e-9)
