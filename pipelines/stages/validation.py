@@ -499,8 +499,11 @@ def _searched_point(ctx, rom, system, method: str, n_r: int, where: str, br, upd
     seeds = np.asarray(br.seed_omega if br.seed_omega is not None else [], float)
     near = far & np.any(np.abs(np.asarray(br.omega)[:, None] - seeds[None, :]) <= SEED_WINDOW * seeds[None, :], axis=1)
     far = near if near.any() else far
+    # no monitor: a branch stored without stability is not analysed along its whole length
+    # (hundreds of analyses of twice the size, ~20 min a branch on the coarse scene); the
+    # candidates near its seeds decide, and when none is stable the march does
     c = Candidate(where, r_b, br.omega, br.x, br.le_amplitude, br.converged, br.stable,
-                  eligible=far if far.any() else None, monitor=_branch_monitor(hbm))
+                  eligible=far if far.any() else None)
     p = _try_until_kept(ctx, rom, system, "period_doubling", method, [c], 1, update)
     stable = c.stable if c.stable is not None else np.zeros(0, bool)
     n_unstable = br.n_unstable if br.n_unstable is not None else np.zeros(0, int)
