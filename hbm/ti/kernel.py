@@ -20,6 +20,13 @@ the boundary; lam_m is a static projection at t_m, applied to the modes at the n
 All arrays are preallocated by the caller (hbm.ti.march); the loop allocates only its own
 work arrays once per call, so a march may be run in chunks (the state is read from and
 written back to `state`, and recording positions count from the global step index).
+
+The helpers the loop calls are compiled without numba's reference counting (_nrt=False:
+they only read and write the arrays they are given). With it, every array passed to a
+helper costs an atomic increment and decrement at every call, inlined by numba or not:
+25 to 30 % of a step on rotor 67 (perf). The loop itself keeps it: its work arrays,
+allocated there, are known to LLVM not to alias anything, which keeps its loops vectorised
+(allocated by the caller and passed in, the step was 10 % slower).
 """
 from __future__ import annotations
 
@@ -30,9 +37,11 @@ from numba import njit
 
 from hbm.contact import casing as _casing_law
 
-# reassociation lets LLVM vectorise the modal sums; contraction allows FMAs. No other
+# reassociation lets LLVM vectorise the modal sums; contraction allows FMAs; reciprocals
+# turn the casing law's divisions by constants into products (with reassociation alone LLVM
+# rewrote x * (n_l / 2 pi) as (x n_l) / 2 pi: three divisions per node and step). No other
 # fast-math flag: inf and nan must keep their meaning (the diagnostics start at +-inf).
-_FAST = {"reassoc", "contract"}
+_FAST = {"reassoc", "contract", "arcp"}
 
 #: The casing law of eq. (28), compiled from the same source as hbm.contact.casing.casing_distance.
 lobe_coordinate = njit(cache=True, inline="always")(_casing_law.lobe_coordinate)
@@ -42,7 +51,7 @@ gap_at = njit(cache=True, inline="always")(_casing_law.gap_at)
 FAST_NODES = 12
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _predict_fast(c1, c2, q, qm, qn, prT, rh):
     """q_hat = c1 q - c2 qm and rh = prT^T q_hat for n_b <= 12 (prT padded to 12 columns).
 
@@ -79,7 +88,7 @@ def _predict_fast(c1, c2, q, qm, qn, prT, rh):
     rh[11] = r11
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _predict_general(c1, c2, s, coff, has_coff, dt, q, qm, qn, prT, rh, vel):
     """q_hat and rh for any n_b; with non-modal damping the off-diagonal part of phi^T C phi
     acts on the backward-difference velocity (lagged, explicit)."""
@@ -102,7 +111,7 @@ def _predict_general(c1, c2, s, coff, has_coff, dt, q, qm, qn, prT, rh, vel):
             rh[j] += prT[k, j] * v
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active):
     """Mark the nodes with rh_j >= d_j(tau); return (any penetration, any node near the casing).
 
@@ -138,7 +147,7 @@ def _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active):
     return any_pen, near
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _tangential_velocities(qn, qb, ptT, pzT, vt, vz):
     """vt = ptT^T (qn - qb), vz = pzT^T (qn - qb): the theta and z displacement increments of
     every node in one pass over the modes (ptT, pzT: (n, n_bp), padded to 12 columns when
@@ -209,9 +218,50 @@ def _tangential_velocities(qn, qb, ptT, pzT, vt, vz):
     vz[11] = b11
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, _nrt=False)
 def _solve_small(A, b, m):
-    """Solve A[:m, :m] x = b[:m] in place by Gaussian elimination with partial pivoting."""
+    """Solve A[:m, :m] x = b[:m] in place by Gaussian elimination with partial pivoting.
+
+    m <= 3 (two or three tip nodes in contact: nearly every contact step) is eliminated on
+    scalars, the same operations unrolled: the general loop cost 11 % of a contact-heavy
+    march (perf), for 1.5 solves per contact step."""
+    if m == 1:
+        b[0] = b[0] / A[0, 0]
+        return
+    if m == 2:
+        a00, a01, a10, a11, b0, b1 = A[0, 0], A[0, 1], A[1, 0], A[1, 1], b[0], b[1]
+        if abs(a10) > abs(a00):
+            a00, a01, b0, a10, a11, b1 = a10, a11, b1, a00, a01, b0
+        f = a10 / a00
+        x1 = (b1 - f * b0) / (a11 - f * a01)
+        b[0] = (b0 - a01 * x1) / a00
+        b[1] = x1
+        return
+    if m == 3:
+        a00, a01, a02, b0 = A[0, 0], A[0, 1], A[0, 2], b[0]
+        a10, a11, a12, b1 = A[1, 0], A[1, 1], A[1, 2], b[1]
+        a20, a21, a22, b2 = A[2, 0], A[2, 1], A[2, 2], b[2]
+        if abs(a10) > abs(a00) and abs(a10) >= abs(a20):
+            a00, a01, a02, b0, a10, a11, a12, b1 = a10, a11, a12, b1, a00, a01, a02, b0
+        elif abs(a20) > abs(a00):
+            a00, a01, a02, b0, a20, a21, a22, b2 = a20, a21, a22, b2, a00, a01, a02, b0
+        f1 = a10 / a00
+        f2 = a20 / a00
+        a11 -= f1 * a01
+        a12 -= f1 * a02
+        b1 -= f1 * b0
+        a21 -= f2 * a01
+        a22 -= f2 * a02
+        b2 -= f2 * b0
+        if abs(a21) > abs(a11):
+            a11, a12, b1, a21, a22, b2 = a21, a22, b2, a11, a12, b1
+        f = a21 / a11
+        x2 = (b2 - f * b1) / (a22 - f * a12)
+        x1 = (b1 - a12 * x2) / a11
+        b[0] = (b0 - a01 * x1 - a02 * x2) / a00
+        b[1] = x1
+        b[2] = x2
+        return
     for k in range(m):
         piv = k
         big = abs(A[k, k])
@@ -239,21 +289,29 @@ def _solve_small(A, b, m):
         b[k] = acc / A[k, k]
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST, _nrt=False)
+def _add_row(qn, s, pr, pt, pz, j, fr, ft, fz):
+    """qn -= s (pr[j] fr + pt[j] ft + pz[j] fz): node j's force (fr, ft, fz), N, moved into the
+    modal update. Written on the rows as 1-D arrays, the loop vectorises (with LLVM's runtime
+    alias check); indexed pr[j, k] inside the step loop it did not."""
+    prj = pr[j]
+    ptj = pt[j]
+    pzj = pz[j]
+    for k in range(qn.shape[0]):
+        qn[k] -= s[k] * (prj[k] * fr + ptj[k] * ft + pzj[k] * fz)
+
+
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, Acol):
     """q_n -= s phi_b^T g lam and rh -= A lam: the contact and friction forces lam_j (e_r + mu s_j)
     of the m nodes idx[:m] moved into the modal update. pr, pt, pz: radial, theta and z rows
     of phi, (n_b, n) each (contiguous rows: the mode loop vectorises); Acol[:, j]: column j of
     the modal update's compliance A = Phi_r S Phi_b^T g with node j's friction direction."""
-    n = qn.shape[0]
     nb = Acol.shape[0]
     for b in range(m):
         j = idx[b]
         lj = lam[j]
-        ft = mu * st[j] * lj
-        fz = mu * sz[j] * lj
-        for k in range(n):
-            qn[k] -= s[k] * (pr[j, k] * lj + pt[j, k] * ft + pz[j, k] * fz)
+        _add_row(qn, s, pr, pt, pz, j, lj, mu * st[j] * lj, mu * sz[j] * lj)
     for i in range(nb):
         acc = rh[i]
         for b in range(m):
@@ -262,7 +320,7 @@ def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, Acol):
         rh[i] = acc
 
 
-@njit(cache=True, fastmath=_FAST, inline="always")
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _first_at_or_after(step, start, stride):
     """(block index, step) of the first recording position start + k stride >= step, k >= 0."""
     if step <= start:
@@ -295,9 +353,6 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     out_ext (n_blocks, 2, n_b): radial max and min per block; stats = [max penetration,
     min multiplier], counts = [contact steps, active-set failures]: accumulated in place.
 
-    The active-set loop and the recording stay in this function: as separate functions
-    (numba-inlined) they cost 10 to 20 % of a step; the pieces split out cost nothing
-    measurable.
     """
     c1, c2, s, coff = lin
     prT, pr, pt, pz, ptT, pzT = bnd
@@ -462,15 +517,11 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                     for i in range(nb):
                         Acol_prev[i, j] = a_rr[i, j] + mu * (a_rt[i, j] * st[j] + a_rz[i, j] * sz[j])
                 m_prev[0] = m
-            else:  # forward increment: q_m -= s phi_b^T g lam and rh -= A lam (_apply_forces, by hand:
-                # numba's inlining of it here costs 10 % of a contact step)
+            else:  # forward increment: q_m -= s phi_b^T g lam and rh -= A lam
                 for b in range(m):
                     j = idx[b]
                     lj = lam[j]
-                    ft = mu * st[j] * lj
-                    fz = mu * sz[j] * lj
-                    for k in range(n):
-                        qn[k] -= s[k] * (pr[j, k] * lj + pt[j, k] * ft + pz[j, k] * fz)
+                    _add_row(qn, s, pr, pt, pz, j, lj, mu * st[j] * lj, mu * sz[j] * lj)
                 for i in range(nb):
                     acc = rh[i]
                     for b in range(m):
