@@ -114,3 +114,35 @@ def test_an_undamped_structure_never_settles():
     v = settle_test(*history(periodic, lambda t: np.zeros((len(t), 1)), 30), SPR, N_L, N_KEEP, OMEGA, math.inf,
                     RTOL, 10.0, SETTLE)
     assert v.periodicity.period == 1 and not v.settled
+
+
+def test_a_march_that_repeats_only_to_a_floor_settles_through_the_longer_lags():
+    """A march on a time grid repeats its limit cycle only to a floor (contact starts and ends
+    on steps): here 3e-5 m of deterministic jitter at every sample, no period, on top of the
+    periodic signal and a transient at the slowest decay the test assumes. Over one casing
+    period the bound multiplies the floor by rho / (1 - rho) ~ 9.5 and stays above 1e-4 for
+    ever; compared over whole revolutions further back the floor counts about once, so the
+    march stops, and the transient left in the window is within the tolerance."""
+    decay = 5 * T_REV
+
+    def jitter(t):
+        return 3e-5 * np.sin(1.2345e7 * t[:, None] + np.array([0.0, 1.0, 2.0]))
+
+    def y(t):
+        return periodic(t) + jitter(t) + 0.5 * np.exp(-t / decay)[:, None] * np.cos(2.7 * OMEGA * t[:, None])
+
+    def f(t):
+        return np.maximum(periodic(t)[:, :2], 0.0)
+
+    first = None
+    for revs in range(N_KEEP + 3, 201):
+        v = settle_test(*history(y, f, revs), SPR, N_L, N_KEEP, OMEGA, decay, RTOL, 10.0, SETTLE)
+        if v.settled:
+            first = revs
+            break
+    assert first is not None
+    one_period = v.mismatch * v.decay / (1.0 - v.decay)
+    assert one_period > SETTLE and v.lag > v.periodicity.period  # the floor alone keeps the one-period bound up
+    t = T_REV * (1 + np.linspace(first - N_KEEP - 1, first - 1, 2000))
+    rng = np.ptp(periodic(t), axis=0)
+    assert (0.5 * np.exp(-t / decay)[:, None] / rng).max() <= SETTLE
