@@ -10,7 +10,11 @@
 2. Speed against error: LE amplitude at a few Omega for dt in {4e-7, 2e-7, 1e-7, 5e-8}; the
    error is taken against dt = 5e-8 (responses can be chaotic: a difference there is a
    different trajectory, not a discretisation error).
-3. --full-sweep: the whole 161-point sweep with all cores (wall time).
+3. --full-sweep: the whole 161-point sweep with all cores (wall time; per-speed wall time in
+   its worker, which is its CPU time when no more processes run than cores).
+   --compare-full: then the same sweep again with stop_when_settled = false (always 200
+   revolutions): per class, the revolutions the early stop needed, whether every point kept
+   the class of the full run, and the largest LE amplitude difference.
 """
 from __future__ import annotations
 
@@ -53,6 +57,8 @@ def main():
     ap.add_argument("--massless-dt", type=float, default=1e-6, help="time step of the massless scheme, s")
     ap.add_argument("--no-early-stop", action="store_true", help="always n_revolutions (the old behaviour)")
     ap.add_argument("--sweep-points", type=int, default=None, help="--full-sweep on this many speeds of the grid")
+    ap.add_argument("--compare-full", action="store_true",
+                    help="--full-sweep: also run it without the early stop and compare class and amplitude")
     a = ap.parse_args()
     rom, label = load_rom(a.rom)
     system = rom_modal_system(rom)
@@ -103,7 +109,40 @@ def main():
         s = sweep(system, cas, con, opts, omegas=grid)
         wall = time.perf_counter() - t0
         print(f"\nFull sweep: {len(s.omega)} points in {wall:.0f} s wall ({wall / 60:.1f} min), "
-              f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super)")
+              f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
+              f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
+              f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s")
+        if a.compare_full:
+            t0 = time.perf_counter()
+            f = sweep(system, cas, con, replace(opts, stop_when_settled=False), omegas=grid)
+            wall_f = time.perf_counter() - t0
+            print(f"Without the early stop: {wall_f:.0f} s wall, per-speed sum {f.cpu_time.sum():.0f} s; "
+                  f"ratio {wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
+            _compare(s, f)
+
+
+def _over(s, limit):
+    return "(" + ", ".join(f"{w:.0f} rad/s {t:.1f} s" for w, t in zip(s.omega, s.cpu_time) if t > limit) + ")"
+
+
+def _compare(early, full):
+    """Per class of the full run: speeds, revolutions of the early stop, class kept, LE amplitude."""
+    from hbm.ti.periodicity import PeriodClass
+
+    print("| class (200 revolutions) | speeds | stopped early | revolutions when stopped: median (min-max) "
+          "| class kept | largest LE amplitude difference |")
+    print("|---|---|---|---|---|---|")
+    for code in PeriodClass:
+        sel = full.period_class == code
+        if not sel.any():
+            continue
+        stop = sel & (early.revolutions < full.revolutions)
+        revs = early.revolutions[stop]
+        kept = int((early.period_class[sel] == code).sum())
+        rel = np.abs(early.amplitude[sel] / full.amplitude[sel] - 1.0)
+        spread = f"{np.median(revs):.0f} ({revs.min()}-{revs.max()})" if len(revs) else "-"
+        print(f"| {code.label()} | {int(sel.sum())} | {int(stop.sum())} | {spread} | {kept} of {int(sel.sum())} "
+              f"| {rel.max():.1e} |")
 
 
 if __name__ == "__main__":
