@@ -42,8 +42,8 @@ drifting orbit is still drifting visibly at the classifier's scale long before i
 pass), and the test holds over the whole window (n_keep revolutions, n_keep n_l / p period
 pairs), so the transient is seen over many periods, not one. On the default rotor 67 sweep
 every speed stopped early has its class and LE amplitude (to 3e-4) of 200 revolutions
-(benchmarks/bench_ti.py --full-sweep --compare-full). A quasi-periodic or chaotic response never
-repeats to 1e-2 over a window, so it never stops early: it runs the n_revolutions cap.
+(benchmarks/bench_ti.py --full-sweep --compare-full). A quasi-periodic or chaotic response
+never repeats to 1e-2 over a window, so it never stops early: it runs the n_revolutions cap.
 """
 from __future__ import annotations
 
@@ -138,7 +138,8 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
     # rule 3, one period: sub-sections and forces over p T_c, extremes over the whole
     # revolutions of a multiple of p
     revs = per.period // math.gcd(per.period, n_lobes)
-    lag_f = per.period * samples_per_revolution // n_lobes if (per.period * samples_per_revolution) % n_lobes == 0 else 0
+    whole = (per.period * samples_per_revolution) % n_lobes == 0  # a period is whole force samples
+    lag_f = per.period * samples_per_revolution // n_lobes if whole else 0
     m_sub = mismatch(per.period * sub, 0, lag_f)
     m_ext = mismatch(0, revs, 0) if m_sub is not None else None
     if m_sub is None or m_ext is None:
