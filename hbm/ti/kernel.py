@@ -19,7 +19,10 @@ the boundary; lam_m is a static projection at t_m, applied to the modes at the n
 
 All arrays are preallocated by the caller (hbm.ti.march); the loop allocates only its own
 work arrays once per call, so a march may be run in chunks (the state is read from and
-written back to `state`, and recording positions count from the global step index).
+written back to `state`, and recording positions count from the global step index). The
+per-node vectors are rows of one block and the n_b-square matrices slices of another: as
+a dozen small allocations, wherever they fell, the same march ran up to 30 % slower from
+one call to the next.
 
 The helpers the loop calls are compiled without numba's reference counting (_nrt=False:
 they only read and write the arrays they are given). With it, every array passed to a
@@ -56,36 +59,72 @@ def _predict_fast(c1, c2, q, qm, qn, prT, rh):
     """q_hat = c1 q - c2 qm and rh = prT^T q_hat for n_b <= 12 (prT padded to 12 columns).
 
     Twelve scalar accumulators that LLVM keeps in (vector) registers; an array accumulator
-    is reloaded for every mode (4-5 times slower)."""
+    is reloaded for every mode (4-5 times slower). Two sets of them, for even and odd
+    modes: with one, each vector register waits for its previous FMA at every mode (a
+    chain of n FMA latencies); with two the chains are half as long and interleave (12 %
+    off a step out of contact; written as range(0, n - 1, 2) the loop came out 10 % slower
+    than with one set)."""
     r0 = r1 = r2 = r3 = r4 = r5 = r6 = r7 = r8 = r9 = r10 = r11 = 0.0
-    for k in range(c1.shape[0]):
+    u0 = u1 = u2 = u3 = u4 = u5 = u6 = u7 = u8 = u9 = u10 = u11 = 0.0
+    n = c1.shape[0]
+    for kk in range(n // 2):
+        k = 2 * kk
+        v = c1[k] * q[k] - c2[k] * qm[k]
+        w = c1[k + 1] * q[k + 1] - c2[k + 1] * qm[k + 1]
+        qn[k] = v
+        qn[k + 1] = w
+        r0 += prT[k, 0] * v
+        r1 += prT[k, 1] * v
+        r2 += prT[k, 2] * v
+        r3 += prT[k, 3] * v
+        r4 += prT[k, 4] * v
+        r5 += prT[k, 5] * v
+        r6 += prT[k, 6] * v
+        r7 += prT[k, 7] * v
+        r8 += prT[k, 8] * v
+        r9 += prT[k, 9] * v
+        r10 += prT[k, 10] * v
+        r11 += prT[k, 11] * v
+        u0 += prT[k + 1, 0] * w
+        u1 += prT[k + 1, 1] * w
+        u2 += prT[k + 1, 2] * w
+        u3 += prT[k + 1, 3] * w
+        u4 += prT[k + 1, 4] * w
+        u5 += prT[k + 1, 5] * w
+        u6 += prT[k + 1, 6] * w
+        u7 += prT[k + 1, 7] * w
+        u8 += prT[k + 1, 8] * w
+        u9 += prT[k + 1, 9] * w
+        u10 += prT[k + 1, 10] * w
+        u11 += prT[k + 1, 11] * w
+    if n % 2:
+        k = n - 1
         v = c1[k] * q[k] - c2[k] * qm[k]
         qn[k] = v
-        p = prT[k]
-        r0 += p[0] * v
-        r1 += p[1] * v
-        r2 += p[2] * v
-        r3 += p[3] * v
-        r4 += p[4] * v
-        r5 += p[5] * v
-        r6 += p[6] * v
-        r7 += p[7] * v
-        r8 += p[8] * v
-        r9 += p[9] * v
-        r10 += p[10] * v
-        r11 += p[11] * v
-    rh[0] = r0
-    rh[1] = r1
-    rh[2] = r2
-    rh[3] = r3
-    rh[4] = r4
-    rh[5] = r5
-    rh[6] = r6
-    rh[7] = r7
-    rh[8] = r8
-    rh[9] = r9
-    rh[10] = r10
-    rh[11] = r11
+        r0 += prT[k, 0] * v
+        r1 += prT[k, 1] * v
+        r2 += prT[k, 2] * v
+        r3 += prT[k, 3] * v
+        r4 += prT[k, 4] * v
+        r5 += prT[k, 5] * v
+        r6 += prT[k, 6] * v
+        r7 += prT[k, 7] * v
+        r8 += prT[k, 8] * v
+        r9 += prT[k, 9] * v
+        r10 += prT[k, 10] * v
+        r11 += prT[k, 11] * v
+    rh[0] = r0 + u0
+    rh[1] = r1 + u1
+    rh[2] = r2 + u2
+    rh[3] = r3 + u3
+    rh[4] = r4 + u4
+    rh[5] = r5 + u5
+    rh[6] = r6 + u6
+    rh[7] = r7 + u7
+    rh[8] = r8 + u8
+    rh[9] = r9 + u9
+    rh[10] = r10 + u10
+    rh[11] = r11 + u11
 
 
 @njit(cache=True, fastmath=_FAST, _nrt=False)
@@ -148,83 +187,27 @@ def _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active):
 
 
 @njit(cache=True, fastmath=_FAST, _nrt=False)
-def _tangential_velocities(qn, qb, ptT, pzT, vt, vz):
-    """vt = ptT^T (qn - qb), vz = pzT^T (qn - qb): the theta and z displacement increments of
-    every node in one pass over the modes (ptT, pzT: (n, n_bp), padded to 12 columns when
-    n_b <= 12: 24 scalar accumulators, as in _predict_fast; a loop per node is 2-3 times slower)."""
-    if ptT.shape[1] != FAST_NODES:
-        for j in range(vt.shape[0]):
-            vt[j] = 0.0
-            vz[j] = 0.0
-        for k in range(qn.shape[0]):
-            dq = qn[k] - qb[k]
-            for j in range(vt.shape[0]):
-                vt[j] += ptT[k, j] * dq
-                vz[j] += pzT[k, j] * dq
-        return
-    a0 = a1 = a2 = a3 = a4 = a5 = a6 = a7 = a8 = a9 = a10 = a11 = 0.0
-    b0 = b1 = b2 = b3 = b4 = b5 = b6 = b7 = b8 = b9 = b10 = b11 = 0.0
+def _node_increments(qn, qb, pt, pz, j):
+    """(pt[j] . (qn - qb), pz[j] . (qn - qb)): node j's theta and z displacement increments."""
+    ptj = pt[j]
+    pzj = pz[j]
+    a = 0.0
+    b = 0.0
     for k in range(qn.shape[0]):
         dq = qn[k] - qb[k]
-        p = ptT[k]
-        a0 += p[0] * dq
-        a1 += p[1] * dq
-        a2 += p[2] * dq
-        a3 += p[3] * dq
-        a4 += p[4] * dq
-        a5 += p[5] * dq
-        a6 += p[6] * dq
-        a7 += p[7] * dq
-        a8 += p[8] * dq
-        a9 += p[9] * dq
-        a10 += p[10] * dq
-        a11 += p[11] * dq
-        p = pzT[k]
-        b0 += p[0] * dq
-        b1 += p[1] * dq
-        b2 += p[2] * dq
-        b3 += p[3] * dq
-        b4 += p[4] * dq
-        b5 += p[5] * dq
-        b6 += p[6] * dq
-        b7 += p[7] * dq
-        b8 += p[8] * dq
-        b9 += p[9] * dq
-        b10 += p[10] * dq
-        b11 += p[11] * dq
-    vt[0] = a0
-    vt[1] = a1
-    vt[2] = a2
-    vt[3] = a3
-    vt[4] = a4
-    vt[5] = a5
-    vt[6] = a6
-    vt[7] = a7
-    vt[8] = a8
-    vt[9] = a9
-    vt[10] = a10
-    vt[11] = a11
-    vz[0] = b0
-    vz[1] = b1
-    vz[2] = b2
-    vz[3] = b3
-    vz[4] = b4
-    vz[5] = b5
-    vz[6] = b6
-    vz[7] = b7
-    vz[8] = b8
-    vz[9] = b9
-    vz[10] = b10
-    vz[11] = b11
+        a += ptj[k] * dq
+        b += pzj[k] * dq
+    return a, b
 
 
-@njit(cache=True, _nrt=False)
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _solve_small(A, b, m):
     """Solve A[:m, :m] x = b[:m] in place by Gaussian elimination with partial pivoting.
 
     m <= 3 (two or three tip nodes in contact: nearly every contact step) is eliminated on
     scalars, the same operations unrolled: the general loop cost 11 % of a contact-heavy
-    march (perf), for 1.5 solves per contact step."""
+    march (perf), for 1.5 solves per contact step. Reciprocals allowed (fast-math): one
+    division per pivot."""
     if m == 1:
         b[0] = b[0] / A[0, 0]
         return
@@ -302,22 +285,46 @@ def _add_row(qn, s, pr, pt, pz, j, fr, ft, fz):
 
 
 @njit(cache=True, fastmath=_FAST, _nrt=False)
+def _compliance_row(AcolT, ArrT, ArtT, ArzT, j, ft, fz):
+    """AcolT[j] = ArrT[j] + ft ArtT[j] + fz ArzT[j]: node j's column of the compliance with its
+    friction direction (ft, fz = mu s_theta, mu s_z), stored as a row."""
+    row, a, b, c = AcolT[j], ArrT[j], ArtT[j], ArzT[j]
+    for i in range(row.shape[0]):
+        row[i] = a[i] + (b[i] * ft + c[i] * fz)
+
+
+@njit(cache=True, fastmath=_FAST, _nrt=False)
+def _correct(rh, AcolT, idx, x, m, out, by_node):
+    """out = rh - sum_b AcolT[idx[b]] y_b, y_b = x[idx[b]] (by_node) or x[b], on the n_b
+    nodes (rh may be padded): the radial displacements after the contact forces of the m
+    nodes idx[:m]; out may be rh."""
+    nb = AcolT.shape[1]
+    for b in range(m):
+        row = AcolT[idx[b]]
+        y = x[idx[b]] if by_node else x[b]
+        if b == 0:
+            for i in range(nb):
+                out[i] = rh[i] - row[i] * y
+        else:
+            for i in range(nb):
+                out[i] -= row[i] * y
+    if m == 0:
+        for i in range(nb):
+            out[i] = rh[i]
+
+
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, s, pr, pt, pz, Acol):
     """q_n -= s phi_b^T g lam and rh -= A lam: the contact and friction forces lam_j (e_r + mu s_j)
     of the m nodes idx[:m] moved into the modal update. pr, pt, pz: radial, theta and z rows
-    of phi, (n_b, n) each (contiguous rows: the mode loop vectorises); Acol[:, j]: column j of
-    the modal update's compliance A = Phi_r S Phi_b^T g with node j's friction direction."""
-    nb = Acol.shape[0]
+    of phi, (n_b, n) each (contiguous rows: the mode loop vectorises); Acol[j]: column j of
+    the modal update's compliance A = Phi_r S Phi_b^T g with node j's friction direction,
+    stored as a row."""
     for b in range(m):
         j = idx[b]
         lj = lam[j]
         _add_row(qn, s, pr, pt, pz, j, lj, mu * st[j] * lj, mu * sz[j] * lj)
-    for i in range(nb):
-        acc = rh[i]
-        for b in range(m):
-            j = idx[b]
-            acc -= Acol[i, j] * lam[j]
-        rh[i] = acc
+    _correct(rh, Acol, idx, lam, m, rh, True)
 
 
 @njit(cache=True, fastmath=_FAST, _nrt=False)
@@ -335,9 +342,8 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     """Advance the march by n_steps from the state at step step0 (see the module docstring).
 
     lin = (c1, c2, s, coff): the modal recurrence, (n,) each and (n, n).
-    bnd = (prT, pr, pt, pz, ptT, pzT): radial rows transposed (n, n_bp) (padded to 12
-        columns when n_b <= 12), the radial, theta and z rows (n_b, n), and the theta and z
-        rows transposed (n, n_bp), padded alike.
+    bnd = (prT, pr, pt, pz): radial rows transposed (n, n_bp) (padded to 12 columns when
+        n_b <= 12), and the radial, theta and z rows (n_b, n).
     comp = (a_rr, a_rt, a_rz, g_rr, g_rt, g_rz): (n_b, n_b) each; a = Phi_r S Phi^T (the
         modal update's compliance), g = the static boundary compliance (massless scheme).
     geo = (s rho, s theta), (n_b,) each, m and rad, s = +1 or -1 the sense of rotation: node j
@@ -355,7 +361,7 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
 
     """
     c1, c2, s, coff = lin
-    prT, pr, pt, pz, ptT, pzT = bnd
+    prT, pr, pt, pz = bnd
     a_rr, a_rt, a_rz, g_rr, g_rt, g_rz = comp
     rho, theta = geo  # signed by the sense of rotation
     clearance, penetration, width, n_lobes = cas
@@ -372,27 +378,40 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     q = q_state.copy()
     qm = qm_state.copy()
     qn = np.zeros(n)
-    rh = np.zeros(prT.shape[1])
     vel = np.zeros(n)
-    vt = np.zeros(prT.shape[1])
-    vz = np.zeros(prT.shape[1])
-    d = np.zeros(nb)
-    z = np.zeros(nb)
-    fac = np.zeros(nb)
+    nbp = prT.shape[1]
+    width = ((max(nbp, nb) + 7) // 8) * 8
+    V = np.zeros((11, width))  # the per-node vectors, side by side (see the module docstring)
+    rh = V[0, :nbp]
+    d = V[1, :nb]
+    z = V[2, :nb]
+    fac = V[3, :nb]
+    lam = V[4, :nb]
+    st = V[5, :nb]
+    sz = V[6, :nb]
+    rnew = V[7, :nb]  # radial displacements after the corrections of the active set's current iterate
+    bm = V[8, :nb]
+    emax = V[9, :nb]  # the current extreme block, kept here and written out when it ends:
+    emin = V[10, :nb]  # stores into out_ext at every step cost ~10 % of a free step
     exact = np.zeros(nb, dtype=np.bool_)
     active = np.zeros(nb, dtype=np.bool_)
-    lam = np.zeros(nb)
-    st = np.zeros(nb)
-    sz = np.zeros(nb)
     idx = np.zeros(nb, dtype=np.int64)
-    Acol = np.zeros((nb, nb))
-    Acol_prev = np.zeros((nb, nb))
-    Am = np.zeros((nb, nb))
-    bm = np.zeros(nb)
-    emax = np.empty(nb)  # the current extreme block, kept here and written out when it ends:
-    emin = np.empty(nb)  # stores into out_ext at every step cost ~10 % of a free step
+    Mats = np.zeros((9, nb, nb))
+    Acol = Mats[0]  # row j: node j's column of the compliance with its friction direction
+    Acol_prev = Mats[1]
+    Am = Mats[2]
     # the LCP's compliance: the modal update's (Carpenter) or the static boundary's (massless)
     A_rr, A_rt, A_rz = (g_rr, g_rt, g_rz) if massless else (a_rr, a_rt, a_rz)
+    # transposed: a node's column is a contiguous row
+    AT_rr, AT_rt, AT_rz, a_rrT, a_rtT, a_rzT = Mats[3], Mats[4], Mats[5], Mats[6], Mats[7], Mats[8]
+    for i in range(nb):
+        for j in range(nb):
+            AT_rr[j, i] = A_rr[i, j]
+            AT_rt[j, i] = A_rt[i, j]
+            AT_rz[j, i] = A_rz[i, j]
+            a_rrT[j, i] = a_rr[i, j]
+            a_rtT[j, i] = a_rt[i, j]
+            a_rzT[j, i] = a_rz[i, j]
     vscale = 1.0 / dt if massless else 0.5 / dt  # backward or centred difference
     margin = 1e-12 * (abs(clearance) + abs(penetration))
     cpp_margin = clearance + penetration + margin
@@ -434,8 +453,6 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
         if any_pen:
             n_contact += 1
             qb = q if massless else qm
-            if mu != 0.0:
-                _tangential_velocities(qn, qb, ptT, pzT, vt, vz)
             for j in range(nb):
                 st[j] = 0.0
                 sz[j] = 0.0
@@ -451,18 +468,19 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                         m += 1
                         if st[j] == 0.0 and sz[j] == 0.0:  # first time active in this step
                             if mu != 0.0:  # unit sliding direction (v_theta + s rho Omega, v_z) / |.|
-                                vtj = vt[j] * vscale + rho[j] * om
-                                vzj = vz[j] * vscale
+                                dtj, dzj = _node_increments(qn, qb, pt, pz, j)
+                                vtj = dtj * vscale + rho[j] * om
+                                vzj = dzj * vscale
                                 nrm = math.sqrt(vtj * vtj + vzj * vzj)
                                 if nrm > 1e-12:
-                                    st[j] = vtj / nrm
-                                    sz[j] = vzj / nrm
-                            for i in range(nb):
-                                Acol[i, j] = A_rr[i, j] + mu * (A_rt[i, j] * st[j] + A_rz[i, j] * sz[j])
+                                    inv = 1.0 / nrm
+                                    st[j] = vtj * inv
+                                    sz[j] = vzj * inv
+                            _compliance_row(Acol, AT_rr, AT_rt, AT_rz, j, mu * st[j], mu * sz[j])
                 for a in range(m):
                     i = idx[a]
                     for b in range(m):
-                        Am[a, b] = Acol[i, idx[b]]
+                        Am[a, b] = Acol[idx[b], i]
                     bm[a] = rh[i] - d[i]
                 _solve_small(Am, bm, m)
                 worst = -1
@@ -480,11 +498,10 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                     lam[idx[a]] = bm[a]
                 worst = -1
                 wval = 0.0
+                _correct(rh, Acol, idx, bm, m, rnew, False)
                 for i in range(nb):
                     if not active[i]:
-                        r_i = rh[i]
-                        for b in range(m):
-                            r_i -= Acol[i, idx[b]] * bm[b]
+                        r_i = rnew[i]
                         if not exact[i]:
                             if (clearance - r_i) * fac[i] > cpp_margin and cpp_margin >= margin:
                                 continue  # still certainly free after the correction
@@ -503,30 +520,25 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
                 for a in range(m):  # keep the last iterate, clipped to lam >= 0
                     lam[idx[a]] = max(bm[a], 0.0)
             if massless:  # r_m = Phi_r q_m - G lam_m; the forces reach the modes at m + 1
-                for i in range(nb):
-                    acc = rh[i]
-                    for b in range(m):
-                        acc -= Acol[i, idx[b]] * lam[idx[b]]
-                    rh[i] = acc
+                _correct(rh, Acol, idx, lam, m, rh, True)
                 for b in range(m):
                     j = idx[b]
                     idx_prev[b] = j
                     lam_prev[j] = lam[j]
                     st_prev[j] = st[j]
                     sz_prev[j] = sz[j]
-                    for i in range(nb):
-                        Acol_prev[i, j] = a_rr[i, j] + mu * (a_rt[i, j] * st[j] + a_rz[i, j] * sz[j])
+                    _compliance_row(Acol_prev, a_rrT, a_rtT, a_rzT, j, mu * st[j], mu * sz[j])
                 m_prev[0] = m
             else:  # forward increment: q_m -= s phi_b^T g lam and rh -= A lam
                 for b in range(m):
                     j = idx[b]
                     lj = lam[j]
                     _add_row(qn, s, pr, pt, pz, j, lj, mu * st[j] * lj, mu * sz[j] * lj)
-                for i in range(nb):
-                    acc = rh[i]
-                    for b in range(m):
-                        acc -= Acol[i, idx[b]] * lam[idx[b]]
-                    rh[i] = acc
+                if converged:
+                    for i in range(nb):
+                        rh[i] = rnew[i]
+                else:
+                    _correct(rh, Acol, idx, lam, m, rh, True)
             for b in range(m):
                 if lam[idx[b]] < min_lam:
                     min_lam = lam[idx[b]]

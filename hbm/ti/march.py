@@ -355,7 +355,7 @@ class Marcher:
         else:
             comp = comp + tuple(np.zeros((nb, nb)) for _ in range(3))
         self._lin = (c1, c2, s, coff)
-        self._bnd = (_padded_columns(pr.T), pr, pt, pz, _padded_columns(pt.T), _padded_columns(pz.T))
+        self._bnd = (_padded_columns(pr.T), pr, pt, pz)
         self._comp = comp
         # the sense enters as s rho (blade speed s rho Omega) and s theta (casing at tau + s theta_j)
         sense = float(system.rotation)
