@@ -7,10 +7,10 @@ from hbm.ti.kernel import _solve_small
 
 @pytest.mark.parametrize("m", [1, 2, 3, 4, 5])
 def test_the_small_contact_solve_agrees_with_lapack(m):
-    """The active-set step solves A[:m, :m] x = b[:m] in a larger work array; m <= 3 runs an
-    unrolled elimination. Random systems, and ones whose natural pivots are zero (row
-    exchanges required), must agree with numpy.linalg.solve to a few ulps times the
-    condition number; the entries beyond m are left alone."""
+    """The active-set step solves A[:m, :m] x = b[:m] in a larger work array; m <= 3 by the
+    adjugate (Cramer's rule). Random systems, and ones whose natural pivots are zero (an
+    elimination would need row exchanges), must agree with numpy.linalg.solve to a few ulps
+    times the condition number; the entries beyond m are left alone."""
     rng = np.random.default_rng(m)
     worst = 0.0
     for trial in range(300):
