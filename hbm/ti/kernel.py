@@ -408,6 +408,7 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     exact = np.zeros(nb, dtype=np.bool_)
     active = np.zeros(nb, dtype=np.bool_)
     idx = np.zeros(nb, dtype=np.int64)
+    was_active = np.zeros(nb, dtype=np.bool_)  # the last step's final active set
     # where each node's forces go: fpos[j] its first position among the recorded force nodes,
     # fnext[a] the next position of the same node (-1: none)
     fpos = np.full(nb, -1, dtype=np.int64)
@@ -471,13 +472,21 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
         m = 0
         if any_pen:
             n_contact += 1
+            for j in range(nb):
+                if was_active[j] and exact[j]:
+                    active[j] = True
             qb = q if massless else qm
             for j in range(nb):
                 st[j] = 0.0
                 sz[j] = 0.0
-            # Active set from the prediction's penetrations (a good first guess): drop the
-            # most negative multiplier, add the inactive node pushed furthest beyond the
-            # casing, until neither exists (at most 4 n_b + 4 passes).
+            # Active set from the prediction's penetrations and the last step's active nodes
+            # still near the casing: drop the most negative multiplier, add the inactive node
+            # pushed furthest beyond the casing, until neither exists (at most 4 n_b + 4
+            # passes). From the penetrations alone, 60 % of the contact steps needed a second
+            # pass to add a node pushed in by its neighbours' correction (1.60 passes per
+            # contact step at 650 rad/s, on the default ROM); with the last step's nodes 1.23,
+            # for a node kept and then dropped in 2 contact steps of 10^4. The solution is the
+            # same (the active set converges to the same set, solved in the same order).
             converged = False
             for _ in range(4 * nb + 4):
                 m = 0
@@ -561,6 +570,11 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
             for b in range(m):
                 if lam[idx[b]] < min_lam:
                     min_lam = lam[idx[b]]
+            for j in range(nb):
+                was_active[j] = active[j]
+        else:
+            for j in range(nb):
+                was_active[j] = False
         if near:  # nodes ruled free by the bound are certainly below the casing
             for j in range(nb):  # branch-free, as the extremes below
                 max_pen = max(max_pen, rh[j] - d[j] if exact[j] else -np.inf)
