@@ -63,15 +63,15 @@ SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),
 
 def _estimate(scene, out, outputs) -> Estimate:
     # central-difference steps over the grid (each speed from rest, 200 revolutions at most):
-    # ~110 ns per step without contact, about 3 times more in contact (README, bench_ti);
-    # over the default scene's whole sweep, early stops included, 120 ns per step of the full
+    # ~110 ns per step without contact, about 2.5 times more in contact (README, bench_ti);
+    # over the default scene's whole sweep, early stops included, 110 ns per step of the full
     # 200 revolutions, idle machine, spread over the cores
     t = scene.ti
     omegas = np.linspace(t.omega_min, t.omega_max, t.n_omega)
     steps = float(np.sum(t.n_revolutions * 2 * np.pi / (omegas * t.dt)))
     cores = len(__import__("os").sched_getaffinity(0))
     return Estimate(size=f"{t.n_omega} speeds, {steps:.3g} steps", memory=0.3e9 * min(cores, t.n_omega),
-                    seconds=120e-9 * steps / min(cores, t.n_omega),
+                    seconds=110e-9 * steps / min(cores, t.n_omega),
                     disk=t.n_omega * (t.n_keep * t.samples_per_revolution * 4 + 64) * 8.0,
                     advice="lower [ti] n_omega or n_revolutions, or raise dt")
 
