@@ -392,8 +392,8 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     spz = P[4]
     vel = np.zeros(n)
     nbp = prT.shape[1]
-    width = ((max(nbp, nb) + 7) // 8) * 8
-    V = np.zeros((11, width))  # the per-node vectors, side by side (see the module docstring)
+    vlen = ((max(nbp, nb) + 7) // 8) * 8  # a row per vector (not the casing's width, unpacked above)
+    V = np.zeros((11, vlen))  # the per-node vectors, side by side (see the module docstring)
     rh = V[0, :nbp]
     d = V[1, :nb]
     z = V[2, :nb]
