@@ -143,41 +143,49 @@ class HillOperator:
 
         The same sum as `terms(P1, (1,))` + `terms(P2, (2,))` in one pass (the contact's g is
         linear in the two): the product that shift-invert Arnoldi on the linearised pencil
-        asks for at every step (hbm.stability.spectrum.arnoldi_spectrum).
+        asks for at every step (hbm.stability.spectrum.arnoldi_spectrum). The contact's
+        products are compiled (hbm.stability.kernels); the operator is real, so complex
+        coefficients go through as two real arrays.
         """
         shape = np.shape(P1)
         P1 = np.asarray(P1).reshape(self.n_c, self.n)
         P2 = np.asarray(P2).reshape(self.n_c, self.n)
+        if np.iscomplexobj(P1) or np.iscomplexobj(P2):
+            P2 = P2.astype(complex)
+            Y = self._tail_real(P1.real, P2.real) + 1j * self._tail_real(P1.imag, P2.imag)
+        else:
+            Y = self._tail_real(P1, P2)
+        return Y.reshape(shape)
+
+    def _tail_real(self, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
+        from hbm.stability import kernels
+
         D, w = self.basis.derivative_matrix, self.omega
         Y = P1 @ self.C.T + (2.0 * w * (D @ P1) + P2) @ self.M.T
         if len(self.nodes):
             if self.g_z:
                 self._add_normal(Y, -self.g_z * Y[:, 3 * self.nodes])
             if self.friction:  # sliding velocity: the identity part of (lam + omega D) p
-                self._add_sliding(Y, P1)
-        return Y.reshape(shape)
+                kernels.add_sliding(Y, np.ascontiguousarray(P1), self.products, self._radial_rows)
+        return Y
 
     def _add_normal(self, Y: np.ndarray, g: np.ndarray) -> None:
-        """Y[:, rows (r, theta, z)[:n_q] of each contact node] += T_q g, g (n_c, n_t)."""
-        r = 3 * self.nodes
-        nq = 3 if self.friction else 1
-        F = (self.products[:, :nq] @ g.T[:, None, :, None])[..., 0]  # (n_t, n_q, n_c)
-        for q in range(nq):
-            Y[:, r + q] += F[:, q].T
+        """Y[:, rows (r, theta, z)[:n_q] of each contact node] += T_q g, g (n_c, n_t); Y real
+        (n_c, n), in place."""
+        from hbm.stability import kernels
 
-    def _add_sliding(self, Y: np.ndarray, V: np.ndarray) -> None:
-        """Y[:, theta and z rows of each contact node] += the sliding terms of the velocity V (n_c, n)."""
-        r = 3 * self.nodes
-        T = self.products
-        vt, vz = V[:, r + 1].T[:, :, None], V[:, r + 2].T[:, :, None]  # (n_t, n_c, 1)
-        Y[:, r + 1] += (T[:, 3] @ vt + T[:, 4] @ vz)[..., 0].T
-        Y[:, r + 2] += (T[:, 4] @ vt + T[:, 5] @ vz)[..., 0].T
+        kernels.add_normal(Y, np.ascontiguousarray(g.T), self.products, self._radial_rows, 3 if self.friction else 1)
+
+    @cached_property
+    def _radial_rows(self) -> np.ndarray:
+        """(n_t,) the radial dof of each contact node (node j's dof are 3 j .. 3 j + 2)."""
+        return 3 * np.asarray(self.nodes, dtype=np.int64)
 
     # -- dense form ---------------------------------------------------------------------------
     @cached_property
     def products(self) -> np.ndarray:
         """T_c = sigma F diag(w_c) F~ for every weight channel, (n_t, n_w, n_c, n_c)."""
-        return self.basis.weighted_product(self.weights) * self.sigma[:, None]
+        return np.ascontiguousarray(self.basis.weighted_product(self.weights) * self.sigma[:, None])
 
     def dense(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(L0, L1, L2), each ((2 N_h + 1) n, (2 N_h + 1) n), real: H(lam) = L0 + lam L1 + lam^2 L2."""
@@ -256,9 +264,11 @@ class HillSolver:
     condensed matrix ((2 N_h + 1) 3 n_t square) is the HbmJacobian's dense form on those
     dof, factorised once: (3 n_t / n_r)^3 of the LU on all n_r = 3 n_b boundary dof (0.47
     with 7 of the 9 rotor 67 nodes in contact), and each solve (two triangular solves, about
-    1 ms at N_h = 20) (3 n_t / n_r)^2 of it. Shift-invert Arnoldi needs ~100 solves per
-    analysis, accurate to round-off (GMRES solves would need ~10 times longer each for that
-    accuracy). Without contact the boundary dof H.nl are kept (the linear HBM's own form).
+    0.26 ms at N_h = 20 with 7 nodes, memory-bound) (3 n_t / n_r)^2 of it. Shift-invert
+    Arnoldi needs ~100 solves per analysis, accurate to round-off (GMRES solves would need
+    ~10 times longer each for that accuracy). The eliminations around the LU solve are
+    compiled (hbm.stability.kernels: 40 us a solve, where a dozen numpy calls took as long as
+    the LU solve). Without contact the boundary dof H.nl are kept (the linear HBM's own form).
     __call__(b): b (n_c, n) or flat -> H(0)^-1 b, same shape.
     """
 
@@ -274,7 +284,8 @@ class HillSolver:
         else:
             self.nl = np.arange(n) if H.nl is None else np.asarray(H.nl)
             cnodes = nodes
-        self.li = np.setdiff1d(np.arange(n), self.nl)
+        self.nl = np.ascontiguousarray(self.nl, dtype=np.int64)
+        self.li = np.setdiff1d(np.arange(n), self.nl).astype(np.int64)
         model = CondensedModel(H.K, H.M, H.C, self.nl, H.basis)
         op = model.operator(H.omega)
         J = HbmJacobian(op=op, scale=1.0, nodes=cnodes, weights=H.weights, basis=H.basis, sigma=H.sigma,
@@ -285,65 +296,68 @@ class HillSolver:
             raise SingularMatrixError("Hill operator at lam = 0: singular condensed matrix")
         li = self.li
         if len(li):
-            k = np.arange(1, H.basis.n_harmonics + 1)[:, None, None] * H.omega
+            w = H.omega
+            k = np.arange(1, H.basis.n_harmonics + 1)[:, None, None] * w
             Kll, Mll, Cll = (A[np.ix_(li, li)] for A in (H.K, H.M, H.C))
-            self.Zll0 = np.linalg.inv(Kll)
-            self.Zll = np.linalg.inv(Kll - k * k * Mll + 1j * k * Cll)  # (N_h, n_l, n_l)
-            self._Zll_conj = self.Zll.conj()
+            Zll = np.linalg.inv(Kll - k * k * Mll + 1j * k * Cll)  # (N_h, n_l, n_l)
+            # real and imaginary parts for the compiled products (hbm.stability.kernels)
+            self._Z0 = np.linalg.inv(Kll)
+            self._ZR = np.ascontiguousarray(Zll.real)
+            self._ZI = np.ascontiguousarray(Zll.imag)
             # the linear couplings between the two dof sets (the contact acts on nl only):
-            # (lin P)[:, rows] = P K[rows, cols]^T + omega (D P) C^T + omega^2 (D^2 P) M^T
-            self._nl_li = [A[np.ix_(self.nl, li)].T.copy() for A in (H.K, H.C, H.M)]
-            self._li_nl = [A[np.ix_(li, self.nl)].T.copy() for A in (H.K, H.C, H.M)]
+            # rows nl of the linear part applied to x on li, K, M, C blocks (n_l, n_r), and
+            # back; per harmonic K - (k w)^2 M and k w C (hbm.stability.kernels.couple_harmonics)
+            self._to_nl = self._harmonic_blocks(li, self.nl, k)
+            self._to_li = self._harmonic_blocks(self.nl, li, k)
             pos = np.full(n, -1)
             pos[self.nl] = np.arange(len(self.nl))
-            self._r_nl = pos[3 * np.asarray(H.nodes, dtype=int)]  # radial rows of the contact nodes in nl
+            self._r_nl = pos[3 * np.asarray(H.nodes, dtype=np.int64)]  # radial rows of the contact nodes in nl
 
-    def _ll_inverse(self, B: np.ndarray) -> np.ndarray:
-        """Z_ll^-1 B on the eliminated dof, B (n_c, n_l) in the real basis (real or complex)."""
-        out = np.empty(B.shape, dtype=complex)
-        out[0] = B[0] @ self.Zll0.T
-        cp = B[1::2] - 1j * B[2::2]  # e^{+ik tau} part, times 2
-        cm = B[1::2] + 1j * B[2::2]  # e^{-ik tau} part (conjugate blocks)
-        yp = (self.Zll @ cp[..., None])[..., 0]
-        ym = (self._Zll_conj @ cm[..., None])[..., 0]
-        out[1::2] = 0.5 * (yp + ym)
-        out[2::2] = 0.5j * (yp - ym)
-        return out if np.iscomplexobj(B) else out.real
-
-    def _coupling(self, X: np.ndarray, blocks) -> np.ndarray:
-        """The linear part of H(0) from one dof set to the other: X K^T + w (D X) C^T + w^2 (D^2 X) M^T."""
-        D, w = self.H.basis.derivative_matrix, self.H.omega
-        DX = D @ X
-        K, C, M = blocks
-        return X @ K + w * (DX @ C) + (w * w) * ((D @ DX) @ M)
+    def _harmonic_blocks(self, cols: np.ndarray, rows: np.ndarray, kw: np.ndarray):
+        """(A0, AK, AC): the blocks that carry x on dof `cols` into the linear part's rows
+        `rows`: K[rows, cols] (p, m), and per harmonic (K - (k w)^2 M)[rows, cols] and
+        (k w C)[rows, cols], (N_h, p, m)."""
+        K, M, C = (np.ascontiguousarray(A[np.ix_(rows, cols)]) for A in (self.H.K, self.H.M, self.H.C))
+        return K, np.ascontiguousarray(K - kw * kw * M), np.ascontiguousarray(kw * C)
 
     def __call__(self, b: np.ndarray) -> np.ndarray:
         """H(0)^-1 b. With y = Z_ll^-1 b_l on the linear dof: x_n = J_c^-1 (b_n - H_nl y)
         (J_c the condensed matrix, LU), x_l = y - Z_ll^-1 H_ln x_n. H_ln is linear (the
-        contact acts on rows nl only); H_nl y adds, for DLFT, the contact through (Z y)_r."""
-        import scipy.linalg as sla
+        contact acts on rows nl only); H_nl y adds, for DLFT, the contact through (Z y)_r.
+        H(0) is real: complex b goes through as two real arrays."""
+        shape = np.shape(b)
+        B = np.asarray(b).reshape(self.H.n_c, self.H.n)
+        if np.iscomplexobj(B):
+            X = self._solve_real(B.real) + 1j * self._solve_real(B.imag)
+        else:
+            X = self._solve_real(B)
+        return X.reshape(shape)
+
+    def _solve_real(self, B: np.ndarray) -> np.ndarray:
+        from scipy.linalg.lapack import dgetrs
+
+        from hbm.stability import kernels
 
         H, nl, li = self.H, self.nl, self.li
-        shape = np.shape(b)
-        B = np.asarray(b).reshape(H.n_c, H.n)
-        X = np.empty(B.shape, dtype=np.result_type(B, float))
-        rhs = B[:, nl]
-        if len(li):
-            Y = self._ll_inverse(B[:, li])
-            C = self._coupling(Y, self._nl_li)  # (n_c, n_r): rows nl of H(0) [0, y]
-            if len(H.nodes) and H.g_z:  # DLFT's g = g_eps p_r - g_z (H_lin p)_r: p_r = 0 here
-                Cf = np.zeros((H.n_c, H.n), dtype=C.dtype)
-                Cf[:, nl] = C
-                H._add_normal(Cf, -H.g_z * C[:, self._r_nl])
-                C = Cf[:, nl]
-            rhs = rhs - C
-        flat = rhs.reshape(-1)
-        if np.iscomplexobj(flat):
-            xn = sla.lu_solve(self.lu, flat.real, check_finite=False) + 1j * sla.lu_solve(self.lu, flat.imag, check_finite=False)
+        nc, nr, n_l = H.n_c, len(nl), len(li)
+        B = np.ascontiguousarray(B, dtype=float)
+        X = np.empty(B.shape)
+        if n_l:
+            Y = np.empty((nc, n_l))
+            rhs = np.empty((nc, nr))
+            kernels.condensed_rhs(B, nl, li, self._Z0, self._ZR, self._ZI, *self._to_nl, H.products, self._r_nl,
+                                  3 if H.friction else 1, float(H.g_z) if len(H.nodes) else 0.0,
+                                  np.empty((nc, n_l)), Y, np.empty((nc, nr)), np.empty((len(H.nodes), nc)), rhs)
         else:
-            xn = sla.lu_solve(self.lu, flat, check_finite=False)
-        xn = xn.reshape(H.n_c, len(nl))
-        X[:, nl] = xn
-        if len(li):
-            X[:, li] = Y - self._ll_inverse(self._coupling(xn, self._li_nl))
-        return X.reshape(shape)
+            rhs = B[:, nl]
+        # LAPACK's getrs directly: scipy's lu_solve wrapper costs 4 % of a solve here
+        xn, info = dgetrs(self.lu[0], self.lu[1], rhs.reshape(-1))
+        if info:
+            raise ValueError(f"getrs: illegal argument {-info}")
+        xn = xn.reshape(nc, nr)
+        if n_l:
+            kernels.expand_solution(xn, Y, nl, li, self._Z0, self._ZR, self._ZI, *self._to_li,
+                                    np.empty((nc, n_l)), np.empty((nc, n_l)), X)
+        else:
+            X[:, nl] = xn
+        return X
