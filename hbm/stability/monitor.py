@@ -1,8 +1,8 @@
 """Stability of every point of a branch, and its bifurcations, computed as the branch grows.
 
 A Floquet analysis (hbm.stability.spectrum.orbit_spectrum: shift-invert Arnoldi on Hill's
-problem, ~0.2-0.5 s at N_h = 40) costs ten continuation points, so not every point is
-analysed. The monitor analyses a point when the stability may have changed since the last
+problem, ~0.13 s at N_h = 40 on the coarse rotor 67 ROM) costs 3 to 4 continuation
+points, so not every point is analysed. The monitor analyses a point when the stability may have changed since the last
 analysed one, and infers the others:
 
 - the branch turned back in Omega (a fold: one real multiplier crosses +1 there);
@@ -57,9 +57,10 @@ class StabilityOptions:
     fastest multiplier needs to reach the unit circle at its present speed. Multipliers
     accelerate, so a gap of half the reach lets a short stretch of the other stability
     lie between two analyses that agree: on the coarse rotor 67 NFRCs (N_h = 40), against
-    every point analysed, 0.5 missed 22 of 154 crossings and gave 13 of 1658 points the
-    wrong stable flag; 0.25 misses 4 and gives none, for 1.29 times the analyses
-    (benchmarks/bench_stability.py --schedule --replay).
+    every point analysed, 0.5 missed 30 of 152 crossings and gave 18 of 1625 points the
+    wrong stable flag; 0.25 misses 13 and gives 3, for 1.29 to 1.35 times the analyses
+    (benchmarks/bench_stability.py --schedule --replay). Which pairs are missed moves with
+    the rule and with round-off; only max_gap = 1 finds them all.
     """
 
     n_eig: int = 40
