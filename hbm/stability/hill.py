@@ -26,10 +26,12 @@ from dataclasses import dataclass
 from functools import cached_property
 
 import numpy as np
+from scipy.linalg.lapack import dgetrs
 
 from hbm.harmonic.condensation import CondensedModel
 from hbm.harmonic.fourier import FourierBasis
 from hbm.harmonic.jacobian import HbmJacobian
+from hbm.stability import kernels
 
 
 @dataclass(frozen=True, eq=False)
@@ -151,15 +153,12 @@ class HillOperator:
         P1 = np.asarray(P1).reshape(self.n_c, self.n)
         P2 = np.asarray(P2).reshape(self.n_c, self.n)
         if np.iscomplexobj(P1) or np.iscomplexobj(P2):
-            P2 = P2.astype(complex)
             Y = self._tail_real(P1.real, P2.real) + 1j * self._tail_real(P1.imag, P2.imag)
         else:
             Y = self._tail_real(P1, P2)
         return Y.reshape(shape)
 
     def _tail_real(self, P1: np.ndarray, P2: np.ndarray) -> np.ndarray:
-        from hbm.stability import kernels
-
         D, w = self.basis.derivative_matrix, self.omega
         Y = P1 @ self.C.T + (2.0 * w * (D @ P1) + P2) @ self.M.T
         if len(self.nodes):
@@ -172,8 +171,6 @@ class HillOperator:
     def _add_normal(self, Y: np.ndarray, g: np.ndarray) -> None:
         """Y[:, rows (r, theta, z)[:n_q] of each contact node] += T_q g, g (n_c, n_t); Y real
         (n_c, n), in place."""
-        from hbm.stability import kernels
-
         kernels.add_normal(Y, np.ascontiguousarray(g.T), self.products, self._radial_rows, 3 if self.friction else 1)
 
     @cached_property
@@ -334,10 +331,6 @@ class HillSolver:
         return X.reshape(shape)
 
     def _solve_real(self, B: np.ndarray) -> np.ndarray:
-        from scipy.linalg.lapack import dgetrs
-
-        from hbm.stability import kernels
-
         H, nl, li = self.H, self.nl, self.li
         nc, nr, n_l = H.n_c, len(nl), len(li)
         B = np.ascontiguousarray(B, dtype=float)
