@@ -12,12 +12,14 @@ bifurcations of each, and which of the reference's the default schedule missed (
 within 2 rad/s).
 --schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
 replayed on those spectra for each StabilityOptions.reach_fraction given (the schedule's
-decisions are all that differ: the same analyses give the same spectra); prints per
-fraction the analyses, the crossings of the every-point reference missed, and the points
-whose stable flag differs from the reference's.
+decisions are all that differ: the same analyses give the same spectra; the monitor's
+widened analyses, hbm.stability.monitor, are made on demand and kept); prints per fraction
+the analyses, the crossings of the every-point reference missed, and the points whose
+stable flag differs from the reference's.
 
 Computes the NFRC over [omega_min, omega_max] without stability (one BLAS thread, as
-compute_nfrc), then analyses `points` of its points spread along it, twice each, and prints
+compute_nfrc), then analyses `points` of its points spread along it, twice each (the
+monitor's analysis: 40 eigenvalues, no widening), and prints
 per method: the NFRC's time per point, and per analysis the median wall and CPU (process)
 time, the share of its parts (the LU of H(0), the ~100 shift-invert solves, the rest:
 ARPACK and the family selection), the nodes in contact, and the analysis' cost in NFRC
@@ -98,7 +100,7 @@ def main():
                 for i in np.linspace(0, len(r.omega) - 1, a.points).astype(int):
                     for _ in range(2):
                         w0, c0 = time.perf_counter(), time.process_time()
-                        orbit_spectrum(res, r.unknowns[i], float(r.omega[i]))
+                        orbit_spectrum(res, r.unknowns[i], float(r.omega[i]), min_ceiling=1.0)
                         walls.append(time.perf_counter() - w0)
                         cpus.append(time.process_time() - c0)
                     nodes.append(len(res(r.unknowns[i], float(r.omega[i]))[1].nodes))
@@ -138,11 +140,19 @@ def replay(rom, a):
         n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
         c0 = time.process_time()
         with threadpool_limits(limits=1, user_api="blas"):
-            spectra = [orbit_spectrum(res, r.unknowns[i], float(r.omega[i])) for i in range(n)]
+            spectra = [orbit_spectrum(res, r.unknowns[i], float(r.omega[i]), min_ceiling=1.0) for i in range(n)]
         per = (time.process_time() - c0) / n
+        wider = {}
+
+        def widen(x, w, k):  # the monitor's widening, each (point, n_eig) analysed once
+            i = int(x[0])
+            if (i, k) not in wider:
+                with threadpool_limits(limits=1, user_api="blas"):
+                    wider[(i, k)] = orbit_spectrum(res, r.unknowns[i], float(r.omega[i]), n_eig=k, min_ceiling=1.0)
+            return wider[(i, k)]
 
         def monitor(options):
-            mon = StabilityMonitor(analyse=lambda x, w: spectra[int(x[0])], options=options)
+            mon = StabilityMonitor(analyse=lambda x, w: spectra[int(x[0])], widen=widen, options=options)
             flags = {}
             for i in range(n):
                 p = SimpleNamespace(index=i, omega=float(r.omega[i]), step=float(r.step[i]), x=np.array([i]))

@@ -40,7 +40,13 @@ from hbm.options import HbmOptions
 from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
                                       parabola_vertex, upper_half)
 from hbm.stability.hill import harmonic_period
-from hbm.stability.spectrum import FloquetSpectrum, orbit_spectrum
+from hbm.stability.spectrum import MAX_EIG, FloquetSpectrum, orbit_spectrum
+
+#: a neighbour's unstable multiplier of modulus above ceiling^WIDEN_FRACTION may lie beyond a
+#: spectrum's window: the missed multipliers on rotor 67 had log|mu| 1.02-1.28 times the
+#: ceilings that missed them, and where they were found they set the window's edge themselves
+#: (log|mu| = log ceiling); 0.8 leaves room for their growth between two analyses.
+WIDEN_FRACTION = 0.8
 
 
 @dataclass(frozen=True)
@@ -86,6 +92,7 @@ class _Entry:
     spectrum: FloquetSpectrum | None = None
     g: int = 1
     n_unstable: int | None = None
+    n_eig: int = 0  # Hill eigenvalues of a widened analysis (0: the default window)
 
 
 @dataclass
@@ -98,10 +105,21 @@ class StabilityMonitor:
     leading_multipliers ((n_leading,) float): the largest |mu|, nan when not analysed;
     period_ratio (int): g, minimal period T / g.
     finish() hands on the rest. bifurcations: the located ones, in the order found.
-    analyse(x, omega) -> (FloquetSpectrum, g) is the Floquet analysis of one point.
+    analyse(x, omega) -> (FloquetSpectrum, g) is the Floquet analysis of one point;
+    widen(x, omega, n_eig) -> the same with n_eig Hill eigenvalues (None: never widened).
+
+    Widening: an analysis lists every multiplier below its modulus_ceiling only (see
+    hbm.stability.spectrum), so a multiplier that grows past it drops out and the count
+    falls as if it had come back inside the unit circle. Where two analysed points disagree
+    on the count and the one with fewer has a ceiling within WIDEN_FRACTION (in log) of the
+    other's largest unstable multiplier, it is analysed again with twice the eigenvalues
+    (up to spectrum.MAX_EIG) before the change is bisected. On the coarse rotor 67 NFRCs a
+    multiplier mu ~ -21 drops out at 1335-1341 rad/s (DLFT) and 1331-1340 rad/s (RL): seven
+    points called stable and a spurious period-doubling pair on each, without this.
     """
 
     analyse: object
+    widen: object = None
     options: StabilityOptions = field(default_factory=StabilityOptions)
     bifurcations: list = field(default_factory=list)
     n_analyses: int = 0
@@ -116,7 +134,11 @@ class StabilityMonitor:
     @classmethod
     def for_residual(cls, residual, options: StabilityOptions = StabilityOptions()) -> "StabilityMonitor":
         """A monitor analysing points of hbm.harmonic.residual.HarmonicBalanceResidual."""
-        return cls(analyse=lambda x, w: orbit_spectrum(residual, x, w, n_eig=options.n_eig), options=options)
+        # no min_ceiling per analysis (it would double most stable ones): the monitor widens
+        # where a neighbour says it must
+        return cls(analyse=lambda x, w: orbit_spectrum(residual, x, w, n_eig=options.n_eig, min_ceiling=1.0),
+                   widen=lambda x, w, k: orbit_spectrum(residual, x, w, n_eig=k, min_ceiling=1.0),
+                   options=options)
 
     # -- feeding ----------------------------------------------------------------------------
     def push(self, point, extras: dict) -> list:
@@ -222,9 +244,31 @@ class StabilityMonitor:
         self._buffer = self._buffer[k:]
         return out
 
+    def _widen(self, a: _Entry, b: _Entry) -> None:
+        """Analyse again, with a wider window, the one of a and b whose count may lack a large
+        unstable multiplier of the other (see the class doc)."""
+        if self.widen is None:
+            return
+        for x, y in ((a, b), (b, a)):
+            while y.n_unstable < x.n_unstable:
+                sx, sy = x.spectrum, y.spectrum
+                big = float(np.abs(sx.multipliers[sx.unstable]).max(initial=1.0))
+                ceiling = sy.modulus_ceiling
+                done = y.n_eig >= MAX_EIG or not np.isfinite(ceiling) or sy.note
+                if done or math.log(big) < WIDEN_FRACTION * math.log(max(ceiling, 1.0 + 1e-12)):
+                    break
+                y.n_eig = min(2 * (y.n_eig or self.options.n_eig), MAX_EIG)
+                y.spectrum, y.g = self.widen(y.x, y.omega, y.n_eig)
+                y.n_unstable = y.spectrum.n_unstable
+                self.n_analyses += 1
+                if y.index in self._counts:
+                    self._counts[y.index] = (y.n_unstable, y.g)
+
     def _resolve(self, a: _Entry, b: _Entry) -> None:
         """Make each stability change between the analysed points a and b lie between
         neighbours (bisection), record its bifurcations, give the points between their counts."""
+        if a.n_unstable != b.n_unstable:
+            self._widen(a, b)
         mid = [e for e in self._buffer if a.index < e.index < b.index]
         if a.n_unstable == b.n_unstable:
             for e in mid:
@@ -342,14 +386,15 @@ class BranchStability:
 
 
 def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_scale=1.0, omega_scale: float = 1.0,
-                   options: StabilityOptions = StabilityOptions()) -> BranchStability:
+                   options: StabilityOptions = StabilityOptions(), widen=None) -> BranchStability:
     """The monitor run over the points of a branch computed without it (e.g. a branch of the
     isola search): the same gapped analyses, bisection on the stored points and located
     bifurcations as if it had watched the continuation, analysing a fraction of the points
     (a quarter on a smooth branch; about half on rotor 67's isolas and detached branches,
     whose multipliers stay near the unit circle).
 
-    analyse(x, omega) -> (FloquetSpectrum, g) (StabilityMonitor.analyse). omega (m,) rad/s
+    analyse(x, omega) -> (FloquetSpectrum, g) and widen(x, omega, n_eig) (StabilityMonitor.analyse
+    and .widen; widen None: never widened). omega (m,) rad/s
     and x (m, n): consecutive converged points of one branch; extras: m dicts with
     le_amplitude (m) and harmonics (hbm.harmonic.nfrc.nfrc_extras). x_scale (scalar or
     (n,)) and omega_scale (rad/s): the continuation's scales, which give the arc length
@@ -360,7 +405,7 @@ def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_sc
     omega = np.asarray(omega, dtype=float)
     x = np.asarray(x, dtype=float)
     m = len(omega)
-    mon = StabilityMonitor(analyse=analyse, options=options)
+    mon = StabilityMonitor(analyse=analyse, widen=widen, options=options)
     done = {}
     for i in range(m):
         step = 0.0 if i == 0 else float(np.sqrt(np.sum(((x[i] - x[i - 1]) / x_scale) ** 2)

@@ -149,7 +149,7 @@ def branch_stability(residual, omega, x, converged, *, x_scale=1.0, omega_scale:
         raise ValueError("branch_stability: the branch has no converged point")
     mon = StabilityMonitor.for_residual(residual, options)
     st = monitor_branch(mon.analyse, omega[idx], x[idx], [nfrc_extras(residual, xi) for xi in x[idx]],
-                        x_scale, omega_scale, options)
+                        x_scale, omega_scale, options, widen=mon.widen)
     full = {"stable": np.zeros(m, bool), "n_unstable": np.full(m, -1, np.int64),
             "stability_analysed": np.zeros(m, bool), "leading_multipliers": np.full((m, k), np.nan),
             "period_ratio": np.ones(m, np.int64)}

@@ -27,10 +27,15 @@ Two ways to compute the spectrum:
 - dense: every eigenvalue of the linearised quadratic problem (small operators, tests);
 - Arnoldi: shift-invert at lam = 0 (ARPACK) with H(0)^-1 = the HBM Jacobian's inverse
   (hbm.stability.hill.HillSolver), the n_eig eigenvalues nearest 0. Every family has a
-  member with |Im lam| <= w / 2, so every family with Re lam > -delta has one within
+  member with |Im lam| <= w / 2, so every family with |Re lam| < delta has one within
   |lam| <= sqrt(delta^2 + w^2 / 4): with rho the largest |lam| found, every multiplier of
-  modulus above exp(-delta T), delta = sqrt(rho^2 - w^2 / 4), is in the result
-  (FloquetSpectrum.modulus_floor). The member found nearest 0 need not be the centred one;
+  modulus between exp(-delta T) and exp(+delta T), delta = sqrt(rho^2 - w^2 / 4), is in the
+  result (FloquetSpectrum.modulus_floor and .modulus_ceiling). A multiplier beyond the
+  ceiling can be missed, and with it the orbit's instability: on the coarse rotor 67 NFRC
+  at 1335-1341 rad/s a multiplier mu ~ -21 (log|mu| 3.04-3.07, ceilings 2.64-2.90 with 40
+  eigenvalues) is the 41st nearest 0, and the orbit came out stable. orbit_spectrum
+  widens the window until a stable verdict holds up to min_ceiling; the stability monitor
+  widens where a large multiplier of a neighbour disappears (hbm.stability.monitor). The member found nearest 0 need not be the centred one;
   its multiplier is the family's, its accuracy that of its eigenvector's distance to the
   truncation edges (FloquetSpectrum.centred, .edge_energy say how far).
 """
@@ -73,7 +78,8 @@ class FloquetSpectrum:
     reported (centred) member: the Floquet mode is exp(exponent t) p(t) (unit 2-norm; the
     coefficients shifted out of the band by the centring are lost when the member found was
     not the centred one).
-    modulus_floor: every multiplier with |mu| > modulus_floor is listed (0: all of them).
+    modulus_floor: every multiplier with modulus_floor < |mu| < 1 / modulus_floor is listed
+    (0: all of them; see modulus_ceiling).
     method: "dense" or "arnoldi". note: why the result may be incomplete ("" if not).
     """
 
@@ -90,6 +96,12 @@ class FloquetSpectrum:
     @property
     def period(self) -> float:
         return 2.0 * np.pi / self.omega
+
+    @property
+    def modulus_ceiling(self) -> float:
+        """1 / modulus_floor (inf when every multiplier is listed): a multiplier of larger
+        modulus may be missing, so a stable verdict holds for |mu| below this only."""
+        return 1.0 / self.modulus_floor if self.modulus_floor > 0.0 else np.inf
 
     @property
     def unstable(self) -> np.ndarray:
@@ -300,8 +312,17 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
     return _spectrum(lam, P, H, floor, "arnoldi", note, max_edge)
 
 
+#: orbit_spectrum's default min_ceiling: a stable verdict must hold for every multiplier up
+#: to this modulus (e^4; the unstable multipliers missed by 40 eigenvalues on rotor 67 had
+#: moduli e^3.0-e^3.1, and 80 eigenvalues reach e^4 and beyond there).
+MIN_CEILING = float(np.exp(4.0))
+#: the window is widened at most to this many Hill eigenvalues.
+MAX_EIG = 160
+
+
 def orbit_spectrum(residual, u: np.ndarray, omega: float, *, jacobian=None, n_eig: int = 40,
-                   dense_below: int = 200, period_rtol: float = 1e-4) -> tuple[FloquetSpectrum, int]:
+                   dense_below: int = 200, period_rtol: float = 1e-4,
+                   min_ceiling: float = MIN_CEILING) -> tuple[FloquetSpectrum, int]:
     """Floquet multipliers of the HBM solution u at omega over its minimal period.
 
     residual: hbm.harmonic.residual.HarmonicBalanceResidual; u: scaled unknowns (n_u,).
@@ -310,7 +331,11 @@ def orbit_spectrum(residual, u: np.ndarray, omega: float, *, jacobian=None, n_ei
     relative threshold period_rtol: the symmetric orbits of a 2-lobe casing keep their odd
     harmonics at round-off, ~1e-8 of the even ones, whereas a symmetry-broken orbit has
     them at percents); Hill's problem is solved in that basis (half the size for g = 2),
-    dense below dense_below unknowns, by shift-invert Arnoldi above. Returns (spectrum, g).
+    dense below dense_below unknowns, by shift-invert Arnoldi above. min_ceiling: when the
+    Arnoldi spectrum finds no unstable multiplier but its window reaches only multipliers
+    below this modulus (FloquetSpectrum.modulus_ceiling), n_eig is doubled (up to MAX_EIG)
+    until it does or one is found; 1 turns this off (the stability monitor does, and widens
+    from its neighbours instead). Returns (spectrum, g).
     """
     from hbm.stability.hill import harmonic_period, restrict
 
@@ -321,4 +346,9 @@ def orbit_spectrum(residual, u: np.ndarray, omega: float, *, jacobian=None, n_ei
     H = restrict(H, g)
     if H.size <= dense_below:
         return dense_spectrum(H), g
-    return arnoldi_spectrum(H, n_eig=n_eig), g
+    solver = HillSolver(H)
+    spec = arnoldi_spectrum(H, n_eig=n_eig, solver=solver)
+    while spec.stable and spec.modulus_ceiling < min_ceiling and n_eig < MAX_EIG and not spec.note:
+        n_eig = min(2 * n_eig, MAX_EIG)
+        spec = arnoldi_spectrum(H, n_eig=n_eig, solver=solver)
+    return spec, g

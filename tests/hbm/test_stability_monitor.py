@@ -70,3 +70,42 @@ def test_a_fold_far_along_a_branch_is_placed_at_the_parabola_s_vertex():
         warnings.simplefilter("error")
         ss, ww, aa = parabola_vertex(s, w, amp)
     assert abs(ss - s_v) < 1e-9 and abs(ww - 1500.0) < 1e-9 and abs(aa - 1e-3) < 1e-9
+
+
+def windowed(log_mod: float, n_eig: int) -> FloquetSpectrum:
+    """What shift-invert Arnoldi sees of a branch with a real multiplier -exp(log_mod) and two
+    stable ones: its window lists the multipliers of modulus below the ceiling e^2.5 with 40
+    eigenvalues, e^5 with 80 (modulus_floor = 1 / ceiling), and misses the others, as on
+    rotor 67 at 1335-1341 rad/s."""
+    ceiling = 2.5 if n_eig <= 40 else 5.0
+    mu = np.array([-np.exp(log_mod) + 0j, 0.5 + 0j, 0.3 + 0j])
+    mu = mu[np.log(np.abs(mu)) < ceiling]
+    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
+                           centred=np.ones(len(mu), bool), edge_energy=np.zeros(len(mu)),
+                           eigenvectors=np.zeros((len(mu), 3, 2), complex), modulus_floor=float(np.exp(-ceiling)),
+                           method="arnoldi")
+
+
+@pytest.mark.parametrize("widen", [True, False])
+def test_a_multiplier_that_grows_past_the_window_is_not_taken_for_stability(widen):
+    # a period-doubling multiplier leaves the circle between s = 10 and 11 and grows to e^4.35,
+    # past the default window's ceiling e^2.5 from s = 73 on: one crossing, and every point
+    # after it unstable. Without widening the multiplier drops out of the window and the
+    # monitor records a second crossing and calls the rest stable (the rotor 67 failure).
+    log_mod = lambda s: -0.41 + 0.04 * s  # noqa: E731
+    n = 120
+    mon = StabilityMonitor(analyse=lambda x, w: (windowed(log_mod(float(x[0])), 40), 1),
+                           widen=(lambda x, w, k: (windowed(log_mod(float(x[0])), k), 1)) if widen else None,
+                           options=StabilityOptions())
+    flags = {}
+    for i in range(n):
+        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
+        flags.update((q.index, ex["stable"]) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    flags.update((q.index, ex["stable"]) for q, ex in mon.finish())
+    exact = {i: log_mod(i) <= 0 for i in range(n)}
+    assert 2.5 < log_mod(n - 1) < 5.0  # past the default window, inside the widened one
+    if widen:
+        assert [b.index for b in mon.bifurcations] == [10]
+        assert flags == exact
+    else:
+        assert len(mon.bifurcations) == 2 and flags != exact
