@@ -14,7 +14,8 @@ integration did (the stage's verdict), the largest multiplier modulus at N_h, wh
 solution exists at factor x N_h, how far it moved (relative 2-norm of the first N_h
 harmonics of the condensed unknowns) and its largest multiplier modulus there, and the CPU
 time of that check. With --branch METHOD/NAME, every --every-th
-converged point of that branch of OUT/isolas.h5 instead, and a summary: how many have no
+converged point of that branch of OUT/isolas.h5 instead (--branch nfrc/METHOD: of the
+primary NFRC OUT/nfrc_METHOD.h5), and a summary: how many have no
 solution next to them with factor x N_h, moved by more than 25 %, or change stability verdict.
 """
 from __future__ import annotations
@@ -70,16 +71,24 @@ def refine(coarse, fine, u, omega):
 
 
 def branch_points(args, scene, rom) -> None:
-    """--branch: every --every-th converged point of one branch of isolas.h5."""
+    """--branch: every --every-th converged point of one branch of isolas.h5 (METHOD/NAME) or
+    of a primary NFRC (nfrc/METHOD: OUT/nfrc_METHOD.h5)."""
     from hbm.harmonic.residual import build_residual
     from hbm.stability.selection import HARMONIC_MOVE_TOL
+    from pipelines.branch_store import load_branch
     from pipelines.stages.validation import read_branch_set
 
     method, name = args.branch.split("/")
-    br = next(b for b in read_branch_set(args.out / "isolas.h5", method) if b.name == name)
+    if method == "nfrc":
+        method = name
+        br = load_branch(args.out / f"nfrc_{method}.h5").branch
+        subharmonic = 1
+    else:
+        br = next(b for b in read_branch_set(args.out / "isolas.h5", method) if b.name == name)
+        subharmonic = br.subharmonic
     nh = (br.x.shape[1] // (3 * rom.n_boundary) - 1) // 2
     coarse = build_residual(rom, scene.casing, scene.contact,
-                            replace(scene.hbm, subharmonic=br.subharmonic, n_harmonics=nh), method=method)
+                            replace(scene.hbm, subharmonic=subharmonic, n_harmonics=nh), method=method)
     fine = coarse.refined(args.factor)
     rows = []
     print(f"{'point':>5} {'Omega':>8} {'|mu| N_h':>9} {'exists':>7} {'moved':>7} {'|mu|':>7} {'CPU s':>6}")
@@ -109,7 +118,8 @@ def main() -> None:
     ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67_coarse.toml")
     ap.add_argument("--factor", type=int, default=2)
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
-    ap.add_argument("--branch", help="METHOD/NAME of a branch of OUT/isolas.h5, e.g. rl/000")
+    ap.add_argument("--branch", help="METHOD/NAME of a branch of OUT/isolas.h5, e.g. rl/000, or nfrc/METHOD "
+                                     "for OUT/nfrc_METHOD.h5")
     ap.add_argument("--every", type=int, default=5)
     args = ap.parse_args()
     scene = load_scene(args.scene)
