@@ -2,8 +2,8 @@
 
 A Floquet analysis (hbm.stability.spectrum.orbit_spectrum: shift-invert Arnoldi on Hill's
 problem, ~0.13 s at N_h = 40 on the coarse rotor 67 ROM) costs 3 to 4 continuation
-points, so not every point is analysed. The monitor analyses a point when the stability may have changed since the last
-analysed one, and infers the others:
+points, so not every point is analysed. The monitor analyses a point when the stability
+may have changed since the last analysed one, and infers the others:
 
 - the branch turned back in Omega (a fold: one real multiplier crosses +1 there);
 - `gap` points have passed since the last analysis. After each analysis the multipliers
@@ -43,7 +43,7 @@ from hbm.stability.hill import harmonic_period
 from hbm.stability.spectrum import MAX_EIG, FloquetSpectrum, orbit_spectrum
 
 #: a neighbour's unstable multiplier of modulus above ceiling^WIDEN_FRACTION may lie beyond a
-#: spectrum's window: the missed multipliers on rotor 67 had log|mu| 1.02-1.28 times the
+#: spectrum's window: the missed multipliers on rotor 67 had log|mu| 1.01-1.24 times the
 #: ceilings that missed them, and where they were found they set the window's edge themselves
 #: (log|mu| = log ceiling); 0.8 leaves room for their growth between two analyses.
 WIDEN_FRACTION = 0.8

@@ -36,9 +36,10 @@ Two ways to compute the spectrum:
   eigenvalues) is the 41st nearest 0, and the orbit came out stable. orbit_spectrum
   widens the window until a stable verdict holds up to min_ceiling (MIN_CEILING); the
   stability monitor widens where a large multiplier of a neighbour disappears
-  (hbm.stability.monitor). No finite window rules out a multiplier beyond its ceiling. The member found nearest 0 need not be the centred one;
-  its multiplier is the family's, its accuracy that of its eigenvector's distance to the
-  truncation edges (FloquetSpectrum.centred, .edge_energy say how far).
+  (hbm.stability.monitor). No finite window rules out a multiplier beyond its ceiling.
+  The member found nearest 0 need not be the centred one; its multiplier is the family's,
+  its accuracy that of its eigenvector's distance to the truncation edges
+  (FloquetSpectrum.centred, .edge_energy say how far).
 """
 from __future__ import annotations
 
