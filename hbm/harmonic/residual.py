@@ -87,6 +87,7 @@ class HarmonicBalanceResidual:
         # distance(tau) -> (len(tau), n_b), m, tau the casing angle Omega t: the casing of
         # eq. (28) unless another obstacle is given; d(s tau + theta_j) = d(tau + s theta_j)
         # since d is even about 0 (module docstring); sampled at tau = nu (basis angle)
+        self._casing_obstacle = distance is None  # images(): the casing's lobes repeat in time
         self._distance = distance or (lambda tau: casing_distance(tau, self.rotation * self.theta, casing))
         self.distance = self._distance(self.nu * self.basis.tau)  # (N_t, n_b), m
         self.obstacle_scale = 1.0
@@ -123,6 +124,30 @@ class HarmonicBalanceResidual:
     def to_unknowns(self, xr: np.ndarray) -> np.ndarray:
         """u = alpha x~_r, ((2 N_h + 1) n_r,), from (2 N_h + 1, n_r) harmonics in m."""
         return (self.alpha * np.asarray(xr, dtype=float)).reshape(-1)
+
+    def images(self, u: np.ndarray) -> list[np.ndarray]:
+        """The other solutions that the solution u implies, in the scaled unknowns ((n_u,) each):
+        its orbit shifted in time by j / n_l of a revolution, j = 1 .. nu n_l - 1. The casing's
+        n_l lobes repeat every 1 / n_l of a revolution, so these shifts leave the residual
+        unchanged; harmonic k of the basis turns by the angle k 2 pi j / (nu n_l). A
+        period-doubled orbit (nu = 2) and its shift by one revolution are one physical orbit
+        with two sets of coefficients, as are an orbit without the casing's symmetry (odd
+        harmonics of Omega) and its shift by half a revolution. [] with another obstacle than
+        the casing, with a forcing (it fixes the time origin), or when the shifts are not
+        whole AFT samples (the discrete residual would not be invariant)."""
+        n = self.nu * int(self.casing.n_lobes)
+        if not self._casing_obstacle or self.forcing is not None or n < 2 or self.basis.n_time % n:
+            return []
+        xr = self.to_coefficients(u)
+        a, b = xr[1::2], xr[2::2]  # (N_h, n_r) cosine and sine rows (eq. 5 order)
+        k = np.arange(1, self.basis.n_harmonics + 1)[:, None]
+        out = []
+        for j in range(1, n):
+            c, s = np.cos(k * (2.0 * np.pi * j / n)), np.sin(k * (2.0 * np.pi * j / n))
+            y = xr.copy()
+            y[1::2], y[2::2] = c * a + s * b, c * b - s * a
+            out.append(self.to_unknowns(y))
+        return out
 
     # -- time domain -----------------------------------------------------------------------
     def samples(self, xr: np.ndarray, omega: float, basis: FourierBasis | None = None,

@@ -17,7 +17,7 @@ from hbm.harmonic.nfrc import default_continuation, nfrc_extras
 from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.harmonic.solver import HbmSolver
 from hbm.isolas.options import IsolaOptions
-from hbm.isolas.search import SearchOptions, Seed, lies_on
+from hbm.isolas.search import SearchOptions, Seed, lies_on_any
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.ti.periodicity import PeriodClass
 
@@ -220,7 +220,7 @@ def doubling_origin(coarse: HarmonicBalanceResidual, fine: HarmonicBalanceResidu
     such a crossing (past it a continuation may run on along the old branch, where the share
     is 0). From up to `tries` of them, in branch order: Newton in coarse's basis
     (options.newton) from the point's even harmonics, then the isola search's membership
-    test (hbm.isolas.search.lies_on). The continuation's own test, the distance to the known
+    test (hbm.isolas.search.lies_on_any: the solution or its images). The continuation's own test, the distance to the known
     polyline, misses these crossings: they fall between the known branch's points.
     Returns (index into known, Omega in rad/s) of the first hit, or None."""
     ok = np.flatnonzero(np.asarray(branch.converged, dtype=bool))
@@ -237,7 +237,7 @@ def doubling_origin(coarse: HarmonicBalanceResidual, fine: HarmonicBalanceResidu
         sol = newton_solve(coarse, coarsened(fine, coarse, branch.x[i]), w, options.newton, solver=solver)
         if not sol.converged:
             continue
-        k = lies_on(coarse, sol.x, w, known, options, solver)
+        k = lies_on_any(coarse, sol.x, w, known, options, solver)
         if k >= 0:
             return k, w
     return None

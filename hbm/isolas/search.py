@@ -7,13 +7,15 @@ Two phases:
    fail or land on the primary branch, and should cost little). A converged solution that
    lies on a known branch (hbm.isolas.membership: polyline distance below the tolerance, or
    Newton from the polyline's nearest point landing on it) is dropped at once; converged
-   solutions at the same omega closer than the tolerance are one. Seeds are independent:
+   solutions at the same omega closer than the tolerance are one. A solution and its images
+   (the residual's symmetries, `images`: on the blade, the orbit shifted by a lobe of the
+   casing) are one: each test also runs on the images. Seeds are independent:
    they are spread over local processes (concurrent.futures, one task per omega) or over
    the MPI ranks (each takes its share, then allgather).
 2. branches: each remaining solution, in seed order, unless it lies on a branch found so
    far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
    test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
-   half branch also ends when it meets a known or found branch. Where two cores are
+   half branch also ends when it (or its image) meets a known or found branch. Where two cores are
    usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
    two processes, and the second is dropped when the first closes the loop: the wall time
    of an open branch halves, that of a closed one does not change. The halves are merged
@@ -40,6 +42,7 @@ import os
 import pickle
 import time
 from dataclasses import dataclass, field, replace
+from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
@@ -184,8 +187,9 @@ class _Corrector:
             if not sol.converged or not np.all(np.isfinite(sol.x)):
                 out.append((i, False, sol.iterations, -1, -1, None))
                 continue
-            k = lies_on(self.residual, sol.x, w, self.known, self.options, self.solver)
-            same = next((j for j, xj in kept if np.linalg.norm(sol.x - xj) <= tol), -1)
+            k = lies_on_any(self.residual, sol.x, w, self.known, self.options, self.solver)
+            mine = [sol.x, *images(self.residual, sol.x)]
+            same = next((j for j, xj in kept if any(np.linalg.norm(xq - xj) <= tol for xq in mine)), -1)
             if k < 0 and same < 0:
                 kept.append((i, sol.x))
             out.append((i, True, sol.iterations, k, same, sol.x))
@@ -260,6 +264,23 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
     return Corrections(conv, its, on_known, same, X, cpu)
 
 
+def images(residual, x: np.ndarray) -> list:
+    """The other solutions x implies by a symmetry of the residual (its `images` method,
+    e.g. hbm.harmonic.residual.HarmonicBalanceResidual.images: the orbit shifted by a lobe
+    of the casing), [] when it has none: a branch and its image are one branch."""
+    f = getattr(residual, "images", None)
+    return list(f(x)) if f is not None else []
+
+
+def lies_on_any(residual, x, omega: float, branches, options: SearchOptions, solver=None) -> int:
+    """lies_on for x or any of its images: the index of the branch, -1 when none."""
+    for xq in [x, *images(residual, x)]:
+        k = lies_on(residual, xq, omega, branches, options, solver)
+        if k >= 0:
+            return k
+    return -1
+
+
 def lies_on(residual, x, omega: float, branches, options: SearchOptions, solver=None) -> int:
     """Index of the first branch (KnownBranch list) the solution (x, omega) lies on, -1 when
     none: polyline distance (scaled: x / x_scale, omega / omega_scale) <= tolerance, or,
@@ -290,10 +311,13 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         points.append(p)
         if not p.converged or p.index == 0:
             return
-        for label, idx, b in others:
-            d, xn, wn = polyline_distance(p.x, p.omega, b, opts.x_scale, opts.omega_scale, within=tol)
-            if d <= tol:
-                raise _Joined(label, idx, _parallel(points, b, xn, wn, opts))
+        for q, xq in enumerate([p.x, *images(residual, p.x)]):
+            for label, idx, b in others:
+                d, xn, wn = polyline_distance(xq, p.omega, b, opts.x_scale, opts.omega_scale, within=tol)
+                if d <= tol:  # q > 0: this branch's image meets b, i.e. this branch meets b's image
+                    tail = points[-2:] if q == 0 else [SimpleNamespace(x=images(residual, t.x)[q - 1], omega=t.omega)
+                                                        for t in points[-2:]]
+                    raise _Joined(label + (", an image of it" if q else ""), idx, _parallel(tail, b, xn, wn, opts))
 
     try:
         br = continue_branch(residual, x0, w0, replace(opts, direction=direction), on_point=on_point, solver=solver)
@@ -469,7 +493,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 continue
             x0, w0 = corrections.x[i], float(seeds[i].omega)
             polys = [KnownBranch.of(b.omega, b.x, f"branch {k}", b.converged) for k, b in enumerate(found)]
-            k = lies_on(residual, x0, w0, polys, options, solver)
+            k = lies_on_any(residual, x0, w0, polys, options, solver)
             if k >= 0:
                 owner[i] = k
                 found[k] = replace(found[k], seeds=found[k].seeds + (i,))

@@ -151,6 +151,59 @@ def test_the_search_finds_the_isola_once(primary):
     assert set(res.seed_branch) <= {-1, ON_KNOWN, idx}
 
 
+class Pair:
+    """Two uncoupled copies of the oscillator, x = (a1, b1, a2, b2). Swapping them is a
+    symmetry (`images`, like the casing's lobes for the blade): (primary, isola) and
+    (isola, primary) are then one branch. Picklable."""
+
+    def __init__(self, symmetric: bool):
+        self.symmetric = symmetric
+
+    def __call__(self, x, w, jacobian=True):
+        o = Oscillator()
+        if not jacobian:
+            return np.r_[o(x[:2], w, False), o(x[2:], w, False)]
+        (r1, j1, d1), (r2, j2, d2) = o(x[:2], w), o(x[2:], w)
+        J = np.zeros((4, 4))
+        J[:2, :2], J[2:, 2:] = j1, j2
+        return np.r_[r1, r2], J, np.r_[d1, d2]
+
+    def images(self, x):
+        return [np.r_[x[2:], x[:2]]] if self.symmetric else []
+
+
+def pair_factory():
+    return Pair(True), DirectSolver()
+
+
+def pair_factory_plain():
+    return Pair(False), DirectSolver()
+
+
+def test_a_branch_and_its_image_are_one_branch():
+    # at Omega = 1 (a = 0): b c_eq(b^2) = F, the primary's root and the isola's upper one
+    A = amplitudes(1.0)
+    p, q = (0.0, A[0]), (0.0, A[2])
+    seeds = [Seed(1.0, np.r_[p, q], "(primary, isola)"), Seed(1.0, np.r_[q, p], "(isola, primary) at 1"),
+             Seed(0.995, np.r_[q, p], "(isola, primary) at 0.995")]
+    x0 = F / (1 - W_MIN ** 2)
+    br = continue_branch(Pair(True), np.array([x0, 0.0, x0, 0.0]), W_MIN, continuation())
+    known = [KnownBranch.of(br.omega, br.x, "primary", br.converged)]
+    # without the symmetry: two closed branches, mirror images of each other
+    plain = search(pair_factory_plain, seeds, known, options())
+    assert [b.kind for b in plain.branches] == ["isola", "isola"] and all(b.closed for b in plain.branches)
+    a, b = plain.branches
+    np.testing.assert_allclose(np.sort(a.omega), np.sort(b.omega), atol=1e-9)
+    # with it: one, owning the three seeds (the second is its image at the same Omega, the
+    # third lies on its image)
+    res = search(pair_factory, seeds, known, options())
+    assert len(res.branches) == 1 and res.branches[0].closed and res.n_continued == 1
+    assert list(res.seed_branch) == [0, 0, 0]
+    lo, hi = isola_range()
+    assert res.branches[0].omega.min() == pytest.approx(lo, abs=2e-4)
+    assert res.branches[0].omega.max() == pytest.approx(hi, abs=2e-4)
+
+
 def test_an_interrupted_search_resumes_without_recomputing(primary):
     seeds = modal_seeds()
     # without the primary as known branch the search finds two: the primary and the isola

@@ -1,0 +1,58 @@
+"""The casing's symmetry in the HBM residual (HarmonicBalanceResidual.images): shifting an
+orbit in time by 1 / n_l of a revolution maps solutions to solutions, so the isola search
+counts a branch and its images once.
+
+Checked against the residual itself: R(image of u) = image of R(u) at arbitrary u, for both
+contact laws, in the basis of Omega and of Omega / 2; an orbit with the casing's symmetry
+(the primary NFRC's, only even harmonics of Omega) is its own image; a forcing or another
+obstacle has no images.
+"""
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
+from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from rom.model import load_rom
+
+ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+
+
+@pytest.fixture(scope="module")
+def rom():
+    return load_rom(ROM)
+
+
+@pytest.mark.parametrize("nu", [1, 2])
+@pytest.mark.parametrize("method", ["dlft", "rl"])
+def test_the_residual_commutes_with_its_images(rom, nu, method):
+    opts = replace(HbmOptions(n_harmonics=10, n_time=256), subharmonic=nu)
+    res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=method)
+    u = 0.3 * np.random.default_rng(1).standard_normal(res.size)  # contact on part of the period
+    R = res(u, 1200.0, jacobian=False)
+    assert np.linalg.norm(R) > 0
+    imgs, imgs_R = res.images(u), res.images(R)  # R has the unknowns' harmonic layout
+    assert len(imgs) == 2 * nu - 1  # shifts by 1 / 2, (and 1 / 4, 3 / 4 with nu = 2) of a revolution
+    for ui, Ri in zip(imgs, imgs_R):
+        assert np.linalg.norm(ui - u) > 0.1 * np.linalg.norm(u)
+        np.testing.assert_allclose(res(ui, 1200.0, jacobian=False), Ri, atol=1e-12 * np.linalg.norm(R))
+
+
+def test_an_orbit_with_the_casing_symmetry_is_its_own_image(rom):
+    res = build_residual(rom, CasingOptions(), ContactOptions(), HbmOptions(n_harmonics=10, n_time=256))
+    xr = res.to_coefficients(np.random.default_rng(2).standard_normal(res.size))
+    xr[1::4] = xr[2::4] = 0.0  # odd harmonics (rows 1, 2 of each pair of harmonics) removed
+    u = res.to_unknowns(xr)
+    (img,) = res.images(u)
+    np.testing.assert_allclose(img, u, atol=1e-14 * np.linalg.norm(u))
+
+
+def test_no_images_with_another_obstacle_or_an_odd_aft_grid(rom):
+    opts = HbmOptions(n_harmonics=5, n_time=64)
+    res = HarmonicBalanceResidual(rom, CasingOptions(), ContactOptions(), opts,
+                                  distance=lambda tau: np.full((len(tau), rom.n_boundary), 1e-3))
+    assert res.images(np.zeros(res.size)) == []
+    odd = build_residual(rom, CasingOptions(), ContactOptions(), HbmOptions(n_harmonics=5, n_time=65))
+    assert odd.images(np.zeros(odd.size)) == []  # a shift of half a period is not a whole AFT sample
