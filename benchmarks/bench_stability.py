@@ -10,6 +10,10 @@ Usage:
 point analysed (max_gap 1, the reference); prints analyses, stability time and the
 bifurcations of each, and which of the reference's the default schedule missed (same kind
 within 2 rad/s).
+--widen-check: the NFRC once, every point analysed with the monitor's 40-eigenvalue window,
+and each one it calls stable again with orbit_spectrum's widening (a stable verdict must
+hold up to MIN_CEILING); prints the points whose verdict the wider window changes, and the
+cost of both.
 --schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
 replayed on those spectra for each StabilityOptions.reach_fraction given (the schedule's
 decisions are all that differ: the same analyses give the same spectra; the monitor's
@@ -74,8 +78,11 @@ def main():
     ap.add_argument("--omega-max", type=float, default=2000.0)
     ap.add_argument("--schedule", action="store_true")
     ap.add_argument("--replay", default="", help="with --schedule: reach fractions to replay, e.g. 0.5,0.25")
+    ap.add_argument("--widen-check", action="store_true")
     a = ap.parse_args()
     rom = load_rom(a.rom)
+    if a.widen_check:
+        return widen_check(rom, a)
     if a.schedule and a.replay:
         return replay(rom, a)
     if a.schedule:
@@ -175,6 +182,35 @@ def replay(rom, a):
             ratio = f"{mon.n_analyses / base:.2f}" if base else "-"
             print(f"| {f:g} | {mon.n_analyses} | {ratio} | {len(missed)} of {len(ref.bifurcations)}"
                   f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} |", flush=True)
+
+
+def widen_check(rom, a):
+    opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
+    for m in a.methods:
+        r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
+        res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=m)
+        n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
+        narrow_cpu, wide_cpu, stable, flips = 0.0, 0.0, 0, []
+        with threadpool_limits(limits=1, user_api="blas"):
+            for i in range(n):
+                c = time.process_time()
+                sp, _ = orbit_spectrum(res, r.unknowns[i], float(r.omega[i]), min_ceiling=1.0)
+                narrow_cpu += time.process_time() - c
+                if not sp.stable:
+                    continue
+                stable += 1
+                c = time.process_time()
+                sw, _ = orbit_spectrum(res, r.unknowns[i], float(r.omega[i]))
+                wide_cpu += time.process_time() - c
+                if not sw.stable:
+                    j = int(np.argmax(np.abs(sw.multipliers)))
+                    flips.append(f"{r.omega[i]:.1f} rad/s (ceiling e^{np.log(sp.modulus_ceiling):.2f} -> "
+                                 f"e^{np.log(sw.modulus_ceiling):.2f}: {sw.n_unstable} unstable, largest |mu| "
+                                 f"{abs(sw.multipliers[j]):.3g}, centred {bool(sw.centred[j])})")
+        print(f"{m}: {n} points, {stable} stable with 40 eigenvalues ({narrow_cpu / n:.3f} s CPU per analysis); "
+              f"widened, {wide_cpu / max(stable, 1):.3f} s per stable point; {len(flips)} become unstable:", flush=True)
+        for f in flips:
+            print("   ", f, flush=True)
 
 
 def schedule(rom, a):
