@@ -220,8 +220,9 @@ def doubling_origin(coarse: HarmonicBalanceResidual, fine: HarmonicBalanceResidu
     such a crossing (past it a continuation may run on along the old branch, where the share
     is 0). From up to `tries` of them, in branch order: Newton in coarse's basis
     (options.newton) from the point's even harmonics, then the isola search's membership
-    test (hbm.isolas.search.lies_on_any: the solution or its images). The continuation's own test, the distance to the known
-    polyline, misses these crossings: they fall between the known branch's points.
+    test on the solution and its images (hbm.isolas.search.lies_on_any). The continuation's
+    own test, the distance to the known polyline, misses these crossings: they fall between
+    the known branch's points.
     Returns (index into known, Omega in rad/s) of the first hit, or None."""
     ok = np.flatnonzero(np.asarray(branch.converged, dtype=bool))
     h = branch.extras.get("harmonics")

@@ -9,14 +9,14 @@ Two phases:
    Newton from the polyline's nearest point landing on it) is dropped at once; converged
    solutions at the same omega closer than the tolerance are one. A solution and its images
    (the residual's symmetries, `images`: on the blade, the orbit shifted by a lobe of the
-   casing) are one: each test also runs on the images. Seeds are independent:
-   they are spread over local processes (concurrent.futures, one task per omega) or over
-   the MPI ranks (each takes its share, then allgather).
+   casing) are one: each test also runs on the images. Seeds are independent: they are
+   spread over local processes (concurrent.futures, one task per omega) or over the MPI
+   ranks (each takes its share, then allgather).
 2. branches: each remaining solution, in seed order, unless it lies on a branch found so
    far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
    test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
-   half branch also ends when it (or its image) meets a known or found branch. Where two cores are
-   usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
+   half branch also ends when it (or its image) meets a known or found branch. Where two
+   cores are usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
    two processes, and the second is dropped when the first closes the loop: the wall time
    of an open branch halves, that of a closed one does not change. The halves are merged
    into one branch and classified:

@@ -187,8 +187,10 @@ def harmonic_centre(P: np.ndarray, n_edge: int | None = None) -> tuple[np.ndarra
 # -- selection ------------------------------------------------------------------------------
 #: how far (in units of omega, per harmonic of shift) a family member's real part may lie from
 #: another's in the Arnoldi window (see _families): on rotor 67 at N_h = 40, 1.0-1.1e-3 omega
-#: per harmonic with DLFT and 1.3-2.6e-3 with RL, whose Lanczos filter on the force rows is
-#: not invariant under a shift of the harmonics.
+#: per harmonic with DLFT and 1.3-2.6e-3 with RL, at one RL point 1.1e-2 (1464.2 rad/s on the
+#: coarse NFRC: beyond this, and the widened window calls that orbit unstable where the dense
+#: spectrum does not). RL's Lanczos filter on the force rows is not invariant under a shift
+#: of the harmonics, the likely reason why RL drifts more (not isolated).
 MEMBER_DRIFT = 4e-3
 
 
