@@ -10,7 +10,7 @@ truncation moves a member's real part by ~1e-3 omega per harmonic of shift. A wi
 and the one at 1.6; when they were not recognised as one family, the orbit came out
 unstable (two multipliers at +0.0062). The reference is the dense spectrum of the whole
 quadratic problem with the centred members only (Lazarus and Thomas): stable, leading
-log|mu| = -0.0072 (test_dense_reference, --heavy: ~150 s).
+log|mu| = -0.0072 (test_dense_reference, --heavy: 20 s on an idle machine).
 """
 from pathlib import Path
 
