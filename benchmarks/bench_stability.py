@@ -14,6 +14,10 @@ within 2 rad/s).
 and each one it calls stable again with orbit_spectrum's widening (a stable verdict must
 hold up to MIN_CEILING); prints the points whose verdict the wider window changes, and the
 cost of both.
+--filter-check [--every 6]: RL only. Every k-th point of the NFRC analysed twice, with
+Hill's operator as the product builds it (the residual's Lanczos filter on the force rows)
+and without the filter, both widened to MIN_CEILING; where the verdicts differ, 100 periods
+of time integration from the point (hbm.ti.validation.march_from_hbm, its verdict).
 --schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
 replayed on those spectra for each StabilityOptions.reach_fraction given (the schedule's
 decisions are all that differ: the same analyses give the same spectra; the monitor's
@@ -79,10 +83,14 @@ def main():
     ap.add_argument("--schedule", action="store_true")
     ap.add_argument("--replay", default="", help="with --schedule: reach fractions to replay, e.g. 0.5,0.25")
     ap.add_argument("--widen-check", action="store_true")
+    ap.add_argument("--filter-check", action="store_true")
+    ap.add_argument("--every", type=int, default=6)
     a = ap.parse_args()
     rom = load_rom(a.rom)
     if a.widen_check:
         return widen_check(rom, a)
+    if a.filter_check:
+        return filter_check(rom, a)
     if a.schedule and a.replay:
         return replay(rom, a)
     if a.schedule:
@@ -211,6 +219,44 @@ def widen_check(rom, a):
               f"widened, {wide_cpu / max(stable, 1):.3f} s per stable point; {len(flips)} become unstable:", flush=True)
         for f in flips:
             print("   ", f, flush=True)
+
+
+def filter_check(rom, a):
+    import dataclasses
+
+    from hbm.stability.hill import harmonic_period, restrict
+    from hbm.stability.spectrum import MAX_EIG, MIN_CEILING, arnoldi_spectrum
+    from hbm.ti.validation import march_from_hbm
+
+    def verdict(H):  # orbit_spectrum's widening, on a given operator
+        k = 40
+        sp = arnoldi_spectrum(H, n_eig=k)
+        while sp.stable and sp.modulus_ceiling < MIN_CEILING and k < MAX_EIG and not sp.note:
+            k = min(2 * k, MAX_EIG)
+            sp = arnoldi_spectrum(H, n_eig=k)
+        return sp
+
+    opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
+    casing, contact = CasingOptions(), ContactOptions()
+    r = compute_nfrc(rom, casing, contact, opts, "rl", stability=False)
+    res = build_residual(rom, casing, contact, opts, method="rl")
+    n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
+    rows = []
+    with threadpool_limits(limits=1, user_api="blas"):
+        for i in range(0, n, a.every):
+            u, w = r.unknowns[i], float(r.omega[i])
+            H = hill.HillOperator.from_residual(res, u, w)
+            H = restrict(H, harmonic_period(res.to_coefficients(u), 1e-4))
+            f, nf = verdict(H), verdict(dataclasses.replace(H, sigma=np.ones_like(H.sigma)))
+            rows.append((i, w, f.stable, nf.stable, np.log(f.largest_modulus), np.log(nf.largest_modulus)))
+    diff = [x for x in rows if x[2] != x[3]]
+    print(f"rl: {len(rows)} points (every {a.every}th of {n}): verdicts agree at {len(rows) - len(diff)}; "
+          f"stable {sum(x[2] for x in rows)} with the filter, {sum(x[3] for x in rows)} without", flush=True)
+    print("| Omega (rad/s) | with the filter: log abs mu | without | time integration, 100 periods |")
+    print("|---|---|---|---|")
+    for i, w, _, _, lf, lnf in diff:
+        v = march_from_hbm(rom, casing, contact.mu, res.expand_harmonics(r.unknowns[i], w), w, n_periods=100)
+        print(f"| {w:.1f} | {lf:+.3f} | {lnf:+.3f} | {v.verdict()} (growth {v.growth:.2f}) |", flush=True)
 
 
 def schedule(rom, a):
