@@ -194,6 +194,16 @@ def harmonic_centre(P: np.ndarray, n_edge: int | None = None) -> tuple[np.ndarra
 MEMBER_DRIFT = 4e-3
 
 
+def _real_tolerance(a: complex, b: complex, m: int, omega: float) -> float:
+    """How far apart (1/s) the real parts of Arnoldi eigenvalues a and b, m harmonics apart,
+    may lie and still be members of one family (see _families): MEMBER_DRIFT per harmonic,
+    but 2e-3 omega when both are near-real negative multipliers (Im = omega / 2 modulo omega,
+    to 1e-2 omega), where two families just born from a complex pair have parallel
+    eigenvectors and only their real parts tell them apart."""
+    half = [abs((x.imag / omega) % 1.0 - 0.5) < 1e-2 for x in (a, b)]
+    return (2e-3 if all(half) else MEMBER_DRIFT * max(1, abs(m))) * omega
+
+
 def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, dense: bool):
     """One representative per exponent family: (exponents, edge, vectors, centred) of the
     representatives (the centred member's exponent lam + i round(k_bar) omega and its
@@ -215,8 +225,9 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     A fixed 2e-3 omega kept the far members apart: unstable "families" that the dense
     spectrum does not have, in the wider windows of orbit_spectrum's widening. Two real
     negative multipliers just born from a complex pair have nearly parallel eigenvectors
-    and exponents a few 1e-2 omega apart in their real parts at the same m: the real-part
-    test keeps them apart.
+    and exponents a few 1e-2 omega apart in their real parts: between such near-real
+    negative multipliers the real-part test stays at 2e-3 omega (_real_tolerance), so that
+    a period doubling is not merged away.
     """
     kbar, edge = harmonic_centre(P)
     centred = np.abs(kbar) <= 0.5 + 1e-3  # 1e-3: round-off and the truncation's shift of the centre
@@ -234,7 +245,7 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
             m = int(np.round(d.imag / omega))
             if dense:
                 same = m != 0 and abs(d.imag - m * omega) <= 1e-6 * omega and abs(d.real) <= 1e-6 * omega
-            elif abs(d.imag - m * omega) <= 1e-2 * omega and abs(d.real) <= MEMBER_DRIFT * max(1, abs(m)) * omega:
+            elif abs(d.imag - m * omega) <= 1e-2 * omega and abs(d.real) <= _real_tolerance(lam[i], lam[j], m, omega):
                 b = shift_member(P[j], m).reshape(-1)
                 same = abs(np.vdot(a, b)) > 0.9 * np.linalg.norm(a) * np.linalg.norm(b)
             if same:

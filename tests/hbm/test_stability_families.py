@@ -69,3 +69,43 @@ def test_dense_reference(point):
     spec, _ = orbit_spectrum(res, u, w, dense_below=10**6)
     assert spec.method == "dense" and spec.stable
     np.testing.assert_allclose(np.log(np.abs(spec.multipliers[:2])), DENSE_LEADING, atol=5e-4)
+
+
+# -- the grouping rule on eigenpairs built with known families ---------------------------
+def _member(c, m):
+    """Real-coefficient eigenvector (1, 2 N + 1, 1) of the member shifted by m harmonics of
+    the function with complex-exponential coefficients c (2 N + 1,), k = -N..N."""
+    from hbm.stability.spectrum import real_coefficients, shift_member
+
+    return shift_member(real_coefficients(np.asarray(c, complex)[:, None]), m)[None]
+
+
+def test_members_drifting_with_the_shift_are_one_family():
+    from hbm.stability.spectrum import _families
+
+    w, nh = 1000.0, 10
+    c = np.exp(-0.5 * np.arange(-nh, nh + 1) ** 2)  # centred at k = 0
+    lam0 = -2.0 + 0.3j * w
+    # the members m = -1, 0, 1, 2, their real parts 3e-3 w apart per harmonic (the rotor 67
+    # measurements: up to 2.6e-3 w), found in the order of their distance to 0
+    ms = [-1, 0, 1, 2]
+    lam = np.array([lam0 + 1j * m * w + 3e-3 * w * m for m in ms])
+    P = np.concatenate([_member(c, m) for m in ms])
+    ex, _, _, centred = _families(lam, P, w, 0.05, dense=False)
+    assert len(ex) == 1 and centred[0]
+    assert ex[0] == pytest.approx(lam0)  # the centred member's
+
+
+def test_two_real_negative_multipliers_just_apart_stay_two():
+    from hbm.stability.spectrum import _families
+
+    w, nh = 1000.0, 10
+    k = np.arange(-nh, nh + 1)
+    c = np.exp(-0.5 * (k + 0.5) ** 2)  # centred at k = -1/2: a real negative multiplier
+    a, b = -1.0, -1.0 - 3e-3 * w  # two families born from a complex pair, 3e-3 w apart
+    # a + i w / 2 with p, and b's member b + i w / 2 - i w, whose vector is p shifted by -1
+    # harmonic, i.e. a's own shifted by the same: only the real parts tell them apart (a
+    # tolerance of MEMBER_DRIFT per harmonic would merge them, and a period doubling with them)
+    P = np.concatenate([_member(c, 0), _member(c, -1)])
+    ex, _, _, _ = _families(np.array([a + 0.5j * w, b - 0.5j * w]), P, w, 0.05, dense=False)
+    assert len(ex) == 2, ex
