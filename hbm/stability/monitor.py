@@ -63,8 +63,8 @@ class StabilityOptions:
     fastest multiplier needs to reach the unit circle at its present speed. Multipliers
     accelerate, so a gap of half the reach lets a short stretch of the other stability
     lie between two analyses that agree: on the coarse rotor 67 NFRCs (N_h = 40), against
-    every point analysed, 0.5 missed 27 of 135 crossings and gave 8 of 1625 points the
-    wrong stable flag; 0.25 misses 16 and gives 3, for 1.30 times the analyses
+    every point analysed, 0.5 missed 20 of 140 crossings and gave 8 of 1625 points the
+    wrong stable flag; 0.25 misses 12 and gives 3, for 1.27 to 1.30 times the analyses
     (benchmarks/bench_stability.py --schedule --replay). Which pairs are missed moves with
     the rule and with round-off; only max_gap = 1 finds them all.
     """
