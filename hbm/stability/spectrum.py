@@ -216,8 +216,8 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     |k_bar| = 1/2 (lam and conj(lam) = lam - i omega): one multiplier, counted once.
     Otherwise (the Arnoldi window): eigenpair i joins the family of representative j when
     lam_i = lam_j + i m omega for an integer m, to 1e-2 omega in the imaginary part and
-    MEMBER_DRIFT * max(1, |m|) omega in the real part, and p_i is parallel to p_j shifted by
-    m harmonics (|cos| > 0.9). The members' real parts drift with the shift: by 1.3e-3
+    _real_tolerance in the real part (MEMBER_DRIFT * max(1, |m|) omega), and p_i is parallel
+    to p_j shifted by m harmonics (|cos| > 0.9). The members' real parts drift with the shift: by 1.3e-3
     omega on the rotor 67 ROM with DLFT at N_h = 20; at N_h = 40 on the coarse ROM by
     1.0-1.1e-3 omega per harmonic with DLFT (1848.1 rad/s: members at k_bar -0.4, 0.6 and
     1.6 have log|mu| -0.0072, -0.0009 and +0.0062) and 1.3-2.6e-3 with RL (1459.5 rad/s:
