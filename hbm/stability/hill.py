@@ -303,7 +303,7 @@ class HillSolver:
             self._ZI = np.ascontiguousarray(Zll.imag)
             # the linear couplings between the two dof sets (the contact acts on nl only):
             # rows nl of the linear part applied to x on li, K, M, C blocks (n_l, n_r), and
-            # back; per harmonic K - (k w)^2 M and k w C (hbm.stability.kernels.couple_harmonics)
+            # back; per harmonic K - (k w)^2 M and k w C (hbm.stability.kernels.harmonic_blocks)
             self._to_nl = self._harmonic_blocks(li, self.nl, k)
             self._to_li = self._harmonic_blocks(self.nl, li, k)
             pos = np.full(n, -1)

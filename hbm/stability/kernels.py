@@ -33,50 +33,30 @@ def _dot(a, b):
 
 
 @njit(cache=True, fastmath=_FAST)
-def solve_harmonics(B, Z0, ZR, ZI, out):
-    """out = Z^-1 B harmonic by harmonic for real coefficients B (n_c, m), contiguous rows.
+def harmonic_blocks(X, A0, AR, AI, out):
+    """out = the harmonic-by-harmonic block product of real coefficients X (n_c, m),
+    contiguous rows: out_0 = A0 X_0 and per harmonic k, as columns,
+    out_(a_k) = AR_k X_(a_k) + AI_k X_(b_k), out_(b_k) = AR_k X_(b_k) - AI_k X_(a_k).
+    A0 (p, m), AR and AI (N_h, p, m); out: (n_c, p), written; returned.
 
-    Z0: (m, m) the inverse of the static block; ZR, ZI: (N_h, m, m) real and imaginary
-    parts of the inverses of Z_k = K - (k w)^2 M + i k w C. In complex form the pair
-    (a_k, b_k) is c = a - i b, and Z_k^-1 c = y gives a' = Re y, b' = -Im y.
-    out: (n_c, m), written; returned.
-    """
-    m = B.shape[1]
-    b0 = B[0]
-    for i in range(m):
-        out[0, i] = _dot(Z0[i], b0)
-    for k in range(ZR.shape[0]):
-        a = B[2 * k + 1]
-        b = B[2 * k + 2]
-        zr = ZR[k]
-        zi = ZI[k]
-        for i in range(m):
-            out[2 * k + 1, i] = _dot(zr[i], a) + _dot(zi[i], b)  # Re y
-            out[2 * k + 2, i] = _dot(zr[i], b) - _dot(zi[i], a)  # -Im y
-    return out
-
-
-@njit(cache=True, fastmath=_FAST)
-def couple_harmonics(X, A0, AK, AC, out):
-    """out = X K^T + w (D X) C^T + w^2 (D^2 X) M^T from one dof set to another, X (n_c, m).
-
-    With (D X)_(a_k) = k X_(b_k), (D X)_(b_k) = -k X_(a_k): out_0 = A0 X_0 and per harmonic
-    out_(a_k) = AK_k X_(a_k) + AC_k X_(b_k), out_(b_k) = AK_k X_(b_k) - AC_k X_(a_k) (as
-    columns) with A0 = K, AK_k = K - (k w)^2 M, AC_k = k w C, the blocks from the m dof
-    to the p others: A0 (p, m), AK and AC (N_h, p, m). out: (n_c, p), written; returned.
+    Two uses. Solve: A0, AR, AI the inverse of the static block and the real and imaginary
+    parts of the inverses of Z_k = K - (k w)^2 M + i k w C (in complex form the pair
+    (a_k, b_k) is c = a - i b, and Z_k^-1 c = y gives a' = Re y, b' = -Im y). Couple:
+    X K^T + w (D X) C^T + w^2 (D^2 X) M^T from one dof set to another, with A0 = K,
+    AR_k = K - (k w)^2 M, AI_k = k w C ((D X)_(a_k) = k X_(b_k), (D X)_(b_k) = -k X_(a_k)).
     """
     p = A0.shape[0]
     x0 = X[0]
     for j in range(p):
         out[0, j] = _dot(A0[j], x0)
-    for k in range(AK.shape[0]):
+    for k in range(AR.shape[0]):
         xa = X[2 * k + 1]
         xb = X[2 * k + 2]
-        kk = AK[k]
-        cc = AC[k]
+        rr = AR[k]
+        ii = AI[k]
         for j in range(p):
-            out[2 * k + 1, j] = _dot(kk[j], xa) + _dot(cc[j], xb)
-            out[2 * k + 2, j] = _dot(kk[j], xb) - _dot(cc[j], xa)
+            out[2 * k + 1, j] = _dot(rr[j], xa) + _dot(ii[j], xb)
+            out[2 * k + 2, j] = _dot(rr[j], xb) - _dot(ii[j], xa)
     return out
 
 
@@ -125,8 +105,8 @@ def add_sliding(Y, V, T, rows):
 def condensed_rhs(B, nl, li, Z0, ZR, ZI, A0, AK, AC, T, rows, nq, g_z, Bl, Y, C, gT, rhs):
     """The right-hand side of the condensed solve of H(0) x = B (hbm.stability.hill.HillSolver):
     y = Z_ll^-1 B_l on the linear dof li, rhs = B_n - H_nl y on the dof in contact nl, with
-    H_nl y = the linear coupling (A0, AK, AC: couple_harmonics' blocks from li to nl) and,
-    for DLFT (g_z != 0), the contact's g = -g_z (H_lin y)_r on the radial rows `rows` of nl
+    H_nl y = the linear coupling (A0, AK, AC: harmonic_blocks' coupling blocks from li to
+    nl) and, for DLFT (g_z != 0), the contact's g = -g_z (H_lin y)_r on the radial rows `rows` of nl
     (T: the AFT products, nq normal channels, as add_normal).
 
     B: (n_c, n) real. Work arrays, written: Bl, Y (n_c, n_l); C, rhs (n_c, n_r); gT
@@ -136,8 +116,8 @@ def condensed_rhs(B, nl, li, Z0, ZR, ZI, A0, AK, AC, T, rows, nq, g_z, Bl, Y, C,
     for c in range(nc):
         for j in range(li.shape[0]):
             Bl[c, j] = B[c, li[j]]
-    solve_harmonics(Bl, Z0, ZR, ZI, Y)
-    couple_harmonics(Y, A0, AK, AC, C)
+    harmonic_blocks(Bl, Z0, ZR, ZI, Y)
+    harmonic_blocks(Y, A0, AK, AC, C)
     if g_z != 0.0 and rows.shape[0] > 0:
         for i in range(rows.shape[0]):
             for c in range(nc):
@@ -151,12 +131,12 @@ def condensed_rhs(B, nl, li, Z0, ZR, ZI, A0, AK, AC, T, rows, nq, g_z, Bl, Y, C,
 @njit(cache=True, fastmath=_FAST)
 def expand_solution(xn, Y, nl, li, Z0, ZR, ZI, A0, AK, AC, back, t2, X):
     """x on all dof from the condensed solution xn (n_c, n_r) on nl: x_n = xn,
-    x_l = y - Z_ll^-1 H_ln x_n (A0, AK, AC: couple_harmonics' blocks from nl to li; H_ln is
-    linear, the contact acts on rows nl only). Work arrays back, t2 (n_c, n_l); X (n_c, n)
+    x_l = y - Z_ll^-1 H_ln x_n (A0, AK, AC: harmonic_blocks' coupling blocks from nl to li;
+    H_ln is linear, the contact acts on rows nl only). Work arrays back, t2 (n_c, n_l); X (n_c, n)
     written."""
     nc = xn.shape[0]
-    couple_harmonics(xn, A0, AK, AC, back)
-    solve_harmonics(back, Z0, ZR, ZI, t2)
+    harmonic_blocks(xn, A0, AK, AC, back)
+    harmonic_blocks(back, Z0, ZR, ZI, t2)
     for c in range(nc):
         for j in range(nl.shape[0]):
             X[c, nl[j]] = xn[c, j]
