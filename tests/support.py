@@ -43,6 +43,15 @@ def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0, rotation:
 from pathlib import Path as _Path
 
 SHARED = _Path(__file__).resolve().parents[2] / "shared"
+#: The coarse rotor 67 ROM the rotor 67 tests share (tests/data/README.md says how it was built).
+COARSE_ROM = _Path(__file__).resolve().parent / "data" / "rotor67_coarse_rom.h5"
+
+
+def coarse_rom() -> RomModel:
+    """The coarse rotor 67 ROM (COARSE_ROM), loaded afresh (tests may not share one object)."""
+    from rom.model import load_rom
+
+    return load_rom(COARSE_ROM)
 
 
 def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:

@@ -1,7 +1,6 @@
 """Hard cases: grazing contact, stiff/soft contact parameters, many harmonics. Each must
 converge, be in contact, and agree with a reference: the free orbit (grazing), the rigid
 DLFT orbit (stiffer penalty), the epsilon-independence of DLFT, a lower N_h (truncation)."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,7 +12,7 @@ from hbm.harmonic.residual import build_residual
 from hbm.harmonic.solver import HbmSolver
 from hbm.harmonic.start import damped_newton, pad_harmonics
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from rom.model import load_rom
+from support import coarse_rom
 from test_obstacle import C, D, F, K, M, W, _solve
 
 
@@ -35,14 +34,13 @@ def test_grazing_contact_converges_to_the_free_orbit(monkeypatch):
 
 # ---- the rotor 67 ROM at 1700 rad/s, N_h = 40: a converged contact state of both treatments
 # (the coarse ROM's primary branch there: ~1 mm LE amplitude, contact 10-15 % of the period)
-ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 OMEGA = 1700.0
 
 
 def _solve_at(method, contact, nh, nt, guess=None):
     """Damped Newton at OMEGA (from the contact-free solution, or a guess of any N_h);
     returns (LE amplitude m, share of the AFT samples in contact, residual, u)."""
-    rom = load_rom(ROM_PATH)
+    rom = coarse_rom()
     res = build_residual(rom, CasingOptions(), contact, HbmOptions(n_harmonics=nh, n_time=nt), method=method)
     u0 = res.linear_solution(OMEGA) if guess is None else pad_harmonics(guess, res.n_r, nh)
     sol = damped_newton(res, u0, OMEGA, NewtonOptions(tol_residual=1e-8), HbmSolver())

@@ -1,5 +1,4 @@
 """Dynamical content (eqs. 32-34) against constructed motions whose answer is known."""
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -8,14 +7,12 @@ from hbm.harmonic.content import branch_content, harmonic_contributions, modal_c
 from hbm.harmonic.fourier import FourierBasis
 from hbm.harmonic.residual import build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from rom.model import load_rom
-
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+from support import coarse_rom
 
 
 @pytest.fixture(scope="module")
 def rom():
-    return load_rom(ROM)
+    return coarse_rom()
 
 
 def test_rom_modes_are_the_rom_stage_frequencies(rom):

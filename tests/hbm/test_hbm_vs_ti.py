@@ -8,7 +8,6 @@ independent codes must then agree on it:
 - time marching started from that HBM solution stays on it for 100 periods.
 """
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,15 +20,14 @@ from hbm.ti.sweep import steps_per_revolution
 from hbm.ti.march import Recording, march, rom_modal_system
 from hbm.ti.validation import (DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, SETTLED_DRIFT, compare_again, compare_with_hbm,
                                 confirm_orbit, departure, march_from_hbm, reached_orbit, repeat_period)
-from rom.model import load_rom
+from support import coarse_rom
 
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 OMEGA, N_H, N_T = 1000.0, 40, 512
 
 
 @pytest.fixture(scope="module")
 def orbit():
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     casing, contact = CasingOptions(), ContactOptions()
     n_per = steps_per_revolution(OMEGA, 1e-7, N_T)
     dt, n_rev = 2 * np.pi / (OMEGA * n_per), 200

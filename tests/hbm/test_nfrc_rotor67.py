@@ -5,7 +5,6 @@ the contact-free solution) keep each test to a few seconds; the default-size NFR
 benchmark (benchmarks/bench_hbm.py), not a test.
 """
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,17 +12,15 @@ import pytest
 from pipelines.branch_store import BranchStore, load_branch, partial_path
 from hbm.harmonic.nfrc import compute_nfrc, default_continuation
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from support import distance_to_polyline
+from support import coarse_rom, distance_to_polyline
 
-ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 HBM = HbmOptions(n_harmonics=5, n_time=64, omega_min=400.0, omega_max=500.0)
 CONT = replace(default_continuation(HBM), direction=1, ds=0.02, ds_max=0.05, max_points=25)  # from 400 rad/s
 
 
 @pytest.fixture(scope="module")
 def rom():
-    from rom.model import load_rom
-    return load_rom(ROM_PATH)
+    return coarse_rom()
 
 
 class Stop(Exception):

@@ -9,7 +9,6 @@ integration's Omega / 2 content and amplitude: the two methods share only the RO
 casing and the friction law. In the basis of Omega (nu = 1) the point seeds nothing: its
 orbit does not fit in one revolution.
 """
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -21,9 +20,8 @@ from hbm.isolas.options import IsolaOptions
 from hbm.options import CasingOptions, ContactOptions, HbmOptions, TimeIntegrationOptions
 from hbm.ti.march import rom_modal_system
 from hbm.ti.sweep import simulate
-from rom.model import load_rom
+from support import coarse_rom
 
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 OMEGA = 1110.0
 
 
@@ -36,7 +34,7 @@ def _odd_share(xr):
 
 @pytest.fixture(scope="module")
 def point():
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     r = simulate(rom_modal_system(rom), CasingOptions(), ContactOptions().mu, OMEGA, TimeIntegrationOptions())
     sweep = SimpleNamespace(omega=np.array([r.omega]), period=np.array([r.period]),
                             period_class=np.array([r.period_class]), times=r.times[None], boundary=r.boundary[None])

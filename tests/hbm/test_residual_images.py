@@ -8,21 +8,18 @@ contact laws, in the basis of Omega and of Omega / 2; an orbit with the casing's
 obstacle has no images.
 """
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from rom.model import load_rom
-
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+from support import coarse_rom
 
 
 @pytest.fixture(scope="module")
 def rom():
-    return load_rom(ROM)
+    return coarse_rom()
 
 
 @pytest.mark.parametrize("nu", [1, 2])

@@ -14,7 +14,6 @@ their multipliers are not the centred member's, and the verdicts of the two spec
 differ, which is why the product runs N_h = 40); the centred ones are eigenvalues of the
 same truncated pencil in both, which is what is compared.
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -26,15 +25,14 @@ from hbm.stability.hill import HillOperator, HillSolver, harmonic_period, restri
 import scipy.linalg as sla
 
 from hbm.stability.spectrum import arnoldi_spectrum
-from rom.model import load_rom
+from support import coarse_rom
 
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 OPTS = HbmOptions(n_harmonics=12, n_time=256, omega_min=1940.0, omega_max=2000.0)
 
 
 @pytest.fixture(scope="module", params=["dlft", "rl"])
 def operators(request):
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     r = compute_nfrc(rom, CasingOptions(), ContactOptions(), OPTS, request.param, stability=False)
     res = build_residual(rom, CasingOptions(), ContactOptions(), OPTS, method=request.param)
     out = []

@@ -12,7 +12,6 @@ unstable (two multipliers at +0.0062). The reference is the dense spectrum of th
 quadratic problem with the centred members only (Lazarus and Thomas): stable, leading
 log|mu| = -0.0072 (test_dense_reference, --heavy: 20 s on an idle machine).
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,17 +20,15 @@ from hbm.harmonic.nfrc import compute_nfrc
 from hbm.harmonic.residual import build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.spectrum import orbit_spectrum
+from support import coarse_rom
 
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 #: leading log|mu| of the dense spectrum at that point (test_dense_reference measures it)
 DENSE_LEADING = -0.0072
 
 
 @pytest.fixture(scope="module")
 def point():
-    from rom.model import load_rom
-
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1846.0, omega_max=2000.0)
     r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, "dlft", stability=False)  # ~5 s
     assert r.status == "reached omega_min"

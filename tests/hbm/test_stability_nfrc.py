@@ -7,7 +7,6 @@ handed on once, in order, with stability keys consistent with the result's array
 with an own analysis of the point where it was analysed, and a bifurcation between two
 points exactly where the count changes.
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,16 +18,15 @@ from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.bifurcation import KINDS, bifurcation_arrays
 from hbm.stability.monitor import StabilityOptions
 from hbm.stability.spectrum import orbit_spectrum
-from rom.model import load_rom
+from support import coarse_rom
 
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 OPTS = HbmOptions(n_harmonics=12, n_time=256, omega_min=1940.0, omega_max=2000.0)
 KEYS = {"stable", "n_unstable", "stability_analysed", "leading_multipliers", "period_ratio"}
 
 
 @pytest.fixture(scope="module")
 def run():
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     seen = []
     r = compute_nfrc(rom, CasingOptions(), ContactOptions(), OPTS, "dlft", on_point=lambda p, ex: seen.append((p, ex)),
                      stability=StabilityOptions(max_gap=4))

@@ -7,7 +7,6 @@ below the casing's first clear-running speed: the branch climbs the 2B x 4 Omega
 (7785 rad/s / 4 = 1946 rad/s) and bends over, and its stability changes several times
 (Neimark-Sacker at both ends of a stable stretch). About 80 points, 16 of them analysed.
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -17,14 +16,12 @@ from hbm.harmonic.residual import build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.spectrum import orbit_spectrum
 from hbm.ti.validation import confirm_orbit, march_from_hbm
-from rom.model import load_rom
-
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+from support import coarse_rom
 
 
 @pytest.fixture(scope="module")
 def verdicts():
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     casing, contact = CasingOptions(), ContactOptions()
     opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1960.0, omega_max=2000.0)
     r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)

@@ -9,7 +9,6 @@ orbit_spectrum widens the window until a stable verdict holds up to MIN_CEILING 
 it; time integration (hbm.ti, an independent code: exact contact, sliding friction)
 started on the orbit leaves it, which says the widened verdict is the right one.
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -19,14 +18,12 @@ from hbm.harmonic.residual import build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.spectrum import orbit_spectrum
 from hbm.ti.validation import march_from_hbm
-from rom.model import load_rom
-
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+from support import coarse_rom
 
 
 @pytest.fixture(scope="module")
 def point():
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     casing, contact = CasingOptions(), ContactOptions()
     opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1334.0, omega_max=2000.0)
     r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)  # ~11 s

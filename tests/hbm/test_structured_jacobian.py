@@ -8,7 +8,6 @@ preconditioner, for J x = b and for the bordered system of the arc-length correc
 The last test runs an NFRC window both ways: the same points, to the Newton tolerance.
 """
 import dataclasses
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -20,10 +19,8 @@ from hbm.harmonic.preconditioner import ContactPreconditioner
 from hbm.harmonic.solver import HbmSolver
 from hbm.linalg.dense import DirectSolver
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from rom.model import load_rom
-from support import distance_to_polyline, standin_rom
+from support import coarse_rom, distance_to_polyline, standin_rom
 
-ROM_PATH = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 
 CASES = [("dlft", 0.0), ("dlft", 0.15), ("rl", 0.0), ("rl", 0.15)]
 
@@ -152,7 +149,7 @@ def test_nfrc_window_same_with_dense_and_structured_jacobians(method):
     down into the contact of the 2B superharmonic: the points agree to what Newton's
     tolerance (1e-8 on the scaled residual) leaves; the curves agree to the sag of the
     chords between points (0.1 % of a step at ds_max = 0.5)."""
-    rom = load_rom(ROM_PATH)
+    rom = coarse_rom()
     hbm = HbmOptions(n_harmonics=5, n_time=64, omega_min=1900.0, omega_max=2000.0)
     cont = dataclasses.replace(default_continuation(hbm), max_points=40, ds_max=0.5)  # small chords: small sag
     out = {}

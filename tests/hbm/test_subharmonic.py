@@ -9,7 +9,6 @@ rho Omega and the harmonic Z blocks at k Omega / nu. The nu = 2
 Jacobians must match finite differences (dR/dOmega has the 1 / nu chain rule), and a
 nu = 2 continuation started from it must trace the same curve as the nu = 1 one.
 """
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -21,16 +20,14 @@ from hbm.harmonic.start import solve_start
 from hbm.harmonic.nfrc import default_continuation
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.switching import embed_harmonics
-from rom.model import load_rom
-from support import distance_to_polyline
+from support import coarse_rom, distance_to_polyline
 
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
 NH, NT, OMEGA = 8, 128, 2000.0
 
 
 @pytest.fixture(scope="module")
 def rom():
-    return load_rom(ROM)
+    return coarse_rom()
 
 
 @pytest.mark.parametrize("method", ["dlft", "rl"])

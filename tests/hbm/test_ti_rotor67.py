@@ -11,23 +11,19 @@ revolutions); 2000 rad/s has no period (class NONE) and must never stop early. N
 on this ROM it disagrees with Carpenter by 2 to 10 times in amplitude.)
 """
 from dataclasses import replace
-from pathlib import Path
 
-import numpy as np
 import pytest
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
 from hbm.ti.march import rom_modal_system
 from hbm.ti.periodicity import PeriodClass
 from hbm.ti.sweep import simulate
-from rom.model import load_rom
-
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+from support import coarse_rom
 
 
 @pytest.fixture(scope="module")
 def system():
-    return rom_modal_system(load_rom(ROM))
+    return rom_modal_system(coarse_rom())
 
 
 @pytest.mark.parametrize("omega,cls", [(1200.0, PeriodClass.CASING), (1800.0, PeriodClass.CASING),

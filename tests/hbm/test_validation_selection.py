@@ -13,7 +13,6 @@ from them (hbm.ti.validation), checked against independent references:
   at every point, and the period doubling a scan misses.
 """
 from dataclasses import replace
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -31,13 +30,11 @@ from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.bifurcation import PERIOD_DOUBLING
 from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
 from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, compare_with_hbm, march_from_hbm
-from rom.model import load_rom
-
-ROM = Path(__file__).resolve().parents[1] / "data" / "rotor67_coarse_rom.h5"
+from support import coarse_rom
 
 
 def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees():
-    rom = load_rom(ROM)
+    rom = coarse_rom()
     casing, contact = CasingOptions(), ContactOptions()
     opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1960.0, omega_max=2000.0)
     r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)

@@ -1,15 +1,12 @@
 """Friction-lock check (rom.friction_lock) and the sense of rotation (rom.rotation), against
 hand computations: a two-node compliance written down, its 2 x 2 minors solved by hand."""
-from pathlib import Path
 
 import numpy as np
 import pytest
 
 from rom.friction_lock import friction_lock
-from rom.model import load_rom
 from rom.rotation import rotation_sign
-
-DATA = Path(__file__).resolve().parents[1] / "data"
+from support import coarse_rom
 
 
 def _toy(G: np.ndarray, eta: int = 2) -> np.ndarray:
@@ -69,7 +66,7 @@ def test_warning_names_the_dragged_node():
 def test_rotor67_contact_set_threshold_by_brute_force():
     # mu_set from the eigenvalues of B^-1 C against a direct scan of the 511 principal minors
     # of A(mu) on the coarse rotor 67 ROM: just below it all are positive, just above one is not.
-    rom = load_rom(DATA / "rotor67_coarse_rom.h5")
+    rom = coarse_rom()
     import itertools
 
     for s in (1, -1):
@@ -85,7 +82,7 @@ def test_rotor67_contact_set_threshold_by_brute_force():
 
 
 def test_rotation_sign():
-    rom = load_rom(DATA / "rotor67_coarse_rom.h5")
+    rom = coarse_rom()
     # rotor 67's table: theta_TE - theta_LE = +0.33 rad, so the LE leads turning towards -theta
     assert rom.theta[-1] - rom.theta[0] == pytest.approx(0.334, abs=0.01)
     assert rotation_sign("le-leads", rom.theta) == -1
