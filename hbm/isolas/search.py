@@ -187,8 +187,8 @@ class _Corrector:
             if not sol.converged or not np.all(np.isfinite(sol.x)):
                 out.append((i, False, sol.iterations, -1, -1, None))
                 continue
-            k = lies_on_any(self.residual, sol.x, w, self.known, self.options, self.solver)
             mine = [sol.x, *images(self.residual, sol.x)]
+            k = lies_on_any(self.residual, sol.x, w, self.known, self.options, self.solver, x_images=mine[1:])
             same = next((j for j, xj in kept if any(np.linalg.norm(xq - xj) <= tol for xq in mine)), -1)
             if k < 0 and same < 0:
                 kept.append((i, sol.x))
@@ -272,9 +272,11 @@ def images(residual, x: np.ndarray) -> list:
     return list(f(x)) if f is not None else []
 
 
-def lies_on_any(residual, x, omega: float, branches, options: SearchOptions, solver=None) -> int:
-    """lies_on for x or any of its images: the index of the branch, -1 when none."""
-    for xq in [x, *images(residual, x)]:
+def lies_on_any(residual, x, omega: float, branches, options: SearchOptions, solver=None,
+                x_images: list | None = None) -> int:
+    """lies_on for x or any of its images (x_images: images(residual, x) when already at
+    hand): the index of the branch, -1 when none."""
+    for xq in [x, *(images(residual, x) if x_images is None else x_images)]:
         k = lies_on(residual, xq, omega, branches, options, solver)
         if k >= 0:
             return k
