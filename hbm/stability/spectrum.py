@@ -216,18 +216,13 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     |k_bar| = 1/2 (lam and conj(lam) = lam - i omega): one multiplier, counted once.
     Otherwise (the Arnoldi window): eigenpair i joins the family of representative j when
     lam_i = lam_j + i m omega for an integer m, to 1e-2 omega in the imaginary part and
-    _real_tolerance in the real part (MEMBER_DRIFT * max(1, |m|) omega), and p_i is parallel
-    to p_j shifted by m harmonics (|cos| > 0.9). The members' real parts drift with the shift: by 1.3e-3
-    omega on the rotor 67 ROM with DLFT at N_h = 20; at N_h = 40 on the coarse ROM by
-    1.0-1.1e-3 omega per harmonic with DLFT (1848.1 rad/s: members at k_bar -0.4, 0.6 and
-    1.6 have log|mu| -0.0072, -0.0009 and +0.0062) and 1.3-2.6e-3 with RL (1459.5 rad/s:
-    six members from k_bar -2.3 to 2.6, log|mu| -0.045 to +0.019, the centred one -0.028).
-    A fixed 2e-3 omega kept the far members apart: unstable "families" that the dense
-    spectrum does not have, in the wider windows of orbit_spectrum's widening. Two real
-    negative multipliers just born from a complex pair have nearly parallel eigenvectors
-    and exponents a few 1e-2 omega apart in their real parts: between such near-real
-    negative multipliers the real-part test stays at 2e-3 omega (_real_tolerance), so that
-    a period doubling is not merged away.
+    _real_tolerance in the real part, and p_i is parallel to p_j shifted by m harmonics
+    (|cos| > 0.9). The truncation moves the members' real parts with the shift
+    (MEMBER_DRIFT says by how much on rotor 67): a tolerance that ignores the shift keeps
+    far members apart, as unstable "families" that the dense spectrum does not have.
+    Between two near-real negative multipliers the tolerance stays tight: two families just
+    born from a complex pair there have nearly parallel eigenvectors, and merging them would
+    hide the period doubling.
     """
     kbar, edge = harmonic_centre(P)
     centred = np.abs(kbar) <= 0.5 + 1e-3  # 1e-3: round-off and the truncation's shift of the centre
