@@ -112,6 +112,7 @@ def main():
               f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
               f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
               f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s")
+        _split(s)
         if a.compare_full:
             t0 = time.perf_counter()
             f = sweep(system, cas, con, replace(opts, stop_when_settled=False), omegas=grid)
@@ -119,6 +120,22 @@ def main():
             print(f"Without the early stop: {wall_f:.0f} s wall, per-speed sum {f.cpu_time.sum():.0f} s; "
                   f"ratio {wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
             _compare(s, f)
+
+
+def _split(s):
+    """Per class: speeds, those that ran the whole n_revolutions, and their share of the
+    per-speed CPU sum (a speed with no period never stops early: its cost is a floor)."""
+    from hbm.ti.periodicity import PeriodClass
+
+    full = s.revolutions == s.revolutions.max()
+    print("\n| class | speeds | ran every revolution | CPU s (of which those) | share of the sum |")
+    print("|---|---|---|---|---|")
+    for code in PeriodClass:
+        sel = s.period_class == code
+        if sel.any():
+            print(f"| {code.label()} | {int(sel.sum())} | {int((sel & full).sum())} | {s.cpu_time[sel].sum():.1f} "
+                  f"({s.cpu_time[sel & full].sum():.1f}) | {s.cpu_time[sel].sum() / s.cpu_time.sum():.0%} |")
+    print()
 
 
 def _over(s, limit):
