@@ -11,7 +11,8 @@
    error is taken against dt = 5e-8 (responses can be chaotic: a difference there is a
    different trajectory, not a discretisation error).
 3. --full-sweep: the whole 161-point sweep with all cores (wall time; per-speed wall time in
-   its worker, which is its CPU time when no more processes run than cores).
+   its worker, which is its CPU time when no more processes run than cores); per class, the
+   speeds that ran every revolution (no early stop can shorten those) and their CPU share.
    --compare-full: then the same sweep again with stop_when_settled = false (always 200
    revolutions): per class, the revolutions the early stop needed, whether every point kept
    the class of the full run, and the largest LE amplitude difference.
