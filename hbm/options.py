@@ -69,15 +69,15 @@ class HbmOptions:
       almost every point: 2911 points instead of 338 for RL at N_h = 10, same peaks).
     tolerance: Newton's test on the scaled residual ||R|| (R ~ H_r / (k_ref / alpha)).
     stability: Floquet stability of every point and the bifurcations of the branch
-      (Hill's method, hbm.stability). Off by default: it adds 1.8 to 2.5 times the NFRC's
-      own time on the coarse rotor 67 ROM (RL, DLFT; 353-542 analyses of ~0.2-0.4 s CPU each,
-      see hbm.stability.monitor; the 25 % target of issue 11 is not met).
+      (Hill's method, hbm.stability). Off by default: it adds 1.4 (RL) to 1.8 (DLFT) times
+      the NFRC's own time on the coarse rotor 67 ROM (518 and 342 analyses of ~0.12 s CPU
+      each, see hbm.stability.monitor).
     stability_max_gap: most points between two Floquet analyses (the monitor analyses
-      sooner where multipliers approach the unit circle). 8 analyses ~55 % of the points
-      of the coarse rotor 67 NFRCs; 1 analyses every point (1.8-1.9 times the analyses)
-      and so also finds the short stretches of the other stability that lie inside one
-      gap (a pair of crossings a few rad/s apart: 2 of 59 and 2 of 95 crossings are
-      missed with 8 on the coarse DLFT and RL NFRCs).
+      sooner where multipliers approach the unit circle). 8 analyses about half the points
+      of the coarse rotor 67 NFRCs; 1 analyses every point (1.9 times the analyses) and so
+      also finds the short stretches of the other stability that lie inside one gap (a pair
+      of crossings a few rad/s apart: 4 of 53 and 8 of 87 crossings are missed with 8 on the
+      coarse DLFT and RL NFRCs).
     subharmonic: nu, the HBM's fundamental is omega = Omega / nu (nu = 1: the casing's
       period; nu = 2 holds the period-doubled orbits). The continuation parameter stays
       Omega.
