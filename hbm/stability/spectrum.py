@@ -301,7 +301,7 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
     Arnoldi, ARPACK): every multiplier above FloquetSpectrum.modulus_floor (see the module
     doc). solver: H(0)^-1 (built here when not given). n_eig = 40: on the rotor 67 ROM at
     N_h = 40 in the orbit's T / 2 basis, modulus_floor is 0.05 to 0.15 (all multipliers that
-    can come near the unit circle) for about 0.2 s CPU (~100 solves; fewer eigenvalues leave
+    can come near the unit circle) for about 0.13 s CPU (~100 solves; fewer eigenvalues leave
     rho < w / 2 there, i.e. no floor at all: n_eig = 24 and 30 gave modulus_floor 1).
     """
     S = solver or HillSolver(H)
