@@ -5,6 +5,7 @@ function writes one PNG of exactly ``figsize * dpi`` pixels and returns its path
 """
 from __future__ import annotations
 
+import textwrap
 from pathlib import Path
 
 import matplotlib
@@ -308,7 +309,8 @@ def plot_validation_signals(points: dict, out_png, *, title: str | None = None) 
             ax.grid(True, lw=0.4, alpha=0.5)
             ax.set_ylabel(f"{'radial displacement' if what == 'displacement' else 'normal force'} ({unit})", fontsize=8)
             stab = "stable" if p.stable else "unstable"
-            ax.set_title(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {p.ti.verdict()})",
+            # the verdict can be long (the friction lock names its nodes): wrapped, not cut at the edge
+            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {p.ti.verdict()})", 80),
                          fontsize=8)
         row[0].legend(fontsize=6, loc="best", ncol=3)
     for ax in axes[-1]:
