@@ -113,7 +113,7 @@ def main():
               f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
               f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
               f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s")
-        _split(s)
+        _split(s, opts.n_revolutions)
         if a.compare_full:
             t0 = time.perf_counter()
             f = sweep(system, cas, con, replace(opts, stop_when_settled=False), omegas=grid)
@@ -123,12 +123,12 @@ def main():
             _compare(s, f)
 
 
-def _split(s):
-    """Per class: speeds, those that ran the whole n_revolutions, and their share of the
+def _split(s, n_revolutions: int):
+    """Per class: speeds, those that ran all n_revolutions, and their share of the
     per-speed CPU sum (a speed with no period never stops early: its cost is a floor)."""
     from hbm.ti.periodicity import PeriodClass
 
-    full = s.revolutions == s.revolutions.max()
+    full = s.revolutions >= n_revolutions
     print("\n| class | speeds | ran every revolution | CPU s (of which those) | share of the sum |")
     print("|---|---|---|---|---|")
     for code in PeriodClass:
