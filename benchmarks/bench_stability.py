@@ -225,16 +225,8 @@ def filter_check(rom, a):
     import dataclasses
 
     from hbm.stability.hill import harmonic_period, restrict
-    from hbm.stability.spectrum import MAX_EIG, MIN_CEILING, arnoldi_spectrum
+    from hbm.stability.spectrum import widened_spectrum
     from hbm.ti.validation import march_from_hbm
-
-    def verdict(H):  # orbit_spectrum's widening, on a given operator
-        k = 40
-        sp = arnoldi_spectrum(H, n_eig=k)
-        while sp.stable and sp.modulus_ceiling < MIN_CEILING and k < MAX_EIG and not sp.note:
-            k = min(2 * k, MAX_EIG)
-            sp = arnoldi_spectrum(H, n_eig=k)
-        return sp
 
     opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
     casing, contact = CasingOptions(), ContactOptions()
@@ -247,7 +239,7 @@ def filter_check(rom, a):
             u, w = r.unknowns[i], float(r.omega[i])
             H = hill.HillOperator.from_residual(res, u, w)
             H = restrict(H, harmonic_period(res.to_coefficients(u), 1e-4))
-            f, nf = verdict(H), verdict(dataclasses.replace(H, sigma=np.ones_like(H.sigma)))
+            f, nf = widened_spectrum(H), widened_spectrum(dataclasses.replace(H, sigma=np.ones_like(H.sigma)))
             rows.append((i, w, f.stable, nf.stable, np.log(f.largest_modulus), np.log(nf.largest_modulus)))
     diff = [x for x in rows if x[2] != x[3]]
     print(f"rl: {len(rows)} points (every {a.every}th of {n}): verdicts agree at {len(rows) - len(diff)}; "

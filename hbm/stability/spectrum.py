@@ -371,9 +371,17 @@ def orbit_spectrum(residual, u: np.ndarray, omega: float, *, jacobian=None, n_ei
     H = restrict(H, g)
     if H.size <= dense_below:
         return dense_spectrum(H), g
-    solver = HillSolver(H)
+    return widened_spectrum(H, n_eig=n_eig, min_ceiling=min_ceiling), g
+
+
+def widened_spectrum(H: HillOperator, n_eig: int = 40, min_ceiling: float = MIN_CEILING,
+                     solver: HillSolver | None = None) -> FloquetSpectrum:
+    """arnoldi_spectrum with n_eig eigenvalues, doubled (up to MAX_EIG, one factorisation for
+    all) while the verdict is stable but its window ends below min_ceiling (see
+    orbit_spectrum)."""
+    solver = solver or HillSolver(H)
     spec = arnoldi_spectrum(H, n_eig=n_eig, solver=solver)
     while spec.stable and spec.modulus_ceiling < min_ceiling and n_eig < MAX_EIG and not spec.note:
         n_eig = min(2 * n_eig, MAX_EIG)
         spec = arnoldi_spectrum(H, n_eig=n_eig, solver=solver)
-    return spec, g
+    return spec
