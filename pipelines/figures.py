@@ -362,38 +362,83 @@ def plot_contact_event(point, out_png, *, title: str | None = None) -> Path:
     return _save(fig, out_png)
 
 
-def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4, 6, 8, 10)) -> Path:
-    """Dynamical content along branches (paper Figs. 11 and 12) against Omega.
+#: Panels of the content figures (Figs. 11-12): more branches than this are in isolas.h5 only.
+MAX_CONTENT_PANELS = 8
 
-    curves: {label: (omega (m,) rad/s, contributions (m, n) -)}; kind "modal" (column j:
-    mode j + 1's relative contribution, eq. 32-33; a 0.5 line) or "harmonic" (column k:
-    harmonic k's contribution to the LE radial displacement, eq. 34; those of `harmonics`
-    drawn, or the five largest when none of them carries content).
+
+def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4, 6, 8, 10), n_modes: int = 4,
+                 mode_frequencies=None) -> Path:
+    """Dynamical content along branches (paper Figs. 11 and 12) against Omega, one panel per
+    branch, each drawn in its points' order (an isola is a loop in these planes too).
+
+    curves: {label: (omega (m,) rad/s, contributions (m, n), nu)}, nu the branch's
+    subharmonic order (its harmonic k oscillates at k Omega / nu; (omega, contributions)
+    means nu = 1). kind "modal": contributions are eq. (33)'s relative modal contributions
+    (column j: mode j + 1); the first `n_modes` modes are drawn and the rest summed, as in
+    Fig. 11, with the 0.5 line. kind "harmonic": column k is |c_k| of the LE radial
+    displacement, m (eq. 34), drawn in mm for k in `harmonics` (the five largest where none of
+    them carries content), and, given mode_frequencies ((n,) rad/s), every crossing
+    k Omega / nu = omega_j of a drawn k with one of the first n_modes modes inside the
+    panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS branches with
+    the most points are drawn when there are more.
     """
-    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    styles = ["-", "--", ":", "-."]
+    items = list(curves.items())
+    dropped = max(0, len(items) - MAX_CONTENT_PANELS)
+    if dropped:
+        keep = sorted(sorted(range(len(items)), key=lambda i: -len(items[i][1][0]))[:MAX_CONTENT_PANELS])
+        items = [items[i] for i in keep]
+    ncols = 2 if len(items) > 1 else 1
+    nrows = max(1, -(-len(items) // ncols))
+    size = (FIGSIZE[0] * (1.0 if ncols == 1 else 1.5), max(FIGSIZE[1], 2.1 * nrows + 1.2))
+    fig, axes = plt.subplots(nrows, ncols, figsize=size, constrained_layout=True, squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
-    for s, (label, (omega, c)) in enumerate(curves.items()):
-        c = np.asarray(c, float)
-        order = np.argsort(np.asarray(omega, float))
+    handles = {}
+    for ax, (label, entry) in zip(axes.ravel(), items):
+        omega, c = np.asarray(entry[0], float), np.asarray(entry[1], float)
+        nu = int(entry[2]) if len(entry) > 2 else 1
         if kind == "modal":
-            cols = [j for j in range(c.shape[1]) if np.nanmax(c[:, j]) > 0.02] or [0]
-            names = [f"mode {j + 1}" for j in cols]
+            cols = [(j, f"mode {j + 1}", colours[j % len(colours)]) for j in range(min(n_modes, c.shape[1]))]
+            lines = [c[:, j] for j, _, _ in cols]
+            if c.shape[1] > n_modes:
+                cols.append((-1, f"modes {n_modes + 1} to {c.shape[1]}", "0.45"))
+                lines.append(c[:, n_modes:].sum(axis=1))
+            ax.axhline(0.5, color="0.5", lw=0.8, ls=":")
+            ax.set_ylim(0.0, 1.0)
         else:
-            cols = [h for h in harmonics if h < c.shape[1] and np.nanmax(c[:, h]) > 1e-3]
-            if not cols:
-                cols = list(np.argsort(-np.nanmax(c, axis=0))[:5])
-            names = [f"k = {h}" for h in cols]
-        for i, (j, name) in enumerate(zip(cols, names)):
-            ax.plot(np.asarray(omega)[order], c[order, j], styles[s % 4], color=colours[i % len(colours)], lw=1.2,
-                    label=f"{label}: {name}")
-    if kind == "modal":
-        ax.axhline(0.5, color="0.5", lw=0.8, ls=":")
-    if not curves:
-        _note(ax, f"no {kind} contributions in the solution set")
-    ax.set_xlabel("angular speed \u03a9 (rad/s)")
-    ax.set_ylabel("relative modal contribution (-)" if kind == "modal" else "harmonic contribution (-)")
-    ax.grid(True, lw=0.4, alpha=0.5)
-    if curves:
-        ax.legend(fontsize=6, loc="best")
+            ks = [k for k in harmonics if k < c.shape[1] and np.nanmax(c[:, k]) > 1e-3 * np.nanmax(c)]
+            ks = ks or sorted(int(k) for k in np.argsort(-np.nanmax(c, axis=0))[:5])
+            cols = [(k, f"k = {k}", colours[(k // 2) % len(colours)]) for k in ks]
+            lines = [1e3 * c[:, k] for k in ks]
+        for (_, name, colour), y in zip(cols, lines):
+            ax.plot(omega, y, color=colour, lw=1.0)
+            handles.setdefault(name, Line2D([], [], color=colour, lw=1.2, label=name))
+        lo, hi = np.nanmin(omega), np.nanmax(omega)
+        pad = 0.03 * (hi - lo) + 1e-9
+        ax.set_xlim(lo - pad, hi + pad)
+        if kind == "harmonic" and mode_frequencies is not None:
+            for k, _, colour in cols:
+                for j, wj in enumerate(np.asarray(mode_frequencies, float)[:n_modes]):
+                    at = nu * wj / k if k else np.inf
+                    if lo - pad <= at <= hi + pad:
+                        ax.axvline(at, color=colour, lw=0.8, ls="--")
+                        ax.annotate(f"{k}\u03a9/{nu} = \u03c9{j + 1}" if nu > 1 else f"{k}\u03a9 = \u03c9{j + 1}",
+                                    (at, 1.0), xycoords=("data", "axes fraction"), fontsize=6, rotation=90,
+                                    ha="right", va="top", color=colour)
+        ax.set_title(f"{label}, \u03a9 {lo:.0f}-{hi:.0f} rad/s" + (f" (harmonics of \u03a9/{nu})" if nu > 1 else ""),
+                     fontsize=8)
+        ax.grid(True, lw=0.4, alpha=0.5)
+        ax.tick_params(labelsize=7)
+    for ax in axes.ravel()[len(items):]:
+        ax.set_axis_off()
+    for ax in axes[-1]:
+        ax.set_xlabel("angular speed \u03a9 (rad/s)", fontsize=8)
+    for ax in axes[:, 0]:
+        ax.set_ylabel("relative modal contribution (-)" if kind == "modal" else "|c_k|, LE radial (mm)", fontsize=8)
+    if not items:
+        _note(axes[0, 0], f"no {kind} contributions in the solution set")
+    else:
+        fig.legend(handles=list(handles.values()), loc="outside lower center", ncol=min(len(handles), 6), fontsize=7)
+    if dropped:
+        fig.suptitle(f"{len(items)} branches with the most points drawn of {len(items) + dropped}; all are in "
+                     "isolas.h5", fontsize=8)
     return _save(fig, out_png)

@@ -820,20 +820,30 @@ def _set_inputs(scene) -> tuple[str, ...]:
 
 
 def draw_content(ctx: Context) -> None:
-    """Figs. 11 and 12 (dynamical content along the isolas) when isolas.h5 carries it."""
+    """Figs. 11 and 12 (dynamical content along the isolas, one panel per isola) when
+    isolas.h5 carries it; the harmonic panels mark where k Omega / nu meets one of the ROM's
+    first four modes."""
+    from hbm.harmonic.content import rom_modes
     from pipelines.figures import plot_content
 
     scene, out = ctx.scene, ctx.out
     modal, harmonic = {}, {}
     for m in scene.hbm.methods:
         for br in read_branch_set(out / ISOLAS, m):
-            if br.kind == "isola" and br.modal_contribution is not None:
-                modal[f"{m.upper()} isola {br.name}"] = (br.omega, br.modal_contribution)
-            if br.kind == "isola" and br.harmonic_contribution is not None:
-                harmonic[f"{m.upper()} isola {br.name}"] = (br.omega, br.harmonic_contribution)
+            if br.kind != "isola":
+                continue
+            label = f"{m.upper()} isola {br.name}"
+            if br.modal_contribution is not None:
+                modal[label] = (br.omega, br.modal_contribution, br.subharmonic)
+            if br.harmonic_contribution is not None:
+                harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic)
+    freq = None
+    if harmonic and (out / "rom.h5").is_file():
+        rom = read_rom(out)
+        freq = rom_modes(rom.K, rom.M)[0]
     # drawn (with a note) even without content: a figure that is never drawn would be redrawn by every run
     plot_content(modal, out / "figures" / "isola_modal_content.png", kind="modal")
-    plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic")
+    plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic", mode_frequencies=freq)
 
 
 SIGNALS = Figure("validation", files=_signal_files, depends=("hbm.methods",),
@@ -842,7 +852,7 @@ SOLUTION_SET = Figure("solution_set", files=_set_files,
                       depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes"),
                       inputs=_set_inputs, draw=draw_solution_set)
 CONTENT = Figure("isola_content", files=lambda s: ("isola_modal_content.png", "isola_harmonic_content.png"),
-                 depends=("hbm.methods",), inputs=lambda s: (ISOLAS,), draw=draw_content)
+                 depends=("hbm.methods",), inputs=lambda s: (ISOLAS, "rom.h5"), draw=draw_content)
 
 STAGE = Stage("validation", depends=("casing", "contact", "ti.dt", "hbm", "validation"), upstream=UPSTREAM,
               outputs=lambda scene: (VALIDATION,) if scene.hbm.methods else (), compute=_compute,

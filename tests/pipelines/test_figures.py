@@ -58,3 +58,52 @@ def test_frequencies(tmp_path):
     omega = np.linspace(400.0, 2000.0, 9)
     f = np.array([3400.0, 9800.0, 14500.0]) * (1 + 1e-8 * omega[:, None] ** 2)
     _check(figures.plot_frequencies(omega, f, tmp_path / "campbell.png", labels=["1B", "2B", "1T"]))
+
+
+def _ink(path):
+    """Pixels that are not background (white or the light grid)."""
+    img = imread(path)[..., :3]
+    assert img.std() > 0.02
+    return int((img.min(axis=2) < 0.6).sum())
+
+
+def test_content_draws_a_loop_as_a_loop(tmp_path):
+    """An isola is a closed curve in (Omega, contribution) too: drawn in its points' order its
+    inside stays blank; drawn by increasing Omega (the points reordered), the upper and lower
+    halves interleave into a hatched band."""
+    s = np.linspace(0.0, 2 * np.pi, 400)
+    omega = 1000.0 + 50.0 * np.cos(s)
+    c = np.zeros((400, 6))
+    c[:, 0] = 0.55 + 0.3 * np.sin(s)
+    c[:, 1] = 1.0 - c[:, 0]
+    loop = _ink(figures.plot_content({"loop": (omega, c, 1)}, tmp_path / "loop.png"))
+    order = np.argsort(omega)
+    hatched = _ink(figures.plot_content({"loop": (omega[order], c[order], 1)}, tmp_path / "hatched.png"))
+    assert hatched > 3 * loop
+
+
+def test_content_many_branches_one_panel_each_and_crossings(tmp_path):
+    """Eleven branches: no layout warning (the legend of every line of every branch once
+    squeezed the axes to nothing), the eight longest drawn; the crossing 4 Omega = omega_1
+    inside a branch's span is marked."""
+    import warnings
+
+    rng = np.random.default_rng(3)
+    curves = {}
+    for b in range(11):
+        n = 30 + 10 * b
+        omega = np.linspace(500.0 + 50 * b, 560.0 + 50 * b, n)
+        h = np.abs(rng.normal(size=(n, 21))) * 1e-4
+        h[:, 4] += 1e-3
+        curves[f"branch {b}"] = (omega, h, 1)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        bare = imread(figures.plot_content(curves, tmp_path / "h.png", kind="harmonic"))[..., :3]
+        w1 = 4.0 * 1030.0  # 4 Omega = omega_1 at 1030 rad/s: inside branch 10's span (1000-1060)
+        marked = imread(figures.plot_content(curves, tmp_path / "hm.png", kind="harmonic",
+                                             mode_frequencies=[w1, 1e9]))[..., :3]
+        modal = figures.plot_content({k: (w, np.abs(h[:, :8]) / np.abs(h[:, :8]).sum(1, keepdims=True), 1)
+                                      for k, (w, h, _) in curves.items()}, tmp_path / "m.png")
+    assert bare.shape[0] > round(figures.FIGSIZE[1] * figures.DPI)  # four rows of panels
+    assert np.abs(marked - bare).max(axis=2).__gt__(0.2).sum() > 100
+    assert _ink(modal) > 0
