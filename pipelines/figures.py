@@ -64,7 +64,11 @@ def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_l
 
 def _amplitude_axes(ax, omega_range, unit: str, title: str | None) -> None:
     """Axes of the amplitude-vs-speed figures (Fig. 5 and 6 of the paper)."""
-    ax.set_xlim(*omega_range)
+    lo, hi = omega_range
+    if hi <= lo:  # a sweep of one speed: a window of 2 % around it
+        pad = max(1.0, 0.02 * abs(lo))
+        lo, hi = lo - pad, hi + pad
+    ax.set_xlim(lo, hi)
     ax.set_ylim(bottom=0.0)
     ax.set_xlabel("angular speed \u03a9 (rad/s)")
     ax.set_ylabel(f"LE radial amplitude, half peak-to-peak ({unit})")

@@ -107,3 +107,12 @@ def test_content_many_branches_one_panel_each_and_crossings(tmp_path):
     assert bare.shape[0] > round(figures.FIGSIZE[1] * figures.DPI)  # four rows of panels
     assert np.abs(marked - bare).max(axis=2).__gt__(0.2).sum() > 100
     assert _ink(modal) > 0
+
+
+def test_sweep_of_one_speed(tmp_path):
+    """A sweep of one speed ([ti] omega_min = omega_max) draws without a singular-limits warning."""
+    import warnings
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", UserWarning)
+        _check(figures.plot_ti_sweep([1110.0], [1e-3], [0], tmp_path / "one.png", omega_range=(1110.0, 1110.0)))
