@@ -5,6 +5,14 @@ verdict) from up to --march stable points per branch, spread over its stable poi
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT [--scene scenes/rotor67_coarse.toml]
         [--every 6] [--march 3] [--methods dlft rl] [--kinds isola detached]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --window-check 12
+        [--branches rl/007 dlft/008] [--seed 1]
+
+--window-check N: on branches stored with stability ([hbm] stability), N of the points the
+monitor analysed, drawn at random, are analysed again with the monitor's 40-eigenvalue
+window (no widening) and with orbit_spectrum's widening; one line per point gives the
+stored verdict and both of these, to show which stable verdicts a 40-eigenvalue window
+gets wrong (a multiplier beyond its ceiling).
 
 Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE --out OUT`).
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
@@ -42,6 +50,10 @@ def main() -> None:
     ap.add_argument("--march", type=int, default=3, help="time integrations per branch, from its stable points")
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
     ap.add_argument("--kinds", nargs="+", default=["isola", "detached", "bifurcated"])
+    ap.add_argument("--window-check", type=int, default=0, metavar="N",
+                    help="analyse N random stored-analysed points per branch with and without widening")
+    ap.add_argument("--branches", nargs="+", help="METHOD/NNN of the branches to take (default: all of --kinds)")
+    ap.add_argument("--seed", type=int, default=1)
     a = ap.parse_args()
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
@@ -50,11 +62,14 @@ def main() -> None:
     n_r = 3 * rom.n_boundary
     for method in a.methods:
         for br in found.get(method, []):
-            if br.kind not in a.kinds:
+            if (a.branches and f"{method}/{br.name}" not in a.branches) or (not a.branches and br.kind not in a.kinds):
                 continue
             t0 = time.process_time()
             res = build_residual(rom, scene.casing, scene.contact,
                                  _options_for(scene.hbm, br.x.shape[1], n_r, br.subharmonic), method=method)
+            if a.window_check:
+                _window_check(a.out, method, br, res, a.window_check, a.seed)
+                continue
             idx = [i for i in range(0, len(br.omega), a.every) if br.converged[i]]
             largest, stable, cost, ratios = [], [], [], set()
             for i in idx:
@@ -83,6 +98,33 @@ def main() -> None:
                       f"{ti.verdict().replace('leaves', 'LEAVES', 1)} (growth {ti.growth:.2f}, last deviation "
                       f"{ti.deviation[-10:].max():.3g}), contact force at the end up to {ti.force_peak.max():.0f} N",
                       flush=True)
+
+
+def _window_check(out: Path, method: str, br, res, n: int, seed: int) -> None:
+    """The stored verdict of n random analysed points of br against a 40-eigenvalue analysis
+    without widening (the monitor's plain one) and with orbit_spectrum's widening."""
+    import h5py
+
+    from hbm.stability.spectrum import orbit_spectrum
+
+    with h5py.File(out / "isolas.h5", "r") as h5:
+        g = h5[f"{method}/branches/{br.name}"]
+        if "stability_analysed" not in g:
+            print(f"{method} {br.name}: stored without stability, nothing to check")
+            return
+        analysed = np.flatnonzero(g["stability_analysed"][()])
+        stored = np.abs(g["leading_multipliers"][()]).max(axis=1)
+    pick = np.sort(np.random.default_rng(seed).choice(analysed, min(n, len(analysed)), replace=False))
+    print(f"{method} {br.name} {br.kind}, {br.omega.min():.0f}-{br.omega.max():.0f} rad/s: {len(pick)} of "
+          f"{len(analysed)} analysed points", flush=True)
+    for i in pick:
+        x, w = br.x[i], float(br.omega[i])
+        plain, _ = orbit_spectrum(res, x, w, n_eig=40, min_ceiling=1.0)
+        wide, _ = orbit_spectrum(res, x, w, n_eig=40)
+        mark = "  <- 40 eigenvalues miss it" if plain.n_unstable == 0 and stored[i] > 1.0 else ""
+        print(f"  {w:7.1f} rad/s: stored largest |mu| {stored[i]:.4g} ({'stable' if br.stable[i] else 'unstable'}); "
+              f"40 eigenvalues {np.abs(plain.multipliers).max():.4g} (ceiling {plain.modulus_ceiling:.3g}); "
+              f"widened {np.abs(wide.multipliers).max():.4g}{mark}", flush=True)
 
 
 if __name__ == "__main__":
