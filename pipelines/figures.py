@@ -381,7 +381,7 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     (column j: mode j + 1); the first `n_modes` modes are drawn and the rest summed, as in
     Fig. 11, with the 0.5 line. kind "harmonic": column k is |c_k| of the LE radial
     displacement, m (eq. 34), drawn in mm for k in `harmonics` (the five largest where none of
-    them carries content), and, given mode_frequencies ((n,) rad/s), every crossing
+    them carries content) and the branch's largest harmonic, and, given mode_frequencies ((n,) rad/s), every crossing
     k Omega / nu = omega_j of a drawn k with one of the first n_modes modes inside the
     panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS branches with
     the most points are drawn when there are more.
@@ -411,7 +411,9 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
         else:
             ks = [k for k in harmonics if k < c.shape[1] and np.nanmax(c[:, k]) > 1e-3 * np.nanmax(c)]
             ks = ks or sorted(int(k) for k in np.argsort(-np.nanmax(c, axis=0))[:5])
-            cols = [(k, f"k = {k}", colours[(k // 2) % len(colours)]) for k in ks]
+            top = 1 + int(np.nanargmax(np.nanmax(c[:, 1:], axis=0))) if c.shape[1] > 1 else 0
+            ks = sorted(set(ks) | {top})  # the branch's dominant harmonic, e.g. the 3rd of a 3 Omega = omega_1 isola
+            cols = [(k, f"k = {k}", colours[k % len(colours)]) for k in ks]
             lines = [1e3 * c[:, k] for k in ks]
         for (_, name, colour), y in zip(cols, lines):
             ax.plot(omega, y, color=colour, lw=1.0)

@@ -116,3 +116,18 @@ def test_sweep_of_one_speed(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)
         _check(figures.plot_ti_sweep([1110.0], [1e-3], [0], tmp_path / "one.png", omega_range=(1110.0, 1110.0)))
+
+
+def test_content_draws_the_dominant_harmonic(tmp_path):
+    """A branch carried by an odd harmonic (a 3 Omega = omega_1 isola) shows it beside the
+    even ones of the paper's Fig. 12: its colour (the third of matplotlib's cycle) is on the
+    picture."""
+    import matplotlib
+
+    red = np.array(matplotlib.colors.to_rgb(matplotlib.rcParams["axes.prop_cycle"].by_key()["color"][3]))
+    omega = np.linspace(950.0, 975.0, 60)
+    c = np.full((60, 11), 1e-6)
+    c[:, 2] = 2e-4
+    c[:, 3] = 3e-4 * (1.5 + np.sin(omega / 3.0))
+    img = imread(figures.plot_content({"b": (omega, c, 1)}, tmp_path / "b.png", kind="harmonic"))[..., :3]
+    assert (np.abs(img - red).max(axis=2) < 0.08).sum() > 200
