@@ -443,7 +443,10 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     if not items:
         _note(axes[0, 0], f"no {kind} contributions in the solution set")
     else:
-        fig.legend(handles=list(handles.values()), loc="outside lower center", ncol=min(len(handles), 6), fontsize=7)
+        entries = list(handles.values())
+        if kind == "harmonic":  # k = 2, 3, 4, ... whichever panel drew them first
+            entries.sort(key=lambda h: int(h.get_label().split("= ")[1]))
+        fig.legend(handles=entries, loc="outside lower center", ncol=min(len(entries), 6), fontsize=7)
     if dropped:
         fig.suptitle(f"{len(items)} branches with the most points drawn of {len(items) + dropped}; all are in "
                      "isolas.h5", fontsize=8)
