@@ -381,9 +381,9 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     (column j: mode j + 1); the first `n_modes` modes are drawn and the rest summed, as in
     Fig. 11, with the 0.5 line. kind "harmonic": column k is |c_k| of the LE radial
     displacement, m (eq. 34), drawn in mm for k in `harmonics` (the five largest where none of
-    them carries content) and the branch's largest harmonic, and, given mode_frequencies ((n,) rad/s), every crossing
-    k Omega / nu = omega_j of a drawn k with one of the first n_modes modes inside the
-    panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS branches with
+    them carries content) and the branch's largest harmonic; given mode_frequencies ((n,)
+    rad/s), every crossing k Omega / nu = omega_j of a drawn k with one of the first n_modes
+    modes inside the panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS branches with
     the most points are drawn when there are more.
     """
     items = list(curves.items())
@@ -404,7 +404,7 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
             cols = [(j, f"mode {j + 1}", colours[j % len(colours)]) for j in range(min(n_modes, c.shape[1]))]
             lines = [c[:, j] for j, _, _ in cols]
             if c.shape[1] > n_modes:
-                cols.append((-1, f"modes {n_modes + 1} to {c.shape[1]}", "0.45"))
+                cols.append((n_modes, f"modes {n_modes + 1} to {c.shape[1]}", "0.45"))
                 lines.append(c[:, n_modes:].sum(axis=1))
             ax.axhline(0.5, color="0.5", lw=0.8, ls=":")
             ax.set_ylim(0.0, 1.0)
@@ -415,9 +415,9 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
             ks = sorted(set(ks) | {top})  # the branch's dominant harmonic, e.g. the 3rd of a 3 Omega = omega_1 isola
             cols = [(k, f"k = {k}", colours[k % len(colours)]) for k in ks]
             lines = [1e3 * c[:, k] for k in ks]
-        for (_, name, colour), y in zip(cols, lines):
+        for (key, name, colour), y in zip(cols, lines):
             ax.plot(omega, y, color=colour, lw=1.0)
-            handles.setdefault(name, Line2D([], [], color=colour, lw=1.2, label=name))
+            handles.setdefault(key, Line2D([], [], color=colour, lw=1.2, label=name))
         lo, hi = np.nanmin(omega), np.nanmax(omega)
         pad = 0.03 * (hi - lo) + 1e-9
         ax.set_xlim(lo - pad, hi + pad)
@@ -443,9 +443,7 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     if not items:
         _note(axes[0, 0], f"no {kind} contributions in the solution set")
     else:
-        entries = list(handles.values())
-        if kind == "harmonic":  # k = 2, 3, 4, ... whichever panel drew them first
-            entries.sort(key=lambda h: int(h.get_label().split("= ")[1]))
+        entries = [h for _, h in sorted(handles.items())]  # by mode or harmonic, whichever panel drew it first
         fig.legend(handles=entries, loc="outside lower center", ncol=min(len(entries), 6), fontsize=7)
     if dropped:
         fig.suptitle(f"{len(items)} branches with the most points drawn of {len(items) + dropped}; all are in "
