@@ -176,7 +176,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       e.g. a low-N_h NFRC's point; the branch then goes in the continuation's direction.
     stability: Floquet stability of every point and the bifurcations (hbm.stability.monitor;
       True: StabilityOptions with hbm.stability_max_gap; None: hbm.stability). on_point then sees each point
-      once its stability is known (up to StabilityOptions.max_gap points later), its extras
+      once its stability is final (up to StabilityOptions.max_gap + 1 points later), its extras
       completed with stable, n_unstable, stability_analysed, leading_multipliers and
       period_ratio (the failed last point: n_unstable -1).
     resume_bifurcations: with resume and stability, the bifurcations located along the
@@ -207,9 +207,10 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
             per_point[q.index] = exq
             if on_point is not None:
                 on_point(q, exq)
-        if on_bifurcations is not None and [id(b) for b in monitor.bifurcations] != told[0]:
-            told[0] = [id(b) for b in monitor.bifurcations]
-            on_bifurcations(_in_branch_order(monitor.bifurcations))
+        settled = monitor.released_bifurcations()
+        if on_bifurcations is not None and [id(b) for b in settled] != told[0]:
+            told[0] = [id(b) for b in settled]
+            on_bifurcations(_in_branch_order(settled))
 
     def row(p: ContinuationPoint, reason: str):
         ex = nfrc_extras(res, p.x)

@@ -26,8 +26,10 @@ Points between two analyses with the same count, and no fold between them, get t
 analyses gap points apart (e.g. a Neimark-Sacker pair leaving and coming back); the gap
 control keeps such stretches short where multipliers are near the unit circle.
 
-The points are handed on (`on_point`) only once their stability is known, so up to
-max_gap points are held back.
+The points are handed on (`on_point`) only once their stability is final: the last
+analysed point is held back until the next analysis has been compared with it, because
+that comparison may widen its window (below) and change its count. Up to max_gap + 1
+points are held back.
 """
 from __future__ import annotations
 
@@ -124,7 +126,7 @@ class StabilityMonitor:
     bifurcations: list = field(default_factory=list)
     n_analyses: int = 0
     _buffer: list = field(default_factory=list)
-    _last: _Entry | None = None  # last analysed point, already handed on
+    _last: _Entry | None = None  # last analysed point (held: _buffer[0] until the next analysis)
     _recent: list = field(default_factory=list)  # the last three points: (index, omega, s, amplitude)
     _counts: dict = field(default_factory=dict)  # index -> n_unstable of recent points
     _folds: list = field(default_factory=list)  # trios (f - 1, f, f + 1) around a turn in Omega
@@ -156,7 +158,8 @@ class StabilityMonitor:
                 self._folds.append(list(self._recent))
                 turned = True
         since = e.index - self._last.index if self._last is not None else 0
-        if self._last is None or turned or since >= self._gap or len(self._buffer) >= self.options.max_gap:
+        waiting = len(self._buffer) - (self._buffer[0] is self._last)  # points not yet analysed
+        if self._last is None or turned or since >= self._gap or waiting >= self.options.max_gap:
             return self._analyse_and_release(e)
         return []
 
@@ -179,7 +182,16 @@ class StabilityMonitor:
         """Analyse the last held point and hand on everything still held."""
         if not self._buffer:
             return []
-        return self._analyse_and_release(self._buffer[-1])
+        out = self._analyse_and_release(self._buffer[-1])
+        out += self._release(len(self._buffer))
+        self._record_folds()
+        return out
+
+    def released_bifurcations(self) -> list:
+        """The located bifurcations whose two points have been handed on (a caller that
+        stores points as they come stores these with them: the others may still move)."""
+        first_held = self._buffer[0].index if self._buffer else math.inf
+        return [b for b in self.bifurcations if b.index + 1 < first_held]
 
     # -- internals --------------------------------------------------------------------------
     def _spectrum(self, e: _Entry) -> None:
@@ -189,12 +201,15 @@ class StabilityMonitor:
             self.n_analyses += 1
 
     def _analyse_and_release(self, e: _Entry) -> list:
+        """Analyse e, resolve it against the last analysed point, hand on the points before e
+        (e is held: the next analysis may widen its window)."""
         self._spectrum(e)
         prev = self._last
         if prev is not None:
             self._resolve(prev, e)
             self._gap = self._next_gap(prev, e)
-        out = self._release(self._buffer.index(e) + 1)
+        self._last = e
+        out = self._release(self._buffer.index(e))
         self._record_folds()
         return out
 
@@ -238,8 +253,7 @@ class StabilityMonitor:
                                     period_ratio=int(e.g))))
             self._counts[e.index] = (e.n_unstable, e.g)
         if k:
-            self._last = self._buffer[k - 1]
-            keep = self._last.index - 4
+            keep = self._buffer[k - 1].index - 4
             self._counts = {i: c for i, c in self._counts.items() if i >= keep}
         self._buffer = self._buffer[k:]
         return out

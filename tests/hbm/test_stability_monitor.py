@@ -109,3 +109,38 @@ def test_a_multiplier_that_grows_past_the_window_is_not_taken_for_stability(wide
         assert flags == exact
     else:
         assert len(mon.bifurcations) == 2 and flags != exact
+
+
+def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
+    # the mirror of the case above: a real multiplier shrinks from e^4.35 (past the default
+    # window) back inside the circle at s = 108.75. The first analysis that sees it (at
+    # log|mu| < 2.5) widens the analysed point before it, whose count rises from 0 to 1:
+    # that point must be handed on with its widened verdict, not the narrow one it had when
+    # it was analysed. The points before it, every one analysed with the narrow window
+    # only, are "stable up to the ceiling" (a window's documented limit).
+    log_mod = lambda s: 4.35 - 0.04 * s  # noqa: E731
+    n = 120
+    widened = []
+
+    def widen(x, w, k):
+        widened.append(int(x[0]))
+        return windowed(log_mod(float(x[0])), k), 1
+
+    mon = StabilityMonitor(analyse=lambda x, w: (windowed(log_mod(float(x[0])), 40), 1), widen=widen,
+                           options=StabilityOptions())
+    got = {}
+    for i in range(n):
+        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
+        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    got.update((q.index, ex) for q, ex in mon.finish())
+    assert sorted(got) == list(range(n))
+    assert len(widened) == 1
+    w = widened[0]
+    assert 2.0 < log_mod(w) < 2.5 + 0.04 * StabilityOptions().max_gap  # found near the narrow window's edge
+    ex = got[w]
+    assert not ex["stable"] and ex["n_unstable"] == 1 and ex["stability_analysed"]
+    assert ex["leading_multipliers"][0] == pytest.approx(np.exp(log_mod(w)), rel=1e-12)
+    assert all(got[i]["stable"] == (log_mod(i) <= 0) for i in range(w, n))
+    assert [(b.index, b.direction) for b in mon.bifurcations] == [(108, -1)]
+    # before w, only the narrow window: the multiplier past its ceiling e^2.5 is not seen
+    assert all(got[i]["stable"] for i in range(w)) and log_mod(w - 1) > 2.0
