@@ -26,7 +26,7 @@ from hbm.harmonic.solver import HbmSolver
 from hbm.harmonic.start import damped_newton, pad_harmonics, solve_start
 from hbm.linalg.protocol import LinearSolver
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from hbm.stability.monitor import StabilityMonitor, StabilityOptions, unknown_stability
+from hbm.stability.monitor import PER_POINT, StabilityMonitor, StabilityOptions, unknown_stability
 
 
 @dataclass(frozen=True)
@@ -177,8 +177,9 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     stability: Floquet stability of every point and the bifurcations (hbm.stability.monitor;
       True: StabilityOptions with hbm.stability_max_gap; None: hbm.stability). on_point then sees each point
       once its stability is final (up to StabilityOptions.max_gap + 1 points later), its extras
-      completed with stable, n_unstable, stability_analysed, leading_multipliers and
-      period_ratio (the failed last point: n_unstable -1).
+      completed with hbm.stability.monitor.PER_POINT (stable, n_unstable, stability_analysed,
+      stability_widened, stability_cpu_time, leading_multipliers, period_ratio; the failed
+      last point: n_unstable -1).
     resume_bifurcations: with resume and stability, the bifurcations located along the
       resumed points (hbm.stability.bifurcation.bifurcations_from_arrays of the interrupted
       run's table); those between two resumed points are kept (the others cannot have been
@@ -254,8 +255,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                 old_ex = getattr(resume, "extras", None) or {}
                 for i in range(m0):
                     if "stable" in old_ex:
-                        per_point[i] = {k: old_ex[k][i] for k in ("stable", "n_unstable", "stability_analysed",
-                                                                   "leading_multipliers", "period_ratio") if k in old_ex}
+                        per_point[i] = {k: old_ex[k][i] for k in PER_POINT if k in old_ex}
                 seeds = [ContinuationPoint(i, float(old.omega[i]), np.asarray(old.x[i], dtype=float), True,
                                            float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
                                            float(old.time[i])) for i in range(max(0, m0 - 3), m0)]

@@ -249,7 +249,8 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
     harmonics (m, 2 N_h + 1, 3 n_b) m (hbm.harmonic.nfrc.nfrc_extras); with stability, the
     branch's stability as the NFRC gets it (hbm.stability.monitor.monitor_branch: gapped
     Floquet analyses, bisection on the stored points): stable (m,) bool, n_unstable (m,)
-    int, stability_analysed (m,) bool, leading_multipliers (m, n_leading), period_ratio
+    int, stability_analysed (m,) bool, stability_widened (m,) bool, stability_cpu_time (m,)
+    s, leading_multipliers (m, n_leading), period_ratio
     (m,) int, and the table "bifurcations" (hbm.stability.bifurcation.bifurcation_arrays,
     its index counting the described points) under "tables". scales: (x_scale,
     omega_scale), the continuation's, in which the monitor measures arc length. options:

@@ -34,6 +34,7 @@ points are held back.
 from __future__ import annotations
 
 import math
+import time
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -95,6 +96,7 @@ class _Entry:
     g: int = 1
     n_unstable: int | None = None
     n_eig: int = 0  # Hill eigenvalues of a widened analysis (0: the default window)
+    cpu: float = 0.0  # CPU time of the analyses made at this point, s
 
 
 @dataclass
@@ -104,6 +106,9 @@ class StabilityMonitor:
 
     stable (bool), n_unstable (int): multipliers outside the unit circle (minimal period);
     stability_analysed (bool): computed at this point (else inferred, see the module doc);
+    stability_widened (bool): analysed again with a wider window (below);
+    stability_cpu_time (float): CPU time of the analyses made at this point, s (0 when
+    inferred; where the cost of stability goes along a branch);
     leading_multipliers ((n_leading,) float): the largest |mu|, nan when not analysed;
     period_ratio (int): g, minimal period T / g.
     finish() hands on the rest. bifurcations: the located ones, in the order found.
@@ -196,7 +201,9 @@ class StabilityMonitor:
     # -- internals --------------------------------------------------------------------------
     def _spectrum(self, e: _Entry) -> None:
         if e.spectrum is None:
+            c0 = time.process_time()
             e.spectrum, e.g = self.analyse(e.x, e.omega)
+            e.cpu += time.process_time() - c0
             e.n_unstable = e.spectrum.n_unstable
             self.n_analyses += 1
 
@@ -249,7 +256,8 @@ class StabilityMonitor:
             lead = (e.spectrum.leading(self.options.n_leading) if e.spectrum is not None
                     else np.full(self.options.n_leading, np.nan))
             out.append((point, dict(extras, stable=bool(e.n_unstable == 0), n_unstable=int(e.n_unstable),
-                                    stability_analysed=e.spectrum is not None, leading_multipliers=lead,
+                                    stability_analysed=e.spectrum is not None, stability_widened=e.n_eig > 0,
+                                    stability_cpu_time=float(e.cpu), leading_multipliers=lead,
                                     period_ratio=int(e.g))))
             self._counts[e.index] = (e.n_unstable, e.g)
         if k:
@@ -272,7 +280,9 @@ class StabilityMonitor:
                 if done or math.log(big) < WIDEN_FRACTION * math.log(max(ceiling, 1.0 + 1e-12)):
                     break
                 y.n_eig = min(2 * (y.n_eig or self.options.n_eig), MAX_EIG)
+                c0 = time.process_time()
                 y.spectrum, y.g = self.widen(y.x, y.omega, y.n_eig)
+                y.cpu += time.process_time() - c0
                 y.n_unstable = y.spectrum.n_unstable
                 self.n_analyses += 1
                 if y.index in self._counts:
@@ -372,22 +382,30 @@ def unknown_stability(extras: dict, options: StabilityOptions = StabilityOptions
     """extras completed with the stability keys of a point that was not analysed and cannot
     be inferred (a failed final point): stable False, n_unstable -1, leading nan."""
     g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4) if "harmonics" in extras else 1
-    return dict(extras, stable=False, n_unstable=-1, stability_analysed=False,
-                leading_multipliers=np.full(options.n_leading, np.nan), period_ratio=int(g))
+    return dict(extras, stable=False, n_unstable=-1, stability_analysed=False, stability_widened=False,
+                stability_cpu_time=0.0, leading_multipliers=np.full(options.n_leading, np.nan), period_ratio=int(g))
+
+
+#: the per-point stability keys the monitor adds to a point's extras
+PER_POINT = ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time",
+             "leading_multipliers", "period_ratio")
 
 
 @dataclass(frozen=True, eq=False)
 class BranchStability:
     """The stability of a stored branch's m points (monitor_branch).
 
-    stable (m,) bool; n_unstable (m,) int; stability_analysed (m,) bool;
-    leading_multipliers (m, n_leading) float (nan where not analysed); period_ratio (m,) int;
+    stable (m,) bool; n_unstable (m,) int; stability_analysed (m,) bool; stability_widened
+    (m,) bool; stability_cpu_time (m,) s; leading_multipliers (m, n_leading) float (nan where
+    not analysed); period_ratio (m,) int;
     bifurcations: Bifurcation tuple, `index` counting the given points; n_analyses.
     """
 
     stable: np.ndarray
     n_unstable: np.ndarray
     stability_analysed: np.ndarray
+    stability_widened: np.ndarray
+    stability_cpu_time: np.ndarray
     leading_multipliers: np.ndarray
     period_ratio: np.ndarray
     bifurcations: tuple
@@ -395,8 +413,7 @@ class BranchStability:
 
     def per_point(self) -> dict:
         """{name: (m, ...) array} of the per-point fields."""
-        return {k: getattr(self, k) for k in ("stable", "n_unstable", "stability_analysed", "leading_multipliers",
-                                              "period_ratio")}
+        return {k: getattr(self, k) for k in PER_POINT}
 
 
 def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_scale=1.0, omega_scale: float = 1.0,
@@ -432,6 +449,8 @@ def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_sc
         stable=np.array([done[i]["stable"] for i in range(m)], dtype=bool),
         n_unstable=np.array([done[i]["n_unstable"] for i in range(m)], dtype=np.int64),
         stability_analysed=np.array([done[i]["stability_analysed"] for i in range(m)], dtype=bool),
+        stability_widened=np.array([done[i]["stability_widened"] for i in range(m)], dtype=bool),
+        stability_cpu_time=np.array([done[i]["stability_cpu_time"] for i in range(m)], dtype=float),
         leading_multipliers=np.array([done[i]["leading_multipliers"] for i in range(m)], dtype=float).reshape(m, k),
         period_ratio=np.array([done[i]["period_ratio"] for i in range(m)], dtype=np.int64),
         bifurcations=tuple(sorted(mon.bifurcations, key=lambda b: (b.index, b.fraction))), n_analyses=mon.n_analyses)

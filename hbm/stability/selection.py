@@ -151,7 +151,8 @@ def branch_stability(residual, omega, x, converged, *, x_scale=1.0, omega_scale:
     st = monitor_branch(mon.analyse, omega[idx], x[idx], [nfrc_extras(residual, xi) for xi in x[idx]],
                         x_scale, omega_scale, options, widen=mon.widen)
     full = {"stable": np.zeros(m, bool), "n_unstable": np.full(m, -1, np.int64),
-            "stability_analysed": np.zeros(m, bool), "leading_multipliers": np.full((m, k), np.nan),
+            "stability_analysed": np.zeros(m, bool), "stability_widened": np.zeros(m, bool),
+            "stability_cpu_time": np.zeros(m), "leading_multipliers": np.full((m, k), np.nan),
             "period_ratio": np.ones(m, np.int64)}
     for name, a in st.per_point().items():
         full[name][idx] = a

@@ -21,7 +21,7 @@ from pipelines.stages.rom import read_rom, warn_friction_lock
 
 #: Units of the per-point extras that compute_nfrc hands over (hbm.harmonic.nfrc.nfrc_extras).
 EXTRA_UNITS = {"le_amplitude": "m", "le_max": "m", "harmonics": "m", "modal_contribution": "1",
-               "harmonic_contribution": "m"}
+               "harmonic_contribution": "m", "stability_cpu_time": "s"}
 
 
 #: The contact keys each treatment reads beyond the common ones (mu, and epsilon, which RL's

@@ -23,7 +23,9 @@ Layout of isolas.h5 (root: the usual provenance attributes):
   /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
       le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; with
       [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
-      stability_analysed (m,) bool, leading_multipliers (m, 4), period_ratio (m,) int,
+      stability_analysed (m,) bool, stability_widened (m,) bool, stability_cpu_time (m,) s
+      (of the analyses at each point: sum it for a branch's stability cost),
+      leading_multipliers (m, 4), period_ratio (m,) int,
       and bifurcations/ (the table of hbm.stability.bifurcation.bifurcation_arrays, index
       counting this branch's points). attrs kind ("primary" |
       "isola" | "bifurcated" | "detached"), closed (bool), status (str), subharmonic (nu),
@@ -46,11 +48,12 @@ ISOLAS = Output("isolas.h5")
 #: Units of the per-branch datasets
 _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "harmonics": "m", "stable": "1",
           "modal_contribution": "1", "harmonic_contribution": "m",
-          "n_unstable": "1", "stability_analysed": "1", "leading_multipliers": "1", "period_ratio": "1"}
+          "n_unstable": "1", "stability_analysed": "1", "stability_widened": "1", "stability_cpu_time": "s",
+          "leading_multipliers": "1", "period_ratio": "1"}
 
 #: per-point datasets read back into a FoundBranch's extras (resume)
-_EXTRAS = ("le_amplitude", "harmonics", "stable", "n_unstable", "stability_analysed", "leading_multipliers",
-           "period_ratio")
+_EXTRAS = ("le_amplitude", "harmonics", "stable", "n_unstable", "stability_analysed", "stability_widened",
+           "stability_cpu_time", "leading_multipliers", "period_ratio")
 
 
 @dataclass(frozen=True, eq=False)

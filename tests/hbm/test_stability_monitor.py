@@ -139,6 +139,7 @@ def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
     assert 2.0 < log_mod(w) < 2.5 + 0.04 * StabilityOptions().max_gap  # found near the narrow window's edge
     ex = got[w]
     assert not ex["stable"] and ex["n_unstable"] == 1 and ex["stability_analysed"]
+    assert [i for i in range(n) if got[i]["stability_widened"]] == [w]
     assert ex["leading_multipliers"][0] == pytest.approx(np.exp(log_mod(w)), rel=1e-12)
     assert all(got[i]["stable"] == (log_mod(i) <= 0) for i in range(w, n))
     assert [(b.index, b.direction) for b in mon.bifurcations] == [(108, -1)]

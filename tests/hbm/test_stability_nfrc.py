@@ -21,7 +21,8 @@ from hbm.stability.spectrum import orbit_spectrum
 from support import coarse_rom
 
 OPTS = HbmOptions(n_harmonics=12, n_time=256, omega_min=1940.0, omega_max=2000.0)
-KEYS = {"stable", "n_unstable", "stability_analysed", "leading_multipliers", "period_ratio"}
+KEYS = {"stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time",
+        "leading_multipliers", "period_ratio"}
 
 
 @pytest.fixture(scope="module")
@@ -42,6 +43,9 @@ def test_every_point_handed_on_once_in_order_with_its_stability(run):
         assert ex["stable"] == (ex["n_unstable"] == 0)
         assert np.shape(ex["leading_multipliers"]) == (4,) and ex["period_ratio"] == 2  # 2-lobe casing: T / 2
         assert np.isnan(ex["leading_multipliers"]).all() != ex["stability_analysed"]
+        # the cost lies where the analyses were made; a widened point was analysed
+        assert (ex["stability_cpu_time"] > 0) == ex["stability_analysed"]
+        assert ex["stability_analysed"] or not ex["stability_widened"]
     assert r.stability_analysed[0] and r.stability_analysed[-1]
     assert 0 < r.n_stability_analyses <= len(r.omega) + 1 and r.stability_time > 0
 

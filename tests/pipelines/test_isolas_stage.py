@@ -121,6 +121,7 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
                      extras={"le_amplitude": np.array([1e-4, 2e-4]), "harmonics": np.zeros((2, 3, 2)),
                              "stable": np.array([True, False]),
                              "n_unstable": np.array([0, 1]), "stability_analysed": np.array([True, True]),
+                             "stability_widened": np.array([False, True]), "stability_cpu_time": np.array([0.1, 0.7]),
                              "leading_multipliers": np.array([[0.9, 0.5, 0.1, 0.1], [1.2, 0.9, 0.5, 0.1]]),
                              "period_ratio": np.array([2, 2]),
                              "tables": {"bifurcations": {"kind": (np.array(["period doubling"], dtype=object), "-"),
@@ -140,7 +141,8 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     np.testing.assert_array_equal(c2.x[0], [1.0, 2.0])
     assert len(done) == 1 and done[0].kind == "isola" and done[0].seeds == (0,) and done[0].closed
     np.testing.assert_array_equal(done[0].x, fb.x)
-    for k in ("stable", "n_unstable", "stability_analysed", "leading_multipliers", "period_ratio"):
+    for k in ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time",
+              "leading_multipliers", "period_ratio"):
         np.testing.assert_array_equal(done[0].extras[k], fb.extras[k])
     t = done[0].extras["tables"]["bifurcations"]
     assert list(t["kind"][0]) == ["period doubling"] and t["omega"] == (1.05, "rad/s") and t["index"][0] == [0]
