@@ -7,12 +7,18 @@ verdict) from up to --march stable points per branch, spread over its stable poi
         [--every 6] [--march 3] [--methods dlft rl] [--kinds isola detached]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --window-check 12
         [--branches rl/007 dlft/008] [--seed 1]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --monitor --branches rl/006
 
 --window-check N: on branches stored with stability ([hbm] stability), N of the points the
 monitor analysed, drawn at random, are analysed again with the monitor's 40-eigenvalue
 window (no widening) and with orbit_spectrum's widening; one line per point gives the
 stored verdict and both of these, to show which stable verdicts a 40-eigenvalue window
 gets wrong (a multiplier beyond its ceiling).
+
+--monitor: the stability monitor is run again over each branch as the isolas stage runs it;
+one line per branch gives the stored and the new analysed, widened and stable counts, the
+count changes left unresolved (two analysed points apart that differ with nothing bisected
+between them), and the CPU time of the analyses, split between plain and widened points.
 
 Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE --out OUT`).
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
@@ -52,6 +58,9 @@ def main() -> None:
     ap.add_argument("--kinds", nargs="+", default=["isola", "detached", "bifurcated"])
     ap.add_argument("--window-check", type=int, default=0, metavar="N",
                     help="analyse N random stored-analysed points per branch with and without widening")
+    ap.add_argument("--monitor", action="store_true",
+                    help="run the stability monitor again over each branch, as the isolas stage does, and "
+                         "compare it with the stored stability")
     ap.add_argument("--branches", nargs="+", help="METHOD/NNN of the branches to take (default: all of --kinds)")
     ap.add_argument("--seed", type=int, default=1)
     a = ap.parse_args()
@@ -69,6 +78,9 @@ def main() -> None:
                                  _options_for(scene.hbm, br.x.shape[1], n_r, br.subharmonic), method=method)
             if a.window_check:
                 _window_check(a.out, method, br, res, a.window_check, a.seed)
+                continue
+            if a.monitor:
+                _monitor_again(a.out, scene, method, br, res)
                 continue
             idx = [i for i in range(0, len(br.omega), a.every) if br.converged[i]]
             largest, stable, cost, ratios = [], [], [], set()
@@ -125,6 +137,48 @@ def _window_check(out: Path, method: str, br, res, n: int, seed: int) -> None:
         print(f"  {w:7.1f} rad/s: stored largest |mu| {stored[i]:.4g} ({'stable' if br.stable[i] else 'unstable'}); "
               f"40 eigenvalues {np.abs(plain.multipliers).max():.4g} (ceiling {plain.modulus_ceiling:.3g}); "
               f"widened {np.abs(wide.multipliers).max():.4g}{mark}", flush=True)
+
+
+def _unresolved(analysed: np.ndarray, n_unstable: np.ndarray) -> int:
+    """Pairs of consecutive analysed points, not neighbours, whose counts differ: the
+    monitor bisects every such change down to neighbours unless its counts agreed when it
+    compared them (a window widened after the point was stored)."""
+    a = np.flatnonzero(analysed)
+    return int(sum(1 for i, j in zip(a[:-1], a[1:]) if j > i + 1 and n_unstable[i] != n_unstable[j]))
+
+
+def _monitor_again(out: Path, scene, method: str, br, res) -> None:
+    """The monitor over br's converged points as the isolas stage runs it (one chunk here,
+    where the stage splits a long branch in two), against the stored stability."""
+    import h5py
+
+    from hbm.isolas.harmonic import describe, search_options
+    from hbm.stability.monitor import StabilityOptions
+
+    with h5py.File(out / "isolas.h5", "r") as h5:
+        g = h5[f"{method}/branches/{br.name}"]
+        if "stability_analysed" not in g:
+            print(f"{method} {br.name}: stored without stability, nothing to compare")
+            return
+        old = {k: g[k][()] for k in ("stable", "n_unstable", "stability_analysed")}
+    ok = np.flatnonzero(br.converged)
+    co = search_options(res.options, scene.isolas).continuation
+    c0 = time.process_time()
+    new = describe(res, True, (co.x_scale, co.omega_scale),
+                   StabilityOptions(max_gap=scene.hbm.stability_max_gap))(br.omega[ok], br.x[ok])
+    cpu = time.process_time() - c0
+    an, wid, t = new["stability_analysed"], new["stability_widened"], new["stability_cpu_time"]
+    same = old["stability_analysed"][ok] & an
+    differ = int((old["n_unstable"][ok][same] != new["n_unstable"][same]).sum())
+    print(f"{method} {br.name} {br.kind}, {br.omega.min():.0f}-{br.omega.max():.0f} rad/s, {len(ok)} points: "
+          f"stored {int(old['stability_analysed'].sum())} analysed, {int(old['stable'].sum())} stable, "
+          f"{_unresolved(old['stability_analysed'][ok], old['n_unstable'][ok])} unresolved count changes; "
+          f"again {int(an.sum())} analysed ({int(wid.sum())} widened), {int(new['stable'].sum())} stable, "
+          f"{_unresolved(an, new['n_unstable'])} unresolved; at the {int(same.sum())} points analysed both "
+          f"times the count differs at {differ}; analyses {t.sum():.0f} s CPU, of which widened points "
+          f"{t[wid].sum():.0f} s (median {np.median(t[an & ~wid]):.2f} s plain, "
+          f"{np.median(t[wid]) if wid.any() else float('nan'):.2f} s widened); whole call {cpu:.0f} s CPU",
+          flush=True)
 
 
 if __name__ == "__main__":
