@@ -384,9 +384,11 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     them carries content) and the branch's largest harmonic; given mode_frequencies ((n,)
     rad/s), every crossing k Omega / nu = omega_j of a drawn k with one of the first n_modes
     modes inside the panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS branches with
-    the most points are drawn when there are more.
+    the most points are drawn when there are more; a branch without any finite
+    contribution is left out.
     """
-    items = list(curves.items())
+    # a branch with no finite contribution (none of its points converged) has nothing to draw
+    items = [(k, v) for k, v in curves.items() if np.isfinite(np.asarray(v[1], float)).any()]
     dropped = max(0, len(items) - MAX_CONTENT_PANELS)
     if dropped:
         keep = sorted(sorted(range(len(items)), key=lambda i: -len(items[i][1][0]))[:MAX_CONTENT_PANELS])

@@ -131,3 +131,20 @@ def test_content_draws_the_dominant_harmonic(tmp_path):
     c[:, 3] = 3e-4 * (1.5 + np.sin(omega / 3.0))
     img = imread(figures.plot_content({"b": (omega, c, 1)}, tmp_path / "b.png", kind="harmonic"))[..., :3]
     assert (np.abs(img - red).max(axis=2) < 0.08).sum() > 200
+
+
+def test_content_leaves_out_a_branch_without_any_converged_point(tmp_path):
+    """A branch whose contributions are all NaN (none of its points converged) is left out:
+    the figure of it and a drawable branch is the figure of the drawable branch alone."""
+    import warnings
+
+    omega = np.linspace(950.0, 975.0, 60)
+    c = np.full((60, 11), 1e-6)
+    c[:, 2] = 2e-4 * (1.5 + np.sin(omega / 3.0))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", RuntimeWarning)
+        for kind in ("harmonic", "modal"):
+            both = imread(figures.plot_content({"b": (omega, c, 1), "none": (omega[:5], np.full((5, 11), np.nan), 1)},
+                                               tmp_path / f"{kind}2.png", kind=kind))
+            alone = imread(figures.plot_content({"b": (omega, c, 1)}, tmp_path / f"{kind}1.png", kind=kind))
+            assert both.shape == alone.shape and np.abs(both - alone).max() < 1e-6
