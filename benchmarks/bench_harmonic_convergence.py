@@ -33,7 +33,7 @@ ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
 #: one try in a validation point's reason: "882.9 rad/s (stable), time integration leaves"
-TRY = re.compile(r"(\d+\.\d) rad/s(?: of [^(]+)? \((stable|unstable)\), time integration ([^|;]+)")
+TRY = re.compile(r"(\d+\.\d) rad/s(?: of ([^(]+?))? \((stable|unstable)\), time integration ([^|;]+)")
 
 
 def _branch(out: Path, where: str, method: str):
@@ -137,15 +137,16 @@ def main() -> None:
                     continue
                 where, reason = g.attrs["branch"], g.attrs["reason"]
                 nu = int(g["subharmonic"][()])
-                tries = [(float(w), st == "stable", v.strip()) for w, st, v in TRY.findall(reason)]
+                # a try on another branch than the chosen point's names it ("... rad/s of isolas.h5 rl/branches/000")
+                tries = [(float(w), b.strip() or where, st == "stable", v.strip()) for w, b, st, v in TRY.findall(reason)]
                 if not tries:  # one march: the point itself
-                    tries = [(float(g["omega"][()]), bool(g["stable"][()]), "(the point)")]
-                omega_b, x_b, stable_b = _branch(args.out, where, method)
-                nh = (x_b.shape[1] // n_r - 1) // 2
-                coarse = build_residual(rom, scene.casing, scene.contact,
-                                        replace(scene.hbm, subharmonic=nu, n_harmonics=nh), method=method)
-                fine = coarse.refined(args.factor)
-                for omega, stable, verdict in tries:
+                    tries = [(float(g["omega"][()]), where, bool(g["stable"][()]), "(the point)")]
+                for omega, on, stable, verdict in tries:
+                    omega_b, x_b, stable_b = _branch(args.out, on, method)
+                    nh = (x_b.shape[1] // n_r - 1) // 2
+                    coarse = build_residual(rom, scene.casing, scene.contact,
+                                            replace(scene.hbm, subharmonic=nu, n_harmonics=nh), method=method)
+                    fine = coarse.refined(args.factor)
                     # the branch point the reason names (rounded to 0.1 rad/s; among the stable
                     # ones when the branch says which: a fold may put several points there)
                     pool = np.flatnonzero(np.asarray(stable_b, bool) == stable) if stable_b is not None else None
