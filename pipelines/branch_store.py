@@ -29,6 +29,10 @@ import numpy as np
 from hbm.continuation.branch import Branch, ContinuationPoint
 from pipelines.artifacts import CHECKSUMS, commit, dataset_checksums, now
 
+#: what the rows of an extra hold for the points written before a run that records it (by
+#: numpy dtype kind; 0 for the others)
+NOT_RECORDED = {"f": np.nan, "c": np.nan, "b": False, "i": -1}
+
 _FIELDS = {  # name: (dtype, unit)
     "omega": (np.float64, "rad/s"),
     "x": (np.float64, "1"),
@@ -92,6 +96,7 @@ class BranchStore:
         self.n_points = int(h5.attrs["n_points"])
         self._extras = set(h5["extras"].keys())
         self._units = json.loads(_decode(h5.attrs.get("extras_units", "{}")) or "{}")
+        self._resumed = False  # set by reopen: its points may predate extras this run records
 
     @classmethod
     def create(cls, path: Path | str, n: int, *, attrs: dict | None = None,
@@ -127,11 +132,12 @@ class BranchStore:
         return cls(h5, part)
 
     @classmethod
-    def reopen(cls, path: Path | str, *, keep: int | None = None) -> "BranchStore":
+    def reopen(cls, path: Path | str, *, keep: int | None = None, units: dict | None = None) -> "BranchStore":
         """Continue appending to the partial file of an interrupted run.
 
         keep: truncate to the first `keep` points (e.g. to drop the failed point that a
-        resumed continuation will redo); default: all fully written points.
+        resumed continuation will redo); default: all fully written points. units: {extra
+        name: unit} of extras this run records that the file may not hold yet (see append).
         """
         part = partial_path(path)
         if not part.is_file():
@@ -151,15 +157,33 @@ class BranchStore:
         except Exception:
             h5.close()
             raise
-        return cls(h5, part)
+        store = cls(h5, part)
+        store._resumed = True
+        if units:
+            store._units = {**units, **store._units}
+            h5.attrs["extras_units"] = json.dumps(store._units)
+        return store
 
     def append(self, point: ContinuationPoint, extras: dict | None = None) -> None:
         """Write one point (and its named extra scalars/arrays) and flush it to disk.
 
         The set of extras is fixed by the first point: every later point gives the same
-        names with the same shapes.
+        names with the same shapes. A reopened store (a resume) also takes extras that its
+        points lack (a run of an earlier version did not record them): their rows before
+        are filled with NOT_RECORDED's value for the dtype, and the dataset's attribute
+        `recorded_from` gives the first row that holds a value.
         """
         extras = {k: np.asarray(v) for k, v in (extras or {}).items()}
+        if self._resumed and self._extras and set(extras) > self._extras:
+            g = self._h5["extras"]
+            for k in sorted(set(extras) - self._extras):
+                v = extras[k]
+                fill = NOT_RECORDED.get(v.dtype.kind, 0)
+                ds = g.create_dataset(k, shape=(self.n_points,) + v.shape, maxshape=(None,) + v.shape,
+                                      dtype=v.dtype, chunks=True, fillvalue=fill)
+                ds.attrs["unit"] = self._units.get(k, "1")
+                ds.attrs["recorded_from"] = self.n_points
+            self._extras = set(extras)
         x = np.asarray(point.x, dtype=float).reshape(-1)
         if x.size != self.n:
             raise ValueError(f"point has {x.size} unknowns, store has {self.n}")

@@ -169,7 +169,7 @@ def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
                 resume = None
                 say.log(f"  {method}: {part.name} holds no start point: the NFRC starts over")
             else:
-                store = BranchStore.reopen(part)
+                store = BranchStore.reopen(part, units=EXTRA_UNITS)
                 table = read_tables(part).get("bifurcations")
                 resumed_bifurcations = bifurcations_from_arrays(table) if table else ()
                 say.log(f"  {method}: resuming from {store.n_points} points on disk"

@@ -114,3 +114,33 @@ def test_extras_must_stay_aligned(tmp_path):
     store.close()
     with pytest.raises(ValueError, match="reserved"):
         BranchStore.create(tmp_path / "c.h5", 5, attrs={"complete": 1})
+
+
+def test_a_resume_takes_extras_its_earlier_points_lack(tmp_path):
+    """A partial file written by an earlier version (no 'cpu', 'widened', 'count' extras) is
+    resumed by a run that records them: the earlier rows say 'not recorded' (NaN, False,
+    -1), the dataset says from which row it holds values, and the file finishes."""
+    path = tmp_path / "nfrc.h5"
+    pts = make_points(m=6)
+    with BranchStore.create(path, 5, attrs=ATTRS, units={"a": "m"}) as store:
+        for p in pts[:3]:
+            store.append(p, {"a": float(p.index)})
+    store = BranchStore.reopen(path, units={"a": "m", "cpu": "s"})
+    for p in pts[3:]:
+        store.append(p, {"a": float(p.index), "cpu": 0.5, "widened": True, "count": 2})
+    store.finalize("reached omega_max")
+    s = load_branch(path)
+    assert s.complete and len(s.branch) == 6
+    np.testing.assert_array_equal(s.extras["a"], np.arange(6.0))
+    np.testing.assert_array_equal(s.extras["cpu"], [np.nan] * 3 + [0.5] * 3)
+    np.testing.assert_array_equal(s.extras["widened"], [False] * 3 + [True] * 3)
+    np.testing.assert_array_equal(s.extras["count"], [-1] * 3 + [2] * 3)
+    with h5py.File(path) as h5:
+        assert h5["extras/cpu"].attrs["recorded_from"] == 3 and h5["extras/cpu"].attrs["unit"] == "s"
+        assert h5["extras/a"].attrs["unit"] == "m"
+    # a store that wrote its own first point still refuses a change of extras
+    store = BranchStore.create(tmp_path / "c.h5", 5)
+    store.append(pts[0], {"a": 1.0})
+    with pytest.raises(ValueError, match="extras"):
+        store.append(pts[1], {"a": 1.0, "b": 2.0})
+    store.close()

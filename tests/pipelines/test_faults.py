@@ -242,6 +242,9 @@ def test_an_interrupted_nfrc_with_stability_keeps_its_bifurcations(coarse_run, t
     assert run(scene, tmp_path / "cut", *stab) == 130
     part = read_tables(tmp_path / "cut" / "nfrc_dlft.partial.h5")["bifurcations"]
     assert list(part["kind"]) == list(ref["kind"][ref["index"] < 38]), part  # located between points on disk
+    # as an earlier version wrote it: without the per-point stability cost
+    with h5py.File(tmp_path / "cut" / "nfrc_dlft.partial.h5", "r+") as h5:
+        del h5["extras/stability_cpu_time"], h5["extras/stability_widened"]
     capsys.readouterr()
     monkeypatch.undo()
     assert run(scene, tmp_path / "cut", *stab) == 0
@@ -249,6 +252,10 @@ def test_an_interrupted_nfrc_with_stability_keeps_its_bifurcations(coarse_run, t
     done = read_tables(tmp_path / "cut" / "nfrc_dlft.h5")["bifurcations"]
     assert list(done["kind"]) == list(ref["kind"])
     np.testing.assert_allclose(done["omega"], ref["omega"], atol=0.5)
+    with h5py.File(tmp_path / "cut" / "nfrc_dlft.h5") as h5:
+        cpu = h5["extras/stability_cpu_time"]
+        assert cpu.attrs["recorded_from"] == 40 and cpu.attrs["unit"] == "s"
+        assert np.isnan(cpu[:40]).all() and (cpu[40:] >= 0).all() and (cpu[40:] > 0).any()
 
 
 #: `bladerub run` with a full disk in RL's process at its 4th point (a fresh interpreter that
