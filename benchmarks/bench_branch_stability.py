@@ -168,6 +168,7 @@ def _monitor_again(out: Path, scene, method: str, br, res) -> None:
                    StabilityOptions(max_gap=scene.hbm.stability_max_gap))(br.omega[ok], br.x[ok])
     cpu = time.process_time() - c0
     an, wid, t = new["stability_analysed"], new["stability_widened"], new["stability_cpu_time"]
+    plain = t[an & ~wid]
     same = old["stability_analysed"][ok] & an
     differ = int((old["n_unstable"][ok][same] != new["n_unstable"][same]).sum())
     print(f"{method} {br.name} {br.kind}, {br.omega.min():.0f}-{br.omega.max():.0f} rad/s, {len(ok)} points: "
@@ -176,7 +177,7 @@ def _monitor_again(out: Path, scene, method: str, br, res) -> None:
           f"again {int(an.sum())} analysed ({int(wid.sum())} widened), {int(new['stable'].sum())} stable, "
           f"{_unresolved(an, new['n_unstable'])} unresolved; at the {int(same.sum())} points analysed both "
           f"times the count differs at {differ}; analyses {t.sum():.0f} s CPU, of which widened points "
-          f"{t[wid].sum():.0f} s (median {np.median(t[an & ~wid]):.2f} s plain, "
+          f"{t[wid].sum():.0f} s (median {np.median(plain) if plain.size else float('nan'):.2f} s plain, "
           f"{np.median(t[wid]) if wid.any() else float('nan'):.2f} s widened); whole call {cpu:.0f} s CPU",
           flush=True)
 
