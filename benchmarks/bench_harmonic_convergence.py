@@ -141,12 +141,15 @@ def main() -> None:
                 tries = [(float(w), b.strip() or where, st == "stable", v.strip()) for w, b, st, v in TRY.findall(reason)]
                 if not tries:  # one march: the point itself
                     tries = [(float(g["omega"][()]), where, bool(g["stable"][()]), "(the point)")]
+                built = {}  # branch -> (omega, x, stable, coarse residual, fine residual), once per branch
                 for omega, on, stable, verdict in tries:
-                    omega_b, x_b, stable_b = _branch(args.out, on, method)
-                    nh = (x_b.shape[1] // n_r - 1) // 2
-                    coarse = build_residual(rom, scene.casing, scene.contact,
-                                            replace(scene.hbm, subharmonic=nu, n_harmonics=nh), method=method)
-                    fine = coarse.refined(args.factor)
+                    if on not in built:
+                        omega_b, x_b, stable_b = _branch(args.out, on, method)
+                        nh = (x_b.shape[1] // n_r - 1) // 2
+                        coarse = build_residual(rom, scene.casing, scene.contact,
+                                                replace(scene.hbm, subharmonic=nu, n_harmonics=nh), method=method)
+                        built[on] = (omega_b, x_b, stable_b, coarse, coarse.refined(args.factor))
+                    omega_b, x_b, stable_b, coarse, fine = built[on]
                     # the branch point the reason names (rounded to 0.1 rad/s; among the stable
                     # ones when the branch says which: a fold may put several points there)
                     pool = np.flatnonzero(np.asarray(stable_b, bool) == stable) if stable_b is not None else None

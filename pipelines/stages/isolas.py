@@ -51,9 +51,6 @@ _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "ha
           "n_unstable": "1", "stability_analysed": "1", "stability_widened": "1", "stability_cpu_time": "s",
           "leading_multipliers": "1", "period_ratio": "1"}
 
-#: per-point datasets read back into a FoundBranch's extras (resume)
-_EXTRAS = ("le_amplitude", "harmonics", "stable", "n_unstable", "stability_analysed", "stability_widened",
-           "stability_cpu_time", "leading_multipliers", "period_ratio")
 
 
 @dataclass(frozen=True, eq=False)
@@ -149,9 +146,11 @@ def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
 
 def _read_found(group):
     from hbm.isolas.search import FoundBranch
+    from hbm.stability.monitor import PER_POINT
 
     a = group.attrs
-    extras = {k: group[k][()] for k in _EXTRAS if k in group}
+    # per-point datasets read back into the FoundBranch's extras (resume)
+    extras = {k: group[k][()] for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
     if "bifurcations" in group:
         extras["tables"] = {"bifurcations": read_table(group["bifurcations"])}
     return FoundBranch(omega=group["omega"][()], x=group["x"][()], converged=group["converged"][()].astype(bool),
