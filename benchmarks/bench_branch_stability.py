@@ -8,6 +8,7 @@ verdict) from up to --march stable points per branch, spread over its stable poi
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --window-check 12
         [--branches rl/007 dlft/008] [--seed 1]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --monitor --branches rl/006
+        [--span 450:650] [--save new.npz]
 
 --window-check N: on branches stored with stability ([hbm] stability), N of the points the
 monitor analysed, drawn at random, are analysed again with the monitor's 40-eigenvalue
@@ -63,6 +64,11 @@ def main() -> None:
                          "compare it with the stored stability")
     ap.add_argument("--branches", nargs="+", help="METHOD/NNN of the branches to take (default: all of --kinds)")
     ap.add_argument("--seed", type=int, default=1)
+    ap.add_argument("--span", default=":", metavar="A:B",
+                    help="with --monitor: only the branch's converged points A to B - 1 (a Python slice)")
+    ap.add_argument("--save", type=Path, metavar="NPZ",
+                    help="with --monitor: write the new per-point stability and bifurcations there "
+                         "(METHOD_NNN_ prefixed keys), to compare two codes")
     a = ap.parse_args()
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
@@ -80,7 +86,8 @@ def main() -> None:
                 _window_check(a.out, method, br, res, a.window_check, a.seed)
                 continue
             if a.monitor:
-                _monitor_again(a.out, scene, method, br, res)
+                _monitor_again(a.out, scene, method, br, res, slice(*(int(v) if v else None for v in a.span.split(":"))),
+                               a.save)
                 continue
             idx = [i for i in range(0, len(br.omega), a.every) if br.converged[i]]
             largest, stable, cost, ratios = [], [], [], set()
@@ -147,9 +154,10 @@ def _unresolved(analysed: np.ndarray, n_unstable: np.ndarray) -> int:
     return int(sum(1 for i, j in zip(a[:-1], a[1:]) if j > i + 1 and n_unstable[i] != n_unstable[j]))
 
 
-def _monitor_again(out: Path, scene, method: str, br, res) -> None:
-    """The monitor over br's converged points as the isolas stage runs it (one chunk here,
-    where the stage splits a long branch in two), against the stored stability."""
+def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(None), save: Path | None = None) -> None:
+    """The monitor over br's converged points (those of span) as the isolas stage runs it
+    (one chunk here, where the stage splits a long branch in two), against the stored
+    stability; save: an .npz to add the new per-point stability and bifurcations to."""
     import h5py
 
     from hbm.isolas.harmonic import describe, search_options
@@ -161,7 +169,7 @@ def _monitor_again(out: Path, scene, method: str, br, res) -> None:
             print(f"{method} {br.name}: stored without stability, nothing to compare")
             return
         old = {k: g[k][()] for k in ("stable", "n_unstable", "stability_analysed")}
-    ok = np.flatnonzero(br.converged)
+    ok = np.flatnonzero(br.converged)[span]
     co = search_options(res.options, scene.isolas).continuation
     c0 = time.process_time()
     new = describe(res, True, (co.x_scale, co.omega_scale),
@@ -172,7 +180,7 @@ def _monitor_again(out: Path, scene, method: str, br, res) -> None:
     same = old["stability_analysed"][ok] & an
     differ = int((old["n_unstable"][ok][same] != new["n_unstable"][same]).sum())
     print(f"{method} {br.name} {br.kind}, {br.omega.min():.0f}-{br.omega.max():.0f} rad/s, {len(ok)} points: "
-          f"stored {int(old['stability_analysed'].sum())} analysed, {int(old['stable'].sum())} stable, "
+          f"stored {int(old['stability_analysed'][ok].sum())} analysed, {int(old['stable'][ok].sum())} stable, "
           f"{_unresolved(old['stability_analysed'][ok], old['n_unstable'][ok])} unresolved count changes; "
           f"again {int(an.sum())} analysed ({int(wid.sum())} widened), {int(new['stable'].sum())} stable, "
           f"{_unresolved(an, new['n_unstable'])} unresolved; at the {int(same.sum())} points analysed both "
@@ -180,6 +188,17 @@ def _monitor_again(out: Path, scene, method: str, br, res) -> None:
           f"{t[wid].sum():.0f} s (median {np.median(plain) if plain.size else float('nan'):.2f} s plain, "
           f"{np.median(t[wid]) if wid.any() else float('nan'):.2f} s widened); whole call {cpu:.0f} s CPU",
           flush=True)
+    if save is not None:
+        bif = new["tables"]["bifurcations"]
+        keys = ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time")
+        got = {f"{method}_{br.name}_{k}": np.asarray(new[k]) for k in keys}
+        got.update({f"{method}_{br.name}_omega": br.omega[ok],
+                    f"{method}_{br.name}_bif_kind": np.asarray(bif["kind"][0], dtype=str),
+                    f"{method}_{br.name}_bif_omega": bif["omega"][0],
+                    f"{method}_{br.name}_bif_multiplier": bif["multiplier_real"][0] + 1j * bif["multiplier_imag"][0]})
+        if save.exists():
+            got = dict(np.load(save), **got)
+        np.savez(save, **got)
 
 
 if __name__ == "__main__":

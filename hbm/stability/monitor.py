@@ -14,8 +14,9 @@ may have changed since the last analysed one, and infers the others:
   (at most max_gap; 1 after a change of the count or an unpaired multiplier within
   `margin` of the circle). The lightly damped modes' multipliers sit at |mu| ~ 0.95-0.99
   over the minimal period, so a fixed margin would analyse every point;
-- when two consecutive analyses disagree on the number of unstable multipliers, the point
-  half-way between them is analysed, and so on (bisection on the stored points), until
+- when two consecutive analyses disagree on the number of unstable multipliers (other
+  than by multipliers far from the unit circle where both are unstable: see
+  StabilityMonitor), the point half-way between them is analysed, and so on (bisection on the stored points), until
   the change lies between two neighbouring points. There the crossing multipliers are
   paired (bifurcation.crossings), classified on the minimal period, and located by linear
   interpolation of log|mu| in arc length between the two points (folds: at the vertex of
@@ -118,11 +119,26 @@ class StabilityMonitor:
     Widening: an analysis lists every multiplier below its modulus_ceiling only (see
     hbm.stability.spectrum), so a multiplier that grows past it drops out and the count
     falls as if it had come back inside the unit circle. Where two analysed points disagree
-    on the count and the one with fewer has a ceiling within WIDEN_FRACTION (in log) of the
-    other's largest unstable multiplier, it is analysed again with twice the eigenvalues
-    (up to spectrum.MAX_EIG) before the change is bisected. On the coarse rotor 67 NFRCs a
-    multiplier mu ~ -21 drops out at 1335-1341 rad/s (DLFT) and 1331-1340 rad/s (RL): seven
-    points called stable and a spurious period-doubling pair on each, without this.
+    on the count, the one with fewer has none unstable, and its ceiling is within
+    WIDEN_FRACTION (in log) of the other's largest unstable multiplier, it is analysed again
+    with twice the eigenvalues (up to spectrum.MAX_EIG) before the change is bisected. On
+    the coarse rotor 67 NFRCs a multiplier mu ~ -21 drops out at 1335-1341 rad/s (DLFT) and
+    1331-1340 rad/s (RL): seven points called stable and a spurious period-doubling pair on
+    each, without this.
+
+    Between two unstable points the stable flag is not at stake, and a count that differs
+    only by multipliers far from the unit circle is not a crossing of it: a multiplier
+    leaving the window, or one of |mu| ~ 1e5 that one analysis lists and the next does not.
+    When the two counts agree on the multipliers with log|mu| below the pairing window
+    (options.window, where bifurcation.crossings can pair a crossing) and below
+    WIDEN_FRACTION of the smaller ceiling, neither point is widened and nothing is
+    bisected; the points between them get the first one's count. On a strongly unstable
+    period-doubled branch of rotor 67 (|mu| up to 3e9), 200 points analysed by the earlier
+    rule took 100 analyses, 91 of them widened, for 7 times the CPU, and recorded 39
+    "crossings" of which 36 had |mu| of 2e4 to 4e8 on their unstable side
+    (benchmarks/bench_branch_stability.py --monitor --span). n_unstable is then the count
+    within the window, and a crossing whose multiplier is already past the pairing window
+    at the next analysis, between two unstable points, is not located.
     """
 
     analyse: object
@@ -272,7 +288,7 @@ class StabilityMonitor:
         if self.widen is None:
             return
         for x, y in ((a, b), (b, a)):
-            while y.n_unstable < x.n_unstable:
+            while y.n_unstable == 0 < x.n_unstable:  # only where the stable flag is at stake
                 sx, sy = x.spectrum, y.spectrum
                 big = float(np.abs(sx.multipliers[sx.unstable]).max(initial=1.0))
                 ceiling = sy.modulus_ceiling
@@ -294,7 +310,7 @@ class StabilityMonitor:
         if a.n_unstable != b.n_unstable:
             self._widen(a, b)
         mid = [e for e in self._buffer if a.index < e.index < b.index]
-        if a.n_unstable == b.n_unstable:
+        if a.n_unstable == b.n_unstable or self._far_only(a, b):
             for e in mid:
                 e.n_unstable, e.g = a.n_unstable, a.g
             return
@@ -305,6 +321,20 @@ class StabilityMonitor:
             self._resolve(m, b)
             return
         self._locate(a, b)
+
+    def _far_only(self, a: _Entry, b: _Entry) -> bool:
+        """Whether a and b, both unstable, differ only by multipliers far from the unit circle
+        (see the class doc): their counts agree on the multipliers of log|mu| below the
+        pairing window and below WIDEN_FRACTION of the smaller ceiling."""
+        if min(a.n_unstable, b.n_unstable) == 0:
+            return False
+        ceiling = min(a.spectrum.modulus_ceiling, b.spectrum.modulus_ceiling)
+        near = min(self.options.window, WIDEN_FRACTION * math.log(max(ceiling, 1.0)))
+
+        def below(sp: FloquetSpectrum) -> int:
+            return int(np.count_nonzero(sp.unstable & (np.log(np.abs(sp.multipliers)) < near)))
+
+        return below(a.spectrum) == below(b.spectrum)
 
     def _turn_near(self, a: _Entry, b: _Entry) -> bool:
         """Whether Omega turns at a or b (a fold whose real multiplier +1 crosses between them)."""

@@ -145,3 +145,56 @@ def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
     assert [(b.index, b.direction) for b in mon.bifurcations] == [(108, -1)]
     # before w, only the narrow window: the multiplier past its ceiling e^2.5 is not seen
     assert all(got[i]["stable"] for i in range(w)) and log_mod(w - 1) > 2.0
+
+
+def test_a_multiplier_leaving_the_window_of_an_unstable_orbit_is_neither_widened_nor_bisected():
+    # an orbit already unstable through a complex pair exp(0.3 +- 1.1 i), where a second,
+    # real multiplier -exp(-0.41 + 0.04 s) crosses -1 between s = 10 and 11 and grows past
+    # the default window's ceiling e^2.5 from s = 73 on. The count then falls from 3 to 2
+    # with no multiplier near the unit circle: the stable flag is not at stake, so no point
+    # is widened and the fall is not bisected into a crossing that does not exist. The
+    # real crossing is located as before.
+    from hbm.stability.bifurcation import PERIOD_DOUBLING
+
+    log_mod = lambda s: -0.41 + 0.04 * s  # noqa: E731
+    n = 120
+
+    def window(s: float, n_eig: int) -> FloquetSpectrum:
+        ceiling = 2.5 if n_eig <= 40 else 5.0
+        mu = np.array([np.exp(0.3 + 1.1j), np.exp(0.3 - 1.1j), -np.exp(log_mod(s)) + 0j, 0.5 + 0j])
+        mu = mu[np.log(np.abs(mu)) < ceiling]
+        return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
+                               centred=np.ones(len(mu), bool), edge_energy=np.zeros(len(mu)),
+                               eigenvectors=np.zeros((len(mu), 3, 2), complex),
+                               modulus_floor=float(np.exp(-ceiling)), method="arnoldi")
+
+    widened, analysed = [], []
+
+    def analyse(x, w):
+        analysed.append(int(x[0]))
+        return window(float(x[0]), 40), 1
+
+    def widen(x, w, k):
+        widened.append(int(x[0]))
+        return window(float(x[0]), k), 1
+
+    mon = StabilityMonitor(analyse=analyse, widen=widen, options=StabilityOptions())
+    got = {}
+    for i in range(n):
+        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
+        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    got.update((q.index, ex) for q, ex in mon.finish())
+    assert sorted(got) == list(range(n))
+    assert widened == []
+    assert [(b.kind, b.index, b.direction) for b in mon.bifurcations] == [(PERIOD_DOUBLING, 10, 1)]
+    assert not any(got[i]["stable"] for i in range(n))
+    # the counts as far as the window sees: 2, then 3 from the crossing on, then 2 from the
+    # first analysis past the ceiling (the points before it get the count of the analysis
+    # before them)
+    first_out = min(i for i in analysed if log_mod(i) >= 2.5)
+    last_in = max(i for i in analysed if i < first_out)
+    assert all(got[i]["n_unstable"] == (2 if i <= 10 else 3) for i in range(first_out))
+    assert all(got[i]["n_unstable"] == 2 for i in range(first_out, n))
+    assert last_in < 73 <= first_out
+    # no analysis crowds round the window's edge: the gap there is the quiet stretch's
+    assert sum(1 for i in analysed if last_in <= i <= first_out) == 2
