@@ -277,7 +277,9 @@ class StabilityMonitor:
                                     period_ratio=int(e.g))))
             self._counts[e.index] = (e.n_unstable, e.g)
         if k:
-            keep = self._buffer[k - 1].index - 4
+            # a fold waits for the counts of its three points (_record_folds), the last of them
+            # released only at the analysis after the turn, maybe max_gap points later
+            keep = min([self._buffer[k - 1].index - 4] + [t[0][0] for t in self._folds])
             self._counts = {i: c for i, c in self._counts.items() if i >= keep}
         self._buffer = self._buffer[k:]
         return out

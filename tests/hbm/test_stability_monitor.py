@@ -198,3 +198,36 @@ def test_a_multiplier_leaving_the_window_of_an_unstable_orbit_is_neither_widened
     assert last_in < 73 <= first_out
     # no analysis crowds round the window's edge: the gap there is the quiet stretch's
     assert sum(1 for i in analysed if last_in <= i <= first_out) == 2
+
+
+def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
+    # Omega turns at point 30 (a parabola in arc length) where no analysed multiplier comes
+    # near the circle (as at rotor 67's RL folds at 400.4 and 466.1 rad/s, on orbits with
+    # |mu| ~ 1e2-1e3, where Hill's window shows no multiplier within e^0.5 of +1): the
+    # analysis after the turn is followed by a max_gap-long gap. The fold waits for the
+    # counts of its three points; until this was kept in mind the first two were forgotten
+    # before the third arrived, and the fold was never recorded.
+    from hbm.stability.bifurcation import FOLD
+
+    turn, n = 30, 80
+    omega = lambda s: OMEGA + 0.05 * (s - turn) ** 2  # noqa: E731
+
+    def analyse(x, w):
+        mu = np.array([0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j])
+        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
+                               centred=np.ones(3, bool), edge_energy=np.zeros(3),
+                               eigenvectors=np.zeros((3, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+
+    mon = StabilityMonitor(analyse=analyse, options=StabilityOptions())
+    got = {}
+    for i in range(n):
+        p = SimpleNamespace(index=i, omega=omega(i), step=1.0, x=np.array([float(i)]))
+        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    got.update((q.index, ex) for q, ex in mon.finish())
+    assert sorted(got) == list(range(n))
+    analysed = sorted(i for i, ex in got.items() if ex["stability_analysed"])
+    after = [i for i in analysed if i > turn]
+    assert after[0] == turn + 1 and after[1] - after[0] >= 5  # the turn seen, then a long gap
+    assert [b.kind for b in mon.bifurcations] == [FOLD]
+    assert mon.bifurcations[0].omega == pytest.approx(OMEGA, abs=1e-9)  # the parabola's vertex
+    assert sorted(mon.bifurcations[0].omega_bracket) in ([omega(turn), omega(turn - 1)], [omega(turn), omega(turn + 1)])
