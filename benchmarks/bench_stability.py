@@ -22,8 +22,8 @@ of time integration from the point (hbm.ti.validation.march_from_hbm, its verdic
 replayed on those spectra for each StabilityOptions.reach_fraction given (the schedule's
 decisions are all that differ: the same analyses give the same spectra; the monitor's
 widened analyses, hbm.stability.monitor, are made on demand and kept); prints per fraction
-the analyses, the crossings of the every-point reference missed, and the points whose
-stable flag differs from the reference's.
+the analyses (and what asked for them: StabilityMonitor.causes), the crossings of the
+every-point reference missed, and the points whose stable flag differs from the reference's.
 
 Computes the NFRC over [omega_min, omega_max] without stability (one BLAS thread, as
 compute_nfrc), then analyses `points` of its points spread along it, twice each (the
@@ -179,8 +179,9 @@ def replay(rom, a):
         ref, ref_flags = monitor(StabilityOptions(max_gap=1))
         print(f"{m}: {n} points, every point analysed: {len(ref.bifurcations)} crossings located, "
               f"{per:.3f} s CPU per analysis", flush=True)
-        print("| reach fraction | analyses | ratio to 0.5 | crossings missed | points with another stable flag |")
-        print("|---|---|---|---|---|")
+        print("| reach fraction | analyses | ratio to 0.5 | crossings missed | points with another stable flag "
+              "| analyses by cause |")
+        print("|---|---|---|---|---|---|")
         base = None
         for f in fractions:
             mon, flags = monitor(StabilityOptions(reach_fraction=f))
@@ -189,7 +190,9 @@ def replay(rom, a):
             base = base or (mon.n_analyses if f == 0.5 else None)
             ratio = f"{mon.n_analyses / base:.2f}" if base else "-"
             print(f"| {f:g} | {mon.n_analyses} | {ratio} | {len(missed)} of {len(ref.bifurcations)}"
-                  f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} |", flush=True)
+                  f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} | "
+                  f"{', '.join(f'{k} {v}' for k, v in sorted(mon.causes.items(), key=lambda kv: -kv[1]))} |",
+                  flush=True)
 
 
 def widen_check(rom, a):

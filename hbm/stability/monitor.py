@@ -146,6 +146,11 @@ class StabilityMonitor:
     options: StabilityOptions = field(default_factory=StabilityOptions)
     bifurcations: list = field(default_factory=list)
     n_analyses: int = 0
+    #: analyses by what asked for them (they sum to n_analyses): "first", "turn" (Omega
+    #: turned), "next point" (the gap rule gave 1: a multiplier close to the circle and moving
+    #: towards it), "reach" (a longer gap from the same rule), "gap cap" (max_gap points),
+    #: "last", "bisection", "widening"
+    causes: dict = field(default_factory=dict)
     _buffer: list = field(default_factory=list)
     _last: _Entry | None = None  # last analysed point (held: _buffer[0] until the next analysis)
     _recent: list = field(default_factory=list)  # the last three points: (index, omega, s, amplitude)
@@ -181,7 +186,10 @@ class StabilityMonitor:
         since = e.index - self._last.index if self._last is not None else 0
         waiting = len(self._buffer) - (self._buffer[0] is self._last)  # points not yet analysed
         if self._last is None or turned or since >= self._gap or waiting >= self.options.max_gap:
-            return self._analyse_and_release(e)
+            cause = ("first" if self._last is None else "turn" if turned
+                     else "gap cap" if self._gap >= self.options.max_gap or since < self._gap
+                     else "next point" if self._gap == 1 else "reach")
+            return self._analyse_and_release(e, cause)
         return []
 
     def seed(self, points, extras: list) -> None:
@@ -195,7 +203,7 @@ class StabilityMonitor:
         if pts:
             p, ex = pts[-1], exs[-1]
             e = _Entry(p.index, float(p.omega), self._s, float(ex.get("le_amplitude", np.nan)), np.asarray(p.x), (p, ex))
-            self._spectrum(e)
+            self._spectrum(e, "first")
             self._last = e
             self._counts[e.index] = (e.n_unstable, e.g)
 
@@ -203,7 +211,7 @@ class StabilityMonitor:
         """Analyse the last held point and hand on everything still held."""
         if not self._buffer:
             return []
-        out = self._analyse_and_release(self._buffer[-1])
+        out = self._analyse_and_release(self._buffer[-1], "last")
         out += self._release(len(self._buffer))
         self._record_folds()
         return out
@@ -215,18 +223,22 @@ class StabilityMonitor:
         return [b for b in self.bifurcations if b.index + 1 < first_held]
 
     # -- internals --------------------------------------------------------------------------
-    def _spectrum(self, e: _Entry) -> None:
+    def _spectrum(self, e: _Entry, cause: str) -> None:
         if e.spectrum is None:
             c0 = time.process_time()
             e.spectrum, e.g = self.analyse(e.x, e.omega)
             e.cpu += time.process_time() - c0
             e.n_unstable = e.spectrum.n_unstable
-            self.n_analyses += 1
+            self._count(cause)
 
-    def _analyse_and_release(self, e: _Entry) -> list:
+    def _count(self, cause: str) -> None:
+        self.n_analyses += 1
+        self.causes[cause] = self.causes.get(cause, 0) + 1
+
+    def _analyse_and_release(self, e: _Entry, cause: str) -> list:
         """Analyse e, resolve it against the last analysed point, hand on the points before e
         (e is held: the next analysis may widen its window)."""
-        self._spectrum(e)
+        self._spectrum(e, cause)
         prev = self._last
         if prev is not None:
             self._resolve(prev, e)
@@ -302,7 +314,7 @@ class StabilityMonitor:
                 y.spectrum, y.g = self.widen(y.x, y.omega, y.n_eig)
                 y.cpu += time.process_time() - c0
                 y.n_unstable = y.spectrum.n_unstable
-                self.n_analyses += 1
+                self._count("widening")
                 if y.index in self._counts:
                     self._counts[y.index] = (y.n_unstable, y.g)
 
@@ -318,7 +330,7 @@ class StabilityMonitor:
             return
         if mid:
             m = mid[len(mid) // 2]
-            self._spectrum(m)
+            self._spectrum(m, "bisection")
             self._resolve(a, m)
             self._resolve(m, b)
             return

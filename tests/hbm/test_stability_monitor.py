@@ -51,6 +51,9 @@ def test_a_short_unstable_stretch_is_found_where_it_is(name, log_mod):
         assert b.direction == (1 if log_mod(i + 1) > 0 else -1)
     assert flags == {i: log_mod(i) <= 0 for i in range(n)}
     assert mon.n_analyses < n / 3  # the quiet stretches are skipped
+    # every analysis has its cause, and the crossings were brought between neighbours
+    assert sum(mon.causes.values()) == mon.n_analyses and mon.causes["first"] == 1
+    assert mon.causes.get("bisection", 0) + mon.causes.get("next point", 0) >= 2
 
 
 def test_a_fold_far_along_a_branch_is_placed_at_the_parabola_s_vertex():
@@ -104,11 +107,14 @@ def test_a_multiplier_that_grows_past_the_window_is_not_taken_for_stability(wide
     flags.update((q.index, ex["stable"]) for q, ex in mon.finish())
     exact = {i: log_mod(i) <= 0 for i in range(n)}
     assert 2.5 < log_mod(n - 1) < 5.0  # past the default window, inside the widened one
+    assert sum(mon.causes.values()) == mon.n_analyses
     if widen:
         assert [b.index for b in mon.bifurcations] == [10]
         assert flags == exact
+        assert mon.causes["widening"] >= 1
     else:
         assert len(mon.bifurcations) == 2 and flags != exact
+        assert "widening" not in mon.causes
 
 
 def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
@@ -228,6 +234,7 @@ def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
     analysed = sorted(i for i, ex in got.items() if ex["stability_analysed"])
     after = [i for i in analysed if i > turn]
     assert after[0] == turn + 1 and after[1] - after[0] >= 5  # the turn seen, then a long gap
+    assert mon.causes["turn"] == 1 and mon.causes["gap cap"] >= 5
     assert [b.kind for b in mon.bifurcations] == [FOLD]
     assert mon.bifurcations[0].omega == pytest.approx(OMEGA, abs=1e-9)  # the parabola's vertex
     assert sorted(mon.bifurcations[0].omega_bracket) in ([omega(turn), omega(turn - 1)], [omega(turn), omega(turn + 1)])
