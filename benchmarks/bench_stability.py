@@ -19,7 +19,7 @@ Hill's operator as the product builds it (the residual's Lanczos filter on the f
 and without the filter, both widened to MIN_CEILING; where the verdicts differ, 100 periods
 of time integration from the point (hbm.ti.validation.march_from_hbm, its verdict).
 --schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
-replayed on those spectra for each StabilityOptions.reach_fraction given (the schedule's
+replayed on those spectra for each StabilityOptions.reach_fraction given (and --max-gap; the schedule's
 decisions are all that differ: the same analyses give the same spectra; the monitor's
 widened analyses, hbm.stability.monitor, are made on demand and kept); prints per fraction
 the analyses (and what asked for them: StabilityMonitor.causes), the crossings of the
@@ -52,6 +52,7 @@ from hbm.harmonic.nfrc import compute_nfrc  # noqa: E402
 from hbm.harmonic.residual import build_residual  # noqa: E402
 from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
 from hbm.stability import hill  # noqa: E402
+from hbm.stability.monitor import StabilityOptions  # noqa: E402
 from hbm.stability.spectrum import orbit_spectrum  # noqa: E402
 from rom.model import load_rom  # noqa: E402
 
@@ -85,6 +86,8 @@ def main():
     ap.add_argument("--widen-check", action="store_true")
     ap.add_argument("--filter-check", action="store_true")
     ap.add_argument("--every", type=int, default=6)
+    ap.add_argument("--max-gap", default=str(StabilityOptions().max_gap),
+                    help="with --replay: StabilityOptions.max_gap of the replayed schedules, e.g. 8,16")
     a = ap.parse_args()
     rom = load_rom(a.rom)
     if a.widen_check:
@@ -179,20 +182,21 @@ def replay(rom, a):
         ref, ref_flags = monitor(StabilityOptions(max_gap=1))
         print(f"{m}: {n} points, every point analysed: {len(ref.bifurcations)} crossings located, "
               f"{per:.3f} s CPU per analysis", flush=True)
-        print("| reach fraction | analyses | ratio to 0.5 | crossings missed | points with another stable flag "
-              "| analyses by cause |")
-        print("|---|---|---|---|---|---|")
-        base = None
-        for f in fractions:
-            mon, flags = monitor(StabilityOptions(reach_fraction=f))
-            missed = _missed(ref.bifurcations, mon.bifurcations)
-            wrong = sum(flags[i] != ref_flags[i] for i in ref_flags)
-            base = base or (mon.n_analyses if f == 0.5 else None)
-            ratio = f"{mon.n_analyses / base:.2f}" if base else "-"
-            print(f"| {f:g} | {mon.n_analyses} | {ratio} | {len(missed)} of {len(ref.bifurcations)}"
-                  f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} | "
-                  f"{', '.join(f'{k} {v}' for k, v in sorted(mon.causes.items(), key=lambda kv: -kv[1]))} |",
-                  flush=True)
+        print("| max gap | reach fraction | analyses | ratio to 0.5 | crossings missed | points with another "
+              "stable flag | analyses by cause |")
+        print("|---|---|---|---|---|---|---|")
+        for g in (int(v) for v in a.max_gap.split(",")):
+            base = None
+            for f in fractions:
+                mon, flags = monitor(StabilityOptions(reach_fraction=f, max_gap=g))
+                missed = _missed(ref.bifurcations, mon.bifurcations)
+                wrong = sum(flags[i] != ref_flags[i] for i in ref_flags)
+                base = base or (mon.n_analyses if f == 0.5 else None)
+                ratio = f"{mon.n_analyses / base:.2f}" if base else "-"
+                print(f"| {g} | {f:g} | {mon.n_analyses} | {ratio} | {len(missed)} of {len(ref.bifurcations)}"
+                      f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} | "
+                      f"{', '.join(f'{k} {v}' for k, v in sorted(mon.causes.items(), key=lambda kv: -kv[1]))} |",
+                      flush=True)
 
 
 def widen_check(rom, a):
