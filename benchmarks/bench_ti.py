@@ -1,12 +1,14 @@
 """Time-integration speed and accuracy (prints markdown tables).
 
     .venv/bin/python benchmarks/bench_ti.py [--rom ROM.h5|standin] [--repeat 3] [--full-sweep]
-        [--schemes carpenter,massless] [--massless-dt 1e-6] [--no-early-stop]
+        [--schemes carpenter,massless] [--massless-dt 1e-6,2e-6] [--mu 0.1,0.15] [--no-early-stop]
 
 1. Time per Omega point on one core, per scheme: from rest until settled or 200 revolutions
    ([ti] defaults; --no-early-stop: always 200), Carpenter at dt = 1e-7 s, massless at
-   --massless-dt (median of --repeat runs, CPU time of this process, so that other users'
-   load counts less); ns per step, share of steps in contact, revolutions marched.
+   each of --massless-dt (median of --repeat runs, CPU time of this process, so that other
+   users' load counts less); ns per step, share of steps in contact, revolutions marched;
+   for each friction coefficient of --mu (default [contact] mu; the header gives the ROM's
+   mu_set, above which a massless contact node can lock, rom.friction_lock).
 2. Speed against error: LE amplitude at a few Omega for dt in {4e-7, 2e-7, 1e-7, 5e-8}; the
    error is taken against dt = 5e-8 (responses can be chaotic: a difference there is a
    different trajectory, not a discretisation error).
@@ -55,7 +57,9 @@ def main():
     ap.add_argument("--full-sweep", action="store_true")
     ap.add_argument("--skip-dt", action="store_true")
     ap.add_argument("--schemes", default="carpenter", help="comma-separated, among carpenter, massless")
-    ap.add_argument("--massless-dt", type=float, default=1e-6, help="time step of the massless scheme, s")
+    ap.add_argument("--massless-dt", default="1e-6", help="time steps of the massless scheme, s, comma-separated")
+    ap.add_argument("--mu", default="", help="friction coefficients of the per-speed table, comma-separated "
+                                             "(default: [contact] mu)")
     ap.add_argument("--no-early-stop", action="store_true", help="always n_revolutions (the old behaviour)")
     ap.add_argument("--sweep-points", type=int, default=None, help="--full-sweep on this many speeds of the grid")
     ap.add_argument("--compare-full", action="store_true",
@@ -68,22 +72,28 @@ def main():
     schemes = a.schemes.split(",")
     omegas = [float(w) for w in a.omegas.split(",") if w]  # "" for none (e.g. --full-sweep alone)
     simulate(system, cas, con.mu, 2000.0, TimeIntegrationOptions(n_revolutions=2, n_keep=1))  # JIT / cache
-    print(f"ROM: {label}; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}\n")
-    print("| scheme | Omega (rad/s) | dt (s) | steps | CPU time per point (s), median | ns/step | contact steps "
+    lock = getattr(rom, "friction_lock", None)
+    print(f"ROM: {label}; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}"
+          f"{f'; mu_set {lock.mu_set:.3g}' if lock is not None else ''}\n")
+    print("| mu | scheme | Omega (rad/s) | dt (s) | steps | CPU time per point (s), median | ns/step | contact steps "
           "| revolutions | LE amplitude (m) | class |")
-    print("|---|---|---|---|---|---|---|---|---|---|")
-    for scheme in schemes:
-        sopts = replace(opts, scheme=scheme, dt=a.massless_dt if scheme == "massless" else opts.dt)
+    print("|---|---|---|---|---|---|---|---|---|---|---|")
+    mus = [float(m) for m in a.mu.split(",")] if a.mu else [con.mu]
+    runs = [(s, opts.dt) for s in schemes if s != "massless"]
+    runs += [("massless", float(dt)) for dt in a.massless_dt.split(",") if "massless" in schemes]
+    for mu in mus:
         for w in omegas:
-            ts, r = [], None
-            for _ in range(a.repeat):
-                t0 = time.process_time()
-                r = simulate(system, cas, con.mu, w, sopts)
-                ts.append(time.process_time() - t0)
-            steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
-            med = statistics.median(ts)
-            print(f"| {scheme} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | {1e9 * med / steps:.0f} | "
-                  f"{r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | {r.period_class} |", flush=True)
+            for scheme, dt in runs:
+                ts, r = [], None
+                for _ in range(a.repeat):
+                    t0 = time.process_time()
+                    r = simulate(system, cas, mu, w, replace(opts, scheme=scheme, dt=dt))
+                    ts.append(time.process_time() - t0)
+                steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
+                med = statistics.median(ts)
+                print(f"| {mu:g} | {scheme} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | "
+                      f"{1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | "
+                      f"{r.period_class} |", flush=True)
     print()
     if not a.skip_dt:
         # error against Carpenter at dt = 5e-8 for every scheme (the massless one is another model)

@@ -227,6 +227,25 @@ def test_friction_set_on_the_command_line_reruns_both_treatments_and_the_sweep(t
     assert "--set" not in art.read_attrs(out / "rom.h5")["scene"]  # reused, not rewritten
 
 
+def test_a_massless_sweep_past_the_friction_lock_is_warned_about(tiny, tmp_path, capsys):
+    """Above the ROM's mu_set a massless node kept in contact locks and the sweep's amplitude
+    follows the step (README); the coarse ROM's mu_set is 0.123, the scene's mu 0.15."""
+    from pipelines.stages.ti import massless_warning
+    from rom.model import load_rom
+
+    scene, base = tiny
+    lock = load_rom(base / "rom.h5").friction_lock
+    assert 0.12 < lock.mu_set < 0.13
+    assert "mu_set = 0.123" in massless_warning("massless", 0.15, lock)
+    assert massless_warning("massless", 0.1, lock) is None
+    assert massless_warning("carpenter", 0.15, lock) is None and massless_warning("massless", 0.15, None) is None
+    out = fresh_copy(base, tmp_path / "out")
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--until", "ti", "--set", "ti.scheme=massless"]) == 0
+    printed = capsys.readouterr().out
+    assert "[ti] running" in printed and "WARNING: [ti] scheme = massless with friction mu = 0.15 past" in printed
+
+
 def test_set_young_modulus_reruns_from_the_fem_on(tiny, tmp_path):
     from pipelines.runner import plan
 
