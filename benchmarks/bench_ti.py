@@ -61,6 +61,8 @@ def main():
     ap.add_argument("--mu", default="", help="friction coefficients of the per-speed table, comma-separated "
                                              "(default: [contact] mu)")
     ap.add_argument("--no-early-stop", action="store_true", help="always n_revolutions (the old behaviour)")
+    ap.add_argument("--revolutions", default="", help="per-speed table: these n_revolutions, comma-separated, each "
+                                                      "marched in full (no early stop), e.g. 50,100,200")
     ap.add_argument("--sweep-points", type=int, default=None, help="--full-sweep on this many speeds of the grid")
     ap.add_argument("--compare-full", action="store_true",
                     help="--full-sweep: also run it without the early stop and compare class and amplitude")
@@ -81,19 +83,21 @@ def main():
     mus = [float(m) for m in a.mu.split(",")] if a.mu else [con.mu]
     runs = [(s, opts.dt) for s in schemes if s != "massless"]
     runs += [("massless", float(dt)) for dt in a.massless_dt.split(",") if "massless" in schemes]
-    for mu in mus:
-        for w in omegas:
-            for scheme, dt in runs:
-                ts, r = [], None
-                for _ in range(a.repeat):
-                    t0 = time.process_time()
-                    r = simulate(system, cas, mu, w, replace(opts, scheme=scheme, dt=dt))
-                    ts.append(time.process_time() - t0)
-                steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
-                med = statistics.median(ts)
-                print(f"| {mu:g} | {scheme} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | "
-                      f"{1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | "
-                      f"{r.period_class} |", flush=True)
+    revs = [int(n) for n in a.revolutions.split(",")] if a.revolutions else [None]
+    for mu, w, (scheme, dt), n in ((m, w, r, n) for m in mus for w in omegas for r in runs for n in revs):
+        ropts = replace(opts, scheme=scheme, dt=dt)
+        if n is not None:
+            ropts = replace(ropts, n_revolutions=n, stop_when_settled=False)
+        ts, r = [], None
+        for _ in range(a.repeat):
+            t0 = time.process_time()
+            r = simulate(system, cas, mu, w, ropts)
+            ts.append(time.process_time() - t0)
+        steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
+        med = statistics.median(ts)
+        print(f"| {mu:g} | {scheme} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | "
+              f"{1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | "
+              f"{r.period_class} |", flush=True)
     print()
     if not a.skip_dt:
         # error against Carpenter at dt = 5e-8 for every scheme (the massless one is another model)
