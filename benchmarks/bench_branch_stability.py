@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import argparse
 import sys
+from collections import Counter
 import time
 from pathlib import Path
 
@@ -169,6 +170,9 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
             print(f"{method} {br.name}: stored without stability, nothing to compare")
             return
         old = {k: g[k][()] for k in ("stable", "n_unstable", "stability_analysed")}
+        old_bif = [(k.decode() if isinstance(k, bytes) else str(k), int(i))
+                   for k, i in zip(g["bifurcations/kind"][()], g["bifurcations/index"][()])] \
+            if "bifurcations" in g else []
     ok = np.flatnonzero(br.converged)[span]
     co = search_options(res.options, scene.isolas).continuation
     c0 = time.process_time()
@@ -188,8 +192,13 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
           f"{t[wid].sum():.0f} s (median {np.median(plain) if plain.size else float('nan'):.2f} s plain, "
           f"{np.median(t[wid]) if wid.any() else float('nan'):.2f} s widened); whole call {cpu:.0f} s CPU",
           flush=True)
+    # bifurcations by kind, the stored ones counted over the same span of converged points
+    bif = new["tables"]["bifurcations"]
+    inside = {int(i) for i in ok}
+    stored = Counter(k for k, i in old_bif if i in inside and i + 1 in inside)
+    again = Counter(str(k) for k in np.asarray(bif["kind"][0], dtype=str))
+    print(f"  bifurcations stored {dict(sorted(stored.items()))}; again {dict(sorted(again.items()))}", flush=True)
     if save is not None:
-        bif = new["tables"]["bifurcations"]
         keys = ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time")
         got = {f"{method}_{br.name}_{k}": np.asarray(new[k]) for k in keys}
         got.update({f"{method}_{br.name}_omega": br.omega[ok],

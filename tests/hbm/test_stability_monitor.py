@@ -238,3 +238,58 @@ def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
     assert [b.kind for b in mon.bifurcations] == [FOLD]
     assert mon.bifurcations[0].omega == pytest.approx(OMEGA, abs=1e-9)  # the parabola's vertex
     assert sorted(mon.bifurcations[0].omega_bracket) in ([omega(turn), omega(turn - 1)], [omega(turn), omega(turn + 1)])
+
+
+def _stable_then(unstable_after: int):
+    """analyse(x, w): a stable spectrum, with a real multiplier 1.95 from point
+    unstable_after + 1 on (one the previous analysis has no counterpart for)."""
+    def analyse(x, w):
+        mu = [0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j] + ([1.95 + 0j] if x[0] > unstable_after else [])
+        mu = np.array(mu)
+        k = len(mu)
+        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
+                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
+                               eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+    return analyse
+
+
+def _feed(mon, omegas, step=1.0):
+    got = {}
+    for i, w in enumerate(omegas):
+        p = SimpleNamespace(index=i, omega=float(w), step=step, x=np.array([float(i)]))
+        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    got.update((q.index, ex) for q, ex in mon.finish())
+    return got
+
+
+def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
+    # Omega turns at point 30 and a real multiplier 1.95 appears past it with no counterpart
+    # at the point before (as at 537.3 rad/s on rotor 67's DLFT 400-629 rad/s branch, mu
+    # 1.95): the crossing cannot be paired, and its fallback took it for a second fold
+    from hbm.stability.bifurcation import FOLD
+
+    turn = 30
+    mon = StabilityMonitor(analyse=_stable_then(turn), options=StabilityOptions())
+    got = _feed(mon, [OMEGA + 0.05 * (i - turn) ** 2 for i in range(60)])
+    assert [(b.kind, b.multiplier, b.direction) for b in mon.bifurcations] == [(FOLD, 1.0, 1)]
+    assert mon.bifurcations[0].omega == pytest.approx(OMEGA, abs=1e-9)
+    assert [got[i]["stable"] for i in range(60)] == [i <= turn for i in range(60)]
+
+
+def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():
+    # the step floor's crawl of rotor 67's DLFT doubled branch at 719.9 rad/s: Omega moves by
+    # the corrector's round-off, +4.8e-7, -1.03e-6, -1.34e-6, +8.0e-7 rad/s in turn, then
+    # the branch leaves it going down in Omega
+    jitter = np.tile([4.8e-7, -1.03e-6, -1.34e-6, 8.0e-7], 10)
+    omegas = np.concatenate([719.9 + np.cumsum(np.r_[0.0, jitter]), 719.9 - 0.13 * np.arange(1, 11)])
+    mon = StabilityMonitor(analyse=_stable_then(len(omegas)), options=StabilityOptions())
+    got = _feed(mon, omegas, step=2e-6)
+    assert mon.bifurcations == [] and "turn" not in mon.causes
+    assert all(ex["stable"] for ex in got.values()) and len(got) == len(omegas)
+    # the same jitter 1e3 times larger (1e-3 rad/s, 1.4e-6 of Omega) is resolved: every
+    # change of direction is a turn
+    omegas = np.concatenate([719.9 + np.cumsum(np.r_[0.0, 1e3 * jitter]), 719.9 - 0.13 * np.arange(1, 11)])
+    turns = int(np.sum(np.diff(np.sign(np.diff(omegas))) != 0))
+    mon = StabilityMonitor(analyse=_stable_then(len(omegas)), options=StabilityOptions())
+    _feed(mon, omegas)
+    assert len(mon.bifurcations) == mon.causes["turn"] == turns == 21
