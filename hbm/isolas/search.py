@@ -37,6 +37,7 @@ same inputs and only computes what is missing; the result is the uninterrupted o
 from __future__ import annotations
 
 import concurrent.futures
+import copy
 import math
 import os
 import pickle
@@ -170,10 +171,18 @@ class _Joined(Exception):
 
 # -- phase 1: corrections ---------------------------------------------------------------------
 class _Corrector:
-    """Newton on one omega's seeds, with the membership test against the known branches."""
+    """Newton on one omega's seeds, with the membership test against the known branches.
+
+    Each seed gets a fresh copy of the factory's solver: a solver may keep state between
+    solves (hbm.harmonic.solver.HbmSolver keeps its preconditioner while GMRES meets the
+    loose tolerance of a seed's first steps), and a seed started with the last seed's would
+    take other inexact steps; on the coarse rotor 67 ROM (RL) 2 of 13 TI seeds converged
+    alone and failed after others. Which seeds a process corrects before another depends on
+    the scheduling, so with a kept state the converged set changed from run to run.
+    """
 
     def __init__(self, factory, known, options: SearchOptions):
-        self.residual, self.solver = factory()
+        self.residual, self._solver = factory()
         self.known, self.options = list(known), options
 
     def __call__(self, items):
@@ -183,12 +192,13 @@ class _Corrector:
         kept = []  # (index, x) of the distinct converged solutions at this omega
         tol = self.options.tolerance
         for i, w, x0 in items:
-            sol = newton_solve(self.residual, x0, w, self.options.newton, solver=self.solver)
+            solver = copy.deepcopy(self._solver)
+            sol = newton_solve(self.residual, x0, w, self.options.newton, solver=solver)
             if not sol.converged or not np.all(np.isfinite(sol.x)):
                 out.append((i, False, sol.iterations, -1, -1, None))
                 continue
             mine = [sol.x, *images(self.residual, sol.x)]
-            k = lies_on_any(self.residual, sol.x, w, self.known, self.options, self.solver, x_images=mine[1:])
+            k = lies_on_any(self.residual, sol.x, w, self.known, self.options, solver, x_images=mine[1:])
             same = next((j for j, xj in kept if any(np.linalg.norm(xq - xj) <= tol for xq in mine)), -1)
             if k < 0 and same < 0:
                 kept.append((i, sol.x))
