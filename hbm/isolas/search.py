@@ -505,7 +505,9 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 continue
             x0, w0 = corrections.x[i], float(seeds[i].omega)
             polys = [KnownBranch.of(b.omega, b.x, f"branch {k}", b.converged) for k, b in enumerate(found)]
-            k = lies_on_any(residual, x0, w0, polys, options, solver)
+            # a fresh solver, as for the seeds: the answer must not depend on the candidates
+            # before (a resumed search has not solved them)
+            k = lies_on_any(residual, x0, w0, polys, options, copy.deepcopy(solver))
             if k >= 0:
                 owner[i] = k
                 found[k] = replace(found[k], seeds=found[k].seeds + (i,))
