@@ -4,8 +4,9 @@ The isola search shares its seeds among processes by omega, and which omegas a p
 takes, in which order, depends on the scheduling. The HBM's solver keeps a preconditioner
 between solves; if a seed's Newton started with the one its predecessor left, its inexact
 steps, its iteration count and sometimes whether it converges would depend on that
-predecessor (12 of these 120 seeds did: other iterates, one converged set per run). Each
-seed corrected after the others of its omega must give what it gives alone, to the bit.
+predecessor (12 of these 120 seeds took other iterations or iterates that way; on the
+coarse stage, RL converged 334 to 337 of its seeds from run to run). Each seed corrected
+after the others of its omega must give what it gives alone, to the bit.
 """
 from dataclasses import replace
 
