@@ -52,6 +52,13 @@ class Bifurcation:
     eigenvector: the crossing Floquet mode exp(exponent t) p(t) at that point: p's
     coefficients (2 N' + 1, n) complex in the minimal period's basis (N' = N_h / g), all
     ROM dof, eq. (5) order; None for folds.
+    paired: whether one multiplier was found on both sides of the circle (crossings), so
+    that kind, multiplier and fraction are measured. False where the count of unstable
+    multipliers changed with no multiplier pairing across the circle (it moved too far
+    between the two analyses, or past the pairing window): kind and multiplier are then
+    those of the unstable multiplier nearest the circle on the side with more of them, a
+    guess, and the bifurcation is placed half-way. A fold is located by the turn in Omega
+    (True).
     """
 
     kind: str
@@ -66,6 +73,7 @@ class Bifurcation:
     exponent: complex = 0j
     mode_omega: float = 0.0
     eigenvector: np.ndarray | None = field(default=None, repr=False)
+    paired: bool = True
 
 
 def classify(mu: complex, fold: bool) -> str:
@@ -149,7 +157,8 @@ def bifurcation_arrays(bifurcations) -> dict:
     kind (k,) str; omega (k,) rad/s; le_amplitude (k,) m; index (k,) int; fraction (k,) -;
     omega_low, omega_high (k,) rad/s (the bracketing points); multiplier_real,
     multiplier_imag (k,) -; direction (k,) int (+1 loses stability along the branch);
-    period_ratio (k,) int. Returns {name: (array, unit)}.
+    period_ratio (k,) int; paired (k,) bool (False: the kind is a guess, see Bifurcation).
+    Returns {name: (array, unit)}.
     """
     b = list(bifurcations)
     return {
@@ -164,18 +173,22 @@ def bifurcation_arrays(bifurcations) -> dict:
         "multiplier_imag": (np.array([np.imag(x.multiplier) for x in b], dtype=float), "-"),
         "direction": (np.array([x.direction for x in b], dtype=np.int64), "-"),
         "period_ratio": (np.array([x.period_ratio for x in b], dtype=np.int64), "-"),
+        "paired": (np.array([x.paired for x in b], dtype=bool), "-"),
     }
 
 
 def bifurcations_from_arrays(table: dict) -> tuple:
     """The Bifurcation tuple of a table read back from a file ({name: array} of the columns
     bifurcation_arrays writes): what a resumed branch starts from. The file holds no
-    exponent, mode or eigenvector: those stay at their defaults."""
+    exponent, mode or eigenvector: those stay at their defaults; a file written before the
+    paired column reads as paired."""
     n = len(np.asarray(table["omega"]))
     col = {k: np.asarray(v) for k, v in table.items()}
+    paired = col.get("paired", np.ones(n, bool))
     return tuple(Bifurcation(
         kind=str(col["kind"][i]), omega=float(col["omega"][i]), le_amplitude=float(col["le_amplitude"][i]),
         index=int(col["index"][i]), fraction=float(col["fraction"][i]),
         omega_bracket=(float(col["omega_low"][i]), float(col["omega_high"][i])),
         multiplier=complex(float(col["multiplier_real"][i]), float(col["multiplier_imag"][i])),
-        direction=int(col["direction"][i]), period_ratio=int(col["period_ratio"][i])) for i in range(n))
+        direction=int(col["direction"][i]), period_ratio=int(col["period_ratio"][i]),
+        paired=bool(paired[i])) for i in range(n))

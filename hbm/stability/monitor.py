@@ -409,7 +409,7 @@ class StabilityMonitor:
                 kind=kind, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
                 index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=mu,
                 direction=1 if b.n_unstable > a.n_unstable else -1, period_ratio=side.g, exponent=ex,
-                mode_omega=float(sp.omega), eigenvector=vec))
+                mode_omega=float(sp.omega), eigenvector=vec, paired=False))
 
     def _record_folds(self) -> None:
         """Folds whose three points all have their counts: the vertex of the parabola Omega(s)

@@ -21,15 +21,21 @@ def spectrum(log_mod: float) -> FloquetSpectrum:
                            eigenvectors=np.zeros((4, 3, 2), complex), modulus_floor=0.05, method="arnoldi")
 
 
+def _feed(mon, omegas, step=1.0):
+    """Push points 0..n-1 (Omega = omegas[i], unknowns x = [i], le_amplitude 1e-4 i) through
+    the monitor and finish it: {index: the extras it hands back}."""
+    got = {}
+    for i, w in enumerate(omegas):
+        p = SimpleNamespace(index=i, omega=float(w), step=step, x=np.array([float(i)]))
+        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
+    got.update((q.index, ex) for q, ex in mon.finish())
+    return got
+
+
 def run(log_mod, n: int, options: StabilityOptions):
     """Points 0..n-1 one unit of arc length apart, Omega decreasing (no fold)."""
     mon = StabilityMonitor(analyse=lambda x, w: (spectrum(log_mod(float(x[0]))), 1), options=options)
-    flags = {}
-    for i in range(n):
-        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
-        flags.update((q.index, ex["stable"]) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
-    flags.update((q.index, ex["stable"]) for q, ex in mon.finish())
-    return mon, flags
+    return mon, {i: ex["stable"] for i, ex in _feed(mon, OMEGA - np.arange(n)).items()}
 
 
 @pytest.mark.parametrize("name, log_mod", [
@@ -44,6 +50,7 @@ def test_a_short_unstable_stretch_is_found_where_it_is(name, log_mod):
     exact = [i for i in range(n - 1) if (log_mod(i) > 0) != (log_mod(i + 1) > 0)]
     assert len(exact) == 2  # out and back in
     assert [(b.kind, b.index) for b in mon.bifurcations] == [(NEIMARK_SACKER, i) for i in exact]
+    assert all(b.paired for b in mon.bifurcations)  # one multiplier seen on both sides
     for b, i in zip(mon.bifurcations, exact):
         # the crossing by linear interpolation of log|mu| between the neighbours
         frac = log_mod(i) / (log_mod(i) - log_mod(i + 1))
@@ -100,11 +107,7 @@ def test_a_multiplier_that_grows_past_the_window_is_not_taken_for_stability(wide
     mon = StabilityMonitor(analyse=lambda x, w: (windowed(log_mod(float(x[0])), 40), 1),
                            widen=(lambda x, w, k: (windowed(log_mod(float(x[0])), k), 1)) if widen else None,
                            options=StabilityOptions())
-    flags = {}
-    for i in range(n):
-        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
-        flags.update((q.index, ex["stable"]) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
-    flags.update((q.index, ex["stable"]) for q, ex in mon.finish())
+    flags = {i: ex["stable"] for i, ex in _feed(mon, OMEGA - np.arange(n)).items()}
     exact = {i: log_mod(i) <= 0 for i in range(n)}
     assert 2.5 < log_mod(n - 1) < 5.0  # past the default window, inside the widened one
     assert sum(mon.causes.values()) == mon.n_analyses
@@ -134,11 +137,7 @@ def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
 
     mon = StabilityMonitor(analyse=lambda x, w: (windowed(log_mod(float(x[0])), 40), 1), widen=widen,
                            options=StabilityOptions())
-    got = {}
-    for i in range(n):
-        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
-        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
-    got.update((q.index, ex) for q, ex in mon.finish())
+    got = _feed(mon, OMEGA - np.arange(n))
     assert sorted(got) == list(range(n))
     assert len(widened) == 1
     w = widened[0]
@@ -185,11 +184,7 @@ def test_a_multiplier_leaving_the_window_of_an_unstable_orbit_is_neither_widened
         return window(float(x[0]), k), 1
 
     mon = StabilityMonitor(analyse=analyse, widen=widen, options=StabilityOptions())
-    got = {}
-    for i in range(n):
-        p = SimpleNamespace(index=i, omega=OMEGA - i, step=1.0, x=np.array([float(i)]))
-        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
-    got.update((q.index, ex) for q, ex in mon.finish())
+    got = _feed(mon, OMEGA - np.arange(n))
     assert sorted(got) == list(range(n))
     assert widened == []
     assert [(b.kind, b.index, b.direction) for b in mon.bifurcations] == [(PERIOD_DOUBLING, 10, 1)]
@@ -225,11 +220,7 @@ def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
                                eigenvectors=np.zeros((3, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
 
     mon = StabilityMonitor(analyse=analyse, options=StabilityOptions())
-    got = {}
-    for i in range(n):
-        p = SimpleNamespace(index=i, omega=omega(i), step=1.0, x=np.array([float(i)]))
-        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
-    got.update((q.index, ex) for q, ex in mon.finish())
+    got = _feed(mon, [omega(i) for i in range(n)])
     assert sorted(got) == list(range(n))
     analysed = sorted(i for i, ex in got.items() if ex["stability_analysed"])
     after = [i for i in analysed if i > turn]
@@ -253,15 +244,6 @@ def _stable_then(unstable_after: int):
     return analyse
 
 
-def _feed(mon, omegas, step=1.0):
-    got = {}
-    for i, w in enumerate(omegas):
-        p = SimpleNamespace(index=i, omega=float(w), step=step, x=np.array([float(i)]))
-        got.update((q.index, ex) for q, ex in mon.push(p, {"le_amplitude": 1e-4 * i}))
-    got.update((q.index, ex) for q, ex in mon.finish())
-    return got
-
-
 def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
     # Omega turns at point 30 and a real multiplier 1.95 appears past it with no counterpart
     # at the point before (as at 537.3 rad/s on rotor 67's DLFT 400-629 rad/s branch, mu
@@ -271,9 +253,32 @@ def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
     turn = 30
     mon = StabilityMonitor(analyse=_stable_then(turn), options=StabilityOptions())
     got = _feed(mon, [OMEGA + 0.05 * (i - turn) ** 2 for i in range(60)])
-    assert [(b.kind, b.multiplier, b.direction) for b in mon.bifurcations] == [(FOLD, 1.0, 1)]
+    assert [(b.kind, b.multiplier, b.direction, b.paired) for b in mon.bifurcations] == [(FOLD, 1.0, 1, True)]
     assert mon.bifurcations[0].omega == pytest.approx(OMEGA, abs=1e-9)
     assert [got[i]["stable"] for i in range(60)] == [i <= turn for i in range(60)]
+
+
+def test_a_count_change_no_multiplier_explains_is_recorded_as_a_guess():
+    # no turn, and a real multiplier 1.95 appears after point 40 with no counterpart before:
+    # the count changes, no multiplier pairs across the circle. The change is recorded (the
+    # stable flag does change there), half-way between the two analyses around it, its kind
+    # guessed from the new multiplier (real, +: a branch point), and marked unpaired, in the
+    # file's table too.
+    from hbm.stability.bifurcation import BRANCH_POINT, bifurcation_arrays, bifurcations_from_arrays
+
+    mon = StabilityMonitor(analyse=_stable_then(40), options=StabilityOptions())
+    got = _feed(mon, OMEGA - np.arange(80))
+    assert [got[i]["stable"] for i in range(80)] == [i <= 40 for i in range(80)]
+    (b,) = mon.bifurcations
+    assert (b.kind, b.multiplier, b.direction, b.paired) == (BRANCH_POINT, 1.95, 1, False)
+    assert (b.index, b.fraction, b.omega) == (40, 0.5, OMEGA - 40.5)
+    table = bifurcation_arrays(mon.bifurcations)
+    assert table["paired"][0].tolist() == [False]
+    (back,) = bifurcations_from_arrays({k: v for k, (v, _) in table.items()})
+    assert back.paired is False and back.kind == BRANCH_POINT
+    # a table written before the column existed reads as paired
+    old = {k: v for k, (v, _) in table.items() if k != "paired"}
+    assert bifurcations_from_arrays(old)[0].paired is True
 
 
 def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():
