@@ -9,6 +9,7 @@ verdict) from up to --march stable points per branch, spread over its stable poi
         [--branches rl/007 dlft/008] [--seed 1]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --monitor --branches rl/006
         [--span 450:650] [--save new.npz]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --nfrc [--methods dlft]
 
 --window-check N: on branches stored with stability ([hbm] stability), N of the points the
 monitor analysed, drawn at random, are analysed again with the monitor's 40-eigenvalue
@@ -18,8 +19,11 @@ gets wrong (a multiplier beyond its ceiling).
 
 --monitor: the stability monitor is run again over each branch as the isolas stage runs it;
 one line per branch gives the stored and the new analysed, widened and stable counts, the
+bifurcations by kind (and those whose kind is a guess: no multiplier paired across the
+circle, Bifurcation.paired, and how many of those lie where the stable flag changes), the
 count changes left unresolved (two analysed points apart that differ with nothing bisected
 between them), and the CPU time of the analyses, split between plain and widened points.
+--nfrc: the same over the NFRC files' converged points.
 
 Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE --out OUT`).
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
@@ -63,6 +67,9 @@ def main() -> None:
     ap.add_argument("--monitor", action="store_true",
                     help="run the stability monitor again over each branch, as the isolas stage does, and "
                          "compare it with the stored stability")
+    ap.add_argument("--nfrc", action="store_true",
+                    help="run the stability monitor again over the NFRC files' converged points instead "
+                         "(OUT/nfrc_METHOD.h5, scene settings): bifurcations by kind, and which are guesses")
     ap.add_argument("--branches", nargs="+", help="METHOD/NNN of the branches to take (default: all of --kinds)")
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--span", default=":", metavar="A:B",
@@ -76,6 +83,10 @@ def main() -> None:
     system = rom_modal_system(rom)
     found = read_isolas(a.out / "isolas.h5")
     n_r = 3 * rom.n_boundary
+    if a.nfrc:
+        for method in a.methods:
+            _monitor_nfrc(a.out, scene, rom, method)
+        return
     for method in a.methods:
         for br in found.get(method, []):
             if (a.branches and f"{method}/{br.name}" not in a.branches) or (not a.branches and br.kind not in a.kinds):
@@ -155,6 +166,49 @@ def _unresolved(analysed: np.ndarray, n_unstable: np.ndarray) -> int:
     return int(sum(1 for i, j in zip(a[:-1], a[1:]) if j > i + 1 and n_unstable[i] != n_unstable[j]))
 
 
+def _bifurcation_counts(table: dict, stable: np.ndarray) -> str:
+    """Counts by kind of a bifurcation table (bifurcation_arrays), those whose kind is a guess
+    (no multiplier paired across the circle) and, of those, the ones where the stable flag
+    changes (stable (m,) bool per described point)."""
+    kinds, paired = np.asarray(table["kind"][0], dtype=str), np.asarray(table["paired"][0], dtype=bool)
+    idx = np.asarray(table["index"][0], dtype=np.int64)
+    st = np.asarray(stable, bool)
+    change = np.array([st[i] != st[min(i + 1, len(st) - 1)] for i in idx], bool)
+    return (f"{dict(sorted(Counter(str(k) for k in kinds).items()))}, of which unpaired (kind guessed) "
+            f"{dict(sorted(Counter(str(k) for k in kinds[~paired]).items()))}, {int((~paired & change).sum())} "
+            f"of them where the stable flag changes")
+
+
+def _monitor_nfrc(out: Path, scene, rom, method: str) -> None:
+    """The monitor over the converged points of OUT/nfrc_METHOD.h5, in the NFRC's arc-length
+    scales, against the file's own stability."""
+    import h5py
+
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.harmonic.residual import build_residual
+    from hbm.isolas.harmonic import describe
+    from hbm.stability.monitor import StabilityOptions
+    from pipelines.branch_store import load_branch
+
+    path = out / f"nfrc_{method}.h5"
+    s = load_branch(path)
+    ok = np.flatnonzero(s.branch.converged)
+    res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
+    co = default_continuation(scene.hbm)
+    c0 = time.process_time()
+    new = describe(res, True, (co.x_scale, co.omega_scale),
+                   StabilityOptions(max_gap=scene.hbm.stability_max_gap))(s.branch.omega[ok], s.branch.x[ok])
+    cpu = time.process_time() - c0
+    with h5py.File(path, "r") as h5:
+        stored = Counter(k.decode() if isinstance(k, bytes) else str(k) for k in h5["bifurcations/kind"][()]) \
+            if "bifurcations" in h5 else None
+    old = s.extras.get("stable")
+    print(f"{method} NFRC, {len(ok)} points: stored {None if old is None else int(np.asarray(old)[ok].sum())} stable, "
+          f"bifurcations {None if stored is None else dict(sorted(stored.items()))}; again "
+          f"{int(new['stability_analysed'].sum())} analysed, {int(new['stable'].sum())} stable, bifurcations "
+          f"{_bifurcation_counts(new['tables']['bifurcations'], new['stable'])}; {cpu:.0f} s CPU", flush=True)
+
+
 def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(None), save: Path | None = None) -> None:
     """The monitor over br's converged points (those of span) as the isolas stage runs it
     (one chunk here, where the stage splits a long branch in two), against the stored
@@ -196,14 +250,16 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
     bif = new["tables"]["bifurcations"]
     inside = {int(i) for i in ok}
     stored = Counter(k for k, i in old_bif if i in inside and i + 1 in inside)
-    again = Counter(str(k) for k in np.asarray(bif["kind"][0], dtype=str))
-    print(f"  bifurcations stored {dict(sorted(stored.items()))}; again {dict(sorted(again.items()))}", flush=True)
+    paired = np.asarray(bif["paired"][0], dtype=bool)
+    print(f"  bifurcations stored {dict(sorted(stored.items()))}; again "
+          f"{_bifurcation_counts(bif, new['stable'])}", flush=True)
     if save is not None:
         keys = ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time")
         got = {f"{method}_{br.name}_{k}": np.asarray(new[k]) for k in keys}
         got.update({f"{method}_{br.name}_omega": br.omega[ok],
                     f"{method}_{br.name}_bif_kind": np.asarray(bif["kind"][0], dtype=str),
                     f"{method}_{br.name}_bif_omega": bif["omega"][0],
+                    f"{method}_{br.name}_bif_paired": paired,
                     f"{method}_{br.name}_bif_multiplier": bif["multiplier_real"][0] + 1j * bif["multiplier_imag"][0]})
         if save.exists():
             got = dict(np.load(save), **got)
