@@ -209,6 +209,8 @@ STABILITY_STYLES = {"stable": "-", "unstable": "--", "unknown": ":"}
 #: Marker of each bifurcation kind (hbm.stability.bifurcation.KINDS).
 BIFURCATION_MARKERS = {"fold": "o", "branch point": "s", "period doubling": "D", "Neimark-Sacker": "*",
                        "unclassified": "x", "validation point": "P"}
+#: colour of a bifurcation whose kind is a guess (Bifurcation.paired False)
+GUESSED = "0.6"
 
 
 def _stability_runs(stable, converged):
@@ -238,11 +240,13 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
 
     curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude
     (m,) m, converged (m,) bool, stable (m,) bool or None)], kind one of KIND_COLOURS;
-    marks: [(bifurcation kind, omega rad/s, amplitude m)]. ti_points as in plot_nfrc.
+    marks: [(bifurcation kind, omega rad/s, amplitude m[, guessed])], guessed (default False):
+    the kind is a guess (no multiplier paired across the circle, Bifurcation.paired), drawn
+    grey. ti_points as in plot_nfrc.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    handles, seen_styles, seen_marks = [], set(), set()
+    handles, seen_styles, seen_marks, seen_guess = [], set(), set(), False
     for t, (label, (lines, marks)) in enumerate(curves.items()):
         for kind, omega, amp, conv, stable in lines:
             colour = KIND_COLOURS.get(kind, KIND_COLOURS["detached"])[t % 2]
@@ -252,15 +256,20 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
                 ax.plot(omega[a:b], amp[a:b], STABILITY_STYLES[state], color=colour, lw=1.3)
                 seen_styles.add(state)
             handles.append(Line2D([], [], color=colour, lw=1.3, label=f"{label} {kind}"))
-        for kind, w, a in marks:
+        for kind, w, a, *guessed in marks:
             if np.isfinite(a):
-                ax.plot(w, k * a, BIFURCATION_MARKERS.get(kind, "x"), color="k", ms=5, mfc="none", zorder=4)
+                grey = bool(guessed and guessed[0])
+                ax.plot(w, k * a, BIFURCATION_MARKERS.get(kind, "x"), color=GUESSED if grey else "k", ms=5,
+                        mfc="none", zorder=4)
                 seen_marks.add(kind)
+                seen_guess = seen_guess or grey
     uniq = {h.get_label(): h for h in handles}
     handles = list(uniq.values())
     handles += [Line2D([], [], color="0.3", ls=STABILITY_STYLES[s], label=s) for s in STABILITY_STYLES if s in seen_styles]
     handles += [Line2D([], [], ls="none", marker=BIFURCATION_MARKERS.get(m, "x"), color="k", mfc="none", label=m)
                 for m in BIFURCATION_MARKERS if m in seen_marks]
+    if seen_guess:
+        handles.append(Line2D([], [], ls="none", marker="o", color=GUESSED, mfc="none", label="kind guessed"))
     if ti_points is not None:
         o, a, c = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10)

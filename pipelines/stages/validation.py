@@ -744,18 +744,20 @@ def _signal_files(scene) -> tuple[str, ...]:
 
 
 def _stability_bounds(table: dict, stable) -> list:
-    """[(kind, omega, le_amplitude)] of the bifurcations of a branch's table ({column:
-    array}) where a stable stretch begins or ends (the stable flag differs between the two
-    points around it). The others, crossings among orbits already unstable, stay in the
-    files: on the coarse rotor 67 ROM a single long isola has 100 to 250 of them, which
-    would bury the figure's curves."""
+    """[(kind, omega, le_amplitude, guessed)] of the bifurcations of a branch's table
+    ({column: array}) where a stable stretch begins or ends (the stable flag differs between
+    the two points around it); guessed: the kind is a guess (column paired false; tables
+    written before that column count as paired). The others, crossings among orbits already
+    unstable, stay in the files: on the coarse rotor 67 ROM a single long isola has 100 to
+    250 of them, which would bury the figure's curves."""
     kinds, om, amp, idx = (np.asarray(table[k]) for k in ("kind", "omega", "le_amplitude", "index"))
+    guessed = ~np.asarray(table.get("paired", np.ones(len(kinds), bool)), bool)
     if stable is None:
-        return list(zip(kinds, om, amp))
+        return [(str(k), w, a, bool(g)) for k, w, a, g in zip(kinds, om, amp, guessed)]
     st = np.asarray(stable, bool)
     j = np.clip(idx.astype(np.int64), 0, len(st) - 2) if len(st) > 1 else idx.astype(np.int64) * 0
     keep = st[j] != st[np.minimum(j + 1, len(st) - 1)]
-    return [(str(k), w, a) for k, w, a, ok in zip(kinds, om, amp, keep) if ok]
+    return [(str(k), w, a, bool(g)) for k, w, a, g, ok in zip(kinds, om, amp, guessed, keep) if ok]
 
 
 def draw_solution_set(ctx: Context) -> None:

@@ -179,8 +179,28 @@ def test_the_solution_set_marks_the_ends_of_stable_stretches():
     table = {"kind": np.array(["period doubling", "Neimark-Sacker", "fold", "branch point"], dtype=object),
              "omega": np.array([1.5, 2.5, 3.5, 4.5]), "le_amplitude": np.array([1e-3, 2e-3, 3e-3, 4e-3]),
              "index": np.array([1, 2, 3, 4])}
-    assert _stability_bounds(table, stable) == [("period doubling", 1.5, 1e-3), ("branch point", 4.5, 4e-3)]
+    # a table written before the paired column: every kind counts as measured
+    assert _stability_bounds(table, stable) == [("period doubling", 1.5, 1e-3, False), ("branch point", 4.5, 4e-3, False)]
     assert len(_stability_bounds(table, None)) == 4  # no stability stored: all of them
+    table["paired"] = np.array([True, True, True, False])
+    assert _stability_bounds(table, stable) == [("period doubling", 1.5, 1e-3, False), ("branch point", 4.5, 4e-3, True)]
+
+
+def test_a_guessed_kind_is_drawn_grey(tmp_path):
+    """Fig. 8 draws a bifurcation whose kind is a guess (no multiplier paired across the
+    circle) in grey, with a legend entry, and a measured one in black."""
+    from pipelines.figures import GUESSED, plot_solution_set
+
+    line = ("primary", np.linspace(400, 2000, 50), np.full(50, 1e-3), np.ones(50, bool), np.ones(50, bool))
+    grey = float(GUESSED) * 255
+
+    def grey_pixels(guessed: bool) -> int:
+        png = plot_solution_set({"DLFT": ([line], [("period doubling", 1200.0, 2e-3, guessed)])},
+                                tmp_path / f"s_{guessed}.png")
+        img = imread(png)[..., :3].astype(float) * (255 if imread(png).dtype.kind == "f" else 1)
+        return int((np.abs(img - grey).max(axis=2) < 8).sum())
+
+    assert grey_pixels(True) > grey_pixels(False) + 20
 
 
 def test_period_doublings_to_try_end_stable_stretches_longest_first():
