@@ -391,12 +391,18 @@ class StabilityMonitor:
                 period_ratio=side.g, exponent=complex(side.spectrum.exponents[k]),
                 mode_omega=float(side.spectrum.omega), eigenvector=side.spectrum.eigenvectors[k]))
         if not found:
-            # the multipliers moved too far to be paired: classify by the one that crossed,
-            # the unstable one nearest the unit circle on the side with more of them, and
-            # place it half-way (bracket stated in omega_bracket)
+            # the multipliers moved too far to be paired: guess the one that crossed, the
+            # unstable one nearest the unit circle on the side with more of them, leaving out
+            # those paired with an unstable multiplier of the other side (they did not cross),
+            # and place it half-way (bracket stated in omega_bracket)
             side, other = (b, a) if b.n_unstable > a.n_unstable else (a, b)
             sp = side.spectrum
             unst = np.flatnonzero(sp.unstable & upper_half(sp.multipliers))
+            stayed = {i for i, j in pair_multipliers(sp.multipliers, other.spectrum.multipliers, floor,
+                                                     self.options.window)
+                      if abs(other.spectrum.multipliers[j]) > 1.0}
+            moved = np.array([i for i in unst if i not in stayed], dtype=int)
+            unst = moved if len(moved) else unst  # every one paired across: a count the window cut
             if len(unst):
                 j = unst[np.argmin(np.abs(np.log(np.abs(sp.multipliers[unst]))))]
                 mu, kind = complex(sp.multipliers[j]), classify(sp.multipliers[j], fold)

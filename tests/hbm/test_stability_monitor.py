@@ -281,6 +281,29 @@ def test_a_count_change_no_multiplier_explains_is_recorded_as_a_guess():
     assert bifurcations_from_arrays(old)[0].paired is True
 
 
+def test_a_guess_leaves_out_the_multipliers_that_stayed_unstable():
+    # an orbit unstable through a complex pair exp(0.10 +- 1.1 i) (exp(0.12 +- 1.1 i) further
+    # on) gains a real multiplier -3 after point 40, with no counterpart before it. The pair
+    # is nearer the circle, but it is unstable on both sides (paired across the count
+    # change), so it did not cross: the guess is the new real negative multiplier, a period
+    # doubling, not a Neimark-Sacker.
+    from hbm.stability.bifurcation import PERIOD_DOUBLING
+
+    def analyse(x, w):
+        r = 0.10 if x[0] <= 40 else 0.12
+        mu = np.array([np.exp(r + 1.1j), np.exp(r - 1.1j), 0.5 + 0j] + ([-3.0 + 0j] if x[0] > 40 else []))
+        k = len(mu)
+        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
+                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
+                               eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+
+    mon = StabilityMonitor(analyse=analyse, options=StabilityOptions())
+    got = _feed(mon, OMEGA - np.arange(80))
+    assert [got[i]["n_unstable"] for i in range(80)] == [2 if i <= 40 else 3 for i in range(80)]
+    (b,) = mon.bifurcations
+    assert (b.kind, b.multiplier, b.index, b.direction, b.paired) == (PERIOD_DOUBLING, -3.0, 40, 1, False)
+
+
 def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():
     # the step floor's crawl of rotor 67's DLFT doubled branch at 719.9 rad/s: Omega moves by
     # the corrector's round-off, +4.8e-7, -1.03e-6, -1.34e-6, +8.0e-7 rad/s in turn, then
