@@ -56,8 +56,9 @@ class Bifurcation:
     that kind, multiplier and fraction are measured. False where the count of unstable
     multipliers changed with no multiplier pairing across the circle (it moved too far
     between the two analyses, or past the pairing window): kind and multiplier are then
-    those of the unstable multiplier nearest the circle on the side with more of them, a
-    guess, and the bifurcation is placed half-way. A fold is located by the turn in Omega
+    those of the unstable multiplier nearest the circle on the side with more of them
+    (leaving out those paired with an unstable one of the other side), a guess, and the
+    bifurcation is placed half-way. A fold is located by the turn in Omega
     (True).
     """
 
