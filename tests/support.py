@@ -1,6 +1,8 @@
 """Test support: small models with the layout of the real artifacts."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 
 from rom.model import RomModel, modal_damping
@@ -76,3 +78,12 @@ def fresh_copy(src, dst):
 
     shutil.copytree(src, dst, dirs_exist_ok=True)
     return _Path(dst)
+
+
+def shell_env() -> dict:
+    """The environment of a command started from a shell: this process's, without the
+    singleton MPI environment that dolfinx's MPI_Init gave it (OMPI_*, PMIX_*; a child
+    started with env=None inherits them from the C environment and joins this process's MPI
+    job as its rank 0)."""
+    return {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
+

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from coarse_runs import ROOT, clone
+from support import shell_env
 from pipelines import artifacts as art
 from pipelines import folder
 from pipelines.branch_store import load_branch
@@ -281,10 +282,8 @@ def test_a_treatment_that_fails_does_not_stop_the_other(coarse_run, tmp_path, ca
     and what was kept, and the next run (here from this process, whose treatments are
     spawned) goes on with RL alone from its points on disk."""
     scene = clone(coarse_run[1], tmp_path)
-    # as from a shell: without the singleton MPI environment this process's dolfinx set up
-    env = {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
     p = subprocess.run([sys.executable, "-c", FULL_DISK_IN_RL, "run", str(scene), "--out", str(tmp_path),
-                        "--until", "hbm"], cwd=ROOT, capture_output=True, text=True, timeout=600, env=env)
+                        "--until", "hbm"], cwd=ROOT, capture_output=True, text=True, timeout=600, env=shell_env())
     assert p.returncode == 1, p.stdout + p.stderr
     assert "  dlft and rl at once, one process each" in p.stdout
     line = one_line(p.stderr)
@@ -344,8 +343,8 @@ def test_two_concurrent_runs_compute_once(coarse_run, tmp_path):
     scene = clone(coarse_run[1], tmp_path)
     scene.write_text(scene.read_text().replace('methods = ["dlft", "rl"]', 'methods = ["dlft"]'))
     cmd = [sys.executable, "-m", "pipelines.cli", "run", str(scene), "--out", str(tmp_path), "--until", "hbm"]
-    procs = [subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-             for _ in range(2)]
+    procs = [subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                              env=shell_env()) for _ in range(2)]
     results = [(p.pid, *p.communicate(timeout=300)) for p in procs]
     results = [(pid, p.returncode, out, err) for p, (pid, out, err) in zip(procs, results)]
     computed = [r for r in results if "[hbm] done" in r[2]]
@@ -370,7 +369,7 @@ def test_temp_file_of_a_run_killed_while_writing_is_removed(coarse_run, tmp_path
            "art.add_checksums = lambda path: os.kill(os.getpid(), signal.SIGKILL); "
            "from pipelines.cli import main; main(sys.argv[1:])")
     r = subprocess.run([sys.executable, "-c", die, "run", str(scene), "--out", str(tmp_path), "--until", "rom"],
-                       cwd=ROOT, capture_output=True, text=True, timeout=300)
+                       cwd=ROOT, capture_output=True, text=True, timeout=300, env=shell_env())
     assert r.returncode == -signal.SIGKILL
     orphans = temps(tmp_path)
     assert len(orphans) == 1 and orphans[0].startswith(".rom.h5.tmp")

@@ -18,6 +18,7 @@ import numpy as np
 import pytest
 
 from coarse_runs import ROOT, clone
+from support import shell_env
 from pipelines import artifacts as art
 from pipelines.branch_store import load_branch
 from pipelines.cli import main
@@ -55,8 +56,10 @@ def interrupt(scene: Path, out: Path, stage: str, delay: float, *args, slow: boo
     cmd = [sys.executable, "-c", SLOW, stage] if slow else [sys.executable, "-m", "pipelines.cli"]
     # a run started from a terminal answers SIGINT; a test run started as a background job of a
     # non-interactive shell ignores it, and its children would inherit that (exec keeps SIG_IGN)
+    # the environment a shell gives: with this process's singleton MPI environment the run
+    # would join this process's MPI job as its rank 0
     p = subprocess.Popen(cmd + ["run", str(scene), "--out", str(out), *args], cwd=ROOT, stdout=subprocess.PIPE,
-                         stderr=subprocess.PIPE, text=True, start_new_session=True,
+                         stderr=subprocess.PIPE, text=True, start_new_session=True, env=shell_env(),
                          preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL))
     for line in p.stdout:
         if line.startswith(f"[{stage}] running"):
