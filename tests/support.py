@@ -81,9 +81,10 @@ def fresh_copy(src, dst):
 
 
 def shell_env() -> dict:
-    """The environment of a command started from a shell: this process's, without the
-    singleton MPI environment that dolfinx's MPI_Init gave it (OMPI_*, PMIX_*; a child
-    started with env=None inherits them from the C environment and joins this process's MPI
-    job as its rank 0)."""
+    """The environment of a command started from a shell, to pass as env=: os.environ, the
+    environment this process started with, less any MPI launcher variables (OMPI_*, PMIX_*).
+    Passing it matters: the singleton MPI environment that dolfinx's MPI_Init adds lives in
+    the C environment only, and a child started with env=None inherits it and joins this
+    process's MPI job as its rank 0."""
     return {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
 
