@@ -376,6 +376,8 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
                         bif, w_s, u_s, n_ref = ref
                         why += (f", refined between them ({n_ref} points of the branch): multiplier "
                                 f"{bif.multiplier.real:.4g}{bif.multiplier.imag:+.2g}i at Omega = {w_s:.6g} rad/s")
+                if not bif.paired:
+                    why += " (no multiplier pairs across the unit circle there: the kind is a guess)"
                 return LocatedDoubling(bif, side, why, len(cache), w_s, np.asarray(u_s, float))
     except _Budget:
         return LocatedDoubling(None, -1, f"no period doubling among the {max(checked - 1, 0)} of {len(pairs)} stability "

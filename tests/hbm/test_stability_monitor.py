@@ -304,6 +304,30 @@ def test_a_guess_leaves_out_the_multipliers_that_stayed_unstable():
     assert (b.kind, b.multiplier, b.index, b.direction, b.paired) == (PERIOD_DOUBLING, -3.0, 40, 1, False)
 
 
+def test_a_period_doubling_located_from_a_guess_says_so(monkeypatch):
+    # the validation stage's locate_period_doubling on a bracket where a real multiplier -1.05
+    # appears with no counterpart: it is taken (a real negative multiplier past the circle),
+    # and its reason says that the kind is a guess
+    from hbm.stability import selection
+
+    def spectrum_at(residual, x, omega):
+        mu = [0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j] + ([-1.05 + 0j] if x[0] > 40 else [])
+        mu = np.array(mu)
+        k = len(mu)
+        return FloquetSpectrum(omega=omega, exponents=np.log(mu) * omega / (2 * np.pi), multipliers=mu,
+                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
+                               eigenvectors=np.ones((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+
+    monkeypatch.setattr(selection, "orbit_spectrum", spectrum_at)
+    n = 80
+    x = np.arange(n, dtype=float)[:, None] * np.ones((1, 2))
+    loc = selection.locate_period_doubling(None, OMEGA - np.arange(n), x, 1e-4 * np.arange(n), np.ones(n, bool),
+                                           brackets=[40])
+    assert loc.bifurcation is not None and loc.bifurcation.kind == selection.PERIOD_DOUBLING
+    assert not loc.bifurcation.paired and loc.bifurcation.multiplier == -1.05
+    assert "the kind is a guess" in loc.reason
+
+
 def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():
     # the step floor's crawl of rotor 67's DLFT doubled branch at 719.9 rad/s: Omega moves by
     # the corrector's round-off, +4.8e-7, -1.03e-6, -1.34e-6, +8.0e-7 rad/s in turn, then
