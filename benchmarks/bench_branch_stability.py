@@ -19,8 +19,9 @@ gets wrong (a multiplier beyond its ceiling).
 
 --monitor: the stability monitor is run again over each branch as the isolas stage runs it;
 one line per branch gives the stored and the new analysed, widened and stable counts, the
-bifurcations by kind (and those whose kind is a guess: no multiplier paired across the
-circle, Bifurcation.paired, and how many of those lie where the stable flag changes), the
+bifurcations by kind (and those whose kind comes from the parities of the real multipliers
+or is a guess: no multiplier paired across the circle, Bifurcation.kind_from, and how many
+of those lie where the stable flag changes), the
 count changes left unresolved (two analysed points apart that differ with nothing bisected
 between them), and the CPU time of the analyses, split between plain and widened points.
 --nfrc: the same over the NFRC files' converged points.
@@ -81,12 +82,12 @@ def main() -> None:
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
     system = rom_modal_system(rom)
-    found = read_isolas(a.out / "isolas.h5")
-    n_r = 3 * rom.n_boundary
     if a.nfrc:
         for method in a.methods:
             _monitor_nfrc(a.out, scene, rom, method)
         return
+    found = read_isolas(a.out / "isolas.h5")
+    n_r = 3 * rom.n_boundary
     for method in a.methods:
         for br in found.get(method, []):
             if (a.branches and f"{method}/{br.name}" not in a.branches) or (not a.branches and br.kind not in a.kinds):
@@ -167,16 +168,20 @@ def _unresolved(analysed: np.ndarray, n_unstable: np.ndarray) -> int:
 
 
 def _bifurcation_counts(table: dict, stable: np.ndarray) -> str:
-    """Counts by kind of a bifurcation table (bifurcation_arrays), those whose kind is a guess
-    (no multiplier paired across the circle) and, of those, the ones where the stable flag
-    changes (stable (m,) bool per described point)."""
-    kinds, paired = np.asarray(table["kind"][0], dtype=str), np.asarray(table["paired"][0], dtype=bool)
+    """Counts by kind of a bifurcation table (bifurcation_arrays), those whose kind comes from
+    the parities of the real multipliers and those whose kind is a guess (no multiplier
+    paired across the circle, Bifurcation.kind_from) and, of the guesses, the ones where the
+    stable flag changes (stable (m,) bool per described point)."""
+    kinds = np.asarray(table["kind"][0], dtype=str)
+    source = np.asarray(table["kind_from"][0], dtype=str)
     idx = np.asarray(table["index"][0], dtype=np.int64)
     st = np.asarray(stable, bool)
     change = np.array([st[i] != st[min(i + 1, len(st) - 1)] for i in idx], bool)
-    return (f"{dict(sorted(Counter(str(k) for k in kinds).items()))}, of which unpaired (kind guessed) "
-            f"{dict(sorted(Counter(str(k) for k in kinds[~paired]).items()))}, {int((~paired & change).sum())} "
-            f"of them where the stable flag changes")
+    guess, parity = source == "guess", source == "parity"
+    return (f"{dict(sorted(Counter(str(k) for k in kinds).items()))}, of which from the parities "
+            f"{dict(sorted(Counter(str(k) for k in kinds[parity]).items()))} ({int((parity & change).sum())} where "
+            f"the stable flag changes), guessed {dict(sorted(Counter(str(k) for k in kinds[guess]).items()))} "
+            f"({int((guess & change).sum())} where it changes)")
 
 
 def _monitor_nfrc(out: Path, scene, rom, method: str) -> None:
@@ -250,7 +255,6 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
     bif = new["tables"]["bifurcations"]
     inside = {int(i) for i in ok}
     stored = Counter(k for k, i in old_bif if i in inside and i + 1 in inside)
-    paired = np.asarray(bif["paired"][0], dtype=bool)
     print(f"  bifurcations stored {dict(sorted(stored.items()))}; again "
           f"{_bifurcation_counts(bif, new['stable'])}", flush=True)
     if save is not None:
@@ -259,7 +263,7 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
         got.update({f"{method}_{br.name}_omega": br.omega[ok],
                     f"{method}_{br.name}_bif_kind": np.asarray(bif["kind"][0], dtype=str),
                     f"{method}_{br.name}_bif_omega": bif["omega"][0],
-                    f"{method}_{br.name}_bif_paired": paired,
+                    f"{method}_{br.name}_bif_kind_from": np.asarray(bif["kind_from"][0], dtype=str),
                     f"{method}_{br.name}_bif_multiplier": bif["multiplier_real"][0] + 1j * bif["multiplier_imag"][0]})
         if save.exists():
             got = dict(np.load(save), **got)

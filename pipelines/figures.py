@@ -209,7 +209,7 @@ STABILITY_STYLES = {"stable": "-", "unstable": "--", "unknown": ":"}
 #: Marker of each bifurcation kind (hbm.stability.bifurcation.KINDS).
 BIFURCATION_MARKERS = {"fold": "o", "branch point": "s", "period doubling": "D", "Neimark-Sacker": "*",
                        "unclassified": "x", "validation point": "P"}
-#: colour of a bifurcation whose kind is a guess (Bifurcation.paired False)
+#: colour of a bifurcation whose kind is a guess (Bifurcation.kind_from "guess")
 GUESSED = "0.6"
 
 
@@ -241,7 +241,8 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude
     (m,) m, converged (m,) bool, stable (m,) bool or None)], kind one of KIND_COLOURS;
     marks: [(bifurcation kind, omega rad/s, amplitude m[, guessed])], guessed (default False):
-    the kind is a guess (no multiplier paired across the circle, Bifurcation.paired), drawn
+    the kind is a guess (no multiplier paired across the circle and the parities of the real
+    ones do not tell, Bifurcation.kind_from), drawn
     grey. ti_points as in plot_nfrc.
     """
     k = _LENGTH[unit]

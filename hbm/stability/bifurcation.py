@@ -25,6 +25,15 @@ NEIMARK_SACKER = "Neimark-Sacker"
 UNCLASSIFIED = "unclassified"
 KINDS = (FOLD, BRANCH_POINT, PERIOD_DOUBLING, NEIMARK_SACKER, UNCLASSIFIED)
 
+#: How a bifurcation's kind is known (Bifurcation.kind_from):
+#: "crossing": one multiplier paired on both sides of the unit circle, classified by its argument;
+#: "parity": no multiplier pairs across, but the count of unstable multipliers changed by an odd
+#: number and exactly one of the signs of det(M + I), det(M - I) changed (real_parities): an odd
+#: number of real multipliers went through -1 (a period doubling) or +1 (a fold or branch point);
+#: "guess": neither, the kind of the unstable multiplier nearest the circle (see Bifurcation).
+CROSSING, PARITY, GUESS = "crossing", "parity", "guess"
+KIND_SOURCES = (CROSSING, PARITY, GUESS)
+
 #: a multiplier is real when its argument is within this of 0 or pi, rad: the exponents of
 #: real multipliers are exactly real or exactly omega / 2 (mod omega) for Hill's exact
 #: problem, but DLFT's truncated one moves them by ~1 1/s (Im lam T ~ 2e-3 rad at
@@ -52,14 +61,17 @@ class Bifurcation:
     eigenvector: the crossing Floquet mode exp(exponent t) p(t) at that point: p's
     coefficients (2 N' + 1, n) complex in the minimal period's basis (N' = N_h / g), all
     ROM dof, eq. (5) order; None for folds.
-    paired: whether one multiplier was found on both sides of the circle (crossings), so
-    that kind, multiplier and fraction are measured. False where the count of unstable
-    multipliers changed with no multiplier pairing across the circle (it moved too far
-    between the two analyses, or past the pairing window): kind and multiplier are then
-    those of the unstable multiplier nearest the circle on the side with more of them
-    (leaving out those paired with an unstable one of the other side), a guess, and the
-    bifurcation is placed half-way. A fold is located by the turn in Omega
-    (True).
+    kind_from: how the kind is known (KIND_SOURCES). "crossing": one multiplier was found on
+    both sides of the circle (crossings), so that kind, multiplier and fraction are
+    measured; a fold, located by the turn in Omega, is one too. Otherwise the count of
+    unstable multipliers changed with no multiplier pairing across the circle (it moved too
+    far between the two analyses, or two real multipliers met on the real axis and left it
+    as a complex pair, or the reverse) and the bifurcation is placed half-way: "parity"
+    where the signs of det(M + I) and det(M - I) tell the kind (real_parities; multiplier:
+    the real unstable one of that sign nearest the circle on either side), "guess" where
+    they do not: kind and multiplier are then those of the unstable multiplier nearest the
+    circle on the side with more of them (leaving out those paired with an unstable one of
+    the other side).
     """
 
     kind: str
@@ -74,7 +86,13 @@ class Bifurcation:
     exponent: complex = 0j
     mode_omega: float = 0.0
     eigenvector: np.ndarray | None = field(default=None, repr=False)
-    paired: bool = True
+    kind_from: str = CROSSING
+
+    @property
+    def paired(self) -> bool:
+        """Whether the crossing multiplier was paired across the circle (kind, multiplier and
+        fraction measured)."""
+        return self.kind_from == CROSSING
 
 
 def classify(mu: complex, fold: bool) -> str:
@@ -134,6 +152,46 @@ def crossings(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: float = 
             if (abs(mu_a[i]) > 1.0) != (abs(mu_b[j]) > 1.0)]
 
 
+def real_parities(mu: np.ndarray, unstable: np.ndarray, log_limit: float):
+    """(n, minus, plus) of one spectrum's unstable multipliers with log|mu| < log_limit: n
+    their number (with multiplicity), minus and plus the parities (0 or 1) of the real ones
+    among them beyond -1 and beyond +1; None where the signs are not clear.
+
+    minus and plus are the signs of det(I + M) and det(I - M) restricted to those
+    multipliers: a complex pair contributes |1 +- mu|^2 > 0, a real one beyond -1 a negative
+    factor to the first, one beyond +1 to the second. Between two points they change only
+    where an odd number of real multipliers went through -1, or through +1, whatever else
+    the multipliers did (two real ones meeting on the real axis and leaving it as a complex
+    pair, or the reverse, changes neither) as long as none crossed log_limit. A near-real
+    multiplier without its conjugate counts as real (DLFT's truncation moves a real
+    multiplier's argument by ~2e-3 rad, see REAL_ARG_TOL). mu: (m,) complex, unstable:
+    (m,) bool.
+    """
+    mu = np.asarray(mu)
+    keep = np.asarray(unstable, bool) & (np.log(np.abs(mu)) < log_limit)
+    sel = mu[keep]
+    signs = []
+    for d in (np.prod(1.0 + sel), np.prod(1.0 - sel)):
+        # the product's argument is the sum of the lone near-real ones' small offsets:
+        # anywhere near +-pi/2 the sign is not known
+        if abs(abs(np.angle(d)) - 0.5 * np.pi) < 0.25 * np.pi:
+            return None
+        signs.append(int(d.real < 0))
+    return int(len(sel)), signs[0], signs[1]
+
+
+def lone_real(mu: np.ndarray) -> np.ndarray:
+    """(m,) bool: the multipliers of mu whose conjugate is not listed with them (real ones,
+    and near-real ones whose argument the truncation moved off 0 or pi)."""
+    mu = np.asarray(mu)
+    out = np.ones(len(mu), bool)
+    for i, m in enumerate(mu):
+        if m.imag != 0.0:
+            others = np.delete(mu, i)
+            out[i] = not np.any(np.abs(others - np.conj(m)) <= 1e-6 * abs(m))
+    return out
+
+
 def parabola_vertex(s: np.ndarray, y: np.ndarray, z: np.ndarray | None = None):
     """Vertex of the parabola y(s) through three points, and z(s) on the parabola through
     (s, z) there: (s*, y*, z*). s, y, z: (3,).
@@ -158,7 +216,7 @@ def bifurcation_arrays(bifurcations) -> dict:
     kind (k,) str; omega (k,) rad/s; le_amplitude (k,) m; index (k,) int; fraction (k,) -;
     omega_low, omega_high (k,) rad/s (the bracketing points); multiplier_real,
     multiplier_imag (k,) -; direction (k,) int (+1 loses stability along the branch);
-    period_ratio (k,) int; paired (k,) bool (False: the kind is a guess, see Bifurcation).
+    period_ratio (k,) int; kind_from (k,) str (crossing, parity or guess: see Bifurcation).
     Returns {name: (array, unit)}.
     """
     b = list(bifurcations)
@@ -174,22 +232,34 @@ def bifurcation_arrays(bifurcations) -> dict:
         "multiplier_imag": (np.array([np.imag(x.multiplier) for x in b], dtype=float), "-"),
         "direction": (np.array([x.direction for x in b], dtype=np.int64), "-"),
         "period_ratio": (np.array([x.period_ratio for x in b], dtype=np.int64), "-"),
-        "paired": (np.array([x.paired for x in b], dtype=bool), "-"),
+        "kind_from": (np.array([x.kind_from for x in b], dtype=object), "-"),
     }
 
 
 def bifurcations_from_arrays(table: dict) -> tuple:
     """The Bifurcation tuple of a table read back from a file ({name: array} of the columns
     bifurcation_arrays writes): what a resumed branch starts from. The file holds no
-    exponent, mode or eigenvector: those stay at their defaults; a file written before the
-    paired column reads as paired."""
+    exponent, mode or eigenvector: those stay at their defaults (kind_sources for the kind's
+    source)."""
     n = len(np.asarray(table["omega"]))
     col = {k: np.asarray(v) for k, v in table.items()}
-    paired = col.get("paired", np.ones(n, bool))
+    source = kind_sources(table)
     return tuple(Bifurcation(
         kind=str(col["kind"][i]), omega=float(col["omega"][i]), le_amplitude=float(col["le_amplitude"][i]),
         index=int(col["index"][i]), fraction=float(col["fraction"][i]),
         omega_bracket=(float(col["omega_low"][i]), float(col["omega_high"][i])),
         multiplier=complex(float(col["multiplier_real"][i]), float(col["multiplier_imag"][i])),
         direction=int(col["direction"][i]), period_ratio=int(col["period_ratio"][i]),
-        paired=bool(paired[i])) for i in range(n))
+        kind_from=str(source[i])) for i in range(n))
+
+
+def kind_sources(table: dict) -> np.ndarray:
+    """(k,) str: the kind_from column of a bifurcation table ({column: array}); a table written
+    before it has a bool column paired (False: guess), and one written before that counts
+    as measured (crossing)."""
+    n = len(np.asarray(table["omega"]))
+    if "kind_from" in table:
+        return np.array([k.decode() if isinstance(k, bytes) else str(k) for k in np.asarray(table["kind_from"])],
+                        dtype=object)
+    paired = np.asarray(table.get("paired", np.ones(n, bool)), bool)
+    return np.where(paired, CROSSING, GUESS).astype(object)

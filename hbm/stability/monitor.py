@@ -36,13 +36,15 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from hbm.options import HbmOptions
-from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, UNCLASSIFIED, Bifurcation, classify, crossings, pair_multipliers,
-                                      parabola_vertex, upper_half)
+from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING, UNCLASSIFIED,
+                                      Bifurcation,
+                                      classify, crossings, lone_real, pair_multipliers, parabola_vertex, real_parities,
+                                      upper_half)
 from hbm.stability.hill import harmonic_period
 from hbm.stability.spectrum import MAX_EIG, FloquetSpectrum, orbit_spectrum
 
@@ -353,13 +355,18 @@ class StabilityMonitor:
         pairing window and below WIDEN_FRACTION of the smaller ceiling."""
         if min(a.n_unstable, b.n_unstable) == 0:
             return False
-        ceiling = min(a.spectrum.modulus_ceiling, b.spectrum.modulus_ceiling)
-        near = min(self.options.window, WIDEN_FRACTION * math.log(max(ceiling, 1.0)))
+        near = self._near(a, b)
 
         def below(sp: FloquetSpectrum) -> int:
             return int(np.count_nonzero(sp.unstable & (np.log(np.abs(sp.multipliers)) < near)))
 
         return below(a.spectrum) == below(b.spectrum)
+
+    def _near(self, a: _Entry, b: _Entry) -> float:
+        """log|mu| under which both a's and b's spectra list every multiplier and a crossing can
+        be paired: the pairing window, and WIDEN_FRACTION of the smaller ceiling."""
+        ceiling = min(a.spectrum.modulus_ceiling, b.spectrum.modulus_ceiling)
+        return min(self.options.window, WIDEN_FRACTION * math.log(max(ceiling, 1.0)))
 
     def _turn_near(self, a: _Entry, b: _Entry) -> bool:
         """Whether Omega turns at a or b (a fold whose real multiplier +1 crosses between them)."""
@@ -372,6 +379,7 @@ class StabilityMonitor:
         floor = max(sa.modulus_floor, sb.modulus_floor)
         fold = self._turn_near(a, b)
         found = 0
+        first = len(self.bifurcations)
         for i, j in crossings(sa.multipliers, sb.multipliers, floor, self.options.window):
             la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
             frac = la / (la - lb)
@@ -391,31 +399,118 @@ class StabilityMonitor:
                 period_ratio=side.g, exponent=complex(side.spectrum.exponents[k]),
                 mode_omega=float(side.spectrum.omega), eigenvector=side.spectrum.eigenvectors[k]))
         if not found:
-            # the multipliers moved too far to be paired: guess the one that crossed, the
-            # unstable one nearest the unit circle on the side with more of them, leaving out
-            # those paired with an unstable multiplier of the other side (they did not cross),
-            # and place it half-way (bracket stated in omega_bracket)
-            side, other = (b, a) if b.n_unstable > a.n_unstable else (a, b)
-            sp = side.spectrum
-            unst = np.flatnonzero(sp.unstable & upper_half(sp.multipliers))
-            stayed = {i for i, j in pair_multipliers(sp.multipliers, other.spectrum.multipliers, floor,
-                                                     self.options.window)
-                      if abs(other.spectrum.multipliers[j]) > 1.0}
-            moved = np.array([i for i in unst if i not in stayed], dtype=int)
-            unst = moved if len(moved) else unst  # every one paired across: a count the window cut
-            if len(unst):
-                j = unst[np.argmin(np.abs(np.log(np.abs(sp.multipliers[unst]))))]
-                mu, kind = complex(sp.multipliers[j]), classify(sp.multipliers[j], fold)
+            self._unpaired(a, b, fold, floor)
+        elif not fold:
+            self._reconcile(a, b, first)
+
+    def _parities(self, a: _Entry, b: _Entry):
+        """real_parities of a and b within _near (None when either is unclear)."""
+        near = self._near(a, b)
+        pa = real_parities(a.spectrum.multipliers, a.spectrum.unstable, near)
+        pb = real_parities(b.spectrum.multipliers, b.spectrum.unstable, near)
+        return (pa, pb, near) if pa is not None and pb is not None else None
+
+    def _nearest_real(self, a: _Entry, b: _Entry, negative: bool, near: float):
+        """(entry, index) of the real unstable multiplier of that sign nearest the circle, on a
+        or b (None if neither has one): the representative of a crossing known by parity."""
+        best = None
+        for e in (a, b):
+            sp = e.spectrum
+            ok = sp.unstable & lone_real(sp.multipliers) & (np.log(np.abs(sp.multipliers)) < near) \
+                & ((sp.multipliers.real < 0) == negative)
+            for j in np.flatnonzero(ok):
+                lm = math.log(abs(sp.multipliers[j]))
+                if best is None or lm < best[0]:
+                    best = (lm, e, j)
+        return None if best is None else best[1:]
+
+    def _reconcile(self, a: _Entry, b: _Entry, first: int) -> None:
+        """Make the crossings paired between a and b (self.bifurcations[first:]) agree with the
+        parities of the real multipliers (no turn between them). A complex pair changes the
+        count by two and neither parity, so where det(I + M) changed sign and no period
+        doubling was paired, a real multiplier went through -1 that the pairing took for one
+        of a pair: near a 1:2 resonance two real multipliers meet on the negative real axis
+        and leave it as a pair within one step (rotor 67's DLFT NFRC, 1607.5 rad/s: a
+        multiplier -1.11 + 0.14i paired across the circle, the count 2 -> 1). If turning one
+        Neimark-Sacker of the matching direction into that crossing makes the counts add
+        up, it is turned (the one nearest that side of the real axis); if one more crossing
+        does, it is added half-way; kind_from "parity" either way. The same for +1."""
+        got = self._parities(a, b)
+        if got is None:
+            return
+        pa, pb, near = got
+        for col, kind in ((1, PERIOD_DOUBLING), (2, BRANCH_POINT)):
+            recs = self.bifurcations[first:]
+            if pa[col] == pb[col] or sum(r.kind == kind for r in recs) % 2:
+                continue
+            rest = (pb[0] - pa[0]) - sum((2 if r.kind == NEIMARK_SACKER else 1) * r.direction for r in recs)
+            axis = np.pi if kind == PERIOD_DOUBLING else 0.0
+            pairs = [k for k, r in enumerate(recs) if r.kind == NEIMARK_SACKER and r.direction == -rest
+                     and (r.multiplier.real < 0) == (kind == PERIOD_DOUBLING)]
+            rep = self._nearest_real(a, b, kind == PERIOD_DOUBLING, near)
+            if pairs:
+                k = first + min(pairs, key=lambda q: abs(abs(np.angle(recs[q].multiplier)) - axis))
+                r = self.bifurcations[k]
+                if rep is not None:
+                    e, j = rep
+                    r = replace(r, multiplier=complex(e.spectrum.multipliers[j]),
+                                exponent=complex(e.spectrum.exponents[j]), eigenvector=e.spectrum.eigenvectors[j],
+                                period_ratio=e.g, mode_omega=float(e.spectrum.omega))
+                self.bifurcations[k] = replace(r, kind=kind, kind_from=PARITY)
+            elif abs(rest) == 1 and rep is not None:
+                e, j = rep
+                sp = e.spectrum
+                self._append_unpaired(a, b, kind, complex(sp.multipliers[j]), int(rest), e,
+                                      complex(sp.exponents[j]), sp.eigenvectors[j], PARITY)
+
+    def _unpaired(self, a: _Entry, b: _Entry, fold: bool, floor: float) -> None:
+        """A count change between neighbours a and b with no multiplier paired across the
+        circle, placed half-way (bracket stated in omega_bracket). Its kind comes from the
+        parities of the real multipliers beyond -1 and +1 (bifurcation.real_parities) where
+        they settle it, else it is guessed (Bifurcation.kind_from)."""
+        got = self._parities(a, b)
+        side = b if b.n_unstable > a.n_unstable else a
+        direction = 1 if b.n_unstable > a.n_unstable else -1
+        if got is not None:
+            pa, pb, near = got
+            if (pb[0] - pa[0]) % 2 and (pa[1] != pb[1]) != (pa[2] != pb[2]):
+                # an odd number of real multipliers went through -1 (minus changed) or +1
+                kind = PERIOD_DOUBLING if pa[1] != pb[1] else FOLD if fold else BRANCH_POINT
                 if kind == FOLD:
-                    return  # the turn's own (_record_folds), as for a paired crossing above
-                vec, ex = sp.eigenvectors[j], complex(sp.exponents[j])
-            else:
-                mu, kind, vec, ex = complex(np.nan), UNCLASSIFIED, None, 0j
-            self.bifurcations.append(Bifurcation(
-                kind=kind, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
-                index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=mu,
-                direction=1 if b.n_unstable > a.n_unstable else -1, period_ratio=side.g, exponent=ex,
-                mode_omega=float(sp.omega), eigenvector=vec, paired=False))
+                    return  # the turn's own (_record_folds)
+                rep = self._nearest_real(a, b, kind == PERIOD_DOUBLING, near)
+                if rep is not None:
+                    e, j = rep
+                    sp = e.spectrum
+                    self._append_unpaired(a, b, kind, complex(sp.multipliers[j]), direction, e,
+                                          complex(sp.exponents[j]), sp.eigenvectors[j], PARITY)
+                    return
+        # guess the one that crossed: the unstable one nearest the unit circle on the side with
+        # more of them, leaving out those paired with an unstable multiplier of the other side
+        # (they did not cross)
+        other = a if side is b else b
+        sp = side.spectrum
+        unst = np.flatnonzero(sp.unstable & upper_half(sp.multipliers))
+        stayed = {i for i, j in pair_multipliers(sp.multipliers, other.spectrum.multipliers, floor,
+                                                 self.options.window)
+                  if abs(other.spectrum.multipliers[j]) > 1.0}
+        moved = np.array([i for i in unst if i not in stayed], dtype=int)
+        unst = moved if len(moved) else unst  # every one paired across: a count the window cut
+        if len(unst):
+            j = unst[np.argmin(np.abs(np.log(np.abs(sp.multipliers[unst]))))]
+            mu, kind = complex(sp.multipliers[j]), classify(sp.multipliers[j], fold)
+            if kind == FOLD:
+                return  # the turn's own (_record_folds), as for a paired crossing
+            self._append_unpaired(a, b, kind, mu, direction, side, complex(sp.exponents[j]), sp.eigenvectors[j], GUESS)
+        else:
+            self._append_unpaired(a, b, UNCLASSIFIED, complex(np.nan), direction, side, 0j, None, GUESS)
+
+    def _append_unpaired(self, a, b, kind, mu, direction, side, exponent, vec, source) -> None:
+        self.bifurcations.append(Bifurcation(
+            kind=kind, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
+            index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=mu, direction=direction,
+            period_ratio=side.g, exponent=exponent, mode_omega=float(side.spectrum.omega), eigenvector=vec,
+            kind_from=source))
 
     def _record_folds(self) -> None:
         """Folds whose three points all have their counts: the vertex of the parabola Omega(s)

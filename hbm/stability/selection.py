@@ -21,7 +21,7 @@ from hbm.continuation.branch import ContinuationPoint
 from hbm.continuation.newton import NewtonOptions, newton_solve_on_plane
 from hbm.harmonic.nfrc import nfrc_extras
 from hbm.harmonic.solver import HbmSolver
-from hbm.stability.bifurcation import PERIOD_DOUBLING, Bifurcation
+from hbm.stability.bifurcation import GUESS, PARITY, PERIOD_DOUBLING, Bifurcation
 from hbm.stability.monitor import BranchStability, StabilityMonitor, StabilityOptions, monitor_branch
 from hbm.stability.spectrum import orbit_spectrum
 from hbm.stability.switching import switch_branch
@@ -376,7 +376,10 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
                         bif, w_s, u_s, n_ref = ref
                         why += (f", refined between them ({n_ref} points of the branch): multiplier "
                                 f"{bif.multiplier.real:.4g}{bif.multiplier.imag:+.2g}i at Omega = {w_s:.6g} rad/s")
-                if not bif.paired:
+                if bif.kind_from == PARITY:
+                    why += (" (no multiplier pairs across the unit circle there: the kind comes from the parity of "
+                            "the real multipliers beyond -1)")
+                elif bif.kind_from == GUESS:
                     why += " (no multiplier pairs across the unit circle there: the kind is a guess)"
                 return LocatedDoubling(bif, side, why, len(cache), w_s, np.asarray(u_s, float))
     except _Budget:

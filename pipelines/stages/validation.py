@@ -47,7 +47,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hbm.stability.bifurcation import PERIOD_DOUBLING
+from hbm.stability.bifurcation import GUESS, PERIOD_DOUBLING, kind_sources
 from hbm.stability.selection import DoubledBranch
 from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, OrbitComparison, OrbitValidation
 from pipelines import artifacts as art
@@ -746,12 +746,12 @@ def _signal_files(scene) -> tuple[str, ...]:
 def _stability_bounds(table: dict, stable) -> list:
     """[(kind, omega, le_amplitude, guessed)] of the bifurcations of a branch's table
     ({column: array}) where a stable stretch begins or ends (the stable flag differs between
-    the two points around it); guessed: the kind is a guess (column paired false; tables
-    written before that column count as paired). The others, crossings among orbits already
+    the two points around it); guessed: the kind is a guess (bifurcation.kind_sources). The
+    others, crossings among orbits already
     unstable, stay in the files: on the coarse rotor 67 ROM a single long isola has 100 to
     250 of them, which would bury the figure's curves."""
     kinds, om, amp, idx = (np.asarray(table[k]) for k in ("kind", "omega", "le_amplitude", "index"))
-    guessed = ~np.asarray(table.get("paired", np.ones(len(kinds), bool)), bool)
+    guessed = kind_sources(table) == GUESS
     if stable is None:
         return [(str(k), w, a, bool(g)) for k, w, a, g in zip(kinds, om, amp, guessed)]
     st = np.asarray(stable, bool)

@@ -258,61 +258,136 @@ def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
     assert [got[i]["stable"] for i in range(60)] == [i <= turn for i in range(60)]
 
 
-def test_a_count_change_no_multiplier_explains_is_recorded_as_a_guess():
+def _spectra(before, after, at: int = 40):
+    """analyse(x, w) for the monitor: the multipliers `before` up to point `at`, `after` past it."""
+    def analyse(x, w):
+        mu = np.array(before if x[0] <= at else after, dtype=complex)
+        k = len(mu)
+        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
+                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
+                               eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+    return analyse
+
+
+def test_a_count_change_no_multiplier_explains_takes_its_kind_from_the_parities():
     # no turn, and a real multiplier 1.95 appears after point 40 with no counterpart before:
     # the count changes, no multiplier pairs across the circle. The change is recorded (the
-    # stable flag does change there), half-way between the two analyses around it, its kind
-    # guessed from the new multiplier (real, +: a branch point), and marked unpaired, in the
-    # file's table too.
-    from hbm.stability.bifurcation import BRANCH_POINT, bifurcation_arrays, bifurcations_from_arrays
+    # stable flag does change there), half-way between the two analyses around it; the count
+    # changed by one and det(I - M) changed sign: a real multiplier went through +1, a
+    # branch point (without a turn), in the file's table too.
+    from hbm.stability.bifurcation import BRANCH_POINT, PARITY, bifurcation_arrays, bifurcations_from_arrays
 
     mon = StabilityMonitor(analyse=_stable_then(40), options=StabilityOptions())
     got = _feed(mon, OMEGA - np.arange(80))
     assert [got[i]["stable"] for i in range(80)] == [i <= 40 for i in range(80)]
     (b,) = mon.bifurcations
-    assert (b.kind, b.multiplier, b.direction, b.paired) == (BRANCH_POINT, 1.95, 1, False)
+    assert (b.kind, b.multiplier, b.direction, b.kind_from, b.paired) == (BRANCH_POINT, 1.95, 1, PARITY, False)
     assert (b.index, b.fraction, b.omega) == (40, 0.5, OMEGA - 40.5)
     table = bifurcation_arrays(mon.bifurcations)
-    assert table["paired"][0].tolist() == [False]
+    assert table["kind_from"][0].tolist() == [PARITY]
     (back,) = bifurcations_from_arrays({k: v for k, (v, _) in table.items()})
-    assert back.paired is False and back.kind == BRANCH_POINT
-    # a table written before the column existed reads as paired
-    old = {k: v for k, (v, _) in table.items() if k != "paired"}
-    assert bifurcations_from_arrays(old)[0].paired is True
+    assert back.kind_from == PARITY and back.kind == BRANCH_POINT
+    # tables written before the column: a bool column paired (False: a guess), or none at all
+    old = {k: v for k, (v, _) in table.items() if k != "kind_from"}
+    assert bifurcations_from_arrays(dict(old, paired=np.array([False])))[0].kind_from == "guess"
+    assert bifurcations_from_arrays(old)[0].kind_from == "crossing"
+
+
+def test_a_complex_pair_that_splits_on_the_real_axis_is_a_period_doubling():
+    # rotor 67's DLFT NFRC at 1455 rad/s: a complex pair just off the negative real axis,
+    # |mu| 1.21, beside a real multiplier -0.81 inside; one point later two real multipliers
+    # -2.38 and -0.38 (the pair met on the real axis, one real multiplier went back inside
+    # through -1). No multiplier pairs across the circle, the count goes from 2 to 1: by the
+    # parity of the real multipliers beyond -1 (det(I + M) changed sign) a period doubling,
+    # where the nearest unstable multiplier (the complex pair) made the guess a
+    # Neimark-Sacker. Its multiplier is the real one beyond -1, on the side where it is.
+    from hbm.stability.bifurcation import PARITY, PERIOD_DOUBLING
+
+    pair = 1.2104 * np.exp(1j * (np.pi - 0.035))
+    mon = StabilityMonitor(analyse=_spectra([pair, np.conj(pair), -0.81, 0.5], [-2.384 - 0.0059j, -0.379, 0.5]),
+                           options=StabilityOptions())
+    got = _feed(mon, OMEGA - np.arange(80))
+    assert [got[i]["n_unstable"] for i in range(80)] == [2 if i <= 40 else 1 for i in range(80)]
+    (b,) = mon.bifurcations
+    assert (b.kind, b.kind_from, b.multiplier, b.direction, b.index) == (PERIOD_DOUBLING, PARITY, -2.384 - 0.0059j, -1, 40)
+
+
+def test_a_paired_neimark_sacker_the_counts_deny_becomes_a_period_doubling():
+    # rotor 67's DLFT NFRC at 1607.5 rad/s: a pair just off the negative real axis (|mu|
+    # 1.11, arg pi - 0.125) pairs across the circle with a real multiplier -0.95, while a
+    # real multiplier -2.5 appears: the count goes from 2 to 1. A pair changes the count by
+    # two and det(I + M) by nothing, so the crossing is a real one through -1: the
+    # Neimark-Sacker the pairing gave becomes a period doubling (at the same place), whose
+    # multiplier is the real one beyond -1
+    from hbm.stability.bifurcation import PARITY, PERIOD_DOUBLING
+
+    pair = 1.11 * np.exp(1j * (np.pi - 0.125))
+    mon = StabilityMonitor(analyse=_spectra([pair, np.conj(pair), 0.5], [-0.95, -2.5, 0.5]), options=StabilityOptions())
+    _feed(mon, OMEGA - np.arange(80))
+    (b,) = mon.bifurcations
+    assert (b.kind, b.kind_from, b.multiplier, b.direction, b.index) == (PERIOD_DOUBLING, PARITY, -2.5, -1, 40)
+    # where the pair crossed between the two points (log|mu| interpolated), not half-way
+    assert b.fraction == pytest.approx(np.log(1.11) / (np.log(1.11) - np.log(0.95)))
+
+
+def test_a_real_crossing_beside_a_paired_neimark_sacker_is_added():
+    # a complex pair goes out through the circle (paired: a Neimark-Sacker, +2) while a real
+    # multiplier -2.5 appears with no counterpart: the count goes from 0 to 3 and det(I + M)
+    # changes sign: a period doubling too, added half-way
+    from hbm.stability.bifurcation import CROSSING, PARITY, PERIOD_DOUBLING
+
+    inner, outer = 0.95 * np.exp(1.5j), 1.05 * np.exp(1.5j)
+    mon = StabilityMonitor(analyse=_spectra([inner, np.conj(inner), 0.5], [outer, np.conj(outer), 0.5, -2.5]),
+                           options=StabilityOptions())
+    _feed(mon, OMEGA - np.arange(80))
+    assert sorted((b.kind, b.kind_from, b.direction, b.index) for b in mon.bifurcations) == [
+        (NEIMARK_SACKER, CROSSING, 1, 40), (PERIOD_DOUBLING, PARITY, 1, 40)]
+
+
+def test_a_count_change_the_parities_do_not_explain_is_a_guess():
+    # a complex pair exp(0.5 +- 2.5 i) appears with no counterpart: the count changes by two
+    # and neither parity changes (a Neimark-Sacker, or two real multipliers through the same
+    # side): the kind is guessed from the new pair
+    from hbm.stability.bifurcation import GUESS
+
+    new = np.exp(0.5 + 2.5j)
+    mon = StabilityMonitor(analyse=_spectra([0.5, 0.3], [new, np.conj(new), 0.5, 0.3]), options=StabilityOptions())
+    _feed(mon, OMEGA - np.arange(80))
+    (b,) = mon.bifurcations
+    assert (b.kind, b.kind_from, b.multiplier, b.direction) == (NEIMARK_SACKER, GUESS, new, 1)
 
 
 def test_a_guess_leaves_out_the_multipliers_that_stayed_unstable():
-    # an orbit unstable through a complex pair exp(0.10 +- 1.1 i) (exp(0.12 +- 1.1 i) further
-    # on) gains a real multiplier -3 after point 40, with no counterpart before it. The pair
-    # is nearer the circle, but it is unstable on both sides (paired across the count
-    # change), so it did not cross: the guess is the new real negative multiplier, a period
-    # doubling, not a Neimark-Sacker.
-    from hbm.stability.bifurcation import PERIOD_DOUBLING
+    # an orbit unstable through a real multiplier -1.2 (-1.25 further on) gains a complex pair
+    # exp(0.8 +- 1.5 i) after point 40, with no counterpart before it: the count changes by
+    # two, no parity changes, the kind is a guess. The real multiplier is nearer the circle,
+    # but it is unstable on both sides (paired across the count change), so it did not
+    # cross: the guess is the new pair, a Neimark-Sacker, not a period doubling.
+    from hbm.stability.bifurcation import GUESS
 
-    def analyse(x, w):
-        r = 0.10 if x[0] <= 40 else 0.12
-        mu = np.array([np.exp(r + 1.1j), np.exp(r - 1.1j), 0.5 + 0j] + ([-3.0 + 0j] if x[0] > 40 else []))
-        k = len(mu)
-        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
-                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
-                               eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
-
-    mon = StabilityMonitor(analyse=analyse, options=StabilityOptions())
+    new = np.exp(0.8 + 1.5j)
+    mon = StabilityMonitor(analyse=_spectra([-1.2, 0.5], [-1.25, new, np.conj(new), 0.5]), options=StabilityOptions())
     got = _feed(mon, OMEGA - np.arange(80))
-    assert [got[i]["n_unstable"] for i in range(80)] == [2 if i <= 40 else 3 for i in range(80)]
+    assert [got[i]["n_unstable"] for i in range(80)] == [1 if i <= 40 else 3 for i in range(80)]
     (b,) = mon.bifurcations
-    assert (b.kind, b.multiplier, b.index, b.direction, b.paired) == (PERIOD_DOUBLING, -3.0, 40, 1, False)
+    assert (b.kind, b.kind_from, b.multiplier, b.index, b.direction) == (NEIMARK_SACKER, GUESS, new, 40, 1)
 
 
-def test_a_period_doubling_located_from_a_guess_says_so(monkeypatch):
-    # the validation stage's locate_period_doubling on a bracket where a real multiplier -1.05
-    # appears with no counterpart: it is taken (a real negative multiplier past the circle),
-    # and its reason says that the kind is a guess
+@pytest.mark.parametrize("after, source, words", [
+    # a real multiplier -1.05 appears: one real multiplier through -1, by the parity
+    ([-1.05], "parity", "the kind comes from the parity of the real multipliers beyond -1"),
+    # two appear (-1.05, -1.5): the count changes by two and the parity does not: a guess
+    ([-1.05, -1.5], "guess", "the kind is a guess"),
+])
+def test_a_period_doubling_located_without_a_paired_multiplier_says_how_its_kind_is_known(monkeypatch, after, source,
+                                                                                          words):
+    # the validation stage's locate_period_doubling on a bracket where real multipliers
+    # appear with no counterpart: the one nearest the circle is taken (a real negative
+    # multiplier past it), and the reason says how the kind is known
     from hbm.stability import selection
 
     def spectrum_at(residual, x, omega):
-        mu = [0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j] + ([-1.05 + 0j] if x[0] > 40 else [])
-        mu = np.array(mu)
+        mu = np.array([0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j] + (after if x[0] > 40 else []), dtype=complex)
         k = len(mu)
         return FloquetSpectrum(omega=omega, exponents=np.log(mu) * omega / (2 * np.pi), multipliers=mu,
                                centred=np.ones(k, bool), edge_energy=np.zeros(k),
@@ -324,8 +399,8 @@ def test_a_period_doubling_located_from_a_guess_says_so(monkeypatch):
     loc = selection.locate_period_doubling(None, OMEGA - np.arange(n), x, 1e-4 * np.arange(n), np.ones(n, bool),
                                            brackets=[40])
     assert loc.bifurcation is not None and loc.bifurcation.kind == selection.PERIOD_DOUBLING
-    assert not loc.bifurcation.paired and loc.bifurcation.multiplier == -1.05
-    assert "the kind is a guess" in loc.reason
+    assert loc.bifurcation.kind_from == source and loc.bifurcation.multiplier == -1.05
+    assert words in loc.reason
 
 
 def test_a_branch_crawling_at_a_fixed_omega_has_no_folds():

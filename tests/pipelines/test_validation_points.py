@@ -184,6 +184,12 @@ def test_the_solution_set_marks_the_ends_of_stable_stretches():
     assert len(_stability_bounds(table, None)) == 4  # no stability stored: all of them
     table["paired"] = np.array([True, True, True, False])
     assert _stability_bounds(table, stable) == [("period doubling", 1.5, 1e-3, False), ("branch point", 4.5, 4e-3, True)]
+    # today's column: a kind from the parities of the real multipliers is not a guess
+    del table["paired"]
+    table["kind_from"] = np.array(["crossing", "crossing", "crossing", "parity"], dtype=object)
+    assert _stability_bounds(table, stable)[1][3] is False
+    table["kind_from"][3] = "guess"
+    assert _stability_bounds(table, stable)[1][3] is True
 
 
 def test_a_guessed_kind_is_drawn_grey(tmp_path):
