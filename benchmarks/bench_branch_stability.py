@@ -24,7 +24,9 @@ or is a guess: no multiplier paired across the circle, Bifurcation.kind_from, an
 of those lie where the stable flag changes), the
 count changes left unresolved (two analysed points apart that differ with nothing bisected
 between them), and the CPU time of the analyses, split between plain and widened points.
---nfrc: the same over the NFRC files' converged points.
+--nfrc: the same over the NFRC files' converged points. Both also count the steps whose
+records do not add up to the change of the count of unstable multipliers or to the sign
+changes of det(I + M) and det(I - M) there (see hbm.stability.bifurcation.real_parities).
 
 Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE --out OUT`).
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
@@ -184,6 +186,63 @@ def _bifurcation_counts(table: dict, stable: np.ndarray) -> str:
             f"({int((guess & change).sum())} where it changes)")
 
 
+class _Spectra:
+    """Keeps the last Floquet spectrum the monitor computed at each point (wrapping
+    hbm.stability.monitor.orbit_spectrum), for _parity_check."""
+
+    def __init__(self):
+        import hbm.stability.monitor as monitor
+
+        self.by_omega, self._module, self._inner = {}, monitor, monitor.orbit_spectrum
+
+        def wrapped(res, u, w, **kw):
+            out = self._inner(res, u, w, **kw)
+            self.by_omega[float(w)] = out[0]
+            return out
+
+        monitor.orbit_spectrum = wrapped
+
+    def close(self):
+        self._module.orbit_spectrum = self._inner
+
+
+def _parity_check(table: dict, omega: np.ndarray, spectra: dict) -> str:
+    """Steps (neighbouring points with records, no fold) whose records do not add up to the
+    change of the count of unstable multipliers (a Neimark-Sacker counts two) or whose
+    period doublings and branch points do not match, in parity, the sign changes of
+    det(I + M) and det(I - M) (bifurcation.real_parities over the spectra the monitor
+    computed there)."""
+    import math
+
+    from hbm.stability.bifurcation import real_parities
+    from hbm.stability.monitor import WIDEN_FRACTION, StabilityOptions
+
+    kinds = np.asarray(table["kind"][0], dtype=str)
+    idx = np.asarray(table["index"][0], dtype=np.int64)
+    direction = np.asarray(table["direction"][0], dtype=np.int64)
+    steps = {}
+    for k, i, d in zip(kinds, idx, direction):
+        steps.setdefault(int(i), []).append((str(k), int(d)))
+    bad = total = 0
+    for i, recs in steps.items():
+        sa, sb = spectra.get(float(omega[i])), spectra.get(float(omega[i + 1]))
+        if any(k == "fold" for k, _ in recs) or sa is None or sb is None:
+            continue
+        near = min(StabilityOptions().window,
+                   WIDEN_FRACTION * math.log(max(min(sa.modulus_ceiling, sb.modulus_ceiling), 1.0)))
+        pa = real_parities(sa.multipliers, sa.unstable, near)
+        pb = real_parities(sb.multipliers, sb.unstable, near)
+        if pa is None or pb is None:
+            continue
+        total += 1
+        added = sum((2 if k == "Neimark-Sacker" else 1) * d for k, d in recs)
+        n_pd = sum(k == "period doubling" for k, _ in recs)
+        n_bp = sum(k == "branch point" for k, _ in recs)
+        if added != pb[0] - pa[0] or n_pd % 2 != (pa[1] != pb[1]) or n_bp % 2 != (pa[2] != pb[2]):
+            bad += 1
+    return f"{bad} of {total} steps with records (no turn) do not add up to the count change or the parities"
+
+
 def _monitor_nfrc(out: Path, scene, rom, method: str) -> None:
     """The monitor over the converged points of OUT/nfrc_METHOD.h5, in the NFRC's arc-length
     scales, against the file's own stability."""
@@ -200,10 +259,12 @@ def _monitor_nfrc(out: Path, scene, rom, method: str) -> None:
     ok = np.flatnonzero(s.branch.converged)
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     co = default_continuation(scene.hbm)
+    spectra = _Spectra()
     c0 = time.process_time()
     new = describe(res, True, (co.x_scale, co.omega_scale),
                    StabilityOptions(max_gap=scene.hbm.stability_max_gap))(s.branch.omega[ok], s.branch.x[ok])
     cpu = time.process_time() - c0
+    spectra.close()
     with h5py.File(path, "r") as h5:
         stored = Counter(k.decode() if isinstance(k, bytes) else str(k) for k in h5["bifurcations/kind"][()]) \
             if "bifurcations" in h5 else None
@@ -211,7 +272,8 @@ def _monitor_nfrc(out: Path, scene, rom, method: str) -> None:
     print(f"{method} NFRC, {len(ok)} points: stored {None if old is None else int(np.asarray(old)[ok].sum())} stable, "
           f"bifurcations {None if stored is None else dict(sorted(stored.items()))}; again "
           f"{int(new['stability_analysed'].sum())} analysed, {int(new['stable'].sum())} stable, bifurcations "
-          f"{_bifurcation_counts(new['tables']['bifurcations'], new['stable'])}; {cpu:.0f} s CPU", flush=True)
+          f"{_bifurcation_counts(new['tables']['bifurcations'], new['stable'])}; {cpu:.0f} s CPU; "
+          f"{_parity_check(new['tables']['bifurcations'], s.branch.omega[ok], spectra.by_omega)}", flush=True)
 
 
 def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(None), save: Path | None = None) -> None:
@@ -234,10 +296,12 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
             if "bifurcations" in g else []
     ok = np.flatnonzero(br.converged)[span]
     co = search_options(res.options, scene.isolas).continuation
+    spectra = _Spectra()
     c0 = time.process_time()
     new = describe(res, True, (co.x_scale, co.omega_scale),
                    StabilityOptions(max_gap=scene.hbm.stability_max_gap))(br.omega[ok], br.x[ok])
     cpu = time.process_time() - c0
+    spectra.close()
     an, wid, t = new["stability_analysed"], new["stability_widened"], new["stability_cpu_time"]
     plain = t[an & ~wid]
     same = old["stability_analysed"][ok] & an
@@ -256,7 +320,8 @@ def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(N
     inside = {int(i) for i in ok}
     stored = Counter(k for k, i in old_bif if i in inside and i + 1 in inside)
     print(f"  bifurcations stored {dict(sorted(stored.items()))}; again "
-          f"{_bifurcation_counts(bif, new['stable'])}", flush=True)
+          f"{_bifurcation_counts(bif, new['stable'])}; {_parity_check(bif, br.omega[ok], spectra.by_omega)}",
+          flush=True)
     if save is not None:
         keys = ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time")
         got = {f"{method}_{br.name}_{k}": np.asarray(new[k]) for k in keys}
