@@ -20,7 +20,10 @@ may have changed since the last analysed one, and infers the others:
   the change lies between two neighbouring points. There the crossing multipliers are
   paired (bifurcation.crossings), classified on the minimal period, and located by linear
   interpolation of log|mu| in arc length between the two points (folds: at the vertex of
-  the parabola through the three points around the turn in Omega).
+  the parabola through the three points around the turn in Omega). Where none pairs across,
+  or the paired ones do not add up to the count change, the parities of the real
+  multipliers beyond -1 and +1 give the kind where they can, and it is guessed where they
+  cannot (Bifurcation.kind_from).
 
 Points between two analyses with the same count, and no fold between them, get that count
 (`stability_analysed` False). What this can miss: an even number of crossings between two
@@ -42,9 +45,8 @@ import numpy as np
 
 from hbm.options import HbmOptions
 from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING, UNCLASSIFIED,
-                                      Bifurcation,
-                                      classify, crossings, lone_real, pair_multipliers, parabola_vertex, real_parities,
-                                      upper_half)
+                                      Bifurcation, classify, crossings, lone_real, pair_multipliers, parabola_vertex,
+                                      real_parities, upper_half)
 from hbm.stability.hill import harmonic_period
 from hbm.stability.spectrum import MAX_EIG, FloquetSpectrum, orbit_spectrum
 
@@ -482,7 +484,7 @@ class StabilityMonitor:
                 if rep is not None:
                     e, j = rep
                     sp = e.spectrum
-                    self._append_unpaired(a, b, kind, complex(sp.multipliers[j]), direction, e,
+                    self._append_unpaired(a, b, kind, complex(sp.multipliers[j]), 1 if pb[0] > pa[0] else -1, e,
                                           complex(sp.exponents[j]), sp.eigenvectors[j], PARITY)
                     return
         # guess the one that crossed: the unstable one nearest the unit circle on the side with
