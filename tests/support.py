@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import os
 
+import functools
+
 import numpy as np
 
 from rom.model import RomModel, modal_damping
@@ -54,6 +56,24 @@ def coarse_rom() -> RomModel:
     from rom.model import load_rom
 
     return load_rom(COARSE_ROM)
+
+
+@functools.lru_cache(maxsize=1)
+def coarse_dlft_nfrc():
+    """(rom, casing, contact, residual, NFRCResult): the coarse ROM's DLFT NFRC at the scene's resolution (N_h = 40,
+    N_t = 1024, default casing and contact), 2000 down to 1334 rad/s, without stability
+    (~11 s), computed once per test process for the tests that look at its 1334-1470 rad/s
+    stretch. Tests only read it."""
+    from hbm.harmonic.nfrc import compute_nfrc
+    from hbm.harmonic.residual import build_residual
+    from hbm.options import CasingOptions, ContactOptions, HbmOptions
+
+    rom = coarse_rom()
+    casing, contact = CasingOptions(), ContactOptions()
+    opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1334.0, omega_max=2000.0)
+    r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)
+    assert r.status == "reached omega_min", r.status
+    return rom, casing, contact, build_residual(rom, casing, contact, opts, method="dlft"), r
 
 
 def distance_to_polyline(points: np.ndarray, poly: np.ndarray) -> np.ndarray:

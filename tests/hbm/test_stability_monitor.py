@@ -231,17 +231,22 @@ def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
     assert sorted(mon.bifurcations[0].omega_bracket) in ([omega(turn), omega(turn - 1)], [omega(turn), omega(turn + 1)])
 
 
-def _stable_then(unstable_after: int):
-    """analyse(x, w): a stable spectrum, with a real multiplier 1.95 from point
-    unstable_after + 1 on (one the previous analysis has no counterpart for)."""
+def _spectra(before, after, at: int = 40):
+    """analyse(x, w) for the monitor: the multipliers `before` up to point `at`, `after` past it."""
     def analyse(x, w):
-        mu = [0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j] + ([1.95 + 0j] if x[0] > unstable_after else [])
-        mu = np.array(mu)
+        mu = np.array(before if x[0] <= at else after, dtype=complex)
         k = len(mu)
         return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
                                centred=np.ones(k, bool), edge_energy=np.zeros(k),
                                eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
     return analyse
+
+
+def _stable_then(unstable_after: int):
+    """analyse(x, w): a stable spectrum, with a real multiplier 1.95 from point
+    unstable_after + 1 on (one the previous analysis has no counterpart for)."""
+    stable = [0.5 + 0.2j, 0.5 - 0.2j, 0.3]
+    return _spectra(stable, stable + [1.95], at=unstable_after)
 
 
 def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
@@ -256,17 +261,6 @@ def test_a_fold_whose_multiplier_cannot_be_paired_is_recorded_once():
     assert [(b.kind, b.multiplier, b.direction, b.paired) for b in mon.bifurcations] == [(FOLD, 1.0, 1, True)]
     assert mon.bifurcations[0].omega == pytest.approx(OMEGA, abs=1e-9)
     assert [got[i]["stable"] for i in range(60)] == [i <= turn for i in range(60)]
-
-
-def _spectra(before, after, at: int = 40):
-    """analyse(x, w) for the monitor: the multipliers `before` up to point `at`, `after` past it."""
-    def analyse(x, w):
-        mu = np.array(before if x[0] <= at else after, dtype=complex)
-        k = len(mu)
-        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
-                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
-                               eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
-    return analyse
 
 
 def test_a_count_change_no_multiplier_explains_takes_its_kind_from_the_parities():

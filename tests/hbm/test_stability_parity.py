@@ -14,25 +14,18 @@ pitchfork's new branch, hbm.stability.switching), and finds none 40 points away.
 import numpy as np
 import pytest
 
-from hbm.harmonic.nfrc import compute_nfrc, nfrc_extras
-from hbm.harmonic.residual import build_residual
-from hbm.options import CasingOptions, ContactOptions, HbmOptions
+from hbm.harmonic.nfrc import nfrc_extras
 from hbm.stability.bifurcation import PARITY, PERIOD_DOUBLING
 from hbm.stability.monitor import StabilityOptions, monitor_branch
 from hbm.stability.selection import locate_period_doubling
 from hbm.stability.spectrum import orbit_spectrum
 from hbm.stability.switching import switch_branch
-from support import coarse_rom
+from support import coarse_dlft_nfrc
 
 
 @pytest.fixture(scope="module")
 def stretch():
-    rom = coarse_rom()
-    casing, contact = CasingOptions(), ContactOptions()
-    opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1395.0, omega_max=2000.0)
-    r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)  # ~10 s
-    assert r.status == "reached omega_min"
-    res = build_residual(rom, casing, contact, opts, method="dlft")
+    _, _, _, res, r = coarse_dlft_nfrc()
     return res, r.omega, r.unknowns, np.asarray(r.le_amplitude)
 
 

@@ -13,22 +13,14 @@ started on the orbit leaves it, which says the widened verdict is the right one.
 import numpy as np
 import pytest
 
-from hbm.harmonic.nfrc import compute_nfrc
-from hbm.harmonic.residual import build_residual
-from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.spectrum import orbit_spectrum
 from hbm.ti.validation import march_from_hbm
-from support import coarse_rom
+from support import coarse_dlft_nfrc
 
 
 @pytest.fixture(scope="module")
 def point():
-    rom = coarse_rom()
-    casing, contact = CasingOptions(), ContactOptions()
-    opts = HbmOptions(n_harmonics=40, n_time=1024, omega_min=1334.0, omega_max=2000.0)
-    r = compute_nfrc(rom, casing, contact, opts, "dlft", stability=False)  # ~11 s
-    assert r.status == "reached omega_min"
-    res = build_residual(rom, casing, contact, opts, method="dlft")
+    rom, casing, contact, res, r = coarse_dlft_nfrc()
     i = int(np.argmin(np.abs(r.omega - 1338.2)))
     assert abs(r.omega[i] - 1338.2) < 1.0, r.omega[-6:]
     return rom, casing, contact, res, r.unknowns[i], float(r.omega[i])
