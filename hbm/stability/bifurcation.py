@@ -27,9 +27,9 @@ KINDS = (FOLD, BRANCH_POINT, PERIOD_DOUBLING, NEIMARK_SACKER, UNCLASSIFIED)
 
 #: How a bifurcation's kind is known (Bifurcation.kind_from):
 #: "crossing": one multiplier paired on both sides of the unit circle, classified by its argument;
-#: "parity": no multiplier pairs across, but the count of unstable multipliers changed by an odd
-#: number and exactly one of the signs of det(M + I), det(M - I) changed (real_parities): an odd
-#: number of real multipliers went through -1 (a period doubling) or +1 (a fold or branch point);
+#: "parity": the signs of det(I + M), det(I - M) (real_parities) say that an odd number of real
+#: multipliers went through -1 (a period doubling) or +1 (a fold or branch point), where no
+#: multiplier pairs across or the paired ones do not add up to the count change;
 #: "guess": neither, the kind of the unstable multiplier nearest the circle (see Bifurcation).
 CROSSING, PARITY, GUESS = "crossing", "parity", "guess"
 KIND_SOURCES = (CROSSING, PARITY, GUESS)
@@ -63,15 +63,16 @@ class Bifurcation:
     ROM dof, eq. (5) order; None for folds.
     kind_from: how the kind is known (KIND_SOURCES). "crossing": one multiplier was found on
     both sides of the circle (crossings), so that kind, multiplier and fraction are
-    measured; a fold, located by the turn in Omega, is one too. Otherwise the count of
-    unstable multipliers changed with no multiplier pairing across the circle (it moved too
-    far between the two analyses, or two real multipliers met on the real axis and left it
-    as a complex pair, or the reverse) and the bifurcation is placed half-way: "parity"
-    where the signs of det(M + I) and det(M - I) tell the kind (real_parities; multiplier:
-    the real unstable one of that sign nearest the circle on either side), "guess" where
-    they do not: kind and multiplier are then those of the unstable multiplier nearest the
-    circle on the side with more of them (leaving out those paired with an unstable one of
-    the other side).
+    measured; a fold, located by the turn in Omega, is one too. "parity": the signs of
+    det(I + M) and det(I - M) (real_parities) tell the kind where no multiplier pairs across
+    the circle (it moved too far between the two analyses, or two real multipliers met on
+    the real axis and left it as a complex pair, or the reverse; placed half-way), or where
+    the paired crossings do not add up to the count change (a Neimark-Sacker turned into
+    the real crossing keeps its place; one more crossing is placed half-way); its
+    multiplier is the real unstable one of that sign nearest the circle on either side.
+    "guess": no multiplier pairs across and the signs do not tell: kind and multiplier are
+    those of the unstable multiplier nearest the circle on the side with more of them
+    (leaving out those paired with an unstable one of the other side), placed half-way.
     """
 
     kind: str
@@ -164,8 +165,8 @@ def real_parities(mu: np.ndarray, unstable: np.ndarray, log_limit: float):
     the multipliers did (two real ones meeting on the real axis and leaving it as a complex
     pair, or the reverse, changes neither) as long as none crossed log_limit. A near-real
     multiplier without its conjugate counts as real (DLFT's truncation moves a real
-    multiplier's argument by ~2e-3 rad, see REAL_ARG_TOL). mu: (m,) complex, unstable:
-    (m,) bool.
+    multiplier's argument off the axis, by up to 0.03 rad on rotor 67's NFRC, past
+    REAL_ARG_TOL). mu: (m,) complex, unstable: (m,) bool.
     """
     mu = np.asarray(mu)
     keep = np.asarray(unstable, bool) & (np.log(np.abs(mu)) < log_limit)
