@@ -454,16 +454,10 @@ class StabilityMonitor:
                 k = first + min(pairs, key=lambda q: abs(abs(np.angle(recs[q].multiplier)) - axis))
                 r = self.bifurcations[k]
                 if rep is not None:
-                    e, j = rep
-                    r = replace(r, multiplier=complex(e.spectrum.multipliers[j]),
-                                exponent=complex(e.spectrum.exponents[j]), eigenvector=e.spectrum.eigenvectors[j],
-                                period_ratio=e.g, mode_omega=float(e.spectrum.omega))
+                    r = replace(r, **_mode(*rep))
                 self.bifurcations[k] = replace(r, kind=kind, kind_from=PARITY)
             elif abs(rest) == 1 and rep is not None:
-                e, j = rep
-                sp = e.spectrum
-                self._append_unpaired(a, b, kind, complex(sp.multipliers[j]), int(rest), e,
-                                      complex(sp.exponents[j]), sp.eigenvectors[j], PARITY)
+                self._append_unpaired(a, b, kind, int(rest), *rep, PARITY)
 
     def _unpaired(self, a: _Entry, b: _Entry, fold: bool, floor: float) -> None:
         """A count change between neighbours a and b with no multiplier paired across the
@@ -482,10 +476,7 @@ class StabilityMonitor:
                     return  # the turn's own (_record_folds)
                 rep = self._nearest_real(a, b, kind == PERIOD_DOUBLING, near)
                 if rep is not None:
-                    e, j = rep
-                    sp = e.spectrum
-                    self._append_unpaired(a, b, kind, complex(sp.multipliers[j]), 1 if pb[0] > pa[0] else -1, e,
-                                          complex(sp.exponents[j]), sp.eigenvectors[j], PARITY)
+                    self._append_unpaired(a, b, kind, 1 if pb[0] > pa[0] else -1, *rep, PARITY)
                     return
         # guess the one that crossed: the unstable one nearest the unit circle on the side with
         # more of them, leaving out those paired with an unstable multiplier of the other side
@@ -499,20 +490,21 @@ class StabilityMonitor:
         moved = np.array([i for i in unst if i not in stayed], dtype=int)
         unst = moved if len(moved) else unst  # every one paired across: a count the window cut
         if len(unst):
-            j = unst[np.argmin(np.abs(np.log(np.abs(sp.multipliers[unst]))))]
-            mu, kind = complex(sp.multipliers[j]), classify(sp.multipliers[j], fold)
+            j = int(unst[np.argmin(np.abs(np.log(np.abs(sp.multipliers[unst]))))])
+            kind = classify(sp.multipliers[j], fold)
             if kind == FOLD:
                 return  # the turn's own (_record_folds), as for a paired crossing
-            self._append_unpaired(a, b, kind, mu, direction, side, complex(sp.exponents[j]), sp.eigenvectors[j], GUESS)
+            self._append_unpaired(a, b, kind, direction, side, j, GUESS)
         else:
-            self._append_unpaired(a, b, UNCLASSIFIED, complex(np.nan), direction, side, 0j, None, GUESS)
+            self._append_unpaired(a, b, UNCLASSIFIED, direction, side, None, GUESS)
 
-    def _append_unpaired(self, a, b, kind, mu, direction, side, exponent, vec, source) -> None:
+    def _append_unpaired(self, a: _Entry, b: _Entry, kind: str, direction: int, side: _Entry, j, source: str) -> None:
+        """Record a crossing between a and b placed half-way, its multiplier and mode the
+        j-th of side's spectrum (None: none known)."""
         self.bifurcations.append(Bifurcation(
             kind=kind, omega=0.5 * (a.omega + b.omega), le_amplitude=0.5 * (a.amplitude + b.amplitude),
-            index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), multiplier=mu, direction=direction,
-            period_ratio=side.g, exponent=exponent, mode_omega=float(side.spectrum.omega), eigenvector=vec,
-            kind_from=source))
+            index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), direction=direction, kind_from=source,
+            **_mode(side, j)))
 
     def _record_folds(self) -> None:
         """Folds whose three points all have their counts: the vertex of the parabola Omega(s)
@@ -536,6 +528,16 @@ class StabilityMonitor:
                 omega_bracket=(float(w[k]), float(w[k + 1])), multiplier=complex(1.0),
                 direction=near[0].direction if near else int(np.sign(n2 - n0)),
                 period_ratio=int(self._counts[trio[1][0]][1])))
+
+
+def _mode(e: _Entry, j) -> dict:
+    """The Bifurcation fields of the j-th multiplier of e's spectrum (None: no multiplier known)."""
+    sp = e.spectrum
+    if j is None:
+        return dict(multiplier=complex(np.nan), exponent=0j, eigenvector=None, period_ratio=e.g,
+                    mode_omega=float(sp.omega))
+    return dict(multiplier=complex(sp.multipliers[j]), exponent=complex(sp.exponents[j]),
+                eigenvector=sp.eigenvectors[j], period_ratio=e.g, mode_omega=float(sp.omega))
 
 
 def unknown_stability(extras: dict, options: StabilityOptions = StabilityOptions()) -> dict:
