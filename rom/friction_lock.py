@@ -25,6 +25,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from rom.rotation import check_sign
+
 #: Above this many contact nodes the P-matrix test visits only the subsets of up to
 #: _MAX_EXACT nodes (2^n subsets otherwise): mu_set is then an upper bound.
 _MAX_EXACT = 12
@@ -95,8 +97,7 @@ def friction_lock(K: np.ndarray, n_boundary: int, rotation: int) -> FrictionLock
     K: ROM stiffness, (n, n), N/m, the 3 n_b boundary dof first (node-major r, theta, z).
     rotation: s = +1 or -1 (rom.rotation.rotation_sign).
     """
-    if rotation not in (1, -1):
-        raise ValueError(f"rotation must be +1 or -1, got {rotation}")
+    rotation = check_sign(rotation)
     nb = int(n_boundary)
     K = np.asarray(K, dtype=float)
     # static compliance of the boundary dof: the inverse of the Schur complement on them

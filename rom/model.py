@@ -6,6 +6,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from rom.friction_lock import FrictionLock
+from rom.rotation import check_sign
 
 
 @dataclass(frozen=True)
@@ -50,9 +51,7 @@ class RomModel:
     recovery: np.ndarray | None = field(default=None, metadata={"unit": "m"})
 
     def __post_init__(self):
-        if self.rotation not in (1, -1):
-            raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {self.rotation!r}")
-        object.__setattr__(self, "rotation", int(self.rotation))
+        object.__setattr__(self, "rotation", check_sign(self.rotation))
 
     @property
     def n_boundary(self) -> int:

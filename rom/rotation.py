@@ -9,6 +9,15 @@ from __future__ import annotations
 import numpy as np
 
 
+def check_sign(rotation) -> int:
+    """s as an int, +1 or -1; raises ValueError naming the value otherwise (the ROM's own
+    check: rom does not import the nonlinear side, whose hbm.contact.friction.rotation_sense
+    makes the same one)."""
+    if rotation not in (1, -1):
+        raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {rotation!r}")
+    return int(rotation)
+
+
 def rotation_sign(rotation: str | int, theta: np.ndarray) -> int:
     """s = +1 or -1 for a scene's [blade] rotation.
 

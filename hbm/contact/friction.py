@@ -27,6 +27,15 @@ class SlidingDirection:
     ds_z_dvz: np.ndarray
 
 
+def rotation_sense(rotation) -> int:
+    """The sense of rotation s as an int, +1 or -1 (right-hand rule about z); raises
+    ValueError naming the value otherwise. The one check every nonlinear stage makes of a
+    ROM's or a system's `rotation`."""
+    if rotation not in (1, -1):
+        raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {rotation!r}")
+    return int(rotation)
+
+
 def slide_direction(v_theta: np.ndarray, v_z: np.ndarray, rho: np.ndarray, omega: float,
                     rotation: int) -> SlidingDirection:
     """Sliding direction of eqs. (29)-(30).
@@ -36,8 +45,7 @@ def slide_direction(v_theta: np.ndarray, v_z: np.ndarray, rho: np.ndarray, omega
     s rho Omega. The blade speed (~100 m/s) keeps the relative speed far from 0; a floor of
     1e-12 m/s guards the division anyway. The derivatives do not depend on s.
     """
-    if rotation not in (1, -1):
-        raise ValueError(f"rotation must be +1 or -1, got {rotation!r}")
+    rotation = rotation_sense(rotation)
     vt = v_theta + rotation * rho * omega
     n2 = vt * vt + v_z * v_z
     n = np.sqrt(np.maximum(n2, 1e-24))

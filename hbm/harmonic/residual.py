@@ -27,7 +27,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from hbm.contact.casing import casing_distance
-from hbm.contact.friction import slide_direction
+from hbm.contact.friction import rotation_sense, slide_direction
 from hbm.contact.normal import correct_dlft, regularised_penalty
 from hbm.harmonic.condensation import CondensedModel, CondensedOperator, HarmonicForcing
 from hbm.harmonic.fourier import FourierBasis
@@ -81,9 +81,7 @@ class HarmonicBalanceResidual:
         self.model = CondensedModel(rom.K, rom.M, rom.C, rom.nonlinear_dofs, self.basis, forcing)
         self.rho = np.asarray(rom.rho, dtype=float)
         self.theta = np.asarray(rom.theta, dtype=float)
-        self.rotation = int(rom.rotation)
-        if self.rotation not in (1, -1):
-            raise ValueError(f"the ROM's rotation must be +1 or -1, got {rom.rotation!r}")
+        self.rotation = rotation_sense(rom.rotation)
         # distance(tau) -> (len(tau), n_b), m, tau the casing angle Omega t: the casing of
         # eq. (28) unless another obstacle is given; d(s tau + theta_j) = d(tau + s theta_j)
         # since d is even about 0 (module docstring); sampled at tau = nu (basis angle)

@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from hbm.contact.friction import rotation_sense
 from hbm.options import TI_SCHEMES as SCHEMES, CasingOptions
 
 # Off-diagonal modal damping below this fraction of the diagonal is round-off of a modal C.
@@ -69,9 +70,7 @@ class ModalSystem:
     rotation: int = field(default=1, metadata={"unit": "1"})
 
     def __post_init__(self):
-        if self.rotation not in (1, -1):
-            raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {self.rotation!r}")
-        object.__setattr__(self, "rotation", int(self.rotation))
+        object.__setattr__(self, "rotation", rotation_sense(self.rotation))
 
     @property
     def n_boundary(self) -> int:

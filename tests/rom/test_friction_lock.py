@@ -92,3 +92,27 @@ def test_rotation_sign():
         rotation_sign("le-leads", np.zeros(9))
     with pytest.raises(ValueError, match="unknown rotation"):
         rotation_sign("cw", rom.theta)
+
+
+@pytest.mark.parametrize("bad", [0, 2, "+"])
+def test_every_stage_refuses_a_sense_that_is_not_a_sign(bad):
+    """The ROM, its friction-lock table, the HBM residual and the time integration's system
+    each refuse a rotation other than +1 / -1 and name the value (one check per package)."""
+    from dataclasses import replace
+
+    from hbm.harmonic.residual import build_residual
+    from hbm.options import CasingOptions, ContactOptions, HbmOptions
+    from hbm.ti.march import rom_modal_system
+
+    rom = coarse_rom()
+    message = f"rotation must be \\+1 or -1.*got {bad!r}".replace("+'", "\\+'")
+    with pytest.raises(ValueError, match=message):
+        replace(rom, rotation=bad)
+    with pytest.raises(ValueError, match=message):
+        friction_lock(rom.K, rom.n_boundary, bad)
+    ok = rom_modal_system(rom)
+    with pytest.raises(ValueError, match=message):
+        replace(ok, rotation=bad)
+    object.__setattr__(ok_rom := replace(rom), "rotation", bad)  # a ROM read from elsewhere, unchecked
+    with pytest.raises(ValueError, match=message):
+        build_residual(ok_rom, CasingOptions(), ContactOptions(), HbmOptions(n_harmonics=2, n_time=16), method="rl")
