@@ -35,6 +35,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from hbm.contact.friction import rotation_sense
 from hbm.options import TI_SCHEMES as SCHEMES, CasingOptions
@@ -124,11 +125,16 @@ def modal_system(K: np.ndarray, M: np.ndarray, C: np.ndarray, rho: np.ndarray, t
     theta = np.atleast_1d(np.asarray(theta, dtype=float))
     if 3 * len(rho) > K.shape[0] or len(theta) != len(rho):
         raise ValueError(f"{len(rho)} contact nodes need 3 dof each, model has {K.shape[0]} dof")
-    w2, phi = scipy.linalg.eigh(0.5 * (K + K.T), 0.5 * (M + M.T))
-    if w2.min() <= 0.0:
-        raise ValueError(f"model must be positive definite (clamped); smallest w^2 = {w2.min():.3e} rad^2/s^2")
-    phi_t_m = phi.T @ M
-    return ModalSystem(omega=np.sqrt(w2), phi=phi, phi_t_m=phi_t_m, damping=phi.T @ C @ phi,
+    # one BLAS thread: a threaded eigh moves the modes by ~1e-13 with the thread count, and
+    # the chaotic speeds of a sweep amplify that into another final state, so the same ROM
+    # would give another sweep on a machine with more cores (or under taskset, or MPI)
+    with threadpool_limits(limits=1, user_api="blas"):
+        w2, phi = scipy.linalg.eigh(0.5 * (K + K.T), 0.5 * (M + M.T))
+        if w2.min() <= 0.0:
+            raise ValueError(f"model must be positive definite (clamped); smallest w^2 = {w2.min():.3e} rad^2/s^2")
+        phi_t_m = phi.T @ M
+        damping = phi.T @ C @ phi
+    return ModalSystem(omega=np.sqrt(w2), phi=phi, phi_t_m=phi_t_m, damping=damping,
                        rho=rho, theta=theta, rotation=rotation)
 
 
@@ -162,7 +168,8 @@ def massless_system(system: ModalSystem, cutoff: float) -> ModalSystem:
                              "boundary model needs damping that does not couple them")
     hi = ~keep
     nb3 = 3 * system.n_boundary
-    residual = (system.phi[:, hi] / system.omega[hi] ** 2) @ system.phi[:nb3, hi].T
+    with threadpool_limits(limits=1, user_api="blas"):  # whatever the cores, as modal_system
+        residual = (system.phi[:, hi] / system.omega[hi] ** 2) @ system.phi[:nb3, hi].T
     return ModalSystem(omega=system.omega[keep], phi=np.ascontiguousarray(system.phi[:, keep]),
                        phi_t_m=np.ascontiguousarray(system.phi_t_m[keep]),
                        damping=np.ascontiguousarray(system.damping[np.ix_(keep, keep)]),

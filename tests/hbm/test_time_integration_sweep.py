@@ -214,3 +214,26 @@ def test_mpi_sweep_equals_the_serial_one(tmp_path):
 def test_sweep_refuses_an_unstable_time_step():
     with pytest.raises(ValueError, match="dt_crit"):
         sweep(standin_rom(), CasingOptions(), ContactOptions(), TimeIntegrationOptions(dt=1e-4), omegas=[1000.0])
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="BLAS runs threaded only with two cores or more")
+def test_the_modal_system_is_the_same_whatever_the_blas_threads():
+    """The sweep's modal system (and its massless model) from the coarse rotor 67 ROM is the
+    same to the bit with one BLAS thread and with two: a threaded eigh moved the modes by
+    ~1e-13 (phi^T M by 7e-12), which the sweep's chaotic speeds amplify into other final
+    states, so the same ROM gave another sweep on a machine with more cores or under taskset."""
+    from threadpoolctl import threadpool_limits
+
+    from hbm.ti.march import massless_system
+    from support import coarse_rom
+
+    rom = coarse_rom()
+    systems = []
+    for threads in (2, 1):
+        with threadpool_limits(limits=threads, user_api="blas"):
+            full = rom_modal_system(rom)
+            systems.append((full, massless_system(full, 3.0 * full.omega[0])))
+    (a, am), (b, bm) = systems
+    for name in ("omega", "phi", "phi_t_m", "damping"):
+        assert np.array_equal(getattr(a, name), getattr(b, name)), name
+    assert np.array_equal(am.residual, bm.residual)
