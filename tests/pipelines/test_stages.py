@@ -99,8 +99,9 @@ def test_a_second_run_reuses_everything(tiny):
     assert _stamps(out) == before
 
 
-def _changed(tiny, tmp_path, old, new):
-    """Run a copy of the tiny folder with one scene value changed; (records, before, after)."""
+def _changed(tiny, tmp_path, old, new, until=None):
+    """Run a copy of the tiny folder with one scene value changed (up to stage `until`, all
+    by default); (records, names of the artifacts whose bytes changed, scene path)."""
     scene, base = tiny
     out = fresh_copy(base, tmp_path / "out")
     text = scene.read_text()
@@ -108,30 +109,41 @@ def _changed(tiny, tmp_path, old, new):
     path = tmp_path / "changed.toml"
     path.write_text(text.replace(old, new, 1))
     before = {p.name: p.read_bytes() for p in out.glob("*.h5")}
-    rec = _records(path, out)
+    rec = _records(path, out, **({"until": until} if until else {}))
     after = {p.name: p.read_bytes() for p in out.glob("*.h5")}
-    return rec, {k for k in before if before[k] != after[k]}
+    return rec, {k for k in before if before[k] != after[k]}, path
+
+
+def _after_hbm(scene_path, out) -> dict:
+    """{stage: why} of what a run would do next after the hbm stage (the runner's own plan;
+    the stages after hbm run in full in the --set test below)."""
+    from pipelines.runner import plan
+
+    return {s.stage.name: s.why for s in plan(load_scene(scene_path), out, ("ti", "isolas", "validation"))}
 
 
 def test_render_settings_never_recompute_the_fem(tiny, tmp_path):
-    rec, changed = _changed(tiny, tmp_path, "[render]\nn_modes = 2", "[render]\nn_modes = 3\nscale = 0.05")
+    rec, changed, _ = _changed(tiny, tmp_path, "[render]\nn_modes = 2", "[render]\nn_modes = 3\nscale = 0.05")
     assert changed == set()  # no artifact touched
     assert rec["fem"][0] == "reused" and rec["figure modes"][0] == "computed"
     assert (tmp_path / "out" / "figures" / "mode_03.png").is_file()
 
 
 def test_harmonics_rerun_the_hbm_but_never_the_sweep(tiny, tmp_path):
-    rec, changed = _changed(tiny, tmp_path, "n_harmonics = 5", "n_harmonics = 4")
-    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5", "isolas.h5", "validation.h5"}
-    assert rec["ti"] == ("reused", "up to date")
+    rec, changed, path = _changed(tiny, tmp_path, "n_harmonics = 5", "n_harmonics = 4", until="hbm")
+    assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5"}
+    nxt = _after_hbm(path, tmp_path / "out")
+    assert nxt["ti"] == "up to date"
+    # the search and the validation read the hbm section and the NFRCs: both out of date
+    assert nxt["isolas"] != "up to date" and nxt["validation"] != "up to date", nxt
 
 
 def test_penalty_stiffness_reruns_rl_only(tiny, tmp_path):
-    rec, changed = _changed(tiny, tmp_path, "kappa = 1e9", "kappa = 2e9")
-    assert changed == {"nfrc_rl.h5", "isolas.h5", "validation.h5"}  # one isolas.h5 for both treatments
+    rec, changed, path = _changed(tiny, tmp_path, "kappa = 1e9", "kappa = 2e9", until="hbm")
+    assert changed == {"nfrc_rl.h5"}
     assert "contact.kappa" in rec["hbm"][1] and "nfrc_dlft" not in rec["hbm"][1]
-
-
+    nxt = _after_hbm(path, tmp_path / "out")  # one isolas.h5 for both treatments: out of date
+    assert nxt["ti"] == "up to date" and nxt["isolas"] != "up to date" and nxt["validation"] != "up to date", nxt
 
 
 def test_the_nfrc_figure_reads_the_sweep_back(tiny):
