@@ -227,30 +227,38 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     kbar, edge = harmonic_centre(P)
     centred = np.abs(kbar) <= 0.5 + 1e-3  # 1e-3: round-off and the truncation's shift of the centre
     order = np.argsort(np.abs(kbar))
-    reps = []
-    for i in order:
-        if not np.isfinite(lam[i]) or edge[i] > max_edge:
-            continue  # an eigenvector at the truncation edge: a truncation artefact
-        if dense and not centred[i]:
-            continue
-        a = P[i].reshape(-1)
-        same = False
-        for j in reps:
-            d = lam[i] - lam[j]
-            m = int(np.round(d.imag / omega))
-            if dense:
-                same = m != 0 and abs(d.imag - m * omega) <= 1e-6 * omega and abs(d.real) <= 1e-6 * omega
-            elif abs(d.imag - m * omega) <= 1e-2 * omega and abs(d.real) <= _real_tolerance(lam[i], lam[j], m, omega):
-                b = shift_member(P[j], m).reshape(-1)
-                same = abs(np.vdot(a, b)) > 0.9 * np.linalg.norm(a) * np.linalg.norm(b)
-            if same:
-                break
-        if not same:
-            reps.append(i)
+    # a truncation artefact: an eigenvector at the truncation edge
+    keep = np.isfinite(lam) & (edge <= max_edge) & (centred if dense else True)
+    cand = order[keep[order]]
+    if dense:  # only the two centred members of a real negative multiplier's family are one
+        d = lam[cand][:, None] - lam[cand][None, :]
+        m = np.round(d.imag / omega)
+        dup = (m != 0) & (np.abs(d.imag - m * omega) <= 1e-6 * omega) & (np.abs(d.real) <= 1e-6 * omega)
+        kept = np.zeros(len(cand), dtype=bool)
+        for c in range(len(cand)):
+            kept[c] = not dup[c, :c][kept[:c]].any()
+        reps = list(cand[kept])
+    else:
+        reps = []
+        for i in cand:
+            a = P[i].reshape(-1)
+            same = False
+            for j in reps:
+                d = lam[i] - lam[j]
+                m = int(np.round(d.imag / omega))
+                if abs(d.imag - m * omega) <= 1e-2 * omega and abs(d.real) <= _real_tolerance(lam[i], lam[j], m, omega):
+                    b = shift_member(P[j], m).reshape(-1)
+                    same = abs(np.vdot(a, b)) > 0.9 * np.linalg.norm(a) * np.linalg.norm(b)
+                if same:
+                    break
+            if not same:
+                reps.append(i)
     idx = np.array(reps, dtype=int)
     shifts = np.round(kbar[idx]).astype(int)
     ex = lam[idx] + 1j * shifts * omega
-    vec = np.array([shift_member(P[j], s) for j, s in zip(idx, shifts)]) if len(idx) else P[:0]
+    vec = P[idx].copy()
+    for k in np.unique(shifts):  # one product per shift (shift_member is elementwise)
+        vec[shifts == k] = shift_member(P[idx[shifts == k]], int(k))
     return ex, edge[idx], vec, centred[idx]
 
 
