@@ -16,6 +16,7 @@ import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
 from hbm.ti.periodicity import PeriodClass  # noqa: E402
+from pipelines import artifacts as art  # noqa: E402
 
 #: Marker, colour and label (a template of n_l, the number of lobes) of each periodicity
 #: class of a time-integration point; hbm.ti.periodicity.PeriodClass codes.
@@ -32,10 +33,17 @@ DPI = 150
 
 
 def _save(fig, out_png) -> Path:
+    """Write `fig` to out_png through a temporary file: a drawing that fails (a full disk,
+    Ctrl-C) leaves the previous picture as it was, and a folder copied with hard links keeps
+    its own."""
     out_png = Path(out_png)
-    out_png.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(out_png, dpi=DPI)  # no bbox_inches="tight": the pixel size stays fixed
-    plt.close(fig)
+    try:
+        with art.atomic_output(out_png) as tmp:
+            # the temporary name has no suffix: the format is named
+            # no bbox_inches="tight": the pixel size stays fixed
+            fig.savefig(tmp, dpi=DPI, format=out_png.suffix.lstrip(".") or "png")
+    finally:
+        plt.close(fig)
     return out_png
 
 

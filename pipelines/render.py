@@ -21,9 +21,12 @@ import ctypes
 import os
 import shutil
 import subprocess
+from io import BytesIO
 from pathlib import Path
 
 import numpy as np
+
+from pipelines import artifacts as art
 
 _LIBRARIES = {  # window class -> shared libraries VTK dlopens for it
     "vtkOSOpenGLRenderWindow": ("libOSMesa.so.8", "libOSMesa.so.6", "libOSMesa.so"),
@@ -259,7 +262,10 @@ def render_mode_shapes(nodes, cells, modes, frequencies_hz, out_dir, *, n_modes:
         plotter.add_text(f"{title_prefix}mode {j + 1} \u2014 {freqs[j]:.1f} Hz", name="title",
                          position="upper_edge", font_size=16, color="black")
         path = out_dir / f"mode_{j + 1:02d}.png"
-        plotter.screenshot(str(path))
+        png = BytesIO()
+        plotter.screenshot(png)  # PNG bytes, written under a temporary name then renamed
+        with art.atomic_output(path) as tmp:
+            tmp.write_bytes(png.getvalue())
         paths.append(path)
     plotter.close()
     return paths

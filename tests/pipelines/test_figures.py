@@ -148,3 +148,33 @@ def test_content_leaves_out_a_branch_without_any_converged_point(tmp_path):
                                                tmp_path / f"{kind}2.png", kind=kind))
             alone = imread(figures.plot_content({"b": (omega, c, 1)}, tmp_path / f"{kind}1.png", kind=kind))
             assert both.shape == alone.shape and np.abs(both - alone).max() < 1e-6
+
+
+def test_a_figure_replaces_its_file_and_a_failed_one_leaves_the_old(tmp_path, sweep, monkeypatch):
+    """Figures are written under a temporary name and renamed: a folder copied with hard
+    links keeps its own picture when the copy draws again, and a drawing that fails half-way
+    (here a full disk) leaves the previous picture and no temporary file."""
+    import errno
+    import os
+
+    omega, amp, cls = sweep
+    png = figures.plot_ti_sweep(omega, amp, cls, tmp_path / "ti_sweep.png")
+    old = png.read_bytes()
+    os.link(png, tmp_path / "copy.png")  # `cp -al` of the folder
+    figures.plot_ti_sweep(omega, 2.0 * amp, cls, png)
+    assert png.read_bytes() != old and (tmp_path / "copy.png").read_bytes() == old
+
+    new = png.read_bytes()
+    real = figures.plt.Figure.savefig
+
+    def full_disk(self, fname, **kw):
+        real(self, fname, **kw)
+        with open(fname, "r+b") as fh:
+            fh.truncate(100)
+        raise OSError(errno.ENOSPC, os.strerror(errno.ENOSPC), str(fname))
+
+    monkeypatch.setattr(figures.plt.Figure, "savefig", full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        figures.plot_ti_sweep(omega, 3.0 * amp, cls, png)
+    assert png.read_bytes() == new
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["copy.png", "ti_sweep.png"]

@@ -1,6 +1,8 @@
 """Off-screen mode-shape rendering on a small hand-made tet10 plate."""
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 
@@ -69,11 +71,16 @@ def test_mode_pictures_have_the_size_asked_and_show_the_deformation(tmp_path):
     assert flap.shape == (240, 320, 3)
     assert flap.std() > 0.05  # not a blank picture
 
-    still = render.render_mode_shapes(nodes, cells, 0 * modes[:, :1], [123.4], tmp_path / "still",
+    # drawn again in the same folder, of which a copy holds hard links: the copy keeps its
+    # picture (each file is written under a temporary name and renamed)
+    os.link(paths[0], tmp_path / "copy.png")
+    still = render.render_mode_shapes(nodes, cells, 0 * modes[:, :1], [123.4], tmp_path / "modes",
                                       scale=0.15, window=(320, 240), title_prefix="plate ")
     rest = imread(still[0])[..., :3]
     changed = np.abs(flap - rest).max(axis=2) > 0.1
     assert changed.mean() > 0.01  # the bent plate covers other pixels than the flat one
+    assert np.array_equal(imread(tmp_path / "copy.png")[..., :3], flap)
+    assert sorted(p.name for p in (tmp_path / "modes").iterdir()) == ["mode_01.png", "mode_02.png"]
     assert np.abs(imread(paths[1])[..., :3] - flap).max(axis=2).__gt__(0.1).mean() > 0.01
 
 
