@@ -18,6 +18,7 @@ import hashlib
 import json
 import os
 import mmap
+import shutil
 import subprocess
 import typing
 import zlib
@@ -139,6 +140,18 @@ def atomic_output(path: Path | str):
             tmp.unlink()
         except FileNotFoundError:
             pass
+
+
+
+def make_private(path: Path | str) -> Path:
+    """Before a file is written in place (a partial file a run appends to): when it has other
+    hard links (a folder copied with `cp -al`), give `path` its own copy, so that the writes
+    do not reach the other folder's file. Returns path."""
+    path = Path(path)
+    if path.is_file() and os.stat(path).st_nlink > 1:
+        with atomic_output(path) as tmp:
+            shutil.copyfile(path, tmp)
+    return path
 
 
 # --- checksums ------------------------------------------------------------------------

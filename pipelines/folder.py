@@ -3,7 +3,8 @@
 A run holds an exclusive `flock` on `.bladerub.lock` in its folder for as long as it runs;
 the lock file says who holds it (pid, command, start time), so a second run in the same
 folder is refused with that line. The kernel drops the lock when its process ends, however
-it ends (kill -9 included), so a stale lock file never blocks anyone. Temporary files
+it ends (kill -9 included), so a stale lock file never blocks anyone; a lock file that a
+copy made with hard links shares with another folder is replaced by the folder's own. Temporary files
 (".NAME.tmpPID", pipelines.artifacts.temp_path) found by the run that holds the lock were
 left by a run that died while writing: nothing else can be writing them, and they are removed.
 """
@@ -19,7 +20,7 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-from pipelines.artifacts import TEMP_MARK
+from pipelines.artifacts import TEMP_MARK, atomic_output
 from pipelines.errors import FolderBusy, FolderError
 
 LOCK = ".bladerub.lock"
@@ -69,23 +70,71 @@ def _holder(fd: int, wait_s: float = 1.0) -> str:
             f"started {info.get('started', '?')})")
 
 
+def _open_lock(path: Path) -> int:
+    try:
+        return os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
+    except OSError as exc:
+        raise FolderError(f"cannot create the lock file {path}: {_why(exc)}") from None
+
+
+def _take(fd: int, path: Path, out: Path, shared: bool = False) -> None:
+    """flock fd (exclusive, non-blocking) or raise FolderBusy naming the holder."""
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except OSError as exc:
+        os.close(fd)
+        if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
+            raise FolderError(f"cannot lock {path}: {_why(exc)}") from None
+        where = " (a lock file shared by hard links with another folder: that folder's run, maybe)" if shared else ""
+        raise FolderBusy(f"{out} is in use by another run{where}: {_holder_of(path)}; wait for it to end, "
+                         "or give another --out") from None
+
+
+def _holder_of(path: Path) -> str:
+    try:
+        fd = os.open(path, os.O_RDONLY)
+    except OSError:
+        return "another process"
+    try:
+        return _holder(fd)
+    finally:
+        os.close(fd)
+
+
 @contextmanager
 def hold(out: Path, command: str):
     """Hold the folder's lock for the duration of the block, or raise FolderBusy naming the
-    process that holds it. command: the command line shown to a second run."""
+    process that holds it. command: the command line shown to a second run.
+
+    A folder copied with hard links (`cp -al`, the cheap way to branch a run whose FEM file
+    is gigabytes) shares its lock file with the original: the lock is then taken on that
+    file, which keeps out a run in either folder, while it is replaced by a private one."""
     path = Path(out) / LOCK
-    try:
-        fd = os.open(path, os.O_RDWR | os.O_CREAT, 0o644)
-    except OSError as exc:
-        raise FolderError(f"cannot create the lock file {path}: {_why(exc)}") from None
-    try:
+    for _ in range(8):
+        fd = _open_lock(path)
+        shared = os.fstat(fd).st_nlink > 1
+        _take(fd, path, out, shared)
+        if shared:
+            try:
+                with atomic_output(path) as tmp:
+                    tmp.write_bytes(b"")
+            except OSError as exc:
+                raise FolderError(f"cannot replace {path}, shared by hard links with another folder: "
+                                  f"{_why(exc)}") from None
+            finally:
+                os.close(fd)
+            continue
+        st = os.fstat(fd)
         try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError as exc:
-            if exc.errno not in (errno.EWOULDBLOCK, errno.EAGAIN):
-                raise FolderError(f"cannot lock {path}: {_why(exc)}") from None
-            raise FolderBusy(f"{out} is in use by another run: {_holder(fd)}; wait for it to end, "
-                             "or give another --out") from None
+            cur = os.stat(path)
+            if (st.st_dev, st.st_ino) == (cur.st_dev, cur.st_ino):
+                break
+        except FileNotFoundError:
+            pass
+        os.close(fd)  # replaced or removed since it was opened (by the above in another run): again
+    else:
+        raise FolderError(f"cannot lock {path}: the lock file keeps being replaced")
+    try:
         info = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
                 "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
         os.ftruncate(fd, 0)

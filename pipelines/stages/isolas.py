@@ -209,10 +209,11 @@ class _Partial:
         import h5py
 
         if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+            self.path.unlink(missing_ok=True)  # "w" would truncate it in place, through any hard link
             h5 = h5py.File(self.path, "w")
             h5.attrs["inputs_hash"] = self.hash
             return h5
-        return h5py.File(self.path, "a")
+        return h5py.File(art.make_private(self.path), "a")
 
     def corrections(self, method: str, c) -> None:
         with self._open() as h5:

@@ -144,3 +144,31 @@ def test_a_resume_takes_extras_its_earlier_points_lack(tmp_path):
     with pytest.raises(ValueError, match="extras"):
         store.append(pts[1], {"a": 1.0, "b": 2.0})
     store.close()
+
+
+def test_a_partial_file_shared_by_hard_links_is_never_written_through(tmp_path):
+    """A folder copied with `cp -al` shares its partial files with the original: resuming in
+    the copy, or starting over there, leaves the original's points as they were."""
+    import os
+
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    pts = make_points(m=6)
+    with BranchStore.create(a / "nfrc.h5", 5, attrs=ATTRS) as store:
+        for p in pts[:3]:
+            store.append(p, extras_of(p))
+    os.link(partial_path(a / "nfrc.h5"), partial_path(b / "nfrc.h5"))
+    original = partial_path(a / "nfrc.h5").read_bytes()
+
+    store = BranchStore.reopen(b / "nfrc.h5", keep=2)  # the copy resumes
+    for p in pts[2:]:
+        store.append(p, extras_of(p))
+    store.finalize("reached omega_max")
+    assert len(load_branch(b / "nfrc.h5").branch) == 6
+    assert partial_path(a / "nfrc.h5").read_bytes() == original
+    assert len(load_branch(a / "nfrc.h5", allow_partial=True).branch) == 3
+
+    os.link(partial_path(a / "nfrc.h5"), tmp_path / "c.partial.h5")
+    BranchStore.create(tmp_path / "c.h5", 5, attrs=ATTRS).close()  # starts over: replaced, not truncated
+    assert partial_path(a / "nfrc.h5").read_bytes() == original

@@ -21,6 +21,7 @@ from coarse_runs import ROOT, clone
 from support import shell_env
 from pipelines import artifacts as art
 from pipelines import folder
+from pipelines.errors import FolderBusy
 from pipelines.branch_store import load_branch
 from pipelines.cli import main
 from pipelines.runner import plan
@@ -466,3 +467,23 @@ def test_render_before_fem_names_the_command_to_run(coarse_run, tmp_path, capsys
     assert main(["render", str(scene), "--out", str(tmp_path)]) == 2
     assert "fem.h5 is not usable for this scene (inputs changed: material): run `bladerub run" in \
         one_line(capsys.readouterr().err)
+
+
+def test_a_folder_copied_with_hard_links_gets_its_own_lock(tmp_path, capsys):
+    """`cp -al` shares the lock file between the folders: while the original's run holds it
+    the copy's is refused (which run holds a shared file is not known), then the copy's run
+    makes the lock its own, and from then on each folder is locked alone."""
+    a, b = tmp_path / "a", tmp_path / "b"
+    a.mkdir()
+    b.mkdir()
+    with folder.hold(a, "run in a"):
+        os.link(a / folder.LOCK, b / folder.LOCK)
+        with pytest.raises(FolderBusy, match="shared by hard links with another folder.*run in a"):
+            with folder.hold(b, "run in b"):
+                pass
+    with folder.hold(b, "run in b"):
+        assert os.stat(b / folder.LOCK).st_ino != os.stat(a / folder.LOCK).st_ino
+        assert os.stat(a / folder.LOCK).st_nlink == os.stat(b / folder.LOCK).st_nlink == 1
+        with folder.hold(a, "run in a again"):  # both at once: one lock each
+            assert "run in b" in (b / folder.LOCK).read_text() and "run in a again" in (a / folder.LOCK).read_text()
+    assert not [p for p in b.iterdir() if p.name != folder.LOCK]  # no temporary file left
