@@ -4,6 +4,8 @@
 its periodic points) and the search, writes isolas.h5 in the documented layout; a second
 run reuses it; an interrupted search resumes from isolas.partial.h5.
 """
+import os
+
 import h5py
 import numpy as np
 import pytest
@@ -156,3 +158,14 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     np.testing.assert_array_equal(b.stable, [True, False])
     assert len(p.resume("rl")[1]) == 2
     assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").resume("dlft") == (None, [])  # other inputs
+    # in folders copied with hard links (cp -al), a search resumed or started over writes its
+    # own file, never through the link into the original's
+    before = (tmp_path / "isolas.partial.h5").read_bytes()
+    for name, inputs_hash in (("resumed", "hash-a"), ("started over", "hash-b")):
+        (tmp_path / name).mkdir()
+        os.link(tmp_path / "isolas.partial.h5", tmp_path / name / "isolas.partial.h5")
+        q = _Partial(tmp_path / name / "isolas.partial.h5", inputs_hash)
+        q.corrections("dlft", c)
+        q.branch("dlft", 1, fb, 1)
+        assert art.read_attrs(tmp_path / name / "isolas.partial.h5")["inputs_hash"] == inputs_hash
+    assert (tmp_path / "isolas.partial.h5").read_bytes() == before
