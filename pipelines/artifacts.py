@@ -142,7 +142,6 @@ def atomic_output(path: Path | str):
             pass
 
 
-
 def make_private(path: Path | str) -> Path:
     """Before a file is written in place (a partial file a run appends to): when it has other
     hard links (a folder copied with `cp -al`), give `path` its own copy, so that the writes

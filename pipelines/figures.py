@@ -39,8 +39,8 @@ def _save(fig, out_png) -> Path:
     out_png = Path(out_png)
     try:
         with art.atomic_output(out_png) as tmp:
-            # the temporary name has no suffix: the format is named
-            # no bbox_inches="tight": the pixel size stays fixed
+            # the temporary name has no suffix, so the format is named; no bbox_inches="tight":
+            # the pixel size stays fixed
             fig.savefig(tmp, dpi=DPI, format=out_png.suffix.lstrip(".") or "png")
     finally:
         plt.close(fig)

@@ -4,9 +4,10 @@ A run holds an exclusive `flock` on `.bladerub.lock` in its folder for as long a
 the lock file says who holds it (pid, command, start time), so a second run in the same
 folder is refused with that line. The kernel drops the lock when its process ends, however
 it ends (kill -9 included), so a stale lock file never blocks anyone; a lock file that a
-copy made with hard links shares with another folder is replaced by the folder's own. Temporary files
-(".NAME.tmpPID", pipelines.artifacts.temp_path) found by the run that holds the lock were
-left by a run that died while writing: nothing else can be writing them, and they are removed.
+copy made with hard links shares with another folder is replaced by the folder's own.
+Temporary files (".NAME.tmpPID", pipelines.artifacts.temp_path) found by the run that holds
+the lock were left by a run that died while writing: nothing else can be writing them, and
+they are removed.
 """
 from __future__ import annotations
 
