@@ -142,15 +142,18 @@ def atomic_output(path: Path | str):
             pass
 
 
-def make_private(path: Path | str) -> Path:
-    """Before a file is written in place (a partial file a run appends to): when it has other
-    hard links (a folder copied with `cp -al`), give `path` its own copy, so that the writes
-    do not reach the other folder's file. Returns path."""
+def open_in_place(path: Path | str, mode: str) -> h5py.File:
+    """h5py.File(path, mode) for a file written in place (a partial file a run appends to or
+    starts over), never through a hard link into another folder's file (a folder copied with
+    `cp -al`): "w" removes the old file first (h5py would truncate it in place), "r+" and "a"
+    give a file with other links its own copy first."""
     path = Path(path)
-    if path.is_file() and os.stat(path).st_nlink > 1:
+    if mode == "w":
+        path.unlink(missing_ok=True)
+    elif path.is_file() and os.stat(path).st_nlink > 1:
         with atomic_output(path) as tmp:
             shutil.copyfile(path, tmp)
-    return path
+    return h5py.File(path, mode)
 
 
 # --- checksums ------------------------------------------------------------------------

@@ -27,7 +27,7 @@ import h5py
 import numpy as np
 
 from hbm.continuation.branch import Branch, ContinuationPoint
-from pipelines.artifacts import CHECKSUMS, commit, dataset_checksums, make_private, now
+from pipelines.artifacts import CHECKSUMS, commit, dataset_checksums, now, open_in_place
 
 #: what the rows of an extra hold for the points written before a run that records it (by
 #: numpy dtype kind; 0 for the others)
@@ -113,8 +113,7 @@ class BranchStore:
             raise ValueError(f"reserved attribute names: {sorted(bad)}")
         part = partial_path(path)
         part.parent.mkdir(parents=True, exist_ok=True)
-        part.unlink(missing_ok=True)  # "w" would truncate it in place, through any hard link
-        h5 = h5py.File(part, "w")
+        h5 = open_in_place(part, "w")
         try:
             for k, v in (attrs or {}).items():
                 h5.attrs[k] = _attr_value(v)
@@ -143,7 +142,7 @@ class BranchStore:
         part = partial_path(path)
         if not part.is_file():
             raise FileNotFoundError(f"no partial branch file {part}")
-        h5 = h5py.File(make_private(part), "r+")
+        h5 = open_in_place(part, "r+")
         try:
             if int(h5.attrs["complete"]):
                 raise ValueError(f"{part} is marked complete")

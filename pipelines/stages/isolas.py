@@ -206,14 +206,11 @@ class _Partial:
             return None, []
 
     def _open(self):
-        import h5py
-
         if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
-            self.path.unlink(missing_ok=True)  # "w" would truncate it in place, through any hard link
-            h5 = h5py.File(self.path, "w")
+            h5 = art.open_in_place(self.path, "w")
             h5.attrs["inputs_hash"] = self.hash
             return h5
-        return h5py.File(art.make_private(self.path), "a")
+        return art.open_in_place(self.path, "a")
 
     def corrections(self, method: str, c) -> None:
         with self._open() as h5:

@@ -216,7 +216,8 @@ def test_sweep_refuses_an_unstable_time_step():
         sweep(standin_rom(), CasingOptions(), ContactOptions(), TimeIntegrationOptions(dt=1e-4), omegas=[1000.0])
 
 
-@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="BLAS runs threaded only with two cores or more")
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2,
+                    reason="one core: OpenBLAS starts a single thread, so one and two threads cannot be compared")
 def test_the_modal_system_is_the_same_whatever_the_blas_threads():
     """The sweep's modal system (and its massless model) from the coarse rotor 67 ROM is the
     same to the bit with one BLAS thread and with two: a threaded eigh moved the modes by
