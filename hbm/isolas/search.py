@@ -47,6 +47,7 @@ from types import SimpleNamespace
 from typing import Callable
 
 import numpy as np
+from threadpoolctl import threadpool_limits
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
@@ -210,13 +211,18 @@ _WORKER: dict = {}
 
 
 def _init_worker(factory, known, options):
+    """Pool initializer: one BLAS thread for the worker's lifetime, and its corrector."""
     limit_blas_threads()
     _WORKER["corrector"] = _Corrector(factory, known, options)
 
 
 def _run_worker(items):
+    return _timed(_WORKER["corrector"], items)
+
+
+def _timed(corrector, items):
     t = time.process_time()
-    return _WORKER["corrector"](items), time.process_time() - t
+    return corrector(items), time.process_time() - t
 
 
 def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
@@ -234,26 +240,30 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
     rows, cpu = [], 0.0
     if comm is not None:
         mine = tasks[comm.rank::comm.size]
-        _init_worker(factory, known, options)
-        done = 0
-        for t in mine:
-            r, c = _run_worker(t)
-            rows += r
-            cpu += c
-            done += len(t)
-            progress(done, sum(len(m) for m in mine))
+        # one BLAS thread as in a pool's worker, for this phase only: a limit that outlived
+        # it would change the later stages of the rank's run (their round-off too)
+        with threadpool_limits(limits=1, user_api="blas"):
+            corrector = _Corrector(factory, known, options)
+            done = 0
+            for t in mine:
+                r, c = _timed(corrector, t)
+                rows += r
+                cpu += c
+                done += len(t)
+                progress(done, sum(len(m) for m in mine))
         gathered = comm.allgather((rows, cpu))
         rows = [r for part, _ in gathered for r in part]
         cpu = sum(c for _, c in gathered)
     else:
         workers = min(options.workers or len(os.sched_getaffinity(0)), max(1, len(tasks)))
         if workers <= 1:
-            _init_worker(factory, known, options)
-            for t in tasks:
-                r, c = _run_worker(t)
-                rows += r
-                cpu += c
-                progress(len(rows), s)
+            with threadpool_limits(limits=1, user_api="blas"):  # as above: this phase only
+                corrector = _Corrector(factory, known, options)
+                for t in tasks:
+                    r, c = _timed(corrector, t)
+                    rows += r
+                    cpu += c
+                    progress(len(rows), s)
         else:
             ctx = process_context()  # fork: the residual is built once per worker from the inherited factory
             with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,

@@ -229,6 +229,22 @@ def test_an_interrupted_search_resumes_without_recomputing(primary):
     np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
 
 
+def test_a_search_in_this_process_leaves_the_blas_threads_as_it_found_them(primary):
+    """With one worker the seeds are corrected in the caller's process on one BLAS thread,
+    as in a pool's worker; the limit must end with the search (once it lasted as long as the
+    process, and a ROM built after it in the same run came out with other round-off)."""
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    def blas_threads():
+        return sorted({p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"})
+
+    with threadpool_limits(limits=2, user_api="blas"):  # two even on a one-core machine
+        assert blas_threads() == [2]
+        res = search(factory, modal_seeds(), [primary], options(workers=1))
+        assert res.corrections.converged.any()
+        assert blas_threads() == [2]
+
+
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
 def test_mpi_search_equals_the_serial_one(tmp_path, primary):
     """`mpirun -n 2` shares the seeds' omegas between the ranks (allgather) and continues the
