@@ -34,9 +34,9 @@ def _blas_threads() -> dict:
 @pytest.fixture(autouse=True)
 def _blas_threads_kept():
     """Every test leaves the BLAS thread count of its process as it found it. A limit that
-    outlives its call (the isola search's once did) changes the round-off of whatever the
-    process computes next, so tests would pass or fail by the order they run in, which two
-    pytest workers change. Libraries loaded during the test are not compared."""
+    outlives its call changes the round-off of whatever the process computes next, so tests
+    would pass or fail by the order they run in, which two pytest workers change. Libraries
+    loaded during the test are not compared."""
     before = _blas_threads()
     yield
     after = _blas_threads()

@@ -231,8 +231,8 @@ def test_an_interrupted_search_resumes_without_recomputing(primary):
 
 def test_a_search_in_this_process_leaves_the_blas_threads_as_it_found_them(primary):
     """With one worker the seeds are corrected in the caller's process on one BLAS thread,
-    as in a pool's worker; the limit must end with the search (once it lasted as long as the
-    process, and a ROM built after it in the same run came out with other round-off)."""
+    as in a pool's worker; the limit must end with the search, or whatever the process
+    computes next (a ROM, the validation stage of the same run) has other round-off."""
     from threadpoolctl import threadpool_info, threadpool_limits
 
     def blas_threads():
