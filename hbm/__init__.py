@@ -18,5 +18,10 @@ Layers, lowest first (import-linter contracts in pyproject.toml):
 Design choices a maintainer should know (the measured reasons are in the docstrings):
 the HBM Jacobian is never factorised densely (hbm.harmonic.jacobian, preconditioner, solver);
 the corrector's linear solves are inexact Newton steps (hbm.harmonic.solver); the casing law
-exists once for both solvers (hbm.contact.casing).
+exists once for both solvers (hbm.contact.casing); numba's code is tuned for Zen 2 on a
+host LLVM 14 calls Zen 3, whose model unrolls the time-integration kernel into a slower one
+(hbm.jit, done here so that it precedes any compile of a bladerub run).
 """
+from hbm.jit import retune_numba
+
+retune_numba()
