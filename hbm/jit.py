@@ -14,8 +14,9 @@ instructions, tuned otherwise.
 The choice is numba's process-wide one: the NUMBA_CPU_NAME environment variable, read into
 numba.core.config.CPU_NAME, which numba uses when the process compiles or loads from its
 cache its first function. It is made when hbm is imported (hbm/__init__.py): the bladerub
-command imports hbm before any stage compiles, and spawned workers import it again. A
-NUMBA_CPU_NAME already set is kept: set NUMBA_CPU_NAME=znver3 for LLVM's own tuning. numba's
+command imports hbm before any stage compiles, and spawned workers import it again. A CPU
+name the user gave numba is kept (NUMBA_CPU_NAME, an empty one, numba's generic CPU,
+included, or numba.core.config.CPU_NAME): set NUMBA_CPU_NAME=znver3 for LLVM's own tuning. numba's
 cache keys its entries by the CPU name, so code tuned either way is never loaded for the
 other. A process that compiled numba code before importing hbm keeps the tuning it had.
 """
@@ -30,9 +31,9 @@ RETUNED = {"znver3": "znver2"}
 
 def tuning_cpu(host: str, configured: str | None) -> str | None:
     """The CPU model to tune for on a host that LLVM names `host`, or None to leave numba's
-    own choice; `configured` is the NUMBA_CPU_NAME set by the user (None: unset), which always
-    wins."""
-    if configured:
+    own choice; `configured` is the CPU name the user gave numba (None: none), which always
+    wins, an empty one too (numba's generic CPU)."""
+    if configured is not None:
         return None
     return RETUNED.get(host)
 
@@ -41,8 +42,13 @@ def retune_numba() -> str | None:
     """Set numba's CPU model for this process (and the processes it starts) where LLVM's
     tuning for the host is known to be slow; returns the model set, or None where nothing
     changed."""
+    config = sys.modules.get("numba.core.config")  # numba already imported: it read the
+    # environment then (and its config file), and reads it again only at a compile after
+    # some NUMBA_ variable changed; a name set in its config directly counts as the user's
     configured = os.environ.get("NUMBA_CPU_NAME")
-    if configured:
+    if configured is None and config is not None:
+        configured = config.CPU_NAME
+    if configured is not None:
         return None
     import llvmlite.binding as llvm
 
@@ -50,7 +56,6 @@ def retune_numba() -> str | None:
     if cpu is None:
         return None
     os.environ["NUMBA_CPU_NAME"] = cpu
-    config = sys.modules.get("numba.core.config")  # numba already imported: it read the
-    if config is not None and not config.CPU_NAME:  # environment then, and reads it again
-        config.CPU_NAME = cpu  # only at a compile after some NUMBA_ variable changed
+    if config is not None:
+        config.CPU_NAME = cpu
     return cpu

@@ -26,7 +26,7 @@ def add(x):
     return x + 1
 
 add(1)
-print(llvm.get_host_cpu_name(), cpu_target.target_context.codegen().magic_tuple()[1])
+print(llvm.get_host_cpu_name() + "|" + cpu_target.target_context.codegen().magic_tuple()[1])
 """
 
 
@@ -35,13 +35,13 @@ def _codegen_cpu(tmp_path, first="", **env):
     run_env.update(env, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
     out = subprocess.run([sys.executable, "-c", _CODEGEN_CPU.format(first=first)], env=run_env,
                          capture_output=True, text=True, timeout=120, check=True)
-    host, used = out.stdout.split()
+    host, used = out.stdout.strip().split("|")
     return host, used
 
 
 def test_the_rule_retunes_zen3_only_and_never_against_the_user():
     assert tuning_cpu("znver3", None) == "znver2"
-    assert tuning_cpu("znver3", "") == "znver2"  # an empty NUMBA_CPU_NAME is numba's "unset"
+    assert tuning_cpu("znver3", "") is None  # an empty NUMBA_CPU_NAME is numba's generic CPU
     assert tuning_cpu("znver3", "znver3") is None  # the user's choice wins
     assert tuning_cpu("haswell", None) is None
     assert tuning_cpu("sapphirerapids", None) is None
@@ -56,9 +56,15 @@ def test_importing_hbm_sets_the_model_the_first_compile_uses(tmp_path, first):
     assert used == RETUNED.get(host, host)
 
 
-def test_a_cpu_name_set_by_the_user_is_kept(tmp_path):
-    host, used = _codegen_cpu(tmp_path, NUMBA_CPU_NAME="znver3")
-    assert used == "znver3"
+@pytest.mark.parametrize("name", ["znver3", ""], ids=["znver3", "generic"])
+def test_a_cpu_name_set_by_the_user_is_kept(tmp_path, name):
+    host, used = _codegen_cpu(tmp_path, NUMBA_CPU_NAME=name)
+    assert used == name
+
+
+def test_a_cpu_name_set_in_numbas_config_is_kept(tmp_path):
+    host, used = _codegen_cpu(tmp_path, "import numba.core.config as c; c.CPU_NAME = 'haswell'")
+    assert used == "haswell"
 
 
 _KERNEL_SIZE = """
