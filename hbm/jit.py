@@ -7,18 +7,19 @@ is known only then. The time integration's step loop (hbm.ti.kernel.run_steps) i
 such loops, over 9 contact nodes and 48 padded modes: tuned for 'znver3' it compiles to
 21 000 instructions, against 8 100 tuned for 'znver2', and 8 200 tuned for 'znver3' with
 LLVM's runtime unrolling switched off (-unroll-runtime=false: that is the difference); on a
-Zen 3 host its steps take 1.6 to 1.8 times as long (README, *Time integration*). The host's own features
-are kept (numba asks LLVM for them apart from the name): the code uses the same
-instructions, tuned otherwise.
+Zen 3 host its steps take 1.6 to 1.8 times as long (README, *Time integration*). The host's
+own features are kept (numba asks LLVM for them apart from the name): the code uses the
+same instructions, tuned otherwise.
 
 The choice is numba's process-wide one: the NUMBA_CPU_NAME environment variable, read into
 numba.core.config.CPU_NAME, which numba uses when the process compiles or loads from its
 cache its first function. It is made when hbm is imported (hbm/__init__.py): the bladerub
 command imports hbm before any stage compiles, and spawned workers import it again. A CPU
 name the user gave numba is kept (NUMBA_CPU_NAME, an empty one, numba's generic CPU,
-included, or numba.core.config.CPU_NAME): set NUMBA_CPU_NAME=znver3 for LLVM's own tuning. numba's
-cache keys its entries by the CPU name, so code tuned either way is never loaded for the
-other. A process that compiled numba code before importing hbm keeps the tuning it had.
+included, or numba.core.config.CPU_NAME): set NUMBA_CPU_NAME=znver3 for LLVM's own tuning.
+numba's cache keys its entries by the CPU name, so code tuned either way is never loaded
+for the other. A process that compiled numba code before importing hbm keeps the tuning it
+had.
 """
 from __future__ import annotations
 
@@ -48,8 +49,6 @@ def retune_numba() -> str | None:
     configured = os.environ.get("NUMBA_CPU_NAME")
     if configured is None and config is not None:
         configured = config.CPU_NAME
-    if configured is not None:
-        return None
     import llvmlite.binding as llvm
 
     cpu = tuning_cpu(llvm.get_host_cpu_name(), configured)
