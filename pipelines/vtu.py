@@ -26,14 +26,19 @@ def write_vtu(path, nodes: np.ndarray, cells: np.ndarray, point_data: dict) -> P
     nodes: (n, 3), m. cells: (n_cells, 10), 0-based, gmsh tet10 ordering.
     point_data: {name: (n, 3) vectors or (n,) scalars}, SI units (displacements in m).
     (meshio 5's VTU writer drops field data, so what describes a file goes in its array
-    names or in the PVD collection.)
+    names or in the PVD collection.) The connectivity is written as 32-bit integers when the
+    node count allows (VTK reads either): zlib spends most of a file's time on it, and
+    64-bit indices below 2^31 are half zeros (0.73 against 0.43 s per file on the default
+    rotor 67 mesh).
     """
     import meshio
 
     cells = np.asarray(cells)
     if cells.ndim != 2 or cells.shape[1] != 10:
         raise ValueError(f"cells must be (n_cells, 10) tet10, got shape {cells.shape}")
-    mesh = meshio.Mesh(np.asarray(nodes, dtype=float), [("tetra10", cells[:, GMSH_TO_VTK_TET10])],
+    nodes = np.asarray(nodes, dtype=float)
+    index = np.int32 if len(nodes) < 2**31 else np.int64
+    mesh = meshio.Mesh(nodes, [("tetra10", cells[:, GMSH_TO_VTK_TET10].astype(index))],
                        point_data={k: np.asarray(v) for k, v in point_data.items()})
     path = Path(path)
     with art.atomic_output(path) as tmp:
@@ -78,12 +83,21 @@ def write_time_series(folder, stem: str, nodes, cells, times: np.ndarray, displa
 
     times: (N,), s (in the PVD). displacement: (N, n, 3), m (point vectors "displacement",
     float32 in the files). comment: kept in the PVD. Returns the PVD path.
+    The snapshots are written by one thread per core: zlib, which takes most of a file's
+    time, releases the GIL while it compresses.
     """
+    import concurrent.futures
+    import os
+
     folder = Path(folder)
     sub = folder / stem
     sub.mkdir(parents=True, exist_ok=True)
-    entries = []
-    for i, t in enumerate(np.asarray(times, dtype=float)):
-        f = write_vtu(sub / f"{stem}_{i:03d}.vtu", nodes, cells, {"displacement": displacement[i].astype(np.float32)})
-        entries.append((t, f.relative_to(folder)))
-    return write_pvd(folder / f"{stem}.pvd", entries, comment)
+    times = np.asarray(times, dtype=float)
+
+    def write(i: int) -> Path:
+        return write_vtu(sub / f"{stem}_{i:03d}.vtu", nodes, cells, {"displacement": displacement[i].astype(np.float32)})
+
+    workers = max(1, min(len(os.sched_getaffinity(0)), len(times)))
+    with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+        files = list(pool.map(write, range(len(times))))
+    return write_pvd(folder / f"{stem}.pvd", [(t, f.relative_to(folder)) for t, f in zip(times, files)], comment)
