@@ -273,8 +273,12 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
     return run
 
 
-#: residuals built by BranchDescriber in this process, by the describer's token
+#: residuals built by BranchDescriber in this process, by the describer's token, the most
+#: recently used last; at most _MAX_RESIDUALS are kept (a residual holds its ROM's matrices,
+#: and a long-lived process, a notebook or a test session, describes for many searches)
 _RESIDUALS: dict = {}
+#: one per treatment and search basis of a run (DLFT and RL, Omega and Omega / 2)
+_MAX_RESIDUALS = 4
 
 
 @dataclass(frozen=True, eq=False)
@@ -291,9 +295,12 @@ class BranchDescriber:
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     def __call__(self, omega: np.ndarray, u: np.ndarray) -> dict:
-        res = _RESIDUALS.get(self.token)
+        res = _RESIDUALS.pop(self.token, None)
         if res is None:
-            res = _RESIDUALS[self.token] = self.problem()[0]
+            res = self.problem()[0]
+            while len(_RESIDUALS) >= _MAX_RESIDUALS:
+                del _RESIDUALS[next(iter(_RESIDUALS))]  # the least recently used
+        _RESIDUALS[self.token] = res
         return describe(res, self.stability, self.scales, self.options)(omega, u)
 
 

@@ -340,3 +340,31 @@ def test_a_branch_described_in_two_chunks_is_described_as_a_whole():
     np.testing.assert_array_equal(parts["amplitude"], whole["amplitude"])
     for c in ("index", "omega"):
         np.testing.assert_array_equal(parts["tables"]["turns"][c][0], whole["tables"]["turns"][c][0])
+
+
+def test_the_describers_keep_a_bounded_number_of_residuals(monkeypatch):
+    """A process keeps the residuals of the last few BranchDescribers only (each holds its
+    ROM's matrices): six describers used in turn build six residuals, keep four, and the
+    first, used again after the others, builds its residual again."""
+    from hbm.isolas import harmonic
+
+    monkeypatch.setattr(harmonic, "_RESIDUALS", {})
+    monkeypatch.setattr(harmonic, "describe", lambda res, *a: lambda omega, u: {"residual": res})
+    built = []
+
+    def factory(k):
+        def problem():
+            built.append(k)
+            return (f"residual {k}", None)
+        return problem
+
+    describers = [harmonic.BranchDescriber(factory(k)) for k in range(6)]
+    for d in describers:
+        d(np.zeros(1), np.zeros((1, 2)))
+    assert built == list(range(6)) and len(harmonic._RESIDUALS) == harmonic._MAX_RESIDUALS == 4
+    assert describers[5](np.zeros(1), np.zeros((1, 2))) == {"residual": "residual 5"}
+    assert built == list(range(6))  # kept: not built again
+    assert describers[0](np.zeros(1), np.zeros((1, 2))) == {"residual": "residual 0"}
+    assert built == list(range(6)) + [0] and len(harmonic._RESIDUALS) == 4
+    # 0 took the place of the least recently used, 2 (3 and 4 came after it, then 5 again)
+    assert list(harmonic._RESIDUALS.values()) == ["residual 3", "residual 4", "residual 5", "residual 0"]
