@@ -99,5 +99,6 @@ def write_time_series(folder, stem: str, nodes, cells, times: np.ndarray, displa
 
     workers = max(1, min(len(os.sched_getaffinity(0)), len(times)))
     with concurrent.futures.ThreadPoolExecutor(workers) as pool:
+        # map: when a write fails (a full disk), the snapshots not started yet are cancelled
         files = list(pool.map(write, range(len(times))))
     return write_pvd(folder / f"{stem}.pvd", [(t, f.relative_to(folder)) for t, f in zip(times, files)], comment)

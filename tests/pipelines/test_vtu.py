@@ -90,3 +90,28 @@ def test_mode_shapes_and_time_series_read_back(tmp_path):
         m = meshio.read(tmp_path / e.get("file"))
         np.testing.assert_array_equal(m.points, nodes)
         np.testing.assert_allclose(m.point_data["displacement"], disp[i], rtol=1e-6, atol=1e-12)
+
+
+def test_a_failed_snapshot_stops_the_series_without_its_collection(tmp_path, monkeypatch):
+    """A snapshot whose write fails (a full disk) ends the series with that error: the
+    snapshots not started yet are not written, and no PVD names files that are not there."""
+    import time
+
+    import pipelines.vtu as vtu
+
+    nodes, cells = _tet10(VERTS)
+    started = []
+    real = vtu.write_vtu
+
+    def write(path, *args):
+        started.append(path.name)
+        if path.name.endswith("_000.vtu"):
+            raise OSError(28, "No space left on device")
+        time.sleep(0.2)
+        return real(path, *args)
+
+    monkeypatch.setattr(vtu, "write_vtu", write)
+    with pytest.raises(OSError, match="No space"):
+        vtu.write_time_series(tmp_path, "hbm", nodes, cells, np.arange(12) * 1e-3, np.zeros((12, 10, 3)))
+    assert len(started) <= 4, started  # the first and what the other threads had begun
+    assert not (tmp_path / "hbm.pvd").exists()
