@@ -1,6 +1,7 @@
 """Mesh -> FEM -> Craig-Bampton ROM: wall time per step, peak memory, frequencies, ROM error.
 
     .venv/bin/python benchmarks/bench_mesh_to_rom.py [--scene coarse|default] [--box SIZE] [--rhs] [--solver S]
+                                                     [--node-order rcm|meshed]
     mpirun -n 2 .venv/bin/python benchmarks/bench_mesh_to_rom.py ...      (the FEM stage on 2 ranks)
 
 --scene: the rotor 67 blade meshed by mesh.blade.mesh_blade with scenes/rotor67_coarse.toml
@@ -8,6 +9,8 @@
 --box SIZE: instead of the blade, a 0.2 x 0.1 x 0.01 m box of tet10 with edge SIZE m
 (0.0019 gives ~220 000 nodes, ~655 000 dof), clamped at x = 0.
 --solver: [fem] solver (auto: CHOLMOD in one process, MUMPS under mpirun; or cholmod, mumps).
+--node-order: the mesh's node order (mesh.ordering; "meshed": gmsh's, as before the
+product renumbered its meshes), for the blade only.
 --rhs: after the run, factorise K again and time one block solve of 14 right-hand sides
 (MatMatSolve, what the FEM stage uses) against 14 single solves (a KSP loop).
 Under mpirun (more than one rank) rank 0 meshes, all ranks assemble, factorise and solve
@@ -66,7 +69,8 @@ def make_mesh(args):
 
     scene = load_scene(ROOT / "scenes" / {"coarse": "rotor67_coarse.toml", "default": "rotor67.toml"}[args.scene])
     mopt = scene.mesh
-    return mesh_blade(scene.blade, mopt, scene.resolve(scene.blade.geometry)), f"rotor 67, scene {args.scene}"
+    return (mesh_blade(scene.blade, mopt, scene.resolve(scene.blade.geometry), node_order=args.node_order),
+            f"rotor 67, scene {args.scene}, nodes in {args.node_order} order")
 
 
 def compare_rhs(system, n_rhs: int = 14, solver: str = "auto") -> tuple[float, float, float]:
@@ -98,6 +102,7 @@ def main(argv=None):
     p.add_argument("--box", type=float, default=None)
     p.add_argument("--rhs", action="store_true", help="also time a block solve against a loop of single solves")
     p.add_argument("--solver", default="auto", help="[fem] solver: auto, cholmod or mumps")
+    p.add_argument("--node-order", default="rcm", choices=("rcm", "meshed"), help="the blade mesh's node order")
     p.add_argument("--tmp", type=Path, default=None, help="folder for the timed fem.h5 write (default: a temp dir)")
     args = p.parse_args(argv)
 

@@ -33,6 +33,7 @@ import numpy as np
 from mesh.geometry import GeometryError, Section, read_geometry
 from mesh.model import BladeMesh
 from mesh.options import BladeOptions, MeshOptions
+from mesh.ordering import renumber_nodes
 from mesh import tet10
 
 GMSH_TET10 = 11
@@ -179,11 +180,12 @@ def _set_size_field(gmsh, sizing: EdgeSizing, edges: list[int]):
     gmsh.option.setNumber("Mesh.MeshSizeMax", sizing.bulk_size)
 
 
-def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path) -> BladeMesh:
+def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path, node_order: str = "rcm") -> BladeMesh:
     """Read the table, build the blade solid from hub_section to tip_section, mesh it in tet10.
 
     Returns a `BladeMesh` (nodes in m, 0-based int64 gmsh-ordered connectivity, root/tip tri6,
     `options.n_boundary` tip contact nodes LE -> TE with their radius, angle and frames).
+    node_order: mesh.ordering.NODE_ORDERS ("meshed": gmsh's tag order).
     Raises GeometryError for a bad table, MeshingError if gmsh fails or the mesh is invalid.
     """
     geometry = read_geometry(geometry_path, blade.format, blade.units)
@@ -249,10 +251,11 @@ def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path) -
         raise MeshingError(f"mesh volume {volume:.6e} m^3 differs from the solid's {solid_volume:.6e} m^3")
 
     b = boundary_nodes(nodes, tip_facets, sections[-1], options.n_boundary)
-    return BladeMesh(nodes=nodes, cells=cells, root_facets=root_facets, tip_facets=tip_facets,
+    mesh = BladeMesh(nodes=nodes, cells=cells, root_facets=root_facets, tip_facets=tip_facets,
                      boundary_node_index=b.index, boundary_xyz=b.xyz, boundary_rho=b.rho,
                      boundary_theta=b.theta, boundary_frames=b.frames, volume=volume,
                      reference_volume=reference_volume(sections))
+    return renumber_nodes(mesh, node_order)
 
 
 @dataclass(frozen=True)

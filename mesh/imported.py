@@ -42,6 +42,7 @@ from mesh.blade import contact_geometry, nearest_nodes, points_along
 from mesh.elements import ELEMENTS
 from mesh.model import BladeMesh
 from mesh.options import KNOWN_UNITS, BladeOptions, MeshOptions
+from mesh.ordering import renumber_nodes
 from mesh.source import LINEAR, QUADRATIC, QUADRATIC_OF, MeshImportError, SourceMesh, read_source
 from mesh.subdivide import VTK_TO_GMSH_TET10, subdivide
 
@@ -59,12 +60,13 @@ MIN_ASPECT = 0.2  # radial extent over axial extent below which the axis cannot 
 TET10_FACES = np.array([[0, 2, 1, 6, 5, 4], [0, 1, 3, 4, 9, 7], [0, 3, 2, 7, 8, 6], [1, 2, 3, 5, 8, 9]])
 
 
-def import_blade(blade: BladeOptions, options: MeshOptions, path: Path) -> BladeMesh:
+def import_blade(blade: BladeOptions, options: MeshOptions, path: Path, node_order: str = "rcm") -> BladeMesh:
     """Read the mesh file `path` as [blade] says (units, axis, root, contact_nodes) -> BladeMesh.
 
     Returns nodes in m in the product's frame (z = rotation axis), tet10 cells, root and tip
     tri6 facets, the contact nodes LE -> TE ([mesh] n_boundary of them unless listed) with
-    radius, angle and frames, and the transform back to the file (source_*).
+    radius, angle and frames, and the transform back to the file (source_*). node_order:
+    mesh.ordering.NODE_ORDERS ("meshed": the file's nodes in its order, then the split's).
     Raises MeshImportError (a ValueError) naming what is wrong; nothing is written.
     """
     if blade.mesh is None:
@@ -132,11 +134,12 @@ def import_blade(blade: BladeOptions, options: MeshOptions, path: Path) -> Blade
             reference += float(_cell_volumes(points, conn[:, VTK_TO_GMSH_TET10]).sum())
         else:
             reference += float(element.volumes(points, conn).sum())
-    return BladeMesh(nodes=nodes, cells=cells, root_facets=root_facets, tip_facets=tip_facets,
+    mesh = BladeMesh(nodes=nodes, cells=cells, root_facets=root_facets, tip_facets=tip_facets,
                      boundary_node_index=contact.index, boundary_xyz=contact.xyz, boundary_rho=contact.rho,
                      boundary_theta=contact.theta, boundary_frames=contact.frames, volume=volume,
                      reference_volume=reference, source_rotation=rotation.copy(), source_scale=float(scale),
                      source_node_ids=source_ids)
+    return renumber_nodes(mesh, node_order)
 
 
 def _check_elements(src: SourceMesh, path: Path) -> None:

@@ -54,6 +54,20 @@ def test_layout_of_the_contract(mesh):
     assert 15_000 <= n <= 30_000  # the coarse setting promised for fast runs
 
 
+def test_nodes_are_numbered_for_a_narrow_band(mesh):
+    # mesh.ordering: gmsh numbers the mid-edge nodes after every vertex, which makes a cell
+    # span nearly the whole node range; reverse Cuthill-McKee keeps the same cells, facets
+    # and contact nodes within a small fraction of it
+    from mesh.ordering import bandwidth
+
+    meshed = mesh_blade(BladeOptions(), COARSE, R67, node_order="meshed")
+    assert bandwidth(meshed.cells) > 0.5 * meshed.n_nodes
+    assert bandwidth(mesh.cells) < 0.2 * bandwidth(meshed.cells)
+    np.testing.assert_array_equal(mesh.nodes[mesh.cells], meshed.nodes[meshed.cells])
+    for name in ("root_facets", "tip_facets", "boundary_node_index"):
+        np.testing.assert_array_equal(mesh.nodes[getattr(mesh, name)], meshed.nodes[getattr(meshed, name)])
+
+
 def test_node_ordering_is_gmsh_tet10_and_tri6(mesh):
     # Straight-sided quadratic cells: each mid-edge node is the midpoint of its edge in the
     # documented ordering; a wrong ordering would miss by about an edge length.
