@@ -4,12 +4,12 @@ gmsh numbers the vertices first and the mid-edge nodes it adds for the second or
 them, and a tet10 split of a wedge15/hex20 file appends its new nodes to the file's: a cell
 then refers to nodes half the mesh apart, and the free dof (node-major in mesh order,
 fem.assembly) give K and M a bandwidth of nearly the whole matrix (585 350 of the default
-rotor 67 blade's 586 212 dof; 19 826 once renumbered). Every sparse product of the eigen-solves and the interface
-basis then gathers rows from all over memory. Renumbered by reverse Cuthill-McKee on the
-cells' node graph, a cell spans at most 3 % of the nodes there (6 608 of 196 955, against
-196 665 in gmsh's order), and mesh -> ROM is ~17 % faster (README, node order); the
-Cholesky factorisations do not need it (CHOLMOD and MUMPS apply their own fill-reducing
-order).
+rotor 67 blade's 586 212 dof; 19 826 once renumbered): every sparse product of the
+eigen-solves and the interface basis gathers rows from all over memory. Renumbered by
+reverse Cuthill-McKee on the cells' node graph, a cell spans at most 3 % of the nodes
+there (6 608 of 196 955, against 196 665 in gmsh's order), and mesh -> ROM is ~17 %
+faster (README, node order); the Cholesky factorisations do not need it (CHOLMOD and
+MUMPS apply their own fill-reducing order).
 """
 from __future__ import annotations
 
