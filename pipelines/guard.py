@@ -60,10 +60,15 @@ def duration(seconds: float) -> str:
     return f"{seconds / 86400:.2g} days"
 
 
+def memory_limit(scene) -> float:
+    """The memory a run may use, bytes: [limits] memory_gb, else this machine's."""
+    return scene.limits.memory_gb * 1e9 if scene.limits.memory_gb > 0 else machine_memory()
+
+
 def check_run(scene, out: Path, steps, progress, yes: bool = False, disk: float = 0.0) -> float:
     """Estimate each stage of the plan that computes; refuse what cannot fit (unless yes).
     disk: bytes already planned by an earlier call for this run. Returns the bytes planned."""
-    limit = scene.limits.memory_gb * 1e9 if scene.limits.memory_gb > 0 else machine_memory()
+    limit = memory_limit(scene)
     biggest = None
     for s in steps:
         if not s.todo:

@@ -12,6 +12,11 @@ compute fits this machine's memory (pipelines.guard). A stage's expected inputs 
 from the scene alone (its upstream stages' expected hashes, not their files), so the plan
 is final: an upstream output recomputed with the same inputs leaves its downstream current.
 
+A stage that can start ahead of its turn (Stage.start: the time-integration sweep, which
+needs only the ROM) runs in the background beside the stage before it (the NFRCs), on the
+cores that stage leaves free and those its processes free as they end; in its turn it is
+waited for and written (_start_beside). A run stopped before then ends it, writing nothing.
+
 Figures are checked last, against figures/manifest.json (inputs hash and file checksums): a
 figure whose file is missing, damaged or outdated is redrawn from the artifacts.
 Ctrl-C ends the run with pipelines.errors.Interrupted (what was kept, how to resume); a
@@ -247,10 +252,55 @@ def _check_paths(out: Path, steps) -> None:
         raise folder.FolderError(f"{figures} is not a folder: the run draws its figures there; move it away")
 
 
+def _context(scene, out: Path, progress: Progress, step: Step, expected: dict) -> Context:
+    ctx = Context(scene, out, progress)
+    for o in step.outputs:
+        ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
+    return ctx
+
+
+def _start_beside(scene, out: Path, steps, i: int, expected: dict, progress: Progress, comm):
+    """The stage after steps[i] started in the background beside it (Stage.start), or None.
+
+    It starts when it has a start, outputs to compute and its upstream current before
+    steps[i], when steps[i] says how many cores it keeps busy, outside MPI runs, and when the
+    two stages' estimated memory fits together. It takes the cores steps[i] leaves free and
+    those its processes free as they end (ctx.lend_cores of steps[i]): on the default scene
+    the sweep marches on the core of the shorter NFRC while the longer one runs.
+    """
+    from pipelines import guard
+
+    if comm is not None or i + 1 >= len(steps):
+        return None
+    s, n = steps[i], steps[i + 1]
+    if n.stage.start is None or not n.todo or s.stage.busy_cores is None:
+        return None
+    if not set(n.stage.upstream) <= {t.stage.name for t in steps[:i]}:
+        return None
+    cores = len(os.sched_getaffinity(0))
+    if cores < 2:
+        return None
+    memory = sum(e.memory for e in (s.stage.estimate(scene, out, s.todo), n.stage.estimate(scene, out, n.todo))
+                 if e is not None)
+    if memory > guard.memory_limit(scene):
+        progress.log(f"[{n.stage.name}] waits for {s.stage.name}: the two at once would need ~{guard.gb(memory)} "
+                     "of memory")
+        return None
+    free = max(0, cores - s.stage.busy_cores(scene, s.todo))
+    try:
+        started = n.stage.start(_context(scene, out, progress, n, expected), n.todo, free)
+    except Exception:  # noqa: BLE001 - it computes in its turn instead, and raises there
+        return None
+    progress.log(f"[{n.stage.name}] running ({n.why}) beside {s.stage.name}: on {free} of {cores} cores now, "
+                 f"the others as {s.stage.name}'s processes end ...")
+    return started
+
+
 def _execute(scene, out: Path, steps, expected: dict, progress: Progress, command: str, comm=None) -> None:
     global _describe
     done = {o.file for s in steps for o in s.outputs if o not in s.todo}
     where, since = "planning", time.time()
+    ahead: dict = {}  # stage name: its Background, started beside the stage before it
 
     def kept(detailed: bool = True) -> str:
         return _kept(out, steps, done, expected, since, detailed)
@@ -260,20 +310,29 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
 
     _describe = describe
     try:
-        for s in steps:
+        for i, s in enumerate(steps):
             where = f"stage {s.stage.name}"
-            ctx = Context(scene, out, progress)
-            for o in s.outputs:
-                ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
+            ctx = _context(scene, out, progress, s, expected)
             with progress.stage(s.stage.name) as record:
                 if not s.todo:
                     record.action, record.why = "reused", "up to date"
                     progress.log(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})")
                     continue
                 record.why = s.why
-                progress.log(f"[{s.stage.name}] running ({s.why}) ...")
-                compute = on_all if s.stage.distributed else on_root
-                compute(comm, lambda s=s, ctx=ctx: s.stage.compute(ctx, s.todo))
+                if s.stage.name in ahead:
+                    record.why += f" (started beside {steps[i - 1].stage.name})"
+                    ahead[s.stage.name].finish()
+                    del ahead[s.stage.name]
+                else:
+                    progress.log(f"[{s.stage.name}] running ({s.why}) ...")
+                    started = _start_beside(scene, out, steps, i, expected, progress, comm)
+                    if started is not None:
+                        ahead[steps[i + 1].stage.name] = started
+                        ctx.lend_cores = started.lend
+                    compute = on_all if s.stage.distributed else on_root
+                    compute(comm, lambda s=s, ctx=ctx: s.stage.compute(ctx, s.todo))
+                    if started is not None:
+                        started.lend(s.stage.busy_cores(scene, s.todo))  # every core it had
                 done.update(o.file for o in s.todo)
                 progress.log(f"[{s.stage.name}] done -> {', '.join(o.file for o in s.todo)}")
         where = "the figures"
@@ -285,6 +344,8 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         name = f" {exc.filename}" if getattr(exc, "filename", None) else ""
         raise StageFailed(f"{where} failed: {text}{name}; kept: {kept()}") from exc
     finally:
+        for started in ahead.values():  # the run stopped before their turn
+            started.cancel()
         _describe = None
 
 

@@ -214,14 +214,7 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
     point (under MPI: with this rank's own counts), e.g. to show progress.
     Raises ValueError when ti_options.dt exceeds the scheme's stability limit.
     """
-    system = rom if isinstance(rom, ModalSystem) else rom_modal_system(rom)
-    system = scheme_system(system, ti_options.scheme, ti_options.massless_cutoff)
-    check_time_step(system, ti_options.dt, contact.mu)
-    if omegas is None:
-        omegas = np.linspace(ti_options.omega_min, ti_options.omega_max, ti_options.n_omega)
-    omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
-    if not (omegas > 0).all():
-        raise ValueError("rotation speeds must be > 0 rad/s")
+    system, omegas = _prepared(rom, contact, ti_options, omegas)
     mu = contact.mu
     comm = mpi_world()
     progress = on_point or (lambda done, total: None)
@@ -232,26 +225,124 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
             local.append((i, simulate(system, casing, mu, omegas[i], ti_options)))
             progress(k + 1, len(mine))
         points = dict(p for part in comm.allgather(local) for p in part)
-    else:
-        n_workers = workers or len(os.sched_getaffinity(0))
-        order = np.argsort(omegas)  # slowest points (low Omega, most steps) first
+        return _stack([points[i] for i in range(len(omegas))])
+    n_workers = workers or len(os.sched_getaffinity(0))
+    if n_workers <= 1 or len(omegas) == 1:
         points = {}
-        if n_workers <= 1 or len(omegas) == 1:
-            for i in order:
-                points[i] = simulate(system, casing, mu, omegas[i], ti_options)
-                progress(len(points), len(omegas))
-        else:
-            import concurrent.futures
+        for i in np.argsort(omegas):  # slowest points (low Omega, most steps) first
+            points[i] = simulate(system, casing, mu, omegas[i], ti_options)
+            progress(len(points), len(omegas))
+        return _stack([points[i] for i in range(len(omegas))])
+    run = SweepRun(system, casing, contact, ti_options, omegas, n_workers, n_workers, on_point=progress)
+    try:
+        return run.result()
+    finally:
+        run.cancel()
 
-            ctx = process_context()
-            with concurrent.futures.ProcessPoolExecutor(min(n_workers, len(omegas)), mp_context=ctx,
-                                                        initializer=limit_blas_threads) as pool:
-                futures = {pool.submit(simulate, system, casing, mu, omegas[i], ti_options): i for i in order}
-                for f in concurrent.futures.as_completed(futures):
-                    points[futures[f]] = f.result()
-                    progress(len(points), len(omegas))
-    rows = [points[i] for i in range(len(omegas))]
-    return _stack(rows)
+
+def _prepared(rom, contact: ContactOptions, ti_options: TimeIntegrationOptions, omegas):
+    """(the scheme's ModalSystem, the speeds (n_omega,), rad/s), both checked."""
+    system = rom if isinstance(rom, ModalSystem) else rom_modal_system(rom)
+    system = scheme_system(system, ti_options.scheme, ti_options.massless_cutoff)
+    check_time_step(system, ti_options.dt, contact.mu)
+    if omegas is None:
+        omegas = np.linspace(ti_options.omega_min, ti_options.omega_max, ti_options.n_omega)
+    omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
+    if not (omegas > 0).all():
+        raise ValueError("rotation speeds must be > 0 rad/s")
+    return system, omegas
+
+
+class SweepRun:
+    """A sweep on a local process pool that may start before every core is free for it.
+
+    The pool has one worker per core (`workers`), all started here (fork: from the calling
+    thread, before any other work starts processes); at most `cores` speeds are in flight,
+    and lend(n) raises that as other work on the machine ends (pipelines.runner starts the
+    sweep beside the NFRCs, whose processes hand it their cores as they end). The speeds
+    go slowest first (low Omega, most steps), as in sweep(). on_point(done, total) is
+    called after each point, from the pool's thread. Not for MPI runs.
+
+    rom: as for sweep(). omegas: (n_omega,), rad/s (default: the grid of ti_options).
+    Raises ValueError (dt past the scheme's stability limit, a speed <= 0) when built.
+    """
+
+    def __init__(self, rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,
+                 omegas: np.ndarray | None = None, workers: int | None = None, cores: int | None = None,
+                 on_point: Callable[[int, int], None] | None = None):
+        import concurrent.futures
+        import threading
+
+        self._system, self.omegas = _prepared(rom, contact, ti_options, omegas)
+        self._args = (casing, contact.mu, ti_options)
+        workers = min(workers or len(os.sched_getaffinity(0)), len(self.omegas))
+        self._workers = workers
+        self._cores = workers if cores is None else max(0, min(cores, workers))
+        self._todo = [int(i) for i in np.argsort(self.omegas)]
+        self._points: dict = {}
+        self._error: BaseException | None = None
+        self._in_flight = 0
+        self._lock = threading.RLock()  # a done callback may run at once, inside _fill
+        self._finished = threading.Event()
+        self.on_point = on_point or (lambda done, total: None)
+        self._pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=process_context(),
+                                                            initializer=limit_blas_threads)
+        # with fork the pool starts all its workers at its first task: here, from this thread
+        self._pool.submit(int).result()
+        self._fill()
+
+    @property
+    def done(self) -> int:
+        """Speeds finished so far."""
+        return len(self._points)
+
+    def lend(self, n: int = 1) -> None:
+        """n more cores for the sweep (at most one per worker)."""
+        with self._lock:
+            self._cores = min(self._cores + n, self._workers)
+            self._fill()
+
+    def _fill(self) -> None:
+        with self._lock:
+            while self._todo and self._error is None and self._in_flight < self._cores:
+                i = self._todo.pop(0)
+                self._in_flight += 1
+                self._pool.submit(simulate, self._system, *self._args[:2], self.omegas[i], self._args[2]) \
+                    .add_done_callback(lambda f, i=i: self._done(i, f))
+            if self._in_flight == 0 and (self._error is not None or not self._todo):
+                self._finished.set()
+
+    def _done(self, i: int, future) -> None:
+        with self._lock:
+            self._in_flight -= 1
+            if future.cancelled():
+                pass
+            elif future.exception() is not None:
+                self._error = self._error or future.exception()
+            else:
+                self._points[i] = future.result()
+                self.on_point(len(self._points), len(self.omegas))
+            self._fill()
+
+    def result(self) -> SweepResult:
+        """Waits for every speed (lending every worker its core first: nothing else runs
+        now) and returns the sweep; raises the first failure of a speed."""
+        self.lend(self._workers)
+        while not self._finished.wait(0.2):  # a timed wait: Ctrl-C is answered at once
+            pass
+        self._pool.shutdown()
+        if self._error is not None:
+            raise self._error
+        return _stack([self._points[i] for i in range(len(self.omegas))])
+
+    def cancel(self) -> None:
+        """Ends the sweep now: no further speed starts and the workers are stopped."""
+        with self._lock:
+            self._todo.clear()
+        for p in list((getattr(self._pool, "_processes", None) or {}).values()):
+            if p.is_alive():
+                p.terminate()
+        self._pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _stack(rows: list[SpeedResponse]) -> SweepResult:

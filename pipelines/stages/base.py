@@ -64,6 +64,19 @@ class Estimate:
 
 
 @dataclass(frozen=True)
+class Background:
+    """A stage computing ahead of its turn, beside the stage before it (Stage.start).
+
+    lend(n): n more of the machine's cores for it (the stage before it ending processes).
+    finish(): in its turn, waits for it and writes its outputs; raises what it raised.
+    cancel(): ends it, writing nothing (the run stopped before its turn)."""
+
+    lend: Callable[[int], None]
+    finish: Callable[[], None]
+    cancel: Callable[[], None]
+
+
+@dataclass(frozen=True)
 class Stage:
     """name. depends: scene keys ("section" or "section.key") its results depend on.
     upstream: stages whose artifacts it reads. outputs(scene): its Outputs.
@@ -73,7 +86,14 @@ class Stage:
     estimate(scene, out, outputs): an Estimate of computing those outputs (None: cheap or
     unknown), for the size guard; `out` may hold current upstream artifacts to count from.
     distributed: under `mpirun -n N` (pipelines.parallel), compute runs on every rank and
-        writes on rank 0 only; otherwise it runs on rank 0 alone while the others wait."""
+        writes on rank 0 only; otherwise it runs on rank 0 alone while the others wait.
+    start(ctx, outputs, cores): begins computing those outputs in the background on `cores`
+        cores (0: none yet), beside the stage before it, and returns a Background; None:
+        the stage computes in its turn only. The runner starts it when its upstream is
+        current and the two fit the machine's memory, outside MPI runs.
+    busy_cores(scene, outputs): how many cores compute keeps busy; a stage that has it
+        hands its cores to the next stage's start as its processes end (ctx.lend_cores);
+        None: the next stage waits for this one."""
 
     name: str
     depends: tuple[str, ...]
@@ -84,19 +104,24 @@ class Stage:
     figures: tuple[Figure, ...] = ()
     estimate: Callable[[object, Path, tuple[Output, ...]], "Estimate | None"] = lambda scene, out, outputs: None
     distributed: bool = False
+    start: Callable[["Context", tuple[Output, ...], int], Background] | None = None
+    busy_cores: Callable[[object, tuple[Output, ...]], int] | None = None
 
 
 @dataclass
 class Context:
     """What a stage's functions get. scene; out: the output folder; progress: the run's
     pipelines.progress.Progress; hashes: {file: inputs hash} and inputs: {file: {component:
-    hash}} of the outputs being written (what write_artifact records)."""
+    hash}} of the outputs being written (what write_artifact records). lend_cores(n): tells
+    the stage started beside this one that n of this stage's cores are free (a no-op when
+    none is)."""
 
     scene: object
     out: Path
     progress: object
     hashes: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
+    lend_cores: Callable[[int], None] = lambda n: None
 
     def provenance(self, output: Output, stage: str) -> dict:
         """Keyword arguments of write_artifact for `output` (stage, scene text, hashes)."""

@@ -129,6 +129,7 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
                         if key not in ended and not p.is_alive() and messages.empty():
                             ended[key] = ChildDied(f"the {key} NFRC process ended without an answer "
                                                    f"(exit code {p.exitcode})")
+                            ctx.lend_cores(1)
                     continue
                 if kind == "update":
                     lines[key] = payload
@@ -139,6 +140,7 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
                     ctx.progress.warn(payload)
                 else:
                     ended[key] = payload
+                    ctx.lend_cores(1)  # its core, to the stage started beside this one
     finally:
         for p in procs.values():
             if p.is_alive() and len(ended) < len(procs):  # interrupted: the others end too
@@ -370,4 +372,5 @@ def _estimate(scene, out, outputs) -> Estimate:
 
 # hbm~methods: adding or removing a treatment leaves the other's NFRC current
 STAGE = Stage("hbm", depends=("casing", "contact.mu", "contact.epsilon", "hbm~methods"), upstream=("rom",),
-              outputs=_outputs, compute=_compute, figures=(NFRC_FIGURE, HBM_VTU), estimate=_estimate)
+              outputs=_outputs, compute=_compute, figures=(NFRC_FIGURE, HBM_VTU), estimate=_estimate,
+              busy_cores=lambda scene, outputs: _workers(len(outputs)))

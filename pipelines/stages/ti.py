@@ -7,7 +7,7 @@ import numpy as np
 
 from hbm.ti.sweep import SweepResult
 from pipelines import artifacts as art
-from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
+from pipelines.stages.base import Background, Context, Estimate, Figure, Output, Stage
 from pipelines.stages.rom import read_rom, warn_friction_lock
 
 TI = Output("ti.h5")
@@ -29,28 +29,62 @@ def massless_warning(scheme: str, mu: float, lock) -> str | None:
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
     rank 0 writes ti.h5."""
-    from hbm.ti.periodicity import PeriodClass
     from hbm.ti.sweep import sweep
     from pipelines.parallel import on_root, world
 
     scene = ctx.scene
     rom = read_rom(ctx.out)
-    warn_friction_lock(ctx, rom)
-    line = massless_warning(scene.ti.scheme, scene.contact.mu, rom.friction_lock)
-    if line:
-        ctx.log("  WARNING: " + line)
+    _warn(ctx, rom)
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
         result = sweep(rom, scene.casing, scene.contact, scene.ti, on_point=lambda done, total: update(completed=done))
+    on_root(world(), lambda: _write(ctx, result))
 
-    def write():
-        art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
-        n_l = scene.casing.n_lobes
-        counts = np.bincount(result.period_class.astype(int), minlength=len(PeriodClass))
-        ctx.log(f"  {len(result.omega)} speeds; classes: "
-                + ", ".join(f"{c.label(n_l, scene.ti.max_order)} {counts[c]}" for c in PeriodClass if counts[c])
-                + f"; median {np.median(result.cpu_time):.1f} s per speed")
 
-    on_root(world(), write)
+def _start(ctx: Context, outputs, cores: int) -> Background:
+    """The sweep on a pool of one worker per core, started beside the NFRCs with `cores`
+    cores and the others as the NFRC processes end (hbm.ti.sweep.SweepRun): the core the
+    shorter NFRC frees marches speeds while the longer one runs."""
+    from hbm.ti.sweep import SweepRun
+
+    scene = ctx.scene
+    rom = read_rom(ctx.out)
+    live = []  # the live line's update, once the stage's turn has come
+
+    def on_point(done: int, total: int) -> None:
+        if live:
+            live[0](completed=done)
+
+    run = SweepRun(rom, scene.casing, scene.contact, scene.ti, cores=cores, on_point=on_point)
+    _warn(ctx, rom)
+
+    def finish() -> None:
+        ctx.log(f"  {run.done} of {len(run.omegas)} speeds done beside the stage before")
+        with ctx.progress.step("ti sweep", len(run.omegas)) as update:
+            live.append(update)
+            update(completed=run.done)
+            result = run.result()
+        _write(ctx, result)
+
+    return Background(lend=run.lend, finish=finish, cancel=run.cancel)
+
+
+def _warn(ctx: Context, rom) -> None:
+    warn_friction_lock(ctx, rom)
+    line = massless_warning(ctx.scene.ti.scheme, ctx.scene.contact.mu, rom.friction_lock)
+    if line:
+        ctx.log("  WARNING: " + line)
+
+
+def _write(ctx: Context, result) -> None:
+    from hbm.ti.periodicity import PeriodClass
+
+    scene = ctx.scene
+    art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
+    n_l = scene.casing.n_lobes
+    counts = np.bincount(result.period_class.astype(int), minlength=len(PeriodClass))
+    ctx.log(f"  {len(result.omega)} speeds; classes: "
+            + ", ".join(f"{c.label(n_l, scene.ti.max_order)} {counts[c]}" for c in PeriodClass if counts[c])
+            + f"; median {np.median(result.cpu_time):.1f} s per speed")
 
 
 @dataclass(frozen=True)
@@ -94,4 +128,4 @@ def _estimate(scene, out, outputs) -> Estimate:
 
 # only mu of [contact]: the sweep's contact is exact (Lagrange multipliers), not DLFT or RL
 STAGE = Stage("ti", depends=("casing", "contact.mu", "ti"), upstream=("rom",), outputs=lambda scene: (TI,),
-              compute=_compute, figures=(SWEEP_FIGURE,), estimate=_estimate, distributed=True)
+              compute=_compute, figures=(SWEEP_FIGURE,), estimate=_estimate, distributed=True, start=_start)

@@ -186,6 +186,35 @@ def test_sweep_workers_and_serial_agree_on_the_standin_rom():
     assert (a.contact_fraction > 0).all() and a.max_penetration.max() <= 1e-15
 
 
+def test_a_sweep_started_without_cores_waits_for_them_and_ends_as_the_serial_one():
+    """The runner starts the sweep beside the NFRCs with no core of its own: it must not
+    compute until a core is lent, then give the serial sweep's points; cancel() ends it."""
+    import time
+
+    from hbm.ti.sweep import SweepRun
+
+    rom = standin_rom()
+    opts = TimeIntegrationOptions(dt=1e-6, n_revolutions=8, n_keep=2, samples_per_revolution=64)
+    om = np.array([1900.0, 1500.0, 1700.0])
+    serial = sweep(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=1)
+    run = SweepRun(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=2, cores=0)
+    time.sleep(1.0)  # one speed takes ~0.1 s here: none may have run
+    assert run.done == 0
+    run.lend(1)
+    for _ in range(300):
+        if run.done:
+            break
+        time.sleep(0.01)
+    assert run.done >= 1
+    got = run.result()
+    for name in ("amplitude", "max_abs", "period_class", "displacement", "normal_force", "sections", "revolutions"):
+        np.testing.assert_array_equal(getattr(got, name), getattr(serial, name))
+    stopped = SweepRun(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=2, cores=0)
+    workers = list(stopped._pool._processes.values())
+    stopped.cancel()
+    assert stopped.done == 0 and not any(w.is_alive() for w in workers)
+
+
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
 def test_mpi_sweep_equals_the_serial_one(tmp_path):
     """`mpirun -n 2` splits the points over two ranks (hbm.processes.mpi_world); every rank

@@ -148,6 +148,20 @@ def test_ctrl_c_in_hbm(coarse_run, coarse_nfrc, tmp_path, capsys):
         assert stored.attrs["status"] == load_branch(coarse_nfrc[1] / name).attrs["status"]
 
 
+def test_ctrl_c_in_hbm_with_the_sweep_started_beside_it(coarse_run, tmp_path, capsys):
+    """--until ti starts the sweep's pool beside the NFRCs (pipelines.runner): Ctrl-C in hbm
+    ends its workers too, writes no ti.h5, and the next run computes the sweep."""
+    scene = clone(coarse_run[1], tmp_path)
+    line = interrupt(scene, tmp_path, "hbm", 30.0, "--until", "ti",
+                     once=("nfrc_dlft.partial.h5", "nfrc_rl.partial.h5"))
+    assert line.split("; kept: ")[1].startswith("mesh.h5, fem.h5, rom.h5")
+    assert not (tmp_path / "ti.h5").exists()
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "ti"]) == 0
+    assert art.verify(tmp_path / "ti.h5") is None
+    if len(os.sched_getaffinity(0)) >= 2:
+        assert "[ti] running (no artifact) beside hbm" in capsys.readouterr().out
+
+
 def test_ctrl_c_in_ti_then_in_validation(coarse_nfrc, tmp_path):
     scene = clone(coarse_nfrc[1], tmp_path)
     # both stages take about a second on a fast machine: each first sleeps, as rom's does

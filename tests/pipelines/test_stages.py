@@ -4,6 +4,8 @@ The tiny scene keeps the coarse rotor 67 mesh, FEM and ROM (shared, session-wide
 a cheap NFRC (N_h = 5, N_t = 64, Omega in [1900, 2000]) and a short TI sweep (2 speeds, 20
 revolutions), then the validation stage (20 periods per point), the figures and `bladerub render`.
 """
+import os
+
 import h5py
 import numpy as np
 import pytest
@@ -67,6 +69,8 @@ def tiny(coarse_run, tmp_path_factory):
     scene = _scene(scene0.read_text(), out / "tiny.toml")
     rec = _records(scene, out)
     assert rec["hbm"][0] == rec["ti"][0] == rec["validation"][0] == "computed"
+    if len(os.sched_getaffinity(0)) >= 2:  # the sweep ran beside the NFRCs (pipelines.runner)
+        assert rec["ti"][1] == "no artifact (started beside hbm)", rec["ti"]
     return scene, out
 
 
@@ -89,6 +93,21 @@ def test_every_stage_and_figure_is_made(tiny):
             h5.visititems(lambda k, obj: missing.append(k) if isinstance(obj, h5py.Dataset)
                           and "unit" not in obj.attrs and "unit" not in obj.parent.attrs else None)
         assert not missing, (name, missing[:5])
+
+
+def test_the_sweep_run_beside_the_nfrcs_is_the_sweep_run_alone(tiny):
+    """The sweep started beside the NFRCs (on the cores their processes free) gives, speed
+    for speed, what one process marching the speeds in order gives."""
+    from hbm.ti.sweep import sweep
+    from pipelines.stages.rom import read_rom
+    from pipelines.stages.ti import read_sweep
+
+    scene_path, out = tiny
+    scene = load_scene(scene_path)
+    alone = sweep(read_rom(out), scene.casing, scene.contact, scene.ti, workers=1)
+    beside = read_sweep(out)
+    for name in ("omega", "amplitude", "period_class", "revolutions", "displacement", "normal_force", "sections"):
+        np.testing.assert_array_equal(getattr(beside, name), getattr(alone, name), err_msg=name)
 
 
 def test_a_second_run_reuses_everything(tiny):
