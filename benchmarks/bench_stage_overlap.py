@@ -2,11 +2,12 @@
 
     .venv/bin/python benchmarks/bench_stage_overlap.py --rom out/main/rom.h5 [--scene scenes/rotor67.toml] [--repeat 1]
 
-The runner computes the hbm stage (one process per treatment) and then the ti stage (one
-process per core): the core of the shorter NFRC (DLFT's) is idle until the longer one ends.
-"shared" submits the treatments first and then the sweep's speeds (slowest first, as
-hbm.ti.sweep does) to one pool of one worker per core, so a worker freed by an NFRC takes
-speeds. Both ways are timed on the same ROM and scene, alternated `--repeat` times; the
+One after the other: the treatments (one process each), then the sweep (one process per
+core): the core of the shorter NFRC (DLFT's) idles until the longer one ends. "shared"
+submits the treatments first and then the sweep's speeds (slowest first, as hbm.ti.sweep
+does) to one pool of one worker per core, so a worker freed by an NFRC takes speeds (the
+runner does the same with the stages' own processes: pipelines.runner._start_beside).
+Both ways are timed on the same ROM and scene, alternated `--repeat` times; the
 NFRCs (points, LE amplitudes) and the sweep (classes, amplitudes) must come out the same.
 Nothing is written.
 """
