@@ -55,7 +55,11 @@ def _start(ctx: Context, outputs, cores: int) -> Background:
             live[0](completed=done)
 
     run = SweepRun(rom, scene.casing, scene.contact, scene.ti, cores=cores, on_point=on_point)
-    _warn(ctx, rom)
+    try:
+        _warn(ctx, rom)
+    except BaseException:
+        run.cancel()
+        raise
 
     def finish() -> None:
         ctx.log(f"  {run.done} of {len(run.omegas)} speeds done beside the stage before")

@@ -215,6 +215,27 @@ def test_a_sweep_started_without_cores_waits_for_them_and_ends_as_the_serial_one
     assert stopped.done == 0 and not any(w.is_alive() for w in workers)
 
 
+def _fails_at_1500(system, casing, mu, omega, options):
+    """hbm.ti.sweep.simulate, but a speed of 1500 rad/s raises (a worker's failure)."""
+    from hbm.ti.sweep import SpeedResponse
+
+    if omega == 1500.0:
+        raise FloatingPointError("the march at 1500 rad/s diverged")
+    return SpeedResponse(*(0.0,) * 18)
+
+
+def test_a_speed_that_fails_in_a_sweep_run_is_raised_when_it_is_waited_for(monkeypatch):
+    import hbm.ti.sweep as sweep_module
+
+    monkeypatch.setattr(sweep_module, "simulate", _fails_at_1500)  # before the pool forks its workers
+    opts = TimeIntegrationOptions(dt=1e-6, n_revolutions=8, n_keep=2, samples_per_revolution=64)
+    run = sweep_module.SweepRun(standin_rom(), CasingOptions(), ContactOptions(), opts,
+                                omegas=np.array([1900.0, 1500.0, 1700.0]), workers=2, cores=1)
+    with pytest.raises(FloatingPointError, match="at 1500 rad/s diverged"):
+        run.result()
+    run.cancel()
+
+
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
 def test_mpi_sweep_equals_the_serial_one(tmp_path):
     """`mpirun -n 2` splits the points over two ranks (hbm.processes.mpi_world); every rank
