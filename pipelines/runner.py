@@ -331,8 +331,6 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
                         ctx.lend_cores = started.lend
                     compute = on_all if s.stage.distributed else on_root
                     compute(comm, lambda s=s, ctx=ctx: s.stage.compute(ctx, s.todo))
-                    if started is not None:
-                        started.lend(s.stage.busy_cores(scene, s.todo))  # every core it had
                 done.update(o.file for o in s.todo)
                 progress.log(f"[{s.stage.name}] done -> {', '.join(o.file for o in s.todo)}")
         where = "the figures"
