@@ -139,3 +139,21 @@ def test_feet_table_read_as_metres_is_warned(coarse_run, tmp_path, monkeypatch, 
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--until", "mesh", "--yes"]) == 0
     err = capsys.readouterr().err
     assert err.count("bladerub: warning: the blade read in m") == 1 and "Read in ft" in err
+
+
+def test_the_sweep_waits_for_the_nfrcs_when_the_two_would_not_fit_together(coarse_run, tmp_path, capsys):
+    """[limits] memory_gb between the larger of the hbm and ti estimates and their sum: each
+    stage fits alone, so the run goes on, but the sweep is not started beside the NFRCs."""
+    from pipelines.stages import REGISTRY
+
+    if len(os.sched_getaffinity(0)) < 2:
+        pytest.skip("the sweep starts beside the NFRCs only with two cores or more")
+    scene = clone(coarse_run[1], tmp_path)
+    loaded = load_scene(scene)
+    need = [REGISTRY[n].estimate(loaded, tmp_path, REGISTRY[n].outputs(loaded)).memory for n in ("hbm", "ti")]
+    limit = 0.5 * (max(need) + sum(need))
+    scene.write_text(scene.read_text() + f"\n[limits]\nmemory_gb = {limit / 1e9:.4f}\n")
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "ti"]) == 0
+    out = capsys.readouterr().out
+    assert f"[ti] waits for hbm: the two at once would need ~{guard.gb(sum(need))} of memory" in out
+    assert "beside hbm" not in out and art.verify(tmp_path / "ti.h5") is None
