@@ -289,7 +289,8 @@ def _start_beside(scene, out: Path, steps, i: int, expected: dict, progress: Pro
     free = max(0, cores - s.stage.busy_cores(scene, s.todo))
     try:
         started = n.stage.start(_context(scene, out, progress, n, expected), n.todo, free)
-    except Exception:  # noqa: BLE001 - it computes in its turn instead, and raises there
+    except Exception as exc:  # noqa: BLE001 - it computes in its turn instead, and raises there if it must
+        progress.log(f"[{n.stage.name}] not started beside {s.stage.name} ({art.first_line(exc)}): it runs in its turn")
         return None
     progress.log(f"[{n.stage.name}] running ({n.why}) beside {s.stage.name}: on {free} of {cores} cores now, "
                  f"the others as {s.stage.name}'s processes end ...")

@@ -157,3 +157,18 @@ def test_the_sweep_waits_for_the_nfrcs_when_the_two_would_not_fit_together(coars
     out = capsys.readouterr().out
     assert f"[ti] waits for hbm: the two at once would need ~{guard.gb(sum(need))} of memory" in out
     assert "beside hbm" not in out and art.verify(tmp_path / "ti.h5") is None
+
+
+def test_a_sweep_that_cannot_start_fails_in_its_turn_and_the_nfrcs_are_kept(coarse_run, tmp_path, capsys):
+    """A time step past the ROM's stability limit (8.9e-7 s on the coarse ROM) is refused by
+    the sweep; started beside the NFRCs it must not take them down: they are computed and
+    kept, and the refusal is the run's error in the ti stage's turn."""
+    scene = clone(coarse_run[1], tmp_path)
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "ti", "--set", "ti.dt=2e-6"]) == 2
+    captured = capsys.readouterr()
+    assert "[hbm] done -> nfrc_dlft.h5, nfrc_rl.h5" in captured.out and "[ti] running (no artifact) ..." in captured.out
+    errors = [x for x in captured.err.splitlines() if x.startswith("bladerub: error:")]
+    assert len(errors) == 1 and "dt_crit = 8.91" in errors[0], captured.err
+    for name in ("nfrc_dlft.h5", "nfrc_rl.h5"):
+        assert art.verify(tmp_path / name) is None
+    assert not (tmp_path / "ti.h5").exists()
