@@ -315,13 +315,12 @@ class SweepRun:
     def _done(self, i: int, future) -> None:
         with self._lock:
             self._in_flight -= 1
-            if future.cancelled():
-                pass
-            elif future.exception() is not None:
-                self._error = self._error or future.exception()
-            else:
-                self._points[i] = future.result()
-                self.on_point(len(self._points), len(self.omegas))
+            if not future.cancelled():  # cancelled: the sweep is being ended (cancel())
+                if future.exception() is not None:
+                    self._error = self._error or future.exception()
+                else:
+                    self._points[i] = future.result()
+                    self.on_point(len(self._points), len(self.omegas))
             self._fill()
 
     def result(self) -> SweepResult:
