@@ -304,7 +304,11 @@ class SweepRun:
 
     def _fill(self) -> None:
         with self._lock:
-            while self._todo and self._error is None and self._in_flight < self._cores:
+            # once every worker has its core, everything goes to the pool's own queue (as a
+            # plain sweep does): a worker then starts its next speed without waiting for
+            # this callback's round trip
+            while self._todo and self._error is None and (self._in_flight < self._cores
+                                                          or self._cores >= self._workers):
                 i = self._todo.pop(0)
                 self._in_flight += 1
                 self._pool.submit(simulate, self._system, *self._args[:2], self.omegas[i], self._args[2]) \
