@@ -257,8 +257,9 @@ class SweepRun:
     """A sweep on a local process pool that may start before every core is free for it.
 
     The pool has one worker per core (`workers`), all started here (fork: from the calling
-    thread, before any other work starts processes); at most `cores` speeds are in flight,
-    and lend(n) raises that as other work on the machine ends (pipelines.runner starts the
+    thread, before any other work starts processes); at most `cores` speeds are in flight
+    (all the rest are queued once every worker has its core), and lend(n) raises that as
+    other work on the machine ends (pipelines.runner starts the
     sweep beside the NFRCs, whose processes hand it their cores as they end). The speeds
     go slowest first (low Omega, most steps), as in sweep(). on_point(done, total) is
     called after each point, from the pool's thread. Not for MPI runs.
