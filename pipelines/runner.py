@@ -329,7 +329,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
                     started = _start_beside(scene, out, steps, i, expected, progress, comm)
                     if started is not None:
                         ahead[steps[i + 1].stage.name] = started
-                        ctx.lend_cores = started.lend
+                        ctx.lend_cores, ctx.beside = started.lend, started.status
                     compute = on_all if s.stage.distributed else on_root
                     compute(comm, lambda s=s, ctx=ctx: s.stage.compute(ctx, s.todo))
                 done.update(o.file for o in s.todo)

@@ -69,11 +69,14 @@ class Background:
 
     lend(n): n more of the machine's cores for it (the stage before it ending processes).
     finish(): in its turn, waits for it and writes its outputs; raises what it raised.
-    cancel(): ends it, writing nothing (the run stopped before its turn)."""
+    cancel(): ends it, writing nothing (the run stopped before its turn).
+    status(): how far it is, a few words for the live line of the stage before it
+    (e.g. "ti: 12/161 speeds")."""
 
     lend: Callable[[int], None]
     finish: Callable[[], None]
     cancel: Callable[[], None]
+    status: Callable[[], str] = lambda: ""
 
 
 @dataclass(frozen=True)
@@ -114,7 +117,8 @@ class Context:
     pipelines.progress.Progress; hashes: {file: inputs hash} and inputs: {file: {component:
     hash}} of the outputs being written (what write_artifact records). lend_cores(n): tells
     the stage started beside this one that n of this stage's cores are free (a no-op when
-    none is)."""
+    none is); beside(): that stage's Background.status, for this stage's live line ("" when
+    none is started)."""
 
     scene: object
     out: Path
@@ -122,6 +126,7 @@ class Context:
     hashes: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
     lend_cores: Callable[[int], None] = lambda n: None
+    beside: Callable[[], str] = lambda: ""
 
     def provenance(self, output: Output, stage: str) -> dict:
         """Keyword arguments of write_artifact for `output` (stage, scene text, hashes)."""

@@ -119,6 +119,13 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
         p.start()
     lines = {key: "starting" for key in procs}
     ended: dict = {}
+
+    def line() -> str:
+        """Each treatment's last words, then how far the stage started beside this one is."""
+        parts = [f"{k}: {'ended' if k in ended else t}" for k, t in lines.items()]
+        beside = ctx.beside()
+        return "; ".join(parts + ([beside] if beside else []))
+
     try:
         with ctx.progress.step("hbm " + " + ".join(procs), None) as update:
             while len(ended) < len(procs):
@@ -130,10 +137,11 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
                             ended[key] = ChildDied(f"the {key} NFRC process ended without an answer "
                                                    f"(exit code {p.exitcode})")
                             ctx.lend_cores(1)
+                    update(line())  # the sweep beside moves between the treatments' words
                     continue
                 if kind == "update":
                     lines[key] = payload
-                    update("; ".join(f"{k}: {t}" for k, t in lines.items()))
+                    update(line())
                 elif kind == "log":
                     ctx.log(payload)
                 elif kind == "warn":
@@ -141,6 +149,7 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
                 else:
                     ended[key] = payload
                     ctx.lend_cores(1)  # its core, to the stage started beside this one
+                    update(line())
     finally:
         for p in procs.values():
             if p.is_alive() and len(ended) < len(procs):  # interrupted: the others end too

@@ -69,7 +69,8 @@ def _start(ctx: Context, outputs, cores: int) -> Background:
             result = run.result()
         _write(ctx, result)
 
-    return Background(lend=run.lend, finish=finish, cancel=run.cancel)
+    return Background(lend=run.lend, finish=finish, cancel=run.cancel,
+                      status=lambda: f"ti: {run.done}/{len(run.omegas)} speeds")
 
 
 def _warn(ctx: Context, rom) -> None:

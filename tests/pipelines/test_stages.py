@@ -5,6 +5,8 @@ a cheap NFRC (N_h = 5, N_t = 64, Omega in [1900, 2000]) and a short TI sweep (2 
 revolutions), then the validation stage (20 periods per point), the figures and `bladerub render`.
 """
 import os
+import re
+from contextlib import contextmanager
 
 import h5py
 import numpy as np
@@ -54,9 +56,22 @@ def _scene(text: str, path):
     return path
 
 
-def _records(scene_path, out, **kw):
+class _Lines(Progress):
+    """A quiet Progress that keeps the text of every live-line update, per step label."""
+
+    def __init__(self):
+        super().__init__(quiet=True)
+        self.lines: dict[str, list[str]] = {}
+
+    @contextmanager
+    def step(self, label, total=None):
+        kept = self.lines.setdefault(label, [])
+        yield lambda text=None, completed=None: kept.append(text) if text is not None else None
+
+
+def _records(scene_path, out, progress=None, **kw):
     """{stage: (action, why)} of one run."""
-    progress = Progress(quiet=True)
+    progress = progress or Progress(quiet=True)
     run_scene(load_scene(scene_path), out, progress=progress, **kw)
     return {r.stage: (r.action, r.why) for r in progress.records}
 
@@ -67,10 +82,14 @@ def tiny(coarse_run, tmp_path_factory):
     scene0, base = coarse_run
     out = fresh_copy(base, tmp_path_factory.mktemp("tiny"))
     scene = _scene(scene0.read_text(), out / "tiny.toml")
-    rec = _records(scene, out)
+    progress = _Lines()
+    rec = _records(scene, out, progress)
     assert rec["hbm"][0] == rec["ti"][0] == rec["validation"][0] == "computed"
     if len(os.sched_getaffinity(0)) >= 2:  # the sweep ran beside the NFRCs (pipelines.runner)
         assert rec["ti"][1] == "no artifact (started beside hbm)", rec["ti"]
+        # and the NFRCs' live line says how far it is once a treatment has ended
+        shown = [t for t in progress.lines["hbm dlft + rl"] if "ended" in t]
+        assert shown and all(re.search(r"; ti: \d+/2 speeds$", t) for t in shown), shown[-3:]
     return scene, out
 
 
