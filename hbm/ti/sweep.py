@@ -204,36 +204,45 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
 
 def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,
           omegas: np.ndarray | None = None, workers: int | None = None,
-          on_point: Callable[[int, int], None] | None = None) -> SweepResult:
+          on_point: Callable[[int, int], None] | None = None, done: dict | None = None,
+          on_speed: Callable[[int, "SpeedResponse"], None] | None = None) -> SweepResult:
     """Time-integration sweep over rotation speeds.
 
     rom: rom.model.RomModel (or a ModalSystem, full or already massless). omegas: rotation
     speeds, (n_omega,), rad/s; default: the grid of ti_options. workers: local processes
     (default: all usable cores; ignored under MPI, where each rank takes every size-th point
     and all ranks get the result). on_point(done, total): called in this process after each
-    point (under MPI: with this rank's own counts), e.g. to show progress.
+    point (under MPI: with this rank's own counts), e.g. to show progress. done: {index in
+    omegas: SpeedResponse} of speeds already marched (an interrupted sweep's), not marched
+    again; on_speed(index, SpeedResponse): called in this process as each other speed ends
+    (under MPI, on each rank for its own speeds), e.g. to keep it on disk.
     Raises ValueError when ti_options.dt exceeds the scheme's stability limit.
     """
     system, omegas = _prepared(rom, contact, ti_options, omegas)
     mu = contact.mu
     comm = mpi_world()
     progress = on_point or (lambda done, total: None)
+    keep = on_speed or (lambda i, response: None)
+    points = dict(done or {})
     if comm is not None:
-        mine = list(range(comm.rank, len(omegas), comm.size))
+        mine = [i for i in range(comm.rank, len(omegas), comm.size) if i not in points]
         local = []
         for k, i in enumerate(mine):
             local.append((i, simulate(system, casing, mu, omegas[i], ti_options)))
+            keep(*local[-1])
             progress(k + 1, len(mine))
-        points = dict(p for part in comm.allgather(local) for p in part)
+        points.update(p for part in comm.allgather(local) for p in part)
         return _stack([points[i] for i in range(len(omegas))])
     n_workers = workers or len(os.sched_getaffinity(0))
-    if n_workers <= 1 or len(omegas) == 1:
-        points = {}
+    if n_workers <= 1 or len(omegas) - len(points) <= 1:
         for i in np.argsort(omegas):  # slowest points (low Omega, most steps) first
-            points[i] = simulate(system, casing, mu, omegas[i], ti_options)
-            progress(len(points), len(omegas))
+            if i not in points:
+                points[i] = simulate(system, casing, mu, omegas[i], ti_options)
+                keep(int(i), points[i])
+                progress(len(points), len(omegas))
         return _stack([points[i] for i in range(len(omegas))])
-    run = SweepRun(system, casing, contact, ti_options, omegas, n_workers, n_workers, on_point=progress)
+    run = SweepRun(system, casing, contact, ti_options, omegas, n_workers, n_workers, on_point=progress,
+                   done=points, on_speed=on_speed)
     try:
         return run.result()
     finally:
@@ -262,7 +271,9 @@ class SweepRun:
     other work on the machine ends (pipelines.runner starts the
     sweep beside the NFRCs, whose processes hand it their cores as they end). The speeds
     go slowest first (low Omega, most steps), as in sweep(). on_point(done, total) is
-    called after each point, from the pool's thread. Not for MPI runs.
+    called after each point, from the pool's thread; so is on_speed(index, SpeedResponse),
+    before it (what it raises fails the sweep, as a failing speed does). done: {index:
+    SpeedResponse} of speeds not to march again (counted as done). Not for MPI runs.
 
     rom: as for sweep(). omegas: (n_omega,), rad/s (default: the grid of ti_options).
     Raises ValueError (dt past the scheme's stability limit, a speed <= 0) when built.
@@ -270,22 +281,24 @@ class SweepRun:
 
     def __init__(self, rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,
                  omegas: np.ndarray | None = None, workers: int | None = None, cores: int | None = None,
-                 on_point: Callable[[int, int], None] | None = None):
+                 on_point: Callable[[int, int], None] | None = None, done: dict | None = None,
+                 on_speed: Callable[[int, "SpeedResponse"], None] | None = None):
         import concurrent.futures
         import threading
 
         self._system, self.omegas = _prepared(rom, contact, ti_options, omegas)
         self._args = (casing, contact.mu, ti_options)
-        workers = min(workers or len(os.sched_getaffinity(0)), len(self.omegas))
+        self._points: dict = dict(done or {})
+        self._todo = [int(i) for i in np.argsort(self.omegas) if i not in self._points]
+        workers = max(1, min(workers or len(os.sched_getaffinity(0)), len(self._todo)))
         self._workers = workers
         self._cores = workers if cores is None else max(0, min(cores, workers))
-        self._todo = [int(i) for i in np.argsort(self.omegas)]
-        self._points: dict = {}
         self._error: BaseException | None = None
         self._in_flight = 0
         self._lock = threading.RLock()  # a done callback may run at once, inside _fill
         self._finished = threading.Event()
         self.on_point = on_point or (lambda done, total: None)
+        self.on_speed = on_speed or (lambda i, response: None)
         self._pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=process_context(),
                                                             initializer=limit_blas_threads)
         # with fork the pool starts all its workers at its first task: here, from this thread
@@ -321,8 +334,14 @@ class SweepRun:
         with self._lock:
             self._in_flight -= 1
             if not future.cancelled():  # cancelled: the sweep is being ended (cancel())
-                if future.exception() is not None:
-                    self._error = self._error or future.exception()
+                error = future.exception()
+                if error is None:
+                    try:  # the pool would only log what a callback raises
+                        self.on_speed(i, future.result())
+                    except Exception as exc:  # noqa: BLE001 - the sweep's failure, raised by result()
+                        error = exc
+                if error is not None:
+                    self._error = self._error or error
                 else:
                     self._points[i] = future.result()
                     self.on_point(len(self._points), len(self.omegas))

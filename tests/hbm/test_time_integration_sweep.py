@@ -25,7 +25,7 @@ from hbm.harmonic.fourier import FourierBasis
 from hbm.contact.casing import casing_distance
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
 from hbm.ti.periodicity import PeriodClass
-from hbm.ti.sweep import sweep
+from hbm.ti.sweep import SpeedResponse, sweep
 from hbm.ti.march import modal_system, rom_modal_system
 from hbm.ti.validation import compare_with_hbm, march_from_hbm
 from rom.model import modal_damping
@@ -213,6 +213,43 @@ def test_a_sweep_started_without_cores_waits_for_them_and_ends_as_the_serial_one
     workers = list(stopped._pool._processes.values())
     stopped.cancel()
     assert stopped.done == 0 and not any(w.is_alive() for w in workers)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_sweep_given_the_speeds_done_marches_only_the_others_and_ends_as_a_whole_one(workers):
+    """An interrupted sweep's speeds (pipelines.stages.ti keeps them in ti.partial.h5) are not
+    marched again: on_speed hears of the others only, each once, and the result is the
+    uninterrupted sweep's, row for row."""
+    rom = standin_rom()
+    opts = TimeIntegrationOptions(dt=1e-6, n_revolutions=8, n_keep=2, samples_per_revolution=64)
+    om = np.array([1900.0, 1500.0, 1700.0, 1600.0])
+    whole = sweep(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=1)
+    rows = {f.name: getattr(whole, f.name) for f in fields(whole)}
+    done = {i: SpeedResponse(**{k: v[i] for k, v in rows.items()}) for i in (0, 2)}
+    heard, counts = [], []
+    again = sweep(rom, CasingOptions(), ContactOptions(), opts, omegas=om, workers=workers, done=done,
+                  on_speed=lambda i, r: heard.append((i, r.omega)), on_point=lambda n, total: counts.append(n))
+    assert sorted(heard) == [(1, 1500.0), (3, 1600.0)]
+    assert counts == [3, 4]  # the speeds done count from the start
+    for f in fields(whole):
+        if f.name != "cpu_time":
+            np.testing.assert_array_equal(getattr(again, f.name), getattr(whole, f.name), err_msg=f.name)
+
+
+def test_a_speed_that_cannot_be_kept_fails_the_sweep_run():
+    """What on_speed raises (a full disk while keeping a speed) is the sweep's failure, not a
+    line the pool logs while the sweep goes on without the speed."""
+    from hbm.ti.sweep import SweepRun
+
+    def full_disk(i, response):
+        raise OSError(28, "No space left on device")
+
+    opts = TimeIntegrationOptions(dt=1e-6, n_revolutions=8, n_keep=2, samples_per_revolution=64)
+    run = SweepRun(standin_rom(), CasingOptions(), ContactOptions(), opts, omegas=np.array([1900.0, 1500.0, 1700.0]),
+                   workers=2, on_speed=full_disk)
+    with pytest.raises(OSError, match="No space left"):
+        run.result()
+    run.cancel()
 
 
 def _fails_at_1500(system, casing, mu, omega, options):
