@@ -134,11 +134,15 @@ def plan(scene, out: Path, names, force: bool = False, expected: dict | None = N
     return steps
 
 
+#: What a stage's partial file holds, where it is not an NFRC's points.
+_PARTS = {"ti.h5": "speeds", "isolas.h5": "branches"}
+
+
 def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: bool = True) -> str:
     """The artifacts a stopped run leaves usable (those current before it, those it finished:
     a stage with several outputs, such as the NFRCs, may have finished some), the points of
-    interrupted NFRCs and the branches of an interrupted isola search. detailed: read the
-    files (else names and times only)."""
+    interrupted NFRCs, the speeds of an interrupted sweep and the branches of an interrupted
+    isola search. detailed: read the files (else names and times only)."""
     from pipelines.branch_store import partial_path
 
     def finished(o) -> bool:
@@ -155,13 +159,15 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
             part = partial_path(out / o.file)
             if o.file not in kept and o.file.endswith(".h5") and part.is_file():
                 if not detailed:
-                    kept.append(f"the points of {part.name}")
+                    kept.append(f"the {_PARTS.get(o.file, 'points')} of {part.name}")
                     continue
                 a = art.read_attrs(part)
                 if a.get("n_points", 0):
                     kept.append(f"{a['n_points']} points of {part.name}")
                 elif a.get("n_branches", 0):
                     kept.append(f"{a['n_branches']} branches of {part.name}")
+                elif a.get("n_speeds", 0):
+                    kept.append(f"{a['n_speeds']} speeds of {part.name}")
     return ", ".join(kept) if kept else "nothing new"
 
 

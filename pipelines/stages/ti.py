@@ -26,18 +26,93 @@ def massless_warning(scheme: str, mu: float, lock) -> str | None:
             "physics; scheme = carpenter keeps the boundary's mass")
 
 
+class SweepPartial:
+    """ti.partial.h5: each speed of the sweep as it ends, so that an interrupted sweep goes
+    on from the speeds it finished (the NFRCs' and the isola search's partial files do the
+    same). One group per speed, `speeds/III` (III its index in the scene's grid) with the
+    hbm.ti.sweep.SpeedResponse fields as datasets and `complete` written last; the file is
+    reopened for each speed, so a kill leaves at most that speed cut, and it is dropped on
+    reading. Root attributes: inputs_hash (ti.h5's), n_speeds (complete speeds, for what an
+    interrupted run says it kept)."""
+
+    def __init__(self, path, inputs_hash: str):
+        self.path, self.hash = path, inputs_hash
+
+    def resume(self, omegas: np.ndarray) -> dict:
+        """{index: SpeedResponse} kept by an interrupted sweep of these inputs over `omegas`
+        ((n_omega,), rad/s); {} when there is none or the file cannot be read."""
+        import h5py
+
+        from hbm.ti.sweep import SpeedResponse
+
+        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+            return {}
+        names = [f.name for f in SpeedResponse.__dataclass_fields__.values()]
+        found = {}
+        try:
+            with h5py.File(self.path, "r") as h5:
+                for key, g in h5.get("speeds", {}).items():
+                    i = int(key)
+                    if not g.attrs.get("complete", 0) or i >= len(omegas) or g["omega"][()] != omegas[i]:
+                        continue
+                    found[i] = SpeedResponse(**{k: (g[k][()] if k in g else None) for k in names})
+        except (OSError, KeyError, ValueError):
+            return {}
+        return found
+
+    def speed(self, i: int, response) -> None:
+        """Keep speed i's SpeedResponse."""
+        from dataclasses import fields
+
+        fresh = not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash
+        with art.open_in_place(self.path, "w" if fresh else "a") as h5:
+            if fresh:
+                h5.attrs["inputs_hash"] = self.hash
+            speeds = h5.require_group("speeds")
+            name = f"{i:03d}"
+            if name in speeds:
+                del speeds[name]
+            g = speeds.create_group(name)
+            for f in fields(response):
+                value = getattr(response, f.name)
+                if value is not None:
+                    g.create_dataset(f.name, data=value).attrs["unit"] = f.metadata["unit"]
+            g.attrs["complete"] = 1  # last: the speed counts once all of it is written
+            h5.attrs["n_speeds"] = sum(int(s.attrs.get("complete", 0)) for s in speeds.values())
+
+
+def _partial(ctx: Context) -> SweepPartial:
+    from pipelines.branch_store import partial_path
+
+    return SweepPartial(partial_path(ctx.out / TI.file), ctx.hashes[TI.file])
+
+
+def _resumed(ctx: Context, partial: SweepPartial) -> dict:
+    t = ctx.scene.ti
+    done = partial.resume(np.linspace(t.omega_min, t.omega_max, t.n_omega))
+    if done:
+        ctx.log(f"  resuming from {len(done)} of {t.n_omega} speeds on disk ({partial.path.name})")
+    return done
+
+
 def _compute(ctx: Context, outputs) -> None:
     """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
-    rank 0 writes ti.h5."""
+    rank 0 writes ti.h5 (and keeps its own speeds in ti.partial.h5 as they end)."""
     from hbm.ti.sweep import sweep
     from pipelines.parallel import on_root, world
 
     scene = ctx.scene
     rom = read_rom(ctx.out)
     _warn(ctx, rom)
+    partial = _partial(ctx)
+    comm = world()
+    # rank 0 alone reads and writes the partial file (HDF5 locks a file one process writes)
+    done = on_root(comm, lambda: _resumed(ctx, partial))
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
-        result = sweep(rom, scene.casing, scene.contact, scene.ti, on_point=lambda done, total: update(completed=done))
-    on_root(world(), lambda: _write(ctx, result))
+        update(completed=len(done))
+        result = sweep(rom, scene.casing, scene.contact, scene.ti, on_point=lambda n, total: update(completed=n),
+                       done=done, on_speed=partial.speed if comm is None or comm.rank == 0 else None)
+    on_root(comm, lambda: _write(ctx, result, partial))
 
 
 def _start(ctx: Context, outputs, cores: int) -> Background:
@@ -54,7 +129,10 @@ def _start(ctx: Context, outputs, cores: int) -> Background:
         if live:
             live[0](completed=done)
 
-    run = SweepRun(rom, scene.casing, scene.contact, scene.ti, cores=cores, on_point=on_point)
+    partial = _partial(ctx)
+    done = _resumed(ctx, partial)
+    run = SweepRun(rom, scene.casing, scene.contact, scene.ti, cores=cores, on_point=on_point, done=done,
+                   on_speed=partial.speed)
     try:
         _warn(ctx, rom)
     except BaseException:
@@ -67,7 +145,7 @@ def _start(ctx: Context, outputs, cores: int) -> Background:
             live.append(update)
             update(completed=run.done)
             result = run.result()
-        _write(ctx, result)
+        _write(ctx, result, partial)
 
     return Background(lend=run.lend, finish=finish, cancel=run.cancel,
                       status=lambda: f"ti: {run.done}/{len(run.omegas)} speeds")
@@ -80,11 +158,12 @@ def _warn(ctx: Context, rom) -> None:
         ctx.log("  WARNING: " + line)
 
 
-def _write(ctx: Context, result) -> None:
+def _write(ctx: Context, result, partial: SweepPartial) -> None:
     from hbm.ti.periodicity import PeriodClass
 
     scene = ctx.scene
     art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
+    partial.path.unlink(missing_ok=True)  # ti.h5 holds every speed now
     n_l = scene.casing.n_lobes
     counts = np.bincount(result.period_class.astype(int), minlength=len(PeriodClass))
     ctx.log(f"  {len(result.omega)} speeds; classes: "

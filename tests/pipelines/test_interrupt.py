@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import json
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -160,6 +161,23 @@ def test_ctrl_c_in_hbm_with_the_sweep_started_beside_it(coarse_run, tmp_path, ca
     assert art.verify(tmp_path / "ti.h5") is None
     if len(os.sched_getaffinity(0)) >= 2:
         assert "[ti] running (no artifact) beside hbm" in capsys.readouterr().out
+
+
+def test_ctrl_c_in_the_sweep_keeps_its_finished_speeds(coarse_nfrc, tmp_path, capsys):
+    """Ctrl-C once the sweep has kept a speed (ti.partial.h5): the line counts the speeds
+    kept, and the next run goes on from them to a complete ti.h5."""
+    scene = clone(coarse_nfrc[1], tmp_path)
+    # 12 speeds of 200 revolutions: ~2 s of sweep here, ~0.3 s a speed
+    args = ("--set", "ti.n_omega=12", "--set", "ti.n_revolutions=200", "--until", "ti")
+    line = interrupt(scene, tmp_path, "ti", 30.0, *args, once=("ti.partial.h5",))
+    kept = line.split("; kept: ")[1].split(";")[0]
+    assert kept.startswith("mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5") and not (tmp_path / "ti.h5").exists()
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(tmp_path), *args]) == 0
+    out = capsys.readouterr().out
+    if "speeds of ti.partial.h5" in kept:  # the signal came after the first speed was complete
+        assert re.search(r"resuming from \d+ of 12 speeds on disk \(ti.partial.h5\)", out), out
+    assert art.verify(tmp_path / "ti.h5") is None and not (tmp_path / "ti.partial.h5").exists()
 
 
 def test_ctrl_c_in_ti_then_in_validation(coarse_nfrc, tmp_path):

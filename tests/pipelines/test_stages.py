@@ -85,6 +85,7 @@ def tiny(coarse_run, tmp_path_factory):
     progress = _Lines()
     rec = _records(scene, out, progress)
     assert rec["hbm"][0] == rec["ti"][0] == rec["validation"][0] == "computed"
+    assert not list(out.glob("*.partial.h5"))  # each gone once its artifact holds everything
     if len(os.sched_getaffinity(0)) >= 2:  # the sweep ran beside the NFRCs (pipelines.runner)
         assert rec["ti"][1] == "no artifact (started beside hbm)", rec["ti"]
         # and the NFRCs' live line says how far it is once a treatment has ended

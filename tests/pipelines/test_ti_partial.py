@@ -1,0 +1,54 @@
+"""The sweep keeps each speed in ti.partial.h5 as it ends (pipelines.stages.ti.SweepPartial),
+and a run of the same inputs goes on from the speeds on disk instead of marching them again
+(the interrupted case itself: tests/pipelines/test_interrupt.py)."""
+from dataclasses import fields, replace
+
+import h5py
+import numpy as np
+
+from coarse_runs import clone
+from hbm.ti.sweep import SpeedResponse
+from pipelines import artifacts as art
+from pipelines.cli import main
+from pipelines.stages.ti import SweepPartial, read_sweep
+
+
+def _speed(result, i: int) -> SpeedResponse:
+    return SpeedResponse(**{f.name: getattr(result, f.name)[i] for f in fields(result)})
+
+
+def test_a_sweep_goes_on_from_the_speeds_on_disk(coarse_nfrc, tmp_path, capsys):
+    scene = clone(coarse_nfrc[1], tmp_path)
+    run = ["run", str(scene), "--out", str(tmp_path), "--until", "ti", "--set", "ti.n_omega=6"]
+    assert main(run + ["--quiet"]) == 0
+    whole = read_sweep(tmp_path)
+    part = tmp_path / "ti.partial.h5"
+    assert not part.exists()  # gone once ti.h5 holds every speed
+    inputs_hash = art.read_attrs(tmp_path / "ti.h5")["inputs_hash"]
+
+    # an interrupted sweep's file: speeds 0, 2 and 5 kept, speed 3 cut by a kill while it was
+    # written; the kept ones marked (a CPU time of -1 s) to tell them from speeds marched again
+    kept = SweepPartial(part, inputs_hash)
+    for i in (0, 2, 5, 3):
+        kept.speed(i, replace(_speed(whole, i), cpu_time=-1.0))
+    with h5py.File(part, "a") as h5:
+        del h5["speeds/003"].attrs["complete"]
+    (tmp_path / "ti.h5").unlink()
+    capsys.readouterr()
+    assert main(run) == 0
+    assert "resuming from 3 of 6 speeds on disk (ti.partial.h5)" in capsys.readouterr().out
+    got = read_sweep(tmp_path)
+    np.testing.assert_array_equal(got.cpu_time[[0, 2, 5]], -1.0)
+    assert (got.cpu_time[[1, 3, 4]] > 0).all()
+    for f in fields(whole):  # the speeds taken from disk and those marched: the whole sweep's rows
+        if f.name != "cpu_time":
+            np.testing.assert_array_equal(getattr(got, f.name), getattr(whole, f.name), err_msg=f.name)
+    assert not part.exists() and art.verify(tmp_path / "ti.h5") is None
+
+    # speeds kept for other inputs (another [ti] step, say) are not taken
+    SweepPartial(part, "0" * 64).speed(1, replace(_speed(whole, 1), cpu_time=-1.0))
+    (tmp_path / "ti.h5").unlink()
+    capsys.readouterr()
+    assert main(run) == 0
+    assert "resuming" not in capsys.readouterr().out
+    assert (read_sweep(tmp_path).cpu_time > 0).all() and not part.exists()
