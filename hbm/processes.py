@@ -5,6 +5,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+from contextlib import contextmanager
 
 
 def process_context():
@@ -12,6 +13,28 @@ def process_context():
     the built residuals) unless MPI is initialised in this process (dolfinx does it in the
     fem stage; mpi4py's state does not survive a fork), then "spawn"."""
     return multiprocessing.get_context("spawn" if "mpi4py.MPI" in sys.modules else "fork")
+
+
+class WorkerDied(RuntimeError):
+    """A worker process of a pool ended without an answer: killed (the kernel's OOM killer,
+    a user) or crashed. What it was computing is lost; what the pool finished before is not."""
+
+
+def worker_died(what: str) -> WorkerDied:
+    """The WorkerDied of a pool of `what` (e.g. "the isola search"), for its BrokenProcessPool:
+    Python's own text names no task and reads as a bug (a traceback in the CLI)."""
+    return WorkerDied(f"a worker process of {what} ended without an answer (killed, perhaps for lack of memory)")
+
+
+@contextmanager
+def reported_deaths(what: str):
+    """Within it, a pool's BrokenProcessPool is raised as worker_died(what)."""
+    from concurrent.futures.process import BrokenProcessPool
+
+    try:
+        yield
+    except BrokenProcessPool as exc:
+        raise worker_died(what) from exc
 
 
 _LIMITS: list = []  # keeps each worker's BLAS limit alive for its lifetime

@@ -53,7 +53,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
-from hbm.processes import limit_blas_threads, process_context
+from hbm.processes import limit_blas_threads, process_context, reported_deaths
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -266,8 +266,8 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
                     progress(len(rows), s)
         else:
             ctx = process_context()  # fork: the residual is built once per worker from the inherited factory
-            with concurrent.futures.ProcessPoolExecutor(workers, mp_context=ctx, initializer=_init_worker,
-                                                        initargs=(factory, known, options)) as pool:
+            with reported_deaths("the isola search"), concurrent.futures.ProcessPoolExecutor(
+                    workers, mp_context=ctx, initializer=_init_worker, initargs=(factory, known, options)) as pool:
                 for f in concurrent.futures.as_completed([pool.submit(_run_worker, t) for t in tasks]):
                     r, c = f.result()
                     rows += r
@@ -587,7 +587,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             found, owner, n_cont, n_pts, cpu2 = branches_phase()
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = process_context()
-            with concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=limit_blas_threads) as pool:
+            with reported_deaths("the isola search"), concurrent.futures.ProcessPoolExecutor(
+                    2, mp_context=ctx, initializer=limit_blas_threads) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
         value, error = None, None

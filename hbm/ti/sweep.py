@@ -18,16 +18,18 @@ Amplitude: (max - min) / 2 of the LE radial displacement over every step of the 
 """
 from __future__ import annotations
 
+import concurrent.futures
 import math
 import os
 import time
 from collections.abc import Callable
+from concurrent.futures.process import BrokenProcessPool
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.processes import limit_blas_threads, mpi_world, process_context
+from hbm.processes import limit_blas_threads, mpi_world, process_context, worker_died
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -283,7 +285,6 @@ class SweepRun:
                  omegas: np.ndarray | None = None, workers: int | None = None, cores: int | None = None,
                  on_point: Callable[[int, int], None] | None = None, done: dict | None = None,
                  on_speed: Callable[[int, "SpeedResponse"], None] | None = None):
-        import concurrent.futures
         import threading
 
         self._system, self.omegas = _prepared(rom, contact, ti_options, omegas)
@@ -335,6 +336,8 @@ class SweepRun:
             self._in_flight -= 1
             if not future.cancelled():  # cancelled: the sweep is being ended (cancel())
                 error = future.exception()
+                if isinstance(error, BrokenProcessPool):
+                    error = worker_died("the time-integration sweep")
                 if error is None:
                     try:  # the pool would only log what a callback raises
                         self.on_speed(i, future.result())

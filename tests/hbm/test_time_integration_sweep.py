@@ -273,6 +273,34 @@ def test_a_speed_that_fails_in_a_sweep_run_is_raised_when_it_is_waited_for(monke
     run.cancel()
 
 
+def _killed_at_1900(system, casing, mu, omega, options):
+    """hbm.ti.sweep.simulate (a stand-in's response), but the worker marching 1900 rad/s is
+    killed (SIGKILL: the OOM killer's signal)."""
+    import signal
+
+    if omega == 1900.0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return SpeedResponse(*(0.0,) * 18)
+
+
+def test_a_killed_worker_fails_the_sweep_with_a_line_that_says_so(monkeypatch):
+    """Python's BrokenProcessPool names nothing and reads as a bug (the CLI shows a traceback
+    for it); the sweep raises hbm.processes.WorkerDied instead, and keeps what it finished."""
+    import hbm.ti.sweep as sweep_module
+    from hbm.processes import WorkerDied
+
+    monkeypatch.setattr(sweep_module, "simulate", _killed_at_1900)
+    kept = []
+    opts = TimeIntegrationOptions(dt=1e-6, n_revolutions=8, n_keep=2, samples_per_revolution=64)
+    run = sweep_module.SweepRun(standin_rom(), CasingOptions(), ContactOptions(), opts,
+                                omegas=np.array([1900.0, 1500.0, 1700.0]), workers=1,
+                                on_speed=lambda i, r: kept.append(i))
+    with pytest.raises(WorkerDied, match="worker process of the time-integration sweep ended without an answer"):
+        run.result()
+    run.cancel()
+    assert sorted(kept) == [1, 2]  # one worker, slowest first: 1500 and 1700 rad/s ended before
+
+
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
 def test_mpi_sweep_equals_the_serial_one(tmp_path):
     """`mpirun -n 2` splits the points over two ranks (hbm.processes.mpi_world); every rank

@@ -1,12 +1,18 @@
 """The sweep keeps each speed in ti.partial.h5 as it ends (pipelines.stages.ti.SweepPartial),
 and a run of the same inputs goes on from the speeds on disk instead of marching them again
-(the interrupted case itself: tests/pipelines/test_interrupt.py)."""
+(the interrupted case itself: tests/pipelines/test_interrupt.py), also after a worker of the
+sweep was killed, which is one line naming it."""
+import os
+import subprocess
+import sys
 from dataclasses import fields, replace
 
 import h5py
 import numpy as np
+import pytest
 
-from coarse_runs import clone
+from coarse_runs import ROOT, clone
+from support import shell_env
 from hbm.ti.sweep import SpeedResponse
 from pipelines import artifacts as art
 from pipelines.cli import main
@@ -52,3 +58,39 @@ def test_a_sweep_goes_on_from_the_speeds_on_disk(coarse_nfrc, tmp_path, capsys):
     assert main(run) == 0
     assert "resuming" not in capsys.readouterr().out
     assert (read_sweep(tmp_path).cpu_time > 0).all() and not part.exists()
+
+
+#: `bladerub` whose time-integration worker marching 2000 rad/s (the last speed of the SHORT
+#: grid; the slowest go first) is killed, as the OOM killer would.
+KILLED = """import os, signal, sys
+import hbm.ti.sweep as s
+real = s.simulate
+def simulate(system, casing, mu, omega, options):
+    if omega == 2000.0:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return real(system, casing, mu, omega, options)
+s.simulate = simulate
+from pipelines.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.skipif(len(os.sched_getaffinity(0)) < 2, reason="one core: the sweep marches in the run's own process, "
+                    "which the kill would end (the worker's case needs a pool)")
+def test_a_killed_sweep_worker_is_one_line_and_the_speeds_done_are_kept(coarse_nfrc, tmp_path, capsys):
+    scene = clone(coarse_nfrc[1], tmp_path)
+    run = ["run", str(scene), "--out", str(tmp_path), "--until", "ti"]
+    r = subprocess.run([sys.executable, "-c", KILLED] + run, cwd=ROOT, capture_output=True, text=True,
+                       env=shell_env(), timeout=600)
+    assert r.returncode == 1, r.stderr
+    assert r.stderr.strip() == ("bladerub: error: a worker process of the time-integration sweep ended without an "
+                                "answer (killed, perhaps for lack of memory)"), r.stderr
+    assert not (tmp_path / "ti.h5").exists()
+    kept = art.read_attrs(tmp_path / "ti.partial.h5")["n_speeds"]
+    # two workers, slowest first: whichever took 2000 rad/s had ended one or two speeds, the
+    # other one or none (the fourth speed goes to a worker once three have been taken)
+    assert 2 <= kept <= 3
+    capsys.readouterr()
+    assert main(run) == 0
+    assert f"resuming from {kept} of 4 speeds on disk" in capsys.readouterr().out
+    assert art.verify(tmp_path / "ti.h5") is None and not (tmp_path / "ti.partial.h5").exists()
