@@ -15,7 +15,8 @@ is final: an upstream output recomputed with the same inputs leaves its downstre
 A stage that can start ahead of its turn (Stage.start: the time-integration sweep, which
 needs only the ROM) runs in the background beside the stage before it (the NFRCs), on the
 cores that stage leaves free and those its processes free as they end; in its turn it is
-waited for and written (_start_beside). A run stopped before then ends it, writing nothing.
+waited for and written (_start_beside). A run stopped before then ends it, writing no
+artifact (what it finished stays in its partial file, as in its own turn).
 
 Figures are checked last, against figures/manifest.json (inputs hash and file checksums): a
 figure whose file is missing, damaged or outdated is redrawn from the artifacts.
@@ -293,13 +294,13 @@ def _start_beside(scene, out: Path, steps, i: int, expected: dict, progress: Pro
                      "of memory")
         return None
     free = max(0, cores - s.stage.busy_cores(scene, s.todo))
-    try:
-        started = n.stage.start(_context(scene, out, progress, n, expected), n.todo, free)
+    try:  # on no core: steps[i] lends them (Stage.busy_cores)
+        started = n.stage.start(_context(scene, out, progress, n, expected), n.todo, 0)
     except Exception as exc:  # noqa: BLE001 - it computes in its turn instead, and raises there if it must
         progress.log(f"[{n.stage.name}] not started beside {s.stage.name} ({art.first_line(exc)}): it runs in its turn")
         return None
-    progress.log(f"[{n.stage.name}] running ({n.why}) beside {s.stage.name}: on {free} of {cores} cores now, "
-                 f"the others as {s.stage.name}'s processes end ...")
+    progress.log(f"[{n.stage.name}] running ({n.why}) beside {s.stage.name}: on {free} of {cores} cores once "
+                 f"{s.stage.name}'s processes are started, the others as they end ...")
     return started
 
 

@@ -95,8 +95,11 @@ class Stage:
         the stage computes in its turn only. The runner starts it when its upstream is
         current and the two fit the machine's memory, outside MPI runs.
     busy_cores(scene, outputs): how many cores compute keeps busy; a stage that has it
-        hands its cores to the next stage's start as its processes end (ctx.lend_cores);
-        None: the next stage waits for this one."""
+        hands the next stage's start (begun on no core) the cores it leaves free once its own
+        processes are started, and each process's core as it ends (ctx.lend_cores); None: the
+        next stage waits for this one. (Not before its processes are started: they are forked,
+        and a fork while the stage beside writes HDF5 from a thread would copy HDF5's lock
+        held into the child.)"""
 
     name: str
     depends: tuple[str, ...]

@@ -54,6 +54,7 @@ def _compute(ctx: Context, outputs, workers: int | None = None) -> None:
     warn_friction_lock(ctx, rom)
     workers = min(_workers(len(outputs)) if workers is None else workers, len(outputs))
     if workers <= 1:
+        ctx.lend_cores(len(os.sched_getaffinity(0)) - 1)  # this process computes on one (Stage.busy_cores)
         for output in outputs:
             with ctx.progress.step(f"hbm {output.key}", None) as update:
                 _run_method(ctx, rom, output, _Reporter(ctx.log, ctx.progress.warn, update))
@@ -117,6 +118,8 @@ def _run_concurrently(ctx: Context, outputs: tuple) -> None:
     ctx.log(f"  {' and '.join(procs)} at once, one process each")
     for p in procs.values():  # before the live line's thread starts (fork copies one thread)
         p.start()
+    # the cores these processes leave free, now that they are forked (Stage.busy_cores)
+    ctx.lend_cores(max(0, len(os.sched_getaffinity(0)) - len(procs)))
     lines = {key: "starting" for key in procs}
     ended: dict = {}
 
