@@ -229,6 +229,25 @@ def test_an_interrupted_search_resumes_without_recomputing(primary):
     np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
 
 
+def _killed(items):
+    """The seeds' worker task (hbm.isolas.search._run_worker), but the worker is killed
+    (SIGKILL: the OOM killer's signal)."""
+    import signal
+
+    os.kill(os.getpid(), signal.SIGKILL)
+
+
+def test_a_killed_worker_fails_the_search_with_a_line_that_says_so(primary, monkeypatch):
+    """Python's BrokenProcessPool names nothing and the CLI shows a traceback for it; the
+    search raises hbm.processes.WorkerDied, which the CLI prints as its one line."""
+    import hbm.isolas.search as search_module
+    from hbm.processes import WorkerDied
+
+    monkeypatch.setattr(search_module, "_run_worker", _killed)
+    with pytest.raises(WorkerDied, match="a worker process of the isola search ended without an answer"):
+        search(factory, modal_seeds(), [primary], options(workers=2))
+
+
 def test_a_search_in_this_process_leaves_the_blas_threads_as_it_found_them(primary):
     """With one worker the seeds are corrected in the caller's process on one BLAS thread,
     as in a pool's worker; the limit must end with the search, or whatever the process

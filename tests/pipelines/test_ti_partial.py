@@ -51,13 +51,14 @@ def test_a_sweep_goes_on_from_the_speeds_on_disk(coarse_nfrc, tmp_path, capsys):
             np.testing.assert_array_equal(getattr(got, f.name), getattr(whole, f.name), err_msg=f.name)
     assert not part.exists() and art.verify(tmp_path / "ti.h5") is None
 
-    # speeds kept for other inputs (another [ti] step, say) are not taken
-    SweepPartial(part, "0" * 64).speed(1, replace(_speed(whole, 1), cpu_time=-1.0))
-    (tmp_path / "ti.h5").unlink()
-    capsys.readouterr()
-    assert main(run) == 0
-    assert "resuming" not in capsys.readouterr().out
-    assert (read_sweep(tmp_path).cpu_time > 0).all() and not part.exists()
+    # speeds kept for other inputs (another [ti] step, say) are not taken, nor those of
+    # another grid; a speed kept for other inputs starts the file over
+    SweepPartial(part, inputs_hash).speed(1, _speed(whole, 1))
+    assert list(SweepPartial(part, inputs_hash).resume(whole.omega)) == [1]
+    assert SweepPartial(part, "0" * 64).resume(whole.omega) == {}
+    assert SweepPartial(part, inputs_hash).resume(whole.omega[::-1]) == {}
+    SweepPartial(part, "0" * 64).speed(2, _speed(whole, 2))
+    assert list(SweepPartial(part, "0" * 64).resume(whole.omega)) == [2]
 
 
 #: `bladerub` whose time-integration worker marching 2000 rad/s (the last speed of the SHORT
