@@ -44,7 +44,7 @@ def run(rom, scene, shared: bool, workers: int):
 
     t = scene.ti
     system = scheme_system(rom_modal_system(rom), t.scheme, t.massless_cutoff)
-    omegas = np.linspace(t.omega_min, t.omega_max, t.n_omega)
+    omegas = t.omegas
     methods = sorted(scene.hbm.methods, key=lambda m: m != "rl")  # the longer NFRC first
     pool = lambda: cf.ProcessPoolExecutor(workers, mp_context=process_context(), initializer=limit_blas_threads)
 

@@ -273,3 +273,11 @@ class TimeIntegrationOptions:
                              f"got {self.settle_rtol}")
         if not self.max_order >= 1:
             raise ValueError(f"max_order must be >= 1, got {self.max_order}")
+
+    @property
+    def omegas(self):
+        """The sweep grid, (n_omega,), rad/s: the one definition (an interrupted sweep's speeds
+        on disk are matched against it to the bit)."""
+        import numpy as np
+
+        return np.linspace(self.omega_min, self.omega_max, self.n_omega)

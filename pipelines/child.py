@@ -11,8 +11,10 @@ from __future__ import annotations
 import multiprocessing
 import signal
 
+from hbm.processes import WorkerDied
 
-class ChildDied(RuntimeError):
+
+class ChildDied(WorkerDied):
     """The child process ended without an answer (killed, crashed)."""
 
 

@@ -86,12 +86,11 @@ def _cmd_render(args) -> int:
 
 def _failures() -> tuple:
     """Errors of a stage's own making that the user can act on: one line, exit 1."""
-    from hbm.processes import WorkerDied
+    from hbm.processes import WorkerDied  # pipelines.child.ChildDied too
     from mesh.blade import MeshingError
-    from pipelines.child import ChildDied
     from pipelines.render import RenderError
 
-    return MeshingError, ChildDied, WorkerDied, RenderError
+    return MeshingError, WorkerDied, RenderError
 
 
 def _stop_children(signum, frame):

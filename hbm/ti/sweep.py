@@ -257,7 +257,7 @@ def _prepared(rom, contact: ContactOptions, ti_options: TimeIntegrationOptions, 
     system = scheme_system(system, ti_options.scheme, ti_options.massless_cutoff)
     check_time_step(system, ti_options.dt, contact.mu)
     if omegas is None:
-        omegas = np.linspace(ti_options.omega_min, ti_options.omega_max, ti_options.n_omega)
+        omegas = ti_options.omegas
     omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
     if not (omegas > 0).all():
         raise ValueError("rotation speeds must be > 0 rad/s")

@@ -89,7 +89,7 @@ def _partial(ctx: Context) -> SweepPartial:
 
 def _resumed(ctx: Context, partial: SweepPartial) -> dict:
     t = ctx.scene.ti
-    done = partial.resume(np.linspace(t.omega_min, t.omega_max, t.n_omega))
+    done = partial.resume(t.omegas)
     if done:
         ctx.log(f"  resuming from {len(done)} of {t.n_omega} speeds on disk ({partial.path.name})")
     return done
@@ -201,7 +201,7 @@ def _estimate(scene, out, outputs) -> Estimate:
     # over the default scene's whole sweep, early stops included, 110 ns per step of the full
     # 200 revolutions, idle machine, spread over the cores
     t = scene.ti
-    omegas = np.linspace(t.omega_min, t.omega_max, t.n_omega)
+    omegas = t.omegas
     steps = float(np.sum(t.n_revolutions * 2 * np.pi / (omegas * t.dt)))
     cores = len(__import__("os").sched_getaffinity(0))
     return Estimate(size=f"{t.n_omega} speeds, {steps:.3g} steps", memory=0.3e9 * min(cores, t.n_omega),
