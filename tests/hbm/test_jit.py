@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from hbm.jit import RETUNED, tuning_cpu
+from hbm.jit import PREFER_256, RETUNED, tuning_cpu, tuning_features
 
 ROOT = Path(__file__).resolve().parents[2]
 
@@ -26,17 +26,29 @@ def add(x):
     return x + 1
 
 add(1)
-print(llvm.get_host_cpu_name() + "|" + cpu_target.target_context.codegen().magic_tuple()[1])
+magic = cpu_target.target_context.codegen().magic_tuple()
+print("|".join([llvm.get_host_cpu_name(), magic[1], llvm.get_host_cpu_features().flatten(), magic[2]]))
 """
 
 
-def _codegen_cpu(tmp_path, first="", **env):
-    run_env = {k: v for k, v in os.environ.items() if k != "NUMBA_CPU_NAME"}
+def _codegen(tmp_path, first="", **env):
+    """(host's CPU name, the name used, the host's features, the features used) of a fresh
+    interpreter that imports hbm and compiles a function."""
+    run_env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES")}
     run_env.update(env, NUMBA_CACHE_DIR=str(tmp_path), PYTHONPATH=str(ROOT))
     out = subprocess.run([sys.executable, "-c", _CODEGEN_CPU.format(first=first)], env=run_env,
                          capture_output=True, text=True, timeout=120, check=True)
-    host, used = out.stdout.strip().split("|")
+    return tuple(out.stdout.strip().split("|"))
+
+
+def _codegen_cpu(tmp_path, first="", **env):
+    host, used, _, _ = _codegen(tmp_path, first, **env)
     return host, used
+
+
+def _host_features() -> str:
+    import llvmlite.binding as llvm
+    return llvm.get_host_cpu_features().flatten()
 
 
 def test_the_rule_retunes_zen3_only_and_never_against_the_user():
@@ -48,12 +60,29 @@ def test_the_rule_retunes_zen3_only_and_never_against_the_user():
     assert tuning_cpu("znver2", None) is None
 
 
+def test_the_feature_rule_prefers_256_bit_vectors_with_avx512_only_and_never_against_the_user():
+    zen4 = "+sse2,+avx2,+avx512f,+avx512vl,-amx-tile"
+    assert tuning_features(zen4, None) == zen4 + "," + PREFER_256
+    assert tuning_features(zen4, "") is None  # the user's choice wins, an empty one too
+    assert tuning_features(zen4, "+avx2") is None
+    assert tuning_features("+sse2,+avx2,-avx512f,-amx-tile", None) is None  # Zen 3, or an AVX2 Intel
+    assert tuning_features(zen4 + ",+prefer-256-bit", None) is None  # already there
+
+
 @pytest.mark.parametrize("first", ["", "import numba"], ids=["hbm first", "numba first"])
 def test_importing_hbm_sets_the_model_the_first_compile_uses(tmp_path, first):
     """On every host: the codegen's CPU is the retuned one where the rule names one, the
-    host's otherwise; whether numba was imported before hbm or not."""
-    host, used = _codegen_cpu(tmp_path, first)
+    host's otherwise, and its features the host's, with 256-bit vectors preferred where
+    the host has AVX-512; whether numba was imported before hbm or not."""
+    host, used, host_features, features = _codegen(tmp_path, first)
     assert used == RETUNED.get(host, host)
+    assert features == (tuning_features(host_features, None) or host_features)
+    assert (PREFER_256 in features.split(",")) == ("+avx512f" in host_features.split(","))
+
+
+def test_features_set_by_the_user_are_kept(tmp_path):
+    host, used, host_features, features = _codegen(tmp_path, NUMBA_CPU_FEATURES=_host_features())
+    assert features == host_features
 
 
 @pytest.mark.parametrize("name", ["znver3", ""], ids=["znver3", "generic"])
@@ -80,21 +109,47 @@ simulate(rom_modal_system(standin_rom()), CasingOptions(), 0.15, 2000.0,
          TimeIntegrationOptions(n_revolutions=2, n_keep=1))
 asm = "".join(kernel.run_steps.inspect_asm().values())
 print(sum(1 for line in asm.splitlines()
-          if line.startswith("\\t") and not line.lstrip().startswith((".", "#"))))
+          if line.startswith("\\t") and not line.lstrip().startswith((".", "#"))), asm.count("%zmm"))
 """
 
 
+@pytest.fixture(scope="module")
+def kernel_code(tmp_path_factory):
+    """kernel_code(cpu, features=None) -> (instructions, mentions of a 512-bit register) of
+    the step loop compiled for the model `cpu` (and these features; None: hbm's rule), each
+    compiled once per module (a compile takes ~10 s)."""
+    root, done = tmp_path_factory.mktemp("kernel_code"), {}
+
+    def code(cpu, features=None):
+        if (cpu, features) not in done:
+            env = {k: v for k, v in os.environ.items() if k not in ("NUMBA_CPU_NAME", "NUMBA_CPU_FEATURES")}
+            env.update(NUMBA_CPU_NAME=cpu, NUMBA_CACHE_DIR=str(root / f"{cpu}-{len(done)}"), PYTHONPATH=str(ROOT))
+            if features is not None:
+                env["NUMBA_CPU_FEATURES"] = features
+            out = subprocess.run([sys.executable, "-c", _KERNEL_SIZE.format(tests=str(ROOT / "tests"))],
+                                 env=env, capture_output=True, text=True, timeout=300, check=True)
+            done[cpu, features] = tuple(int(v) for v in out.stdout.split()[-2:])
+        return done[cpu, features]
+
+    return code
+
+
 @pytest.mark.skipif(platform.machine() != "x86_64", reason="znver2 and znver3 are x86-64 models")
-def test_llvm_still_unrolls_the_step_loop_for_zen3(tmp_path):
+def test_llvm_still_unrolls_the_step_loop_for_zen3(kernel_code):
     """The premise of hbm.jit, on any x86 host (LLVM tunes for a named model with the host's
     features): tuned for 'znver3' the step loop compiles to more than twice the instructions
     it takes tuned for 'znver2' (21 000 against 8 100 on rotor 67's ROM with LLVM 14). If a
     later LLVM stops unrolling it, this fails, and the retuning can go."""
-    sizes = {}
-    for cpu in ("znver3", "znver2"):
-        env = dict(os.environ, NUMBA_CPU_NAME=cpu, NUMBA_CACHE_DIR=str(tmp_path / cpu),
-                   PYTHONPATH=str(ROOT))
-        out = subprocess.run([sys.executable, "-c", _KERNEL_SIZE.format(tests=str(ROOT / "tests"))],
-                             env=env, capture_output=True, text=True, timeout=300, check=True)
-        sizes[cpu] = int(out.stdout.split()[-1])
+    sizes = {cpu: kernel_code(cpu)[0] for cpu in ("znver3", "znver2")}
     assert sizes["znver3"] > 2.0 * sizes["znver2"], sizes
+
+
+@pytest.mark.skipif(platform.machine() != "x86_64" or "+avx512f" not in _host_features().split(","),
+                    reason="a host with AVX-512")
+def test_llvm_still_uses_512_bit_vectors_in_the_step_loop_unless_told_otherwise(kernel_code):
+    """The premise of the feature rule (hbm.jit), on a host with AVX-512: tuned for 'znver2'
+    with the host's features as they are, the step loop uses 512-bit registers; with the
+    rule's '+prefer-256-bit', none. If a later LLVM stops using them, this fails, and the
+    rule can go."""
+    assert kernel_code("znver2", _host_features())[1] > 0
+    assert kernel_code("znver2")[1] == 0
