@@ -24,7 +24,7 @@ from hbm.harmonic.solver import HbmSolver
 from hbm.stability.bifurcation import GUESS, PARITY, PERIOD_DOUBLING, Bifurcation
 from hbm.stability.monitor import BranchStability, StabilityMonitor, StabilityOptions, monitor_branch
 from hbm.stability.spectrum import orbit_spectrum
-from hbm.stability.switching import switch_branch
+from hbm.stability.switching import BranchStart, switch_branch
 
 #: a point is chosen as stable when its largest multiplier (minimal period) has
 #: log|mu| < -STABILITY_MARGIN: a clear verdict, not a multiplier on the unit circle that the
@@ -299,7 +299,8 @@ class LocatedDoubling:
     omega (rad/s), u (n_u,): the start of the branch switch, where the mode was computed:
     the stored point `index`, or, where its multiplier is far past -1 (the crossing lies
     between two distant points), a point of the branch found between the two (see
-    refine_crossing); nan and None when none.
+    refine_crossing); nan and None when none. bracket: the two neighbouring stored points
+    the crossing lies between, the unstable side first; () when none.
     """
 
     bifurcation: Bifurcation | None
@@ -308,6 +309,19 @@ class LocatedDoubling:
     n_analyses: int
     omega: float = math.nan
     u: np.ndarray | None = None
+    bracket: tuple = ()
+
+    def switch_starts(self, omega: np.ndarray, x: np.ndarray) -> list:
+        """[(u (n_u,), Omega rad/s)]: where to start the branch switch, in turn (see
+        switch_to_doubled): (u, omega), then the bracket's stored points of the branch
+        (omega (m,) rad/s, x (m, n_u): the arrays it was located on) not already there."""
+        if self.bifurcation is None:
+            return []
+        out = [(np.asarray(self.u, float), float(self.omega))]
+        for i in self.bracket:
+            if not (float(omega[i]) == out[0][1] and np.array_equal(x[i], out[0][0])):
+                out.append((np.asarray(x[i], float), float(omega[i])))
+        return out
 
 
 def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets=None, n_scan: int = 24,
@@ -381,7 +395,8 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
                             "the real multipliers beyond -1)")
                 elif bif.kind_from == GUESS:
                     why += " (no multiplier pairs across the unit circle there: the kind is a guess)"
-                return LocatedDoubling(bif, side, why, len(cache), w_s, np.asarray(u_s, float))
+                return LocatedDoubling(bif, side, why, len(cache), w_s, np.asarray(u_s, float),
+                                       (side, a if side == b else b))
     except _Budget:
         return LocatedDoubling(None, -1, f"no period doubling among the {max(checked - 1, 0)} of {len(pairs)} stability "
                                          f"change(s) examined within {max_analyses} Floquet analyses", len(cache))
@@ -516,15 +531,42 @@ def new_content(residual, u: np.ndarray, period_ratio: int) -> float:
     return float(np.linalg.norm(xr[mask]) / max(np.linalg.norm(xr), 1e-300))
 
 
+#: switch_branch's steps, tried in turn from each start: 1e-2 first; a point far past the
+#: bifurcation (a multiplier well beyond -1 when the branch's points are far apart) may need
+#: a shorter or a longer one
+SWITCH_STEPS = (1e-2, 3e-3, 3e-2, 1e-3)
+
+
+def switch_to_doubled(residual, starts, bifurcation: Bifurcation) -> BranchStart:
+    """The branch switch at a period doubling (hbm.stability.switching.switch_branch) from
+    the first of `starts` [(u (n_u,), Omega rad/s), ...] and step of SWITCH_STEPS where its
+    Newton converges; the last attempt when none does. More than one start because DLFT's
+    residual is not smooth: from a point where the contact's time samples sit on a kink,
+    Newton stalls (on the coarse rotor 67 DLFT NFRC at 1459.6 rad/s, at |R| 6e-5 with every
+    step), and from the stored points on either side it converges to the same orbit.
+    Raises ValueError as switch_branch (not a period doubling with its mode)."""
+    st = None
+    for u, omega in starts:
+        for step in SWITCH_STEPS:
+            st = switch_branch(residual, u, float(omega), bifurcation, step=step)
+            if st.newton.converged:
+                return st
+    if st is None:
+        raise ValueError("switch_to_doubled needs at least one start point")
+    return st
+
+
 def continue_doubled_branch(residual, u: np.ndarray, omega: float, bifurcation: Bifurcation,
                             continuation: ContinuationOptions, n_points: int = 40,
-                            stability: StabilityOptions = StabilityOptions()):
+                            stability: StabilityOptions = StabilityOptions(), more_starts=()):
     """Switch to the period-doubled branch at `bifurcation` (hbm.stability.switching) and
     continue it both ways, at most n_points each way, with the stability of its points.
 
     residual, u (n_u,), omega (rad/s): the old branch's residual and the point on the
     bifurcation's unstable side. continuation: the old branch's continuation settings (its
-    range, steps and Newton test; direction and max_points are set here).
+    range, steps and Newton test; direction and max_points are set here). more_starts:
+    [(u, omega)] tried in turn where the switch from (u, omega) does not converge
+    (switch_to_doubled; e.g. LocatedDoubling.switch_starts(...)[1:]).
     Returns (DoubledBranch, the new branch's HarmonicBalanceResidual or None).
     """
     # a period doubling's exponent has Im = omega' / 2 (mod omega', omega' = mode_omega) for
@@ -533,18 +575,15 @@ def continue_doubled_branch(residual, u: np.ndarray, omega: float, bifurcation: 
     beta = bifurcation.exponent.imag
     half = 0.5 * bifurcation.mode_omega
     bif = replace(bifurcation, exponent=complex(bifurcation.exponent.real, round(beta / half) * half))
-    # switch_branch's step 1e-2 first; a point far past the bifurcation (a multiplier well
-    # beyond -1 when the branch's points are far apart) may need a shorter or a longer one
-    for step in (1e-2, 3e-3, 3e-2, 1e-3):
-        try:
-            st = switch_branch(residual, u, omega, bif, step=step)
-        except ValueError as exc:
-            return DoubledBranch(False, f"no branch switch: {exc}", omega_bifurcation=float(bifurcation.omega),
-                                 multiplier=float(np.real(bifurcation.multiplier))), None
-        if st.newton.converged:
-            break
+    starts = [(u, omega), *more_starts]
+    try:
+        st = switch_to_doubled(residual, starts, bif)
+    except ValueError as exc:
+        return DoubledBranch(False, f"no branch switch: {exc}", omega_bifurcation=float(bifurcation.omega),
+                             multiplier=float(np.real(bifurcation.multiplier))), None
     if not st.newton.converged:
-        return DoubledBranch(False, f"the branch switch did not converge (steps 1e-3 to 3e-2): {st.newton.reason}",
+        return DoubledBranch(False, f"the branch switch did not converge from {len(starts)} start point(s) with "
+                                    f"steps 1e-3 to 3e-2: {st.newton.reason}",
                              omega_bifurcation=float(bifurcation.omega),
                              multiplier=float(np.real(bifurcation.multiplier))), None
     new = st.residual

@@ -562,13 +562,14 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             sources.append((f"{ISOLAS} {method}/branches/{br.name}", r_b, br.omega, br.x, br.le_amplitude,
                             br.converged, [i]))
         del sources[opts.pd_tries:]
-    def switch(r_s, loc, where):
-        """(DoubledBranch, its residual) switched to at loc, or None when nothing was located."""
+    def switch(r_s, loc, where, omega, x):
+        """(DoubledBranch, its residual) switched to at loc (located on the branch omega, x),
+        or None when nothing was located."""
         if loc.bifurcation is None:
             return None
         update(f"{tag}: period-doubled branch from Omega = {loc.bifurcation.omega:.1f} rad/s ({where})")
         return continue_doubled_branch(r_s, loc.u, loc.omega, loc.bifurcation, default_continuation(scene.hbm),
-                                       n_points=opts.pd_points)
+                                       n_points=opts.pd_points, more_starts=loc.switch_starts(omega, x)[1:])
 
     first, tried = None, []
     for where, *source in sources:
@@ -586,7 +587,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
         update(f"{tag}: period doubling of {where}")
         loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan,
                                      **({"brackets_from": nfrc_from} if where == "the NFRC" else {}))
-        switched = switch(r_s, loc, where)
+        switched = switch(r_s, loc, where, omega, x)
         if monitor_left and where == "the NFRC" and (switched is None or not switched[0].found):
             # the scan of an NFRC stored without stability found nothing to switch to
             monitor_left = False
@@ -596,7 +597,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             again = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets,
                                            brackets_from=nfrc.computed_words())
             loc = replace(again, reason=f"the scan found nothing to switch to ({why}); {again.reason}")
-            switched = switch(r_s, loc, where)
+            switched = switch(r_s, loc, where, omega, x)
         if loc.bifurcation is None:
             result = (ValidationPoint("period_doubling", method, False, f"{where}: {loc.reason}"),
                       DoubledBranch(False, f"{where}: {loc.reason}"))

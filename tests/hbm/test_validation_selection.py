@@ -28,7 +28,7 @@ from hbm.harmonic.solver import HbmSolver
 from hbm.harmonic.start import damped_newton
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.stability.bifurcation import PERIOD_DOUBLING
-from hbm.stability.selection import choose_point, continue_doubled_branch, locate_period_doubling
+from hbm.stability.selection import LocatedDoubling, choose_point, continue_doubled_branch, locate_period_doubling
 from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, compare_with_hbm, march_from_hbm
 from support import coarse_rom
 
@@ -715,3 +715,18 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     assert abs(p.omega - w_seed) <= stage.SEED_WINDOW * w_seed  # where time integration found the orbit
     assert pd_branch.found and pd_branch.subharmonic == 2 and "2 seed(s)" in pd_branch.reason
     assert np.allclose(pd_branch.new_content, db.new_content, atol=1e-9)
+
+
+def test_the_switch_starts_at_the_located_point_then_at_the_stored_points_around_it():
+    """LocatedDoubling.switch_starts: the located (maybe refined) point first, then the two
+    stored points of its bracket, unstable side first, none twice; nothing without a
+    bifurcation."""
+    omega = np.array([1470.0, 1465.0, 1460.0, 1455.0])
+    x = np.arange(8.0).reshape(4, 2)
+    refined = LocatedDoubling(SimpleNamespace(), 2, "", 0, 1462.5, np.array([9.0, 9.0]), (2, 1))
+    starts = refined.switch_starts(omega, x)
+    assert [w for _, w in starts] == [1462.5, 1460.0, 1465.0]
+    assert np.array_equal(starts[1][0], x[2]) and np.array_equal(starts[2][0], x[1])
+    stored = LocatedDoubling(SimpleNamespace(), 2, "", 0, 1460.0, x[2].copy(), (2, 1))
+    assert [w for _, w in stored.switch_starts(omega, x)] == [1460.0, 1465.0]
+    assert LocatedDoubling(None, -1, "none", 0).switch_starts(omega, x) == []
