@@ -168,7 +168,10 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
                 elif a.get("n_branches", 0):
                     kept.append(f"{a['n_branches']} branches of {part.name}")
                 elif a.get("n_speeds", 0):
-                    kept.append(f"{a['n_speeds']} speeds of {part.name}")
+                    from pipelines.stages.ti import SweepPartial  # with the other ranks' files under MPI
+
+                    files = SweepPartial(part, "").files()
+                    kept.append(f"{SweepPartial(part, '').kept()} speeds of {', '.join(f.name for f in files)}")
     return ", ".join(kept) if kept else "nothing new"
 
 

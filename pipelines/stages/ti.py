@@ -33,24 +33,42 @@ class SweepPartial:
     hbm.ti.sweep.SpeedResponse fields as datasets and `complete` written last; the file is
     reopened for each speed, so a kill leaves at most that speed cut, and it is dropped on
     reading. Root attributes: inputs_hash (ti.h5's), n_speeds (complete speeds, for what an
-    interrupted run says it kept)."""
+    interrupted run says it kept).
 
-    def __init__(self, path, inputs_hash: str):
+    Under `mpirun` every rank keeps its own speeds, rank r > 0 in ti.rR.partial.h5 beside it
+    (one writer per HDF5 file), and a resumed run, on any number of ranks or none, takes the
+    speeds of all of them (`rank`: this process's rank, 0 without MPI)."""
+
+    def __init__(self, path, inputs_hash: str, rank: int = 0):
         self.path, self.hash = path, inputs_hash
+        self.own = path if rank == 0 else path.with_name(f"{path.name[:-len('.partial.h5')]}.r{rank}.partial.h5")
+
+    def files(self) -> list:
+        """The partial files of this sweep on disk: rank 0's first, then the other ranks'."""
+        stem = self.path.name[: -len(".partial.h5")]
+        ranks = sorted(self.path.parent.glob(f"{stem}.r[0-9]*.partial.h5"))
+        return [p for p in [self.path, *ranks] if p.is_file()]
 
     def resume(self, omegas: np.ndarray) -> dict:
         """{index: SpeedResponse} kept by an interrupted sweep of these inputs over `omegas`
-        ((n_omega,), rad/s); {} when there is none or the file cannot be read."""
+        ((n_omega,), rad/s), from every rank's file; {} from a file that holds other inputs
+        or cannot be read."""
+        found = {}
+        for path in self.files():
+            found.update(self._read(path, omegas))
+        return found
+
+    def _read(self, path, omegas: np.ndarray) -> dict:
         import h5py
 
         from hbm.ti.sweep import SpeedResponse
 
-        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+        if art.read_attrs(path).get("inputs_hash") != self.hash:
             return {}
         names = [f.name for f in SpeedResponse.__dataclass_fields__.values()]
         found = {}
         try:
-            with h5py.File(self.path, "r") as h5:
+            with h5py.File(path, "r") as h5:
                 for key, g in h5.get("speeds", {}).items():
                     i = int(key)
                     if not g.attrs.get("complete", 0) or i >= len(omegas) or g["omega"][()] != omegas[i]:
@@ -60,12 +78,21 @@ class SweepPartial:
             return {}
         return found
 
+    def kept(self) -> int:
+        """Complete speeds in every rank's file (the n_speeds attributes), for a stopped run's words."""
+        return sum(int(art.read_attrs(p).get("n_speeds", 0)) for p in self.files())
+
+    def remove(self) -> None:
+        """Every rank's file (once ti.h5 holds every speed)."""
+        for p in self.files():
+            p.unlink(missing_ok=True)
+
     def speed(self, i: int, response) -> None:
-        """Keep speed i's SpeedResponse."""
+        """Keep speed i's SpeedResponse (in this rank's file)."""
         from dataclasses import fields
 
-        fresh = not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash
-        with art.open_in_place(self.path, "w" if fresh else "a") as h5:
+        fresh = not self.own.is_file() or art.read_attrs(self.own).get("inputs_hash") != self.hash
+        with art.open_in_place(self.own, "w" if fresh else "a") as h5:
             if fresh:
                 h5.attrs["inputs_hash"] = self.hash
             speeds = h5.require_group("speeds")
@@ -81,37 +108,39 @@ class SweepPartial:
             h5.attrs["n_speeds"] = sum(int(s.attrs.get("complete", 0)) for s in speeds.values())
 
 
-def _partial(ctx: Context) -> SweepPartial:
+def _partial(ctx: Context, rank: int = 0) -> SweepPartial:
     from pipelines.branch_store import partial_path
 
-    return SweepPartial(partial_path(ctx.out / TI.file), ctx.hashes[TI.file])
+    return SweepPartial(partial_path(ctx.out / TI.file), ctx.hashes[TI.file], rank)
 
 
 def _resumed(ctx: Context, partial: SweepPartial) -> dict:
     t = ctx.scene.ti
     done = partial.resume(t.omegas)
     if done:
-        ctx.log(f"  resuming from {len(done)} of {t.n_omega} speeds on disk ({partial.path.name})")
+        ctx.log(f"  resuming from {len(done)} of {t.n_omega} speeds on disk "
+                f"({', '.join(p.name for p in partial.files())})")
     return done
 
 
 def _compute(ctx: Context, outputs) -> None:
-    """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep) and
-    rank 0 writes ti.h5 (and keeps its own speeds in ti.partial.h5 as they end)."""
+    """Under `mpirun -n N` the sweep shares its speeds among the ranks (hbm.ti.sweep), each
+    keeps its own speeds as they end (SweepPartial), and rank 0 writes ti.h5."""
     from hbm.ti.sweep import sweep
     from pipelines.parallel import on_root, world
 
     scene = ctx.scene
     rom = read_rom(ctx.out)
     _warn(ctx, rom)
-    partial = _partial(ctx)
     comm = world()
-    # rank 0 alone reads and writes the partial file (HDF5 locks a file one process writes)
+    partial = _partial(ctx, 0 if comm is None else comm.rank)
+    # rank 0 alone reads the partial files (HDF5 locks a file one process writes); every
+    # rank then writes its own
     done = on_root(comm, lambda: _resumed(ctx, partial))
     with ctx.progress.step("ti sweep", scene.ti.n_omega) as update:
         update(completed=len(done))
         result = sweep(rom, scene.casing, scene.contact, scene.ti, on_point=lambda n, total: update(completed=n),
-                       done=done, on_speed=partial.speed if comm is None or comm.rank == 0 else None)
+                       done=done, on_speed=partial.speed)
     on_root(comm, lambda: _write(ctx, result, partial))
 
 
@@ -163,7 +192,7 @@ def _write(ctx: Context, result, partial: SweepPartial) -> None:
 
     scene = ctx.scene
     art.write_artifact(ctx.out / TI.file, TiArtifact(result), **ctx.provenance(TI, "ti"))
-    partial.path.unlink(missing_ok=True)  # ti.h5 holds every speed now
+    partial.remove()  # ti.h5 holds every speed now
     n_l = scene.casing.n_lobes
     counts = np.bincount(result.period_class.astype(int), minlength=len(PeriodClass))
     ctx.log(f"  {len(result.omega)} speeds; classes: "

@@ -3,6 +3,7 @@ and a run of the same inputs goes on from the speeds on disk instead of marching
 (the interrupted case itself: tests/pipelines/test_interrupt.py), also after a worker of the
 sweep was killed, which is one line naming it."""
 import os
+import shutil
 import subprocess
 import sys
 from dataclasses import fields, replace
@@ -60,6 +61,18 @@ def test_a_sweep_goes_on_from_the_speeds_on_disk(coarse_nfrc, tmp_path, capsys):
     SweepPartial(part, "0" * 64).speed(2, _speed(whole, 2))
     assert list(SweepPartial(part, "0" * 64).resume(whole.omega)) == [2]
 
+    # under MPI each rank keeps its speeds in a file of its own; a resume takes all of them
+    # and a finished sweep removes all of them
+    part.unlink()
+    SweepPartial(part, inputs_hash, rank=1).speed(4, _speed(whole, 4))
+    SweepPartial(part, inputs_hash, rank=3).speed(5, _speed(whole, 5))
+    SweepPartial(part, inputs_hash).speed(0, _speed(whole, 0))
+    both = SweepPartial(part, inputs_hash)
+    assert [p.name for p in both.files()] == ["ti.partial.h5", "ti.r1.partial.h5", "ti.r3.partial.h5"]
+    assert sorted(both.resume(whole.omega)) == [0, 4, 5] and both.kept() == 3
+    both.remove()
+    assert both.files() == [] and not list(tmp_path.glob("*.partial.h5"))
+
 
 #: `bladerub` whose time-integration worker marching 2000 rad/s (the last speed of the SHORT
 #: grid; the slowest go first) is killed, as the OOM killer would.
@@ -95,3 +108,43 @@ def test_a_killed_sweep_worker_is_one_line_and_the_speeds_done_are_kept(coarse_n
     assert main(run) == 0
     assert f"resuming from {kept} of 4 speeds on disk" in capsys.readouterr().out
     assert art.verify(tmp_path / "ti.h5") is None and not (tmp_path / "ti.partial.h5").exists()
+
+
+#: `bladerub` under mpirun whose rank 1 is killed once it has kept its first speed (it
+#: marches speeds 1 and 3 of the 4, 2000 rad/s last), as a batch system's time limit would.
+KILLED_RANK = """import os, signal, sys
+from mpi4py import MPI
+import hbm.ti.sweep as s
+real = s.simulate
+def simulate(system, casing, mu, omega, options):
+    if omega == 2000.0 and MPI.COMM_WORLD.rank == 1:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return real(system, casing, mu, omega, options)
+s.simulate = simulate
+from pipelines.cli import main
+sys.exit(main(sys.argv[1:]))
+"""
+
+
+@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not found (Debian: openmpi-bin, installed by "
+                    ".ci/install)")
+def test_an_interrupted_mpi_sweep_keeps_every_ranks_speeds(coarse_nfrc, tmp_path, capsys):
+    scene = clone(coarse_nfrc[1], tmp_path)
+    run = ["run", str(scene), "--out", str(tmp_path), "--until", "ti"]
+    env = dict(shell_env(), PYTHONPATH=str(ROOT), OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
+               OMPI_MCA_rmaps_base_oversubscribe="1")
+    r = subprocess.run([shutil.which("mpirun"), "-n", "2", sys.executable, "-c", KILLED_RANK] + run, cwd=ROOT,
+                       capture_output=True, text=True, env=env, timeout=600)
+    assert r.returncode != 0 and not (tmp_path / "ti.h5").exists(), r.stderr
+    files = SweepPartial(tmp_path / "ti.partial.h5", "").files()
+    rank1 = tmp_path / "ti.r1.partial.h5"
+    assert rank1 in files, [p.name for p in tmp_path.iterdir()]
+    with h5py.File(rank1, "r") as h5:  # rank 1's first speed, kept before it was killed
+        assert list(h5["speeds"]) == ["001"] and h5["speeds/001"].attrs["complete"] == 1
+    kept = sum(art.read_attrs(p)["n_speeds"] for p in files)
+    # rank 0's own speeds (0 and 2) may or may not have ended before mpirun stopped it
+    capsys.readouterr()
+    assert main(run) == 0  # one process now: the speeds of both ranks' files are taken
+    out = capsys.readouterr().out
+    assert f"resuming from {kept} of 4 speeds on disk" in out and "ti.r1.partial.h5" in out, out
+    assert art.verify(tmp_path / "ti.h5") is None and not list(tmp_path.glob("*.partial.h5"))
