@@ -20,6 +20,11 @@ class WorkerDied(RuntimeError):
     a user) or crashed. What it was computing is lost; what the pool finished before is not."""
 
 
+class RankFailed(RuntimeError):
+    """Raised on the MPI ranks that did not fail when another rank did (the message says
+    which rank and why); the failing rank raises its own exception."""
+
+
 def worker_died(what: str) -> WorkerDied:
     """The WorkerDied of a pool of `what` (e.g. "the isola search"), for its BrokenProcessPool:
     Python's own text names no task and reads as a bug (a traceback in the CLI)."""

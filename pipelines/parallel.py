@@ -9,12 +9,8 @@ from __future__ import annotations
 
 import time
 
+from hbm.processes import RankFailed  # noqa: F401 (one class for hbm's collective steps and these)
 from hbm.processes import mpi_world as world  # noqa: F401 (the stages' name for it)
-
-
-class RankFailed(RuntimeError):
-    """Raised on the ranks that did not fail when another rank did (the message says which
-    rank and why); the failing rank raises its own exception."""
 
 
 def is_root(comm) -> bool:

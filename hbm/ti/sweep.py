@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.processes import limit_blas_threads, mpi_world, process_context, worker_died
+from hbm.processes import RankFailed, limit_blas_threads, mpi_world, process_context, worker_died
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -218,7 +218,8 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
     omegas: SpeedResponse} of speeds already marched (an interrupted sweep's), not marched
     again; on_speed(index, SpeedResponse): called in this process as each other speed ends
     (under MPI, on each rank for its own speeds), e.g. to keep it on disk.
-    Raises ValueError when ti_options.dt exceeds the scheme's stability limit.
+    Raises ValueError when ti_options.dt exceeds the scheme's stability limit. Under MPI a
+    failure on one rank (a speed, on_speed) is raised there and as RankFailed on the others.
     """
     system, omegas = _prepared(rom, contact, ti_options, omegas)
     mu = contact.mu
@@ -228,12 +229,21 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
     points = dict(done or {})
     if comm is not None:
         mine = [i for i in range(comm.rank, len(omegas), comm.size) if i not in points]
-        local = []
-        for k, i in enumerate(mine):
-            local.append((i, simulate(system, casing, mu, omegas[i], ti_options)))
-            keep(*local[-1])
-            progress(k + 1, len(mine))
-        points.update(p for part in comm.allgather(local) for p in part)
+        local, error = [], None
+        try:
+            for k, i in enumerate(mine):
+                local.append((i, simulate(system, casing, mu, omegas[i], ti_options)))
+                keep(*local[-1])
+                progress(k + 1, len(mine))
+        except Exception as exc:  # noqa: BLE001 - every rank must reach the allgather, or the others wait forever
+            error = exc
+        parts = comm.allgather((local, None if error is None else f"{type(error).__name__}: {error}"))
+        if error is not None:
+            raise error
+        for r, (_, why) in enumerate(parts):
+            if why is not None:
+                raise RankFailed(f"rank {r} failed in the time-integration sweep: {why}")
+        points.update(p for part, _ in parts for p in part)
         return _stack([points[i] for i in range(len(omegas))])
     n_workers = workers or len(os.sched_getaffinity(0))
     if n_workers <= 1 or len(omegas) - len(points) <= 1:

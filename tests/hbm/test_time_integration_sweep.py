@@ -302,6 +302,12 @@ def test_a_killed_worker_fails_the_sweep_with_a_line_that_says_so(monkeypatch):
 
 
 @pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
+def _mpirun_command(root: Path):
+    """(`mpirun -n 2` words, environment with the checkout and tests/ on the path)."""
+    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
+    return ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else []), env
+
+
 def test_mpi_sweep_equals_the_serial_one(tmp_path):
     """`mpirun -n 2` splits the points over two ranks (hbm.processes.mpi_world); every rank
     gets the whole result, equal to the serial sweep's to the bit (same points, same code).
@@ -312,9 +318,7 @@ def test_mpi_sweep_equals_the_serial_one(tmp_path):
     np.savez(tmp_path / "system.npz", **{f.name: getattr(system, f.name) for f in fields(system)
                                          if getattr(system, f.name) is not None})
     out = tmp_path / "mpi.npz"
-    root = Path(__file__).resolve().parents[2]
-    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
-    cmd = ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else [])
+    cmd, env = _mpirun_command(Path(__file__).resolve().parents[2])
     run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_sweep.py")),
                                 str(tmp_path / "system.npz"), str(out)],
                          env=env, capture_output=True, text=True, timeout=300)
@@ -324,6 +328,26 @@ def test_mpi_sweep_equals_the_serial_one(tmp_path):
     assert list(got["ranks"]) == [2, 2]  # both ranks saw a communicator of size 2
     for name in ("omega", "amplitude", "period_class", "revolutions", "displacement", "normal_force", "sections"):
         np.testing.assert_array_equal(got[name], getattr(serial, name))
+
+
+def test_a_failing_rank_ends_the_mpi_sweep_on_every_rank(tmp_path):
+    """A speed that fails on one rank (here: keeping it, as on a full disk) raises there and
+    as RankFailed naming it on the other rank, which would otherwise wait for it forever in
+    the sweep's gathering of the results (the timeout turns such a hang into a failure)."""
+    system = rom_modal_system(standin_rom())
+    np.savez(tmp_path / "system.npz", **{f.name: getattr(system, f.name) for f in fields(system)
+                                         if getattr(system, f.name) is not None})
+    cmd, env = _mpirun_command(Path(__file__).resolve().parents[2])
+    run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_sweep.py")),
+                                str(tmp_path / "system.npz"), str(tmp_path / "mpi.npz"), "fail"],
+                         env=env, capture_output=True, text=True, timeout=300)
+    assert run.returncode != 0
+    # (mpirun forwards each rank's lines as they come: they may run together)
+    out = run.stdout
+    assert out.count(" raised ") == 2, out + run.stderr
+    assert ("rank 0 raised RankFailed: rank 1 failed in the time-integration sweep: OSError: [Errno 28] No space "
+            "left on device") in out, out + run.stderr
+    assert "rank 1 raised OSError: [Errno 28] No space left on device" in out, out + run.stderr
 
 
 def test_sweep_refuses_an_unstable_time_step():
