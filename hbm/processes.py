@@ -25,6 +25,21 @@ class RankFailed(RuntimeError):
     which rank and why); the failing rank raises its own exception."""
 
 
+def gathered(comm, value, error: BaseException | None, what: str) -> list:
+    """comm.allgather(value) on an MPI communicator where this rank's share of the work may
+    have failed (error; None when it did not): every rank reaches the gathering, the failing
+    rank re-raises its error and the others raise RankFailed naming it and `what` (e.g. "the
+    time-integration sweep"), where a rank that raised before the gathering would leave the
+    others waiting in it forever. Returns every rank's value, in rank order."""
+    parts = comm.allgather((value, None if error is None else f"{type(error).__name__}: {error}"))
+    if error is not None:
+        raise error
+    for r, (_, why) in enumerate(parts):
+        if why is not None:
+            raise RankFailed(f"rank {r} failed in {what}: {why}")
+    return [v for v, _ in parts]
+
+
 def worker_died(what: str) -> WorkerDied:
     """The WorkerDied of a pool of `what` (e.g. "the isola search"), for its BrokenProcessPool:
     Python's own text names no task and reads as a bug (a traceback in the CLI)."""

@@ -53,7 +53,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
-from hbm.processes import limit_blas_threads, process_context, reported_deaths
+from hbm.processes import gathered, limit_blas_threads, process_context, reported_deaths
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -242,18 +242,22 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
         mine = tasks[comm.rank::comm.size]
         # one BLAS thread as in a pool's worker, for this phase only: a limit that outlived
         # it would change the later stages of the rank's run (their round-off too)
-        with threadpool_limits(limits=1, user_api="blas"):
-            corrector = _Corrector(factory, known, options)
-            done = 0
-            for t in mine:
-                r, c = _timed(corrector, t)
-                rows += r
-                cpu += c
-                done += len(t)
-                progress(done, sum(len(m) for m in mine))
-        gathered = comm.allgather((rows, cpu))
-        rows = [r for part, _ in gathered for r in part]
-        cpu = sum(c for _, c in gathered)
+        error = None
+        try:
+            with threadpool_limits(limits=1, user_api="blas"):
+                corrector = _Corrector(factory, known, options)
+                done = 0
+                for t in mine:
+                    r, c = _timed(corrector, t)
+                    rows += r
+                    cpu += c
+                    done += len(t)
+                    progress(done, sum(len(m) for m in mine))
+        except Exception as exc:  # noqa: BLE001 - raised by gathered() on every rank
+            error = exc
+        parts = gathered(comm, (rows, cpu), error, "the isola search's seed corrections")
+        rows = [r for part, _ in parts for r in part]
+        cpu = sum(c for _, c in parts)
     else:
         workers = min(options.workers or len(os.sched_getaffinity(0)), max(1, len(tasks)))
         if workers <= 1:

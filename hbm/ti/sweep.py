@@ -29,7 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.processes import RankFailed, limit_blas_threads, mpi_world, process_context, worker_died
+from hbm.processes import gathered, limit_blas_threads, mpi_world, process_context, worker_died
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -237,13 +237,8 @@ def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeI
                 progress(k + 1, len(mine))
         except Exception as exc:  # noqa: BLE001 - every rank must reach the allgather, or the others wait forever
             error = exc
-        parts = comm.allgather((local, None if error is None else f"{type(error).__name__}: {error}"))
-        if error is not None:
-            raise error
-        for r, (_, why) in enumerate(parts):
-            if why is not None:
-                raise RankFailed(f"rank {r} failed in the time-integration sweep: {why}")
-        points.update(p for part, _ in parts for p in part)
+        parts = gathered(comm, local, error, "the time-integration sweep")
+        points.update(p for part in parts for p in part)
         return _stack([points[i] for i in range(len(omegas))])
     n_workers = workers or len(os.sched_getaffinity(0))
     if n_workers <= 1 or len(omegas) - len(points) <= 1:

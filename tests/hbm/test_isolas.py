@@ -292,6 +292,25 @@ def test_mpi_search_equals_the_serial_one(tmp_path, primary):
         np.testing.assert_array_equal(got[f"bx_{k}"], b.x)
 
 
+def test_a_failing_rank_ends_the_mpi_search_on_every_rank(tmp_path):
+    """A seed correction that raises on one rank raises there and as RankFailed naming it on
+    the other, which would otherwise wait for it forever where the ranks gather their
+    corrections (the timeout turns such a hang into a failure)."""
+    root = Path(__file__).resolve().parents[2]
+    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
+    cmd = ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else [])
+    run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_isolas.py")),
+                                str(tmp_path / "mpi.npz"), "fail"], env=env, capture_output=True, text=True,
+                         timeout=300)
+    assert run.returncode != 0
+    out = run.stdout  # (mpirun forwards each rank's lines as they come: they may run together)
+    why = "FloatingPointError: a seed's correction failed on rank 1 for the test"
+    assert out.count(" raised ") == 2, out + run.stderr
+    assert f"rank 0 raised RankFailed: rank 1 failed in the isola search's seed corrections: {why}" in out, \
+        out + run.stderr
+    assert f"rank 1 raised {why}" in out, out + run.stderr
+
+
 def test_the_polyline_distance_is_the_minimum_along_every_segment():
     """Against a bounded scalar minimisation of the distance along every segment. With within=w the
     distance is the same whenever it is <= w (only segments near omega are measured) and
