@@ -5,6 +5,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import sys
+import time
 from contextlib import contextmanager
 
 
@@ -25,19 +26,77 @@ class RankFailed(RuntimeError):
     which rank and why); the failing rank raises its own exception."""
 
 
-def gathered(comm, value, error: BaseException | None, what: str) -> list:
+def _describe(exc: BaseException) -> str:
+    return f"{type(exc).__name__}: {exc}"
+
+
+def _failed(r: int, what: str, why: str) -> RankFailed:
+    return RankFailed(f"rank {r} failed{f' in {what}' if what else ''}: {why}")
+
+
+def idle_barrier(comm, poll_s: float = 0.02) -> None:
+    """An MPI barrier that sleeps while it waits: a blocking MPI wait spins a core at 100 %,
+    which ranks waiting for rank 0's serial work would take from rank 0's BLAS threads."""
+    req = comm.Ibarrier()
+    while not req.Test():
+        time.sleep(poll_s)
+
+
+def gathered(comm, value, error: BaseException | None, what: str = "") -> list:
     """comm.allgather(value) on an MPI communicator where this rank's share of the work may
     have failed (error; None when it did not): every rank reaches the gathering, the failing
     rank re-raises its error and the others raise RankFailed naming it and `what` (e.g. "the
     time-integration sweep"), where a rank that raised before the gathering would leave the
     others waiting in it forever. Returns every rank's value, in rank order."""
-    parts = comm.allgather((value, None if error is None else f"{type(error).__name__}: {error}"))
+    parts = comm.allgather((value, None if error is None else _describe(error)))
     if error is not None:
         raise error
     for r, (_, why) in enumerate(parts):
         if why is not None:
-            raise RankFailed(f"rank {r} failed in {what}: {why}")
+            raise _failed(r, what, why)
     return [v for v, _ in parts]
+
+
+def on_root(comm, fn, what: str = ""):
+    """fn() on rank 0 only (the others wait, idle); its return value on every rank. If fn
+    raises on rank 0, rank 0 re-raises it and the other ranks raise RankFailed (naming
+    `what`). comm None: just fn()."""
+    if comm is None:
+        return fn()
+    value, error = None, None
+    if comm.rank == 0:
+        try:
+            value = fn()
+        except BaseException as exc:  # noqa: BLE001 - relayed, then re-raised below
+            error = exc
+    idle_barrier(comm)
+    ok, payload = comm.bcast((error is None, value if error is None else _describe(error)), root=0)
+    if error is not None:
+        raise error
+    if not ok:
+        raise _failed(0, what, payload)
+    return payload
+
+
+def on_all(comm, fn):
+    """fn() on every rank (a collective step); if it raises on any rank, that rank
+    re-raises its exception and the others raise RankFailed naming it. Returns fn()'s
+    value of this rank. comm None: just fn().
+
+    (A rank that fails inside a collective call of fn leaves the others blocked there:
+    MPI offers no way out but the launcher; fn's own checks should come before its
+    collective calls, as the FEM stage's input checks do, and a loop of work before a
+    gathering passes its error to it: see gathered.)
+    """
+    if comm is None:
+        return fn()
+    value, error = None, None
+    try:
+        value = fn()
+    except BaseException as exc:  # noqa: BLE001 - relayed, then re-raised by gathered
+        error = exc
+    gathered(comm, None, error)
+    return value
 
 
 def worker_died(what: str) -> WorkerDied:

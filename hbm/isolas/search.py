@@ -53,7 +53,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
-from hbm.processes import gathered, limit_blas_threads, process_context, reported_deaths
+from hbm.processes import gathered, limit_blas_threads, on_root, process_context, reported_deaths
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -595,22 +595,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                     2, mp_context=ctx, initializer=limit_blas_threads) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
-        value, error = None, None
-        if comm.rank == 0:
-            try:
-                value = branches_phase()
-            except BaseException as exc:  # noqa: BLE001 - relayed to the other ranks, then re-raised
-                error = exc
-        req = comm.Ibarrier()
-        while not req.Test():
-            time.sleep(0.02)
-        ok, payload = comm.bcast((error is None, value if error is None else f"{type(error).__name__}: {error}"),
-                                 root=0)
-        if error is not None:
-            raise error
-        if not ok:
-            raise RuntimeError(f"rank 0 failed while continuing the branches: {payload}")
-        found, owner, n_cont, n_pts, cpu2 = payload
+        found, owner, n_cont, n_pts, cpu2 = on_root(comm, branches_phase, "the isola search's continuation")
     seed_branch = np.full(len(seeds), NOT_CONVERGED, np.int64)
     c = corrections
     for i in range(len(seeds)):
