@@ -543,7 +543,8 @@ def switch_to_doubled(residual, starts, bifurcation: Bifurcation) -> BranchStart
     Newton converges; the last attempt when none does. More than one start because DLFT's
     residual is not smooth: from a point where the contact's time samples sit on a kink,
     Newton stalls (on the coarse rotor 67 DLFT NFRC at 1459.6 rad/s, at |R| 6e-5 with every
-    step), and from the stored points on either side it converges to the same orbit.
+    step), and from a stored point beside it (there, the one on the stable side) it
+    converges to the doubled orbit.
     Raises ValueError as switch_branch (not a period doubling with its mode)."""
     st = None
     for u, omega in starts:
