@@ -148,3 +148,16 @@ def test_an_interrupted_mpi_sweep_keeps_every_ranks_speeds(coarse_nfrc, tmp_path
     out = capsys.readouterr().out
     assert f"resuming from {kept} of 4 speeds on disk" in out and "ti.r1.partial.h5" in out, out
     assert art.verify(tmp_path / "ti.h5") is None and not list(tmp_path.glob("*.partial.h5"))
+
+    # the same stage under mpirun to its end: the rows of the resumed one-process run, and no
+    # rank's file left behind
+    resumed = read_sweep(tmp_path)
+    (tmp_path / "ti.h5").unlink()
+    r = subprocess.run([shutil.which("mpirun"), "-n", "2", sys.executable, "-m", "pipelines.cli"] + run, cwd=ROOT,
+                       capture_output=True, text=True, env=env, timeout=600)
+    assert r.returncode == 0, r.stdout + r.stderr
+    got = read_sweep(tmp_path)
+    for f in fields(got):
+        if f.name != "cpu_time":
+            np.testing.assert_array_equal(getattr(got, f.name), getattr(resumed, f.name), err_msg=f.name)
+    assert not list(tmp_path.glob("*.partial.h5"))
