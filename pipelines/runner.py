@@ -155,23 +155,22 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
         return p.stat().st_mtime >= since
 
     kept = [o.file for s in steps for o in s.outputs if o.file in done or (o in s.todo and finished(o))]
+    from pipelines.stages.ti import SweepPartial  # its files: rank 0's and, after mpirun, the others'
+
     for s in steps:
         for o in s.todo:
-            part = partial_path(out / o.file)
-            if o.file not in kept and o.file.endswith(".h5") and part.is_file():
+            files = SweepPartial(partial_path(out / o.file), "").files() if o.file.endswith(".h5") else []
+            names = ", ".join(f.name for f in files)
+            if o.file not in kept and files:
                 if not detailed:
-                    kept.append(f"the {_PARTS.get(o.file, 'points')} of {part.name}")
+                    kept.append(f"the {_PARTS.get(o.file, 'points')} of {names}")
                     continue
-                a = art.read_attrs(part)
-                if a.get("n_points", 0):
-                    kept.append(f"{a['n_points']} points of {part.name}")
-                elif a.get("n_branches", 0):
-                    kept.append(f"{a['n_branches']} branches of {part.name}")
-                elif a.get("n_speeds", 0):
-                    from pipelines.stages.ti import SweepPartial  # with the other ranks' files under MPI
-
-                    files = SweepPartial(part, "").files()
-                    kept.append(f"{SweepPartial(part, '').kept()} speeds of {', '.join(f.name for f in files)}")
+                counts = [art.read_attrs(f) for f in files]
+                for what in ("points", "branches", "speeds"):
+                    n = sum(int(a.get(f"n_{what}", 0)) for a in counts)
+                    if n:
+                        kept.append(f"{n} {what} of {names}")
+                        break
     return ", ".join(kept) if kept else "nothing new"
 
 
