@@ -70,6 +70,21 @@ def partial_path(path: Path | str) -> Path:
     return path.with_name(path.name[: -len(".h5")] + ".partial.h5")
 
 
+def rank_partial_path(path: Path | str, rank: int) -> Path:
+    """The partial file MPI rank `rank` writes for NAME.h5: NAME.partial.h5 for rank 0,
+    NAME.rR.partial.h5 for rank R > 0 (one writer per HDF5 file)."""
+    part = partial_path(path)
+    return part if rank == 0 else part.with_name(f"{part.name[: -len('.partial.h5')]}.r{rank}.partial.h5")
+
+
+def partial_files(path: Path | str) -> list:
+    """The partial files of NAME.h5 on disk: rank 0's (NAME.partial.h5) first, then those
+    other MPI ranks wrote (rank_partial_path)."""
+    part = partial_path(path)
+    ranks = sorted(part.parent.glob(f"{part.name[: -len('.partial.h5')]}.r[0-9]*.partial.h5"))
+    return [p for p in [part, *ranks] if p.is_file()]
+
+
 def _attr_value(v):
     if isinstance(v, (dict, list, tuple)):
         return json.dumps(v, default=str)

@@ -144,7 +144,7 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
     a stage with several outputs, such as the NFRCs, may have finished some), the points of
     interrupted NFRCs, the speeds of an interrupted sweep and the branches of an interrupted
     isola search. detailed: read the files (else names and times only)."""
-    from pipelines.branch_store import partial_path
+    from pipelines.branch_store import partial_files
 
     def finished(o) -> bool:
         p = out / o.file
@@ -155,11 +155,10 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
         return p.stat().st_mtime >= since
 
     kept = [o.file for s in steps for o in s.outputs if o.file in done or (o in s.todo and finished(o))]
-    from pipelines.stages.ti import SweepPartial  # its files: rank 0's and, after mpirun, the others'
-
     for s in steps:
         for o in s.todo:
-            files = SweepPartial(partial_path(out / o.file), "").files() if o.file.endswith(".h5") else []
+            # rank 0's partial file and, after mpirun, the other ranks' (the sweep's)
+            files = partial_files(out / o.file) if o.file.endswith(".h5") else []
             names = ", ".join(f.name for f in files)
             if o.file not in kept and files:
                 if not detailed:

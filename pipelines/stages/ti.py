@@ -40,14 +40,16 @@ class SweepPartial:
     speeds of all of them (`rank`: this process's rank, 0 without MPI)."""
 
     def __init__(self, path, inputs_hash: str, rank: int = 0):
+        from pipelines.branch_store import rank_partial_path
+
         self.path, self.hash = path, inputs_hash
-        self.own = path if rank == 0 else path.with_name(f"{path.name[:-len('.partial.h5')]}.r{rank}.partial.h5")
+        self.own = rank_partial_path(path, rank)
 
     def files(self) -> list:
         """The partial files of this sweep on disk: rank 0's first, then the other ranks'."""
-        stem = self.path.name[: -len(".partial.h5")]
-        ranks = sorted(self.path.parent.glob(f"{stem}.r[0-9]*.partial.h5"))
-        return [p for p in [self.path, *ranks] if p.is_file()]
+        from pipelines.branch_store import partial_files
+
+        return partial_files(self.path)
 
     def resume(self, omegas: np.ndarray) -> dict:
         """{index: SpeedResponse} kept by an interrupted sweep of these inputs over `omegas`

@@ -145,7 +145,7 @@ def test_llvm_still_unrolls_the_step_loop_for_zen3(kernel_code):
 
 
 @pytest.mark.skipif(platform.machine() != "x86_64" or "+avx512f" not in _host_features().split(","),
-                    reason="a host with AVX-512")
+                    reason="needs a host with AVX-512: the feature rule it checks acts only there")
 def test_llvm_still_uses_512_bit_vectors_in_the_step_loop_unless_told_otherwise(kernel_code):
     """The premise of the feature rule (hbm.jit), on a host with AVX-512: tuned for 'znver2'
     with the host's features as they are, the step loop uses 512-bit registers; with the
