@@ -77,12 +77,18 @@ def rank_partial_path(path: Path | str, rank: int) -> Path:
     return part if rank == 0 else part.with_name(f"{part.name[: -len('.partial.h5')]}.r{rank}.partial.h5")
 
 
+def partial_paths(path: Path | str) -> list:
+    """Where the partial files of NAME.h5 go: rank 0's NAME.partial.h5 (on disk or not), then
+    every entry named as another MPI rank's (rank_partial_path) that is on disk, whatever it
+    is (a folder there is refused before a run, pipelines.runner)."""
+    part = partial_path(path)
+    return [part, *sorted(part.parent.glob(f"{part.name[: -len('.partial.h5')]}.r[0-9]*.partial.h5"))]
+
+
 def partial_files(path: Path | str) -> list:
     """The partial files of NAME.h5 on disk: rank 0's (NAME.partial.h5) first, then those
     other MPI ranks wrote (rank_partial_path)."""
-    part = partial_path(path)
-    ranks = sorted(part.parent.glob(f"{part.name[: -len('.partial.h5')]}.r[0-9]*.partial.h5"))
-    return [p for p in [part, *ranks] if p.is_file()]
+    return [p for p in partial_paths(path) if p.is_file()]
 
 
 def _attr_value(v):

@@ -249,12 +249,13 @@ def _plan_checked(scene, out: Path, names, force: bool, expected: dict, progress
 
 
 def _check_paths(out: Path, steps) -> None:
-    from pipelines.branch_store import partial_path
+    from pipelines.branch_store import partial_paths
 
     for s in steps:
         for o in s.todo:
             folder.check_path(out / o.file)
-            folder.check_path(partial_path(out / o.file))
+            for p in partial_paths(out / o.file):  # every rank's, after mpirun (the sweep's)
+                folder.check_path(p)
     figures = out / "figures"
     if figures.exists() and not figures.is_dir():
         raise folder.FolderError(f"{figures} is not a folder: the run draws its figures there; move it away")

@@ -80,10 +80,6 @@ class SweepPartial:
             return {}
         return found
 
-    def kept(self) -> int:
-        """Complete speeds in every rank's file (the n_speeds attributes), for a stopped run's words."""
-        return sum(int(art.read_attrs(p).get("n_speeds", 0)) for p in self.files())
-
     def remove(self) -> None:
         """Every rank's file (once ti.h5 holds every speed)."""
         for p in self.files():

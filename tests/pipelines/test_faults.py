@@ -127,6 +127,19 @@ def test_artifact_path_that_is_a_folder_is_refused(coarse_run, tmp_path, capsys)
     assert (tmp_path / "rom.h5" / "notes.txt").read_text() == "the user's"
 
 
+def test_an_mpi_ranks_partial_path_that_is_a_folder_is_refused(coarse_nfrc, tmp_path, capsys):
+    # rank 1 of `mpirun -n 2` would keep its speeds there: refused up front, as rank 0's path
+    scene = clone(coarse_nfrc[1], tmp_path)
+    (tmp_path / "ti.r1.partial.h5").mkdir()
+    (tmp_path / "ti.r1.partial.h5" / "notes.txt").write_text("the user's")
+    assert run(scene, tmp_path, "--until", "ti") == 2
+    captured = capsys.readouterr()
+    assert one_line(captured.err) == (f"bladerub: error: {tmp_path / 'ti.r1.partial.h5'} is a folder, where the run "
+                                      "writes its artifact: move it away, or give another --out")
+    assert "running" not in captured.out and not (tmp_path / "ti.h5").exists()
+    assert (tmp_path / "ti.r1.partial.h5" / "notes.txt").read_text() == "the user's"
+
+
 def test_a_damaged_treatment_leaves_the_other_untouched(coarse_nfrc, tmp_path, capsys):
     scene = clone(coarse_nfrc[1], tmp_path, copy=("nfrc_dlft.h5", "nfrc_rl.h5"))
     rl = (tmp_path / "nfrc_rl.h5").read_bytes()
