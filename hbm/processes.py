@@ -99,10 +99,13 @@ def on_all(comm, fn):
     return value
 
 
-def worker_died(what: str) -> WorkerDied:
+def worker_died(what: str, tasks: str = "") -> WorkerDied:
     """The WorkerDied of a pool of `what` (e.g. "the isola search"), for its BrokenProcessPool:
-    Python's own text names no task and reads as a bug (a traceback in the CLI)."""
-    return WorkerDied(f"a worker process of {what} ended without an answer (killed, perhaps for lack of memory)")
+    Python's own text names no task and reads as a bug (a traceback in the CLI). tasks: what
+    the pool's workers were computing when it broke, where the pool knows (e.g. "speeds being
+    marched: 650 rad/s")."""
+    return WorkerDied(f"a worker process of {what} ended without an answer (killed, perhaps for lack of memory)"
+                      + (f"; {tasks}" if tasks else ""))
 
 
 @contextmanager

@@ -269,6 +269,24 @@ def _prepared(rom, contact: ContactOptions, ti_options: TimeIntegrationOptions, 
     return system, omegas
 
 
+#: In a SweepRun's worker process: the run's start flags, one byte per speed (set by _marched).
+_STARTED = None
+
+
+def _sweep_worker(started) -> None:
+    """Initializer of a SweepRun's workers: BLAS on one thread, and the start flags at hand."""
+    global _STARTED
+    _STARTED = started
+    limit_blas_threads()
+
+
+def _marched(i: int, system, casing, mu, omega, options) -> "SpeedResponse":
+    """simulate() of speed i, flagged as started first: when a worker dies (the OOM killer),
+    the sweep names the speeds that had started and not ended."""
+    _STARTED[i] = 1
+    return simulate(system, casing, mu, omega, options)
+
+
 class SweepRun:
     """A sweep on a local process pool that may start before every core is free for it.
 
@@ -305,8 +323,10 @@ class SweepRun:
         self._finished = threading.Event()
         self.on_point = on_point or (lambda done, total: None)
         self.on_speed = on_speed or (lambda i, response: None)
-        self._pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=process_context(),
-                                                            initializer=limit_blas_threads)
+        context = process_context()
+        self._started = context.RawArray("b", len(self.omegas))  # see _marched
+        self._pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_sweep_worker,
+                                                            initargs=(self._started,))
         # with fork the pool starts all its workers at its first task: here, from this thread
         self._pool.submit(int).result()
         self._fill()
@@ -331,7 +351,7 @@ class SweepRun:
                                                           or self._cores >= self._workers):
                 i = self._todo.pop(0)
                 self._in_flight += 1
-                self._pool.submit(simulate, self._system, *self._args[:2], self.omegas[i], self._args[2]) \
+                self._pool.submit(_marched, i, self._system, *self._args[:2], self.omegas[i], self._args[2]) \
                     .add_done_callback(lambda f, i=i: self._done(i, f))
             if self._in_flight == 0 and (self._error is not None or not self._todo):
                 self._finished.set()
@@ -342,7 +362,10 @@ class SweepRun:
             if not future.cancelled():  # cancelled: the sweep is being ended (cancel())
                 error = future.exception()
                 if isinstance(error, BrokenProcessPool):
-                    error = worker_died("the time-integration sweep")
+                    running = [f"{self.omegas[j]:g}" for j in range(len(self.omegas))
+                               if self._started[j] and j not in self._points]
+                    error = worker_died("the time-integration sweep",
+                                        f"speeds being marched: {', '.join(running)} rad/s" if running else "")
                 if error is None:
                     try:  # the pool would only log what a callback raises
                         self.on_speed(i, future.result())

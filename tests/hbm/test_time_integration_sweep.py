@@ -295,7 +295,8 @@ def test_a_killed_worker_fails_the_sweep_with_a_line_that_says_so(monkeypatch):
     run = sweep_module.SweepRun(standin_rom(), CasingOptions(), ContactOptions(), opts,
                                 omegas=np.array([1900.0, 1500.0, 1700.0]), workers=1,
                                 on_speed=lambda i, r: kept.append(i))
-    with pytest.raises(WorkerDied, match="worker process of the time-integration sweep ended without an answer"):
+    with pytest.raises(WorkerDied, match="worker process of the time-integration sweep ended without an answer "
+                       r"\(killed, perhaps for lack of memory\); speeds being marched: 1900 rad/s$"):
         run.result()
     run.cancel()
     assert sorted(kept) == [1, 2]  # one worker, slowest first: 1500 and 1700 rad/s ended before
