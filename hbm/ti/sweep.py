@@ -280,11 +280,13 @@ def _sweep_worker(started) -> None:
     limit_blas_threads()
 
 
-def _marched(i: int, system, casing, mu, omega, options) -> "SpeedResponse":
-    """simulate() of speed i, flagged as started first: when a worker dies (the OOM killer),
-    the sweep names the speeds that had started and not ended."""
+def _marched(i: int, march, system, casing, mu, omega, options) -> "SpeedResponse":
+    """march(system, casing, mu, omega, options) (simulate) of speed i, flagged as started
+    first: when a worker dies (the OOM killer), the sweep names the speeds that had started and
+    not ended. The function travels with the task (a spawned worker imports this module
+    afresh)."""
     _STARTED[i] = 1
-    return simulate(system, casing, mu, omega, options)
+    return march(system, casing, mu, omega, options)
 
 
 class SweepRun:
@@ -351,7 +353,8 @@ class SweepRun:
                                                           or self._cores >= self._workers):
                 i = self._todo.pop(0)
                 self._in_flight += 1
-                self._pool.submit(_marched, i, self._system, *self._args[:2], self.omegas[i], self._args[2]) \
+                self._pool.submit(_marched, i, simulate, self._system, *self._args[:2], self.omegas[i],
+                                  self._args[2]) \
                     .add_done_callback(lambda f, i=i: self._done(i, f))
             if self._in_flight == 0 and (self._error is not None or not self._todo):
                 self._finished.set()
