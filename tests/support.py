@@ -2,10 +2,12 @@
 from __future__ import annotations
 
 import os
+import shutil
 
 import functools
 
 import numpy as np
+import pytest
 
 from rom.model import RomModel, modal_damping
 
@@ -108,3 +110,15 @@ def shell_env() -> dict:
     process's MPI job as its rank 0."""
     return {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
 
+
+
+#: The MPI tests need Open MPI's launcher (.ci/install installs it): where it is missing they cannot run.
+needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None,
+                                  reason="mpirun not found (Debian: openmpi-bin, installed by .ci/install)")
+
+
+def mpirun_command(root) -> tuple[list, dict]:
+    """(`mpirun -n 2` words, environment with the checkout `root` and tests/ on the path); as
+    root, with the flags Open MPI needs to run there and on two slots of a smaller machine."""
+    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.path.join(root, 'tests')}")
+    return ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else []), env

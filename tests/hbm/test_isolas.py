@@ -14,7 +14,6 @@ point (stays there).
 from __future__ import annotations
 
 import os
-import shutil
 import subprocess
 import sys
 from pathlib import Path
@@ -28,6 +27,7 @@ from hbm.continuation.newton import NewtonOptions
 from hbm.isolas.membership import KnownBranch
 from hbm.isolas.search import ON_KNOWN, SearchOptions, Seed, search
 from hbm.linalg.dense import DirectSolver
+from support import mpirun_command, needs_mpirun
 
 C1, C3, C5, F = 0.1, 0.18, 0.045, 0.05
 W_MIN, W_MAX = 0.8, 1.2
@@ -264,16 +264,14 @@ def test_a_search_in_this_process_leaves_the_blas_threads_as_it_found_them(prima
         assert blas_threads() == [2]
 
 
-@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
+@needs_mpirun
 def test_mpi_search_equals_the_serial_one(tmp_path, primary):
     """`mpirun -n 2` shares the seeds' omegas between the ranks (allgather) and continues the
     branches on rank 0: the same corrections, seed verdicts and branches as one process,
     to the bit (the same seeds solved by the same code, whichever rank solved them)."""
     import mpi4py  # noqa: F401  (installed with python3-dolfinx; a missing one must fail, not skip)
     out = tmp_path / "mpi.npz"
-    root = Path(__file__).resolve().parents[2]
-    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
-    cmd = ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else [])
+    cmd, env = mpirun_command(Path(__file__).resolve().parents[2])
     run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_isolas.py")), str(out)],
                          env=env, capture_output=True, text=True, timeout=300)
     assert run.returncode == 0, run.stdout + run.stderr
@@ -292,13 +290,12 @@ def test_mpi_search_equals_the_serial_one(tmp_path, primary):
         np.testing.assert_array_equal(got[f"bx_{k}"], b.x)
 
 
+@needs_mpirun
 def test_a_failing_rank_ends_the_mpi_search_on_every_rank(tmp_path):
     """A seed correction that raises on one rank raises there and as RankFailed naming it on
     the other, which would otherwise wait for it forever where the ranks gather their
     corrections (the timeout turns such a hang into a failure)."""
-    root = Path(__file__).resolve().parents[2]
-    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
-    cmd = ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else [])
+    cmd, env = mpirun_command(Path(__file__).resolve().parents[2])
     run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_isolas.py")),
                                 str(tmp_path / "mpi.npz"), "fail"], env=env, capture_output=True, text=True,
                          timeout=300)

@@ -12,7 +12,6 @@ N_h = 100 (the Gaussian's spectrum decays as exp(-(k w)^2 / 4), e^-56 at k = 100
 """
 import math
 import os
-import shutil
 import subprocess
 import sys
 from dataclasses import fields, replace
@@ -29,7 +28,7 @@ from hbm.ti.sweep import SpeedResponse, sweep
 from hbm.ti.march import modal_system, rom_modal_system
 from hbm.ti.validation import compare_with_hbm, march_from_hbm
 from rom.model import modal_damping
-from support import standin_rom
+from support import mpirun_command, needs_mpirun, standin_rom
 
 #: The MPI sweep (tests/hbm/mpi_sweep.py runs it under mpirun; the test runs it serially).
 MPI_OPTIONS = TimeIntegrationOptions(dt=1e-6, n_revolutions=6, n_keep=2, samples_per_revolution=64)
@@ -302,13 +301,7 @@ def test_a_killed_worker_fails_the_sweep_with_a_line_that_says_so(monkeypatch):
     assert sorted(kept) == [1, 2]  # one worker, slowest first: 1500 and 1700 rad/s ended before
 
 
-@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not installed (Debian: openmpi-bin)")
-def _mpirun_command(root: Path):
-    """(`mpirun -n 2` words, environment with the checkout and tests/ on the path)."""
-    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{root / 'tests'}")
-    return ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else []), env
-
-
+@needs_mpirun
 def test_mpi_sweep_equals_the_serial_one(tmp_path):
     """`mpirun -n 2` splits the points over two ranks (hbm.processes.mpi_world); every rank
     gets the whole result, equal to the serial sweep's to the bit (same points, same code).
@@ -319,7 +312,7 @@ def test_mpi_sweep_equals_the_serial_one(tmp_path):
     np.savez(tmp_path / "system.npz", **{f.name: getattr(system, f.name) for f in fields(system)
                                          if getattr(system, f.name) is not None})
     out = tmp_path / "mpi.npz"
-    cmd, env = _mpirun_command(Path(__file__).resolve().parents[2])
+    cmd, env = mpirun_command(Path(__file__).resolve().parents[2])
     run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_sweep.py")),
                                 str(tmp_path / "system.npz"), str(out)],
                          env=env, capture_output=True, text=True, timeout=300)
@@ -331,6 +324,7 @@ def test_mpi_sweep_equals_the_serial_one(tmp_path):
         np.testing.assert_array_equal(got[name], getattr(serial, name))
 
 
+@needs_mpirun
 def test_a_failing_rank_ends_the_mpi_sweep_on_every_rank(tmp_path):
     """A speed that fails on one rank (here: keeping it, as on a full disk) raises there and
     as RankFailed naming it on the other rank, which would otherwise wait for it forever in
@@ -338,7 +332,7 @@ def test_a_failing_rank_ends_the_mpi_sweep_on_every_rank(tmp_path):
     system = rom_modal_system(standin_rom())
     np.savez(tmp_path / "system.npz", **{f.name: getattr(system, f.name) for f in fields(system)
                                          if getattr(system, f.name) is not None})
-    cmd, env = _mpirun_command(Path(__file__).resolve().parents[2])
+    cmd, env = mpirun_command(Path(__file__).resolve().parents[2])
     run = subprocess.run(cmd + [sys.executable, str(Path(__file__).with_name("mpi_sweep.py")),
                                 str(tmp_path / "system.npz"), str(tmp_path / "mpi.npz"), "fail"],
                          env=env, capture_output=True, text=True, timeout=300)

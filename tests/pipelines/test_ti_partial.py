@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from coarse_runs import ROOT, clone
-from support import shell_env
+from support import needs_mpirun, shell_env
 from hbm.ti.sweep import SpeedResponse
 from pipelines import artifacts as art
 from pipelines.cli import main
@@ -132,8 +132,7 @@ sys.exit(main(sys.argv[1:]))
 """
 
 
-@pytest.mark.skipif(shutil.which("mpirun") is None, reason="mpirun not found (Debian: openmpi-bin, installed by "
-                    ".ci/install)")
+@needs_mpirun
 def test_an_interrupted_mpi_sweep_keeps_every_ranks_speeds(coarse_nfrc, tmp_path, capsys):
     scene = clone(coarse_nfrc[1], tmp_path)
     run = ["run", str(scene), "--out", str(tmp_path), "--until", "ti"]
