@@ -109,14 +109,55 @@ def worker_died(what: str, tasks: str = "") -> WorkerDied:
 
 
 @contextmanager
-def reported_deaths(what: str):
-    """Within it, a pool's BrokenProcessPool is raised as worker_died(what)."""
+def reported_deaths(what: str, tasks=None):
+    """Within it, a pool's BrokenProcessPool is raised as worker_died(what, tasks()); tasks:
+    a callable that says what the pool's workers were computing when it broke (None: the
+    message names only the pool), asked only then."""
     from concurrent.futures.process import BrokenProcessPool
 
     try:
         yield
     except BrokenProcessPool as exc:
-        raise worker_died(what) from exc
+        raise worker_died(what, tasks() if tasks is not None else "") from exc
+
+
+#: In a pool's worker process: the pool's start flags (set_start_flags), or None.
+_STARTED = None
+
+
+def start_flags(context, n: int):
+    """The start flags of a pool's n tasks: one byte per task in shared memory, all 0.
+
+    A pool's owner knows which answers reached it, not which tasks were running when a
+    worker died (the OOM killer): the workers get the flags from their initializer
+    (set_start_flags) and each task runs through run_flagged, which sets its flag to 1 as
+    it starts and 2 as it returns or raises (an answer a broken pool lost was not being computed).
+    running(flags): the tasks being computed. context: the pool's multiprocessing context."""
+    return context.RawArray("b", n)
+
+
+def set_start_flags(flags) -> None:
+    """Pool initializer (or part of one): this worker's tasks set their flags in `flags`."""
+    global _STARTED
+    _STARTED = flags
+
+
+def run_flagged(i: int, fn, *args):
+    """fn(*args) as task i of a pool, its flag set around it (start_flags). fn travels with
+    the task: a spawned worker imports its module afresh, where a test's replacement of a
+    module function would be lost."""
+    if _STARTED is None:
+        return fn(*args)
+    _STARTED[i] = 1
+    try:
+        return fn(*args)
+    finally:
+        _STARTED[i] = 2
+
+
+def running(flags) -> list[int]:
+    """Indices of the tasks started and not returned (start_flags)."""
+    return [i for i in range(len(flags)) if flags[i] == 1]
 
 
 _LIMITS: list = []  # keeps each worker's BLAS limit alive for its lifetime

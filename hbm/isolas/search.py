@@ -53,7 +53,8 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
-from hbm.processes import gathered, limit_blas_threads, on_root, process_context, reported_deaths
+from hbm.processes import (gathered, limit_blas_threads, on_root, process_context, reported_deaths, run_flagged,
+                           running, set_start_flags, start_flags)
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -210,9 +211,11 @@ class _Corrector:
 _WORKER: dict = {}
 
 
-def _init_worker(factory, known, options):
-    """Pool initializer: one BLAS thread for the worker's lifetime, and its corrector."""
+def _init_worker(factory, known, options, started):
+    """Pool initializer: one BLAS thread for the worker's lifetime, its corrector, and the
+    start flags of the pool's tasks (a dead worker's speeds are named)."""
     limit_blas_threads()
+    set_start_flags(started)
     _WORKER["corrector"] = _Corrector(factory, known, options)
 
 
@@ -270,9 +273,17 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
                     progress(len(rows), s)
         else:
             ctx = process_context()  # fork: the residual is built once per worker from the inherited factory
-            with reported_deaths("the isola search"), concurrent.futures.ProcessPoolExecutor(
-                    workers, mp_context=ctx, initializer=_init_worker, initargs=(factory, known, options)) as pool:
-                for f in concurrent.futures.as_completed([pool.submit(_run_worker, t) for t in tasks]):
+            started = start_flags(ctx, len(tasks))
+
+            def correcting() -> str:  # each task is one speed's seeds (t[0][1]: its Omega)
+                w = [f"{tasks[k][0][1]:g}" for k in running(started)]
+                return f"seeds being corrected at {', '.join(w)} rad/s" if w else ""
+
+            with reported_deaths("the isola search", correcting), concurrent.futures.ProcessPoolExecutor(
+                    workers, mp_context=ctx, initializer=_init_worker,
+                    initargs=(factory, known, options, started)) as pool:
+                futures = [pool.submit(run_flagged, k, _run_worker, t) for k, t in enumerate(tasks)]
+                for f in concurrent.futures.as_completed(futures):
                     r, c = f.result()
                     rows += r
                     cpu += c
@@ -500,6 +511,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             on_corrections(corrections)
     cpu_phase1 = corrections.cpu_time
 
+    doing = [""]  # what the phase's pool computes now: named if one of its workers dies
+
     def branches_phase(pool=None):
         t_start = time.process_time()
         cpu_workers = 0.0
@@ -530,6 +543,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             others = ([(f"known branch {j} ({b.label})", -1 - j, b) for j, b in enumerate(known)]
                       + [(f"branch {j}", j, p) for j, p in enumerate(polys)])
             args = (factory, x0, w0, +1, co, others, options.tolerance)
+            doing[0] = f"branch being continued: from seed {i} at {w0:g} rad/s"
             if pool is not None:  # both halves at once; the second is dropped if the first closes
                 futures = [pool.submit(_run_half, *args), pool.submit(_run_half, *args[:3], -1, *args[4:])]
                 (first, j1, c1), (second, j2, c2) = (f.result() for f in futures)
@@ -560,6 +574,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             kind, closed = _classify(halves, omega, x, bifurcation_points, options)
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
             ok = np.asarray(conv, bool)
+            doing[0] = f"branch being described: from seed {i} at {w0:g} rad/s"
             extras, cpu_desc = _described(describe, omega[ok], x[ok], pool) if describe is not None and ok.any() \
                 else ({}, 0.0)
             cpu_workers += cpu_desc
@@ -591,7 +606,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             found, owner, n_cont, n_pts, cpu2 = branches_phase()
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = process_context()
-            with reported_deaths("the isola search"), concurrent.futures.ProcessPoolExecutor(
+            with reported_deaths("the isola search", lambda: doing[0]), concurrent.futures.ProcessPoolExecutor(
                     2, mp_context=ctx, initializer=limit_blas_threads) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches

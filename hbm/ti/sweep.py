@@ -29,7 +29,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from hbm.options import CasingOptions, ContactOptions, TimeIntegrationOptions
-from hbm.processes import gathered, limit_blas_threads, mpi_world, process_context, worker_died
+from hbm.processes import (gathered, limit_blas_threads, mpi_world, process_context, run_flagged, running,
+                           set_start_flags, start_flags, worker_died)
 from hbm.ti.march import Marcher, ModalSystem, Recording, check_time_step, rom_modal_system, scheme_system
 from hbm.ti.settle import SUBSECTIONS, settle_test
 
@@ -269,24 +270,11 @@ def _prepared(rom, contact: ContactOptions, ti_options: TimeIntegrationOptions, 
     return system, omegas
 
 
-#: In a SweepRun's worker process: the run's start flags, one byte per speed (set by _marched).
-_STARTED = None
-
-
 def _sweep_worker(started) -> None:
-    """Initializer of a SweepRun's workers: BLAS on one thread, and the start flags at hand."""
-    global _STARTED
-    _STARTED = started
+    """Initializer of a SweepRun's workers: BLAS on one thread, and the start flags at hand
+    (hbm.processes.run_flagged: a dead worker's speeds are named)."""
+    set_start_flags(started)
     limit_blas_threads()
-
-
-def _marched(i: int, march, system, casing, mu, omega, options) -> "SpeedResponse":
-    """march(system, casing, mu, omega, options) (simulate) of speed i, flagged as started
-    first: when a worker dies (the OOM killer), the sweep names the speeds that had started and
-    not ended. The function travels with the task (a spawned worker imports this module
-    afresh)."""
-    _STARTED[i] = 1
-    return march(system, casing, mu, omega, options)
 
 
 class SweepRun:
@@ -326,7 +314,7 @@ class SweepRun:
         self.on_point = on_point or (lambda done, total: None)
         self.on_speed = on_speed or (lambda i, response: None)
         context = process_context()
-        self._started = context.RawArray("b", len(self.omegas))  # see _marched
+        self._started = start_flags(context, len(self.omegas))
         self._pool = concurrent.futures.ProcessPoolExecutor(workers, mp_context=context, initializer=_sweep_worker,
                                                             initargs=(self._started,))
         # with fork the pool starts all its workers at its first task: here, from this thread
@@ -353,7 +341,7 @@ class SweepRun:
                                                           or self._cores >= self._workers):
                 i = self._todo.pop(0)
                 self._in_flight += 1
-                self._pool.submit(_marched, i, simulate, self._system, *self._args[:2], self.omegas[i],
+                self._pool.submit(run_flagged, i, simulate, self._system, *self._args[:2], self.omegas[i],
                                   self._args[2]) \
                     .add_done_callback(lambda f, i=i: self._done(i, f))
             if self._in_flight == 0 and (self._error is not None or not self._todo):
@@ -365,10 +353,9 @@ class SweepRun:
             if not future.cancelled():  # cancelled: the sweep is being ended (cancel())
                 error = future.exception()
                 if isinstance(error, BrokenProcessPool):
-                    running = [f"{self.omegas[j]:g}" for j in range(len(self.omegas))
-                               if self._started[j] and j not in self._points]
+                    marched = [f"{self.omegas[j]:g}" for j in running(self._started)]
                     error = worker_died("the time-integration sweep",
-                                        f"speeds being marched: {', '.join(running)} rad/s" if running else "")
+                                        f"speeds being marched: {', '.join(marched)} rad/s" if marched else "")
                 if error is None:
                     try:  # the pool would only log what a callback raises
                         self.on_speed(i, future.result())

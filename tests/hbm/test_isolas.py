@@ -14,6 +14,7 @@ point (stays there).
 from __future__ import annotations
 
 import os
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -229,23 +230,59 @@ def test_an_interrupted_search_resumes_without_recomputing(primary):
     np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
 
 
+#: the third speed of modal_seeds' grid, where _killed kills its worker
+KILLED_AT = float(np.linspace(W_MIN, W_MAX, 41)[2])
+
+
 def _killed(items):
-    """The seeds' worker task (hbm.isolas.search._run_worker), but the worker is killed
-    (SIGKILL: the OOM killer's signal)."""
+    """The seeds' worker task (hbm.isolas.search._run_worker), but the worker correcting the
+    seeds at KILLED_AT is killed (SIGKILL: the OOM killer's signal)."""
+    import signal
+
+    from hbm.isolas.search import _timed, _WORKER
+
+    if items[0][1] == KILLED_AT:
+        os.kill(os.getpid(), signal.SIGKILL)
+    return _timed(_WORKER["corrector"], items)
+
+
+def _killed_half(*args):
+    """A half branch's task (hbm.isolas.search._run_half), but its worker is killed."""
     import signal
 
     os.kill(os.getpid(), signal.SIGKILL)
 
 
-def test_a_killed_worker_fails_the_search_with_a_line_that_says_so(primary, monkeypatch):
+def test_a_killed_worker_fails_the_search_with_a_line_that_names_its_seeds(primary, monkeypatch):
     """Python's BrokenProcessPool names nothing and the CLI shows a traceback for it; the
-    search raises hbm.processes.WorkerDied, which the CLI prints as its one line."""
+    search raises hbm.processes.WorkerDied, which the CLI prints as its one line, naming
+    the speeds whose seeds were being corrected (the killed one, and at most the other
+    worker's)."""
     import hbm.isolas.search as search_module
     from hbm.processes import WorkerDied
 
     monkeypatch.setattr(search_module, "_run_worker", _killed)
-    with pytest.raises(WorkerDied, match="a worker process of the isola search ended without an answer"):
+    with pytest.raises(WorkerDied, match="a worker process of the isola search ended without an answer") as e:
         search(factory, modal_seeds(), [primary], options(workers=2))
+    head, _, named = str(e.value).partition("; seeds being corrected at ")
+    assert head.endswith("(killed, perhaps for lack of memory)") and named.endswith(" rad/s")
+    speeds = [float(w) for w in named[:-len(" rad/s")].split(", ")]
+    assert any(w == pytest.approx(KILLED_AT, rel=1e-5) for w in speeds) and len(speeds) <= 2
+
+
+def test_a_worker_killed_while_continuing_a_branch_names_the_branch(primary, monkeypatch):
+    """In the continuation phase the message names the seed whose branch was being continued."""
+    import hbm.isolas.search as search_module
+    from hbm.processes import WorkerDied
+
+    monkeypatch.setattr(search_module, "_run_half", _killed_half)
+    seeds = modal_seeds()
+    with pytest.raises(WorkerDied, match=r"ended without an answer \(killed, perhaps for lack of memory\); "
+                                         r"branch being continued: from seed (\d+) at (\S+) rad/s$") as e:
+        search(factory, seeds, [primary], options(workers=2))
+    i, w = re.search(r"from seed (\d+) at (\S+) rad/s", str(e.value)).groups()
+    assert float(w) == pytest.approx(seeds[int(i)].omega, rel=1e-5)
+    assert W_MIN <= float(w) <= W_MAX
 
 
 def test_a_search_in_this_process_leaves_the_blas_threads_as_it_found_them(primary):
