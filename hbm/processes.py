@@ -6,6 +6,7 @@ import multiprocessing
 import os
 import sys
 import time
+from collections.abc import Callable
 from contextlib import contextmanager
 
 
@@ -109,7 +110,7 @@ def worker_died(what: str, tasks: str = "") -> WorkerDied:
 
 
 @contextmanager
-def reported_deaths(what: str, tasks=None):
+def reported_deaths(what: str, tasks: Callable[[], str] | None = None):
     """Within it, a pool's BrokenProcessPool is raised as worker_died(what, tasks()); tasks:
     a callable that says what the pool's workers were computing when it broke (None: the
     message names only the pool), asked only then."""
@@ -131,8 +132,9 @@ def start_flags(context, n: int):
     A pool's owner knows which answers reached it, not which tasks were running when a
     worker died (the OOM killer): the workers get the flags from their initializer
     (set_start_flags) and each task runs through run_flagged, which sets its flag to 1 as
-    it starts and 2 as it returns or raises (an answer a broken pool lost was not being computed).
-    running(flags): the tasks being computed. context: the pool's multiprocessing context."""
+    it starts and to 2 as it returns or raises (an answer that a broken pool lost was not
+    being computed). running(flags): the tasks being computed. context: the pool's
+    multiprocessing context."""
     return context.RawArray("b", n)
 
 
