@@ -111,7 +111,6 @@ def shell_env() -> dict:
     return {k: v for k, v in os.environ.items() if not k.startswith(("OMPI_", "PMIX_"))}
 
 
-
 #: The MPI tests need Open MPI's launcher (.ci/install installs it): where it is missing they cannot run.
 needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None,
                                   reason="mpirun not found (Debian: openmpi-bin, installed by .ci/install)")
@@ -119,6 +118,8 @@ needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None,
 
 def mpirun_command(root) -> tuple[list, dict]:
     """(`mpirun -n 2` words, environment with the checkout `root` and tests/ on the path); as
-    root, with the flags Open MPI needs to run there and on two slots of a smaller machine."""
-    env = dict(os.environ, PYTHONPATH=f"{root}{os.pathsep}{os.path.join(root, 'tests')}")
+    root, with the flags Open MPI needs to run there and on two slots of a smaller machine.
+    The environment is shell_env()'s: mpirun must start a job of its own, not join this
+    process's singleton one."""
+    env = dict(shell_env(), PYTHONPATH=f"{root}{os.pathsep}{os.path.join(root, 'tests')}")
     return ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else []), env

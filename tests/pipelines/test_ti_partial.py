@@ -3,7 +3,6 @@ and a run of the same inputs goes on from the speeds on disk instead of marching
 (the interrupted case itself: tests/pipelines/test_interrupt.py), also after a worker of the
 sweep was killed, which is one line naming it."""
 import os
-import shutil
 import subprocess
 import sys
 from dataclasses import fields, replace
@@ -13,7 +12,7 @@ import numpy as np
 import pytest
 
 from coarse_runs import ROOT, clone
-from support import needs_mpirun, shell_env
+from support import mpirun_command, needs_mpirun, shell_env
 from hbm.ti.sweep import SpeedResponse
 from pipelines import artifacts as art
 from pipelines.cli import main
@@ -136,9 +135,8 @@ sys.exit(main(sys.argv[1:]))
 def test_an_interrupted_mpi_sweep_keeps_every_ranks_speeds(coarse_nfrc, tmp_path, capsys):
     scene = clone(coarse_nfrc[1], tmp_path)
     run = ["run", str(scene), "--out", str(tmp_path), "--until", "ti"]
-    env = dict(shell_env(), PYTHONPATH=str(ROOT), OMPI_ALLOW_RUN_AS_ROOT="1", OMPI_ALLOW_RUN_AS_ROOT_CONFIRM="1",
-               OMPI_MCA_rmaps_base_oversubscribe="1")
-    r = subprocess.run([shutil.which("mpirun"), "-n", "2", sys.executable, "-c", KILLED_RANK] + run, cwd=ROOT,
+    mpirun, env = mpirun_command(ROOT)
+    r = subprocess.run(mpirun + [sys.executable, "-c", KILLED_RANK] + run, cwd=ROOT,
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode != 0 and not (tmp_path / "ti.h5").exists(), r.stderr
     files = SweepPartial(tmp_path / "ti.partial.h5", "").files()
@@ -158,7 +156,7 @@ def test_an_interrupted_mpi_sweep_keeps_every_ranks_speeds(coarse_nfrc, tmp_path
     # rank's file left behind
     resumed = read_sweep(tmp_path)
     (tmp_path / "ti.h5").unlink()
-    r = subprocess.run([shutil.which("mpirun"), "-n", "2", sys.executable, "-m", "pipelines.cli"] + run, cwd=ROOT,
+    r = subprocess.run(mpirun + [sys.executable, "-m", "pipelines.cli"] + run, cwd=ROOT,
                        capture_output=True, text=True, env=env, timeout=600)
     assert r.returncode == 0, r.stdout + r.stderr
     got = read_sweep(tmp_path)
