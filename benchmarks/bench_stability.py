@@ -18,6 +18,10 @@ cost of both.
 Hill's operator as the product builds it (the residual's Lanczos filter on the force rows)
 and without the filter, both widened to MIN_CEILING; where the verdicts differ, 100 periods
 of time integration from the point (hbm.ti.validation.march_from_hbm, its verdict).
+--woodbury-check: at `points` points, H(0)^-1's condensed solve two ways: the dense LU
+(HillSolver) and the NFRC's Woodbury preconditioner (hbm.harmonic.preconditioner, exact but
+for the friction's fluctuating sliding terms) completed by refinement or by GMRES to 1e-13;
+prints the build and per-solve CPU times and how each iteration converges to the LU's answer.
 --schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
 replayed on those spectra for each StabilityOptions.reach_fraction given (and --max-gap; the schedule's
 decisions are all that differ: the same analyses give the same spectra; the monitor's
@@ -85,6 +89,7 @@ def main():
     ap.add_argument("--replay", default="", help="with --schedule: reach fractions to replay, e.g. 0.5,0.25")
     ap.add_argument("--widen-check", action="store_true")
     ap.add_argument("--filter-check", action="store_true")
+    ap.add_argument("--woodbury-check", action="store_true")
     ap.add_argument("--every", type=int, default=6)
     ap.add_argument("--max-gap", default=str(StabilityOptions().max_gap),
                     help="with --replay: StabilityOptions.max_gap of the replayed schedules, e.g. 8,16")
@@ -94,6 +99,8 @@ def main():
         return widen_check(rom, a)
     if a.filter_check:
         return filter_check(rom, a)
+    if a.woodbury_check:
+        return woodbury_check(rom, a)
     if a.schedule and a.replay:
         return replay(rom, a)
     if a.schedule:
@@ -226,6 +233,64 @@ def widen_check(rom, a):
               f"widened, {wide_cpu / max(stable, 1):.3f} s per stable point; {len(flips)} become unstable:", flush=True)
         for f in flips:
             print("   ", f, flush=True)
+
+
+def _cpu_per_call(f, *args, repeat=20):
+    """Median CPU time of f(*args), s (process time of `repeat` calls, in 5 groups)."""
+    times = []
+    for _ in range(5):
+        c = time.process_time()
+        for _ in range(repeat // 5):
+            f(*args)
+        times.append((time.process_time() - c) / (repeat // 5))
+    return statistics.median(times)
+
+
+def woodbury_check(rom, a):
+    import scipy.linalg as sla
+    import scipy.sparse.linalg as spla
+
+    from hbm.harmonic.preconditioner import ContactPreconditioner
+    from hbm.stability.hill import harmonic_period, restrict
+
+    opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
+    print("| method | Omega (rad/s) | nodes | LU: build, solve (ms) | Woodbury: build, solve, J product (ms) "
+          "| refinement: error after 1, 2, 4, 8 solves | GMRES to 1e-13: iterations, ms, error |")
+    print("|---|---|---|---|---|---|---|")
+    for m in a.methods:
+        r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
+        res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=m)
+        with threadpool_limits(limits=1, user_api="blas"):
+            for i in np.linspace(0, len(r.omega) - 1, a.points).astype(int):
+                u, w = r.unknowns[i], float(r.omega[i])
+                H = restrict(hill.HillOperator.from_residual(res, u, w), harmonic_period(res.to_coefficients(u), 1e-4))
+                c = time.process_time()
+                S = hill.HillSolver(H)
+                t_lu = time.process_time() - c
+                J = S.condensed
+                c = time.process_time()
+                P = ContactPreconditioner(J, single=False)
+                t_p = time.process_time() - c
+                b = np.random.default_rng(1).standard_normal(J.shape[0])
+                ref = sla.lu_solve(S.lu, b, check_finite=False)
+                t_s = _cpu_per_call(sla.lu_solve, S.lu, b)
+                t_ps, t_mv = _cpu_per_call(P, b), _cpu_per_call(J.__matmul__, b)
+                x, errs = P(b), []
+                for k in range(1, 9):
+                    if k in (1, 2, 4, 8):
+                        errs.append(np.linalg.norm(x - ref) / np.linalg.norm(ref))
+                    x = x + P(b - J @ x)
+                its = [0]
+                c = time.process_time()
+                xg, info = spla.gmres(spla.LinearOperator(J.shape, matvec=J.__matmul__, dtype=float), b,
+                                      M=spla.LinearOperator(J.shape, matvec=P, dtype=float), tol=1e-13, atol=0.0,
+                                      restart=40, maxiter=10, callback_type="pr_norm",
+                                      callback=lambda _: its.__setitem__(0, its[0] + 1))
+                t_g = time.process_time() - c
+                eg = np.linalg.norm(xg - ref) / np.linalg.norm(ref)
+                print(f"| {m} | {w:.1f} | {len(H.nodes)} | {t_lu * 1e3:.1f}, {t_s * 1e3:.3f} | {t_p * 1e3:.1f}, "
+                      f"{t_ps * 1e3:.3f}, {t_mv * 1e3:.3f} | {', '.join(f'{e:.1e}' for e in errs)} | "
+                      f"{its[0]}{'' if info == 0 else ' (not converged)'}, {t_g * 1e3:.1f}, {eg:.1e} |", flush=True)
 
 
 def filter_check(rom, a):

@@ -287,6 +287,7 @@ class HillSolver:
         op = model.operator(H.omega)
         J = HbmJacobian(op=op, scale=1.0, nodes=cnodes, weights=H.weights, basis=H.basis, sigma=H.sigma,
                         g_eps=H.g_eps, g_z=H.g_z)
+        self.condensed = J  # the condensed matrix in structured form (products, preconditioners)
         self.lu = sla.lu_factor(J.toarray(), check_finite=False, overwrite_a=True)
         if not np.all(np.isfinite(self.lu[0])) or np.any(np.diag(self.lu[0]) == 0.0):
             from hbm.linalg.errors import SingularMatrixError
