@@ -81,9 +81,49 @@ def expected_inputs(scene, names) -> dict:
     return memo
 
 
-def why_stale(path: Path, inputs: dict, h: str, verify: bool = True) -> str | None:
+def _short(value) -> str:
+    """A scene value as the reason line shows it: TOML-like (floats in 6 digits where that is
+    exact), cut to 40 characters."""
+    if value is None:
+        text = "unset"
+    elif isinstance(value, bool):
+        text = "true" if value else "false"
+    elif isinstance(value, float) and float(f"{value:.6g}") == value:
+        text = f"{value:.6g}"
+    else:
+        text = json.dumps(value, ensure_ascii=False) if isinstance(value, (str, list, dict)) else repr(value)
+    return text if len(text) <= 40 else text[:37] + "..."
+
+
+def _changed_keys(component: str, old_text: str, scene) -> list[str]:
+    """The scene keys behind a changed "scene KEY" component, with their old and new values
+    ("hbm.n_time 1000 -> 1024"), from the scene text the artifact was made with; [] when that
+    text cannot be read as a scene (then the component's name is all the reason says)."""
+    from pipelines.scene import SceneError, parse_scene
+
+    key = component.split(" ", 1)[1]
+    try:
+        old = parse_scene(old_text, scene.path).value(key)
+    except (SceneError, ValueError, TypeError, AttributeError):
+        return []
+    new = scene.value(key)
+    if not (isinstance(old, dict) and isinstance(new, dict)):
+        return [f"{key} {_short(old)} -> {_short(new)}"] if old != new else []
+    section = key.split("~")[0]
+    return [f"{section}.{f} {_short(old.get(f))} -> {_short(new.get(f))}"
+            for f in sorted(set(old) | set(new)) if old.get(f) != new.get(f)]
+
+
+def _component_name(component: str) -> str:
+    """"scene hbm~methods" -> "hbm except methods", "upstream rom.h5" -> "rom.h5"."""
+    section, *dropped = component.split(" ", 1)[-1].split("~")
+    return f"{section} except {', '.join(dropped)}" if dropped else section
+
+
+def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None) -> str | None:
     """None when `path` is current for these inputs and intact, else the reason to compute it.
-    verify: check every dataset against its checksum (else the inputs hash only)."""
+    verify: check every dataset against its checksum (else the inputs hash only). scene: the
+    run's scene, to name the changed scene keys with their values (else the components)."""
     if path.is_symlink() and not path.exists():
         return "broken link"
     if not path.exists():
@@ -101,8 +141,15 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True) -> str | No
         old = json.loads(attrs.get("inputs", ""))
     except ValueError:
         return "made from other inputs"
-    changed = sorted({k.split(" ", 1)[-1] for k in set(old) | set(inputs) if old.get(k) != inputs.get(k)})
-    return "inputs changed: " + ", ".join(changed) if changed else "made from other inputs"
+    changed = []
+    for k in sorted(set(old) | set(inputs)):
+        if old.get(k) == inputs.get(k):
+            continue
+        keys = _changed_keys(k, attrs.get("scene", ""), scene) if scene is not None and k.startswith("scene ") else []
+        changed.extend(keys or [_component_name(k)])
+    if len(changed) > 4:  # another scene altogether: the first few say enough
+        changed = changed[:3] + [f"{len(changed) - 3} more"]
+    return "inputs changed: " + ", ".join(dict.fromkeys(changed)) if changed else "made from other inputs"
 
 
 @dataclass
@@ -127,7 +174,7 @@ def plan(scene, out: Path, names, force: bool = False, expected: dict | None = N
         todo, reasons = [], []
         for o in outputs:
             inputs, h = expected[o.file]
-            why = "forced (--force)" if force else why_stale(out / o.file, inputs, h, verify)
+            why = "forced (--force)" if force else why_stale(out / o.file, inputs, h, verify, scene)
             if why is not None:
                 todo.append(o)
                 reasons.append(why if len(outputs) == 1 else f"{o.file}: {why}")

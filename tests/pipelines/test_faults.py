@@ -478,7 +478,7 @@ def test_render_before_fem_names_the_command_to_run(coarse_run, tmp_path, capsys
     scene.write_text(scene.read_text().replace("E = 108e9", "E = 110e9"))  # fem.h5 there, but not this scene's
     (tmp_path / "fem.h5").symlink_to(coarse_run[1] / "fem.h5")
     assert main(["render", str(scene), "--out", str(tmp_path)]) == 2
-    assert "fem.h5 is not usable for this scene (inputs changed: material): run `bladerub run" in \
+    assert "fem.h5 is not usable for this scene (inputs changed: material.E 1.08e+11 -> 1.1e+11): run `bladerub run" in \
         one_line(capsys.readouterr().err)
 
 

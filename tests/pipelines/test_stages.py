@@ -171,6 +171,10 @@ def test_render_settings_never_recompute_the_fem(tiny, tmp_path):
 def test_harmonics_rerun_the_hbm_but_never_the_sweep(tiny, tmp_path):
     rec, changed, path = _changed(tiny, tmp_path, "n_harmonics = 5", "n_harmonics = 4", until="hbm")
     assert changed == {"nfrc_dlft.h5", "nfrc_rl.h5"}
+    # the reason names the key the scene changed and its two values, not the hashed part
+    # of the scene the stage reads ("hbm except methods")
+    assert rec["hbm"][1] == ("nfrc_dlft.h5: inputs changed: hbm.n_harmonics 5 -> 4; "
+                             "nfrc_rl.h5: inputs changed: hbm.n_harmonics 5 -> 4"), rec["hbm"]
     nxt = _after_hbm(path, tmp_path / "out")
     assert nxt["ti"] == "up to date"
     # the search and the validation read the hbm section and the NFRCs: both out of date
@@ -181,11 +185,28 @@ def test_harmonics_rerun_the_hbm_but_never_the_sweep(tiny, tmp_path):
 def test_penalty_stiffness_reruns_rl_only(tiny, tmp_path):
     rec, changed, path = _changed(tiny, tmp_path, "kappa = 1e9", "kappa = 2e9", until="hbm")
     assert changed == {"nfrc_rl.h5"}
-    assert "contact.kappa" in rec["hbm"][1] and "nfrc_dlft" not in rec["hbm"][1]
+    assert rec["hbm"][1] == "nfrc_rl.h5: inputs changed: contact.kappa 1e+09 -> 2e+09", rec["hbm"]
     nxt = _after_hbm(path, tmp_path / "out")  # one isolas.h5 for both treatments: out of date
     assert nxt["ti"] == "up to date"
     for s in ("isolas", "validation"):
         assert nxt[s].startswith("inputs changed: ") and "nfrc_rl.h5" in nxt[s] and "nfrc_dlft.h5" not in nxt[s], nxt
+
+
+def test_a_reason_without_the_artifacts_scene_names_what_the_stage_reads(tiny, tmp_path):
+    """An artifact whose recorded scene cannot be read as one (an older or edited file): the
+    reason names the part of the scene that changed, as the stage reads it."""
+    from pipelines.runner import plan
+
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    for m in ("dlft", "rl"):
+        with h5py.File(out / f"nfrc_{m}.h5", "r+") as h5:
+            h5.attrs["scene"] = "not = [a scene"
+    path = tmp_path / "changed.toml"
+    path.write_text(scene.read_text().replace("n_harmonics = 5", "n_harmonics = 4", 1))
+    why = {s.stage.name: s.why for s in plan(load_scene(path), out, ("hbm",))}
+    assert why["hbm"] == ("nfrc_dlft.h5: inputs changed: hbm except methods; "
+                          "nfrc_rl.h5: inputs changed: hbm except methods"), why
 
 
 def test_the_nfrc_figure_reads_the_sweep_back(tiny):
