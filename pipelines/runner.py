@@ -102,6 +102,8 @@ def _changed_keys(component: str, old_text: str, scene) -> list[str]:
     from pipelines.scene import SceneError, parse_scene
 
     key = component.split(" ", 1)[1]
+    if not old_text.strip():  # an artifact without its scene: "" would parse as the defaults
+        return []
     try:
         old = parse_scene(old_text, scene.path).value(key)
     except (SceneError, ValueError, TypeError, AttributeError):
@@ -147,9 +149,10 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
             continue
         keys = _changed_keys(k, attrs.get("scene", ""), scene) if scene is not None and k.startswith("scene ") else []
         changed.extend(keys or [_component_name(k)])
+    changed = list(dict.fromkeys(changed))
     if len(changed) > 4:  # another scene altogether: the first few say enough
         changed = changed[:3] + [f"{len(changed) - 3} more"]
-    return "inputs changed: " + ", ".join(dict.fromkeys(changed)) if changed else "made from other inputs"
+    return "inputs changed: " + ", ".join(changed) if changed else "made from other inputs"
 
 
 @dataclass

@@ -193,15 +193,15 @@ def test_penalty_stiffness_reruns_rl_only(tiny, tmp_path):
 
 
 def test_a_reason_without_the_artifacts_scene_names_what_the_stage_reads(tiny, tmp_path):
-    """An artifact whose recorded scene cannot be read as one (an older or edited file): the
-    reason names the part of the scene that changed, as the stage reads it."""
+    """An artifact whose recorded scene cannot be read as one, or that has none (an older or
+    edited file): the reason names the part of the scene that changed, as the stage reads it."""
     from pipelines.runner import plan
 
     scene, base = tiny
     out = fresh_copy(base, tmp_path / "out")
-    for m in ("dlft", "rl"):
+    for m, text in (("dlft", "not = [a scene"), ("rl", "")):  # unreadable, and none (parsed: the defaults)
         with h5py.File(out / f"nfrc_{m}.h5", "r+") as h5:
-            h5.attrs["scene"] = "not = [a scene"
+            h5.attrs["scene"] = text
     path = tmp_path / "changed.toml"
     path.write_text(scene.read_text().replace("n_harmonics = 5", "n_harmonics = 4", 1))
     why = {s.stage.name: s.why for s in plan(load_scene(path), out, ("hbm",))}
