@@ -187,6 +187,22 @@ def _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active):
 
 
 @njit(cache=True, fastmath=_FAST, _nrt=False)
+def _profile_penetrations(profile, k, rh, d, active):
+    """Mark the nodes with rh_j >= d_j, d_j read from row k of the casing profile (see
+    run_steps); return whether any node penetrates. Every d_j is exact: no bound, no
+    exponential, no branch. The row is indexed here, not sliced by the caller: a slice made
+    in the step loop is a new array, with numba's reference counts."""
+    any_pen = False
+    for j in range(d.shape[0]):
+        dj = profile[k, j]
+        d[j] = dj
+        a = rh[j] >= dj
+        active[j] = a
+        any_pen = any_pen or a
+    return any_pen
+
+
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _node_increments(qn, qb, pt, pz, j):
     """(pt[j] . (qn - qb), pz[j] . (qn - qb)): node j's theta and z displacement increments."""
     ptj = pt[j]
@@ -327,7 +343,7 @@ def _first_at_or_after(step, start, stride):
 
 
 @njit(cache=True, fastmath=_FAST)
-def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fnodes,
+def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_frows, fnodes,
               out_x, out_f, out_sec, out_ext, stats, counts):
     """Advance the march by n_steps from the state at step step0 (see the module docstring).
 
@@ -339,6 +355,10 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
     geo = (s rho, s theta), (n_b,) each, m and rad, s = +1 or -1 the sense of rotation: node j
         meets the casing at tau + s theta_j and slides at v_theta + s rho_j Omega (see hbm.ti.march).
         cas = (c, p, w, n_l) of eq. (28).
+    profile: (P, n_b), m: d_j at steps 0 .. P - 1 when the casing's period is P whole steps
+        (then d_j at step m is row m mod P: the table replaces the casing law's floor and
+        exponential at every step and node, 20 to 25 % of a step); (0, n_b): the law is
+        evaluated at every step (any other step).
     par = (mu, Omega, dt, has_coff, massless, step0, n_steps).
     state = (q, qm, lam_prev, st_prev, sz_prev, idx_prev, m_prev): q_{step0}, q_{step0-1} (n,)
         and the massless scheme's pending forces; all updated in place (m_prev: (1,) int).
@@ -432,6 +452,11 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
             a_rrT[j, i] = a_rr[i, j]
             a_rtT[j, i] = a_rt[i, j]
             a_rzT[j, i] = a_rz[i, j]
+    n_prof = profile.shape[0]
+    kp = (step0 + 1) % n_prof if n_prof else 0  # the profile's row of the step being computed
+    if n_prof:
+        for j in range(nb):  # every d_j is exact at every step
+            exact[j] = True
     vscale = 1.0 / dt if massless else 0.5 / dt  # backward or centred difference
     margin = 1e-12 * (abs(clearance) + abs(penetration))
     cpp_margin = clearance + penetration + margin
@@ -468,7 +493,14 @@ def run_steps(lin, bnd, comp, geo, cas, par, state, rec, rec_rows, rec_frows, fn
         if massless and m_prev[0] > 0:  # the static contact forces of the previous step
             _apply_forces(qn, rh, lam_prev, st_prev, sz_prev, idx_prev, m_prev[0], mu, spr, spt, spz, Acol_prev)
             m_prev[0] = 0
-        any_pen, near = _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active)
+        if n_prof:
+            any_pen = _profile_penetrations(profile, kp, rh, d, active)
+            near = True
+            kp += 1
+            if kp == n_prof:
+                kp = 0
+        else:
+            any_pen, near = _find_penetrations(tau, theta, rh, cas, margin, fac, z, d, exact, active)
         m = 0
         if any_pen:
             n_contact += 1
