@@ -8,7 +8,10 @@
    each of --massless-dt (median of --repeat runs, CPU time of this process, so that other
    users' load counts less); ns per step, share of steps in contact, revolutions marched;
    for each friction coefficient of --mu (default [contact] mu; the header gives the ROM's
-   mu_set, above which a massless contact node can lock, rom.friction_lock).
+   mu_set, above which a massless contact node can lock, rom.friction_lock). --casing
+   table,law: each point with the casing profile tabulated over a casing period (the
+   default, hbm.ti.march.casing_profile) and with eq. (28) evaluated at every step,
+   alternated run by run in this process.
 2. Speed against error: LE amplitude at a few Omega for dt in {4e-7, 2e-7, 1e-7, 5e-8}; the
    error is taken against dt = 5e-8 (responses can be chaotic: a difference there is a
    different trajectory, not a discretisation error).
@@ -23,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import os
+from contextlib import contextmanager
 import statistics
 import sys
 import time
@@ -66,6 +70,8 @@ def main():
     ap.add_argument("--sweep-points", type=int, default=None, help="--full-sweep on this many speeds of the grid")
     ap.add_argument("--compare-full", action="store_true",
                     help="--full-sweep: also run it without the early stop and compare class and amplitude")
+    ap.add_argument("--casing", default="table",
+                    help="per-speed table: how the march finds the casing, comma-separated among table and law")
     a = ap.parse_args()
     rom, label = load_rom(a.rom)
     system = rom_modal_system(rom)
@@ -88,16 +94,21 @@ def main():
         ropts = replace(opts, scheme=scheme, dt=dt)
         if n is not None:
             ropts = replace(ropts, n_revolutions=n, stop_when_settled=False)
-        ts, r = [], None
+        modes = a.casing.split(",")
+        ts, res = {c: [] for c in modes}, {}
         for _ in range(a.repeat):
-            t0 = time.process_time()
-            r = simulate(system, cas, mu, w, ropts)
-            ts.append(time.process_time() - t0)
-        steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
-        med = statistics.median(ts)
-        print(f"| {mu:g} | {scheme} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | "
-              f"{1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | "
-              f"{r.period_class} |", flush=True)
+            for c in modes:
+                with _casing(c):
+                    t0 = time.process_time()
+                    res[c] = simulate(system, cas, mu, w, ropts)
+                    ts[c].append(time.process_time() - t0)
+        for c in modes:
+            r, med = res[c], statistics.median(ts[c])
+            steps = round(r.revolutions * 2 * np.pi / (w * r.dt))
+            label = f"{scheme} ({c})" if len(modes) > 1 else scheme
+            print(f"| {mu:g} | {label} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | "
+                  f"{1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | "
+                  f"{r.period_class} |", flush=True)
     print()
     if not a.skip_dt:
         # error against Carpenter at dt = 5e-8 for every scheme (the massless one is another model)
@@ -135,6 +146,22 @@ def main():
             print(f"Without the early stop: {wall_f:.0f} s wall, per-speed sum {f.cpu_time.sum():.0f} s; "
                   f"ratio {wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
             _compare(s, f)
+
+
+@contextmanager
+def _casing(mode: str):
+    """Marches made inside find the casing by its table over a casing period ("table", the
+    default) or by eq. (28) at every step ("law": no profile is tabulated)."""
+    from hbm.ti import march
+
+    if mode not in ("table", "law"):
+        raise SystemExit(f"--casing: unknown mode {mode!r}; known: table, law")
+    kept = march.PROFILE_MAX_ENTRIES
+    march.PROFILE_MAX_ENTRIES = kept if mode == "table" else 0
+    try:
+        yield
+    finally:
+        march.PROFILE_MAX_ENTRIES = kept
 
 
 def _split(s, n_revolutions: int):
