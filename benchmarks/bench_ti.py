@@ -26,10 +26,10 @@ from __future__ import annotations
 
 import argparse
 import os
-from contextlib import contextmanager
 import statistics
 import sys
 import time
+from contextlib import contextmanager
 from pathlib import Path
 
 from dataclasses import replace

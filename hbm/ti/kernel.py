@@ -6,9 +6,10 @@ Every step m (t_m = m dt) does, in this order:
 2. (massless scheme only) apply the contact forces of step m-1 to q_m: they act on the
    modal dof one step later, as any force of central differences;
 3. find the nodes beyond the casing of eq. (28) (the casing law of hbm.contact.casing,
-   compiled here from its one source, or its table over one casing period) and solve the linear complementarity problem
-   r = r_hat - A lam <= d, lam >= 0, lam (d - r) = 0 on the penetrating nodes by an active
-   set; A = the scheme's compliance (with the friction columns of the sliding direction);
+   compiled here from its one source, or its table over one casing period) and solve the
+   linear complementarity problem r = r_hat - A lam <= d, lam >= 0, lam (d - r) = 0 on the
+   penetrating nodes by an active set; A = the scheme's compliance (with the friction
+   columns of the sliding direction);
 4. (Carpenter) apply the forward-increment multipliers to q_m: the constraint holds at m;
 5. record.
 
@@ -358,8 +359,8 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
     profile: (P, n_b), m: d_j at steps 0 .. P - 1 when the casing's period is P whole steps
         (hbm.ti.march.casing_profile); d_j at step m is then row m mod P, which spares the
         casing law's floor at every node and step and its exponential at every node near
-        the casing (the default sweep's per-speed sum: 0.92 to 0.95 of the time). (0, n_b):
-        the law is evaluated at every step.
+        the casing (a speed then takes 0.78 to 0.86 of its time: README, *Time
+        integration*). (0, n_b): the law is evaluated at every step.
     par = (mu, Omega, dt, has_coff, massless, step0, n_steps).
     state = (q, qm, lam_prev, st_prev, sz_prev, idx_prev, m_prev): q_{step0}, q_{step0-1} (n,)
         and the massless scheme's pending forces; all updated in place (m_prev: (1,) int).

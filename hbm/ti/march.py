@@ -408,9 +408,8 @@ class Marcher:
         if n_steps > 0:
             par = (self._mu, self._omega, self.dt, self._has_coff, self.system.is_massless, self.step, n_steps)
             self._kernel.run_steps(self._lin, self._bnd, self._comp, self._geo, self._cas, self._profile, par,
-                                   self._state,
-                                   self._rec, self._rec_rows, self._rec_frows, self._fnodes, self.out_x, self.out_f,
-                                   self.out_sec, self.out_ext, self._stats, self._counts)
+                                   self._state, self._rec, self._rec_rows, self._rec_frows, self._fnodes, self.out_x,
+                                   self.out_f, self.out_sec, self.out_ext, self._stats, self._counts)
             self.step += n_steps
         return self
 
