@@ -95,18 +95,29 @@ def _short(value) -> str:
     return text if len(text) <= 40 else text[:37] + "..."
 
 
-def _changed_keys(component: str, old_text: str, scene) -> list[str]:
-    """The scene keys behind a changed "scene KEY" component, with their old and new values
-    ("hbm.n_time 1000 -> 1024"), from the scene text the artifact was made with; [] when that
-    text cannot be read as a scene (then the component's name is all the reason says)."""
+def _recorded_scene(text: str, scene):
+    """The scene an artifact was made with, parsed from its recorded text (relative paths
+    from the run's scene file), or None where there is none or it cannot be read as one (an
+    empty text would parse as the defaults)."""
     from pipelines.scene import SceneError, parse_scene
 
-    key = component.split(" ", 1)[1]
-    if not old_text.strip():  # an artifact without its scene: "" would parse as the defaults
+    if not text.strip():
+        return None
+    try:
+        return parse_scene(text, scene.path)
+    except (SceneError, ValueError, TypeError):
+        return None
+
+
+def _changed_keys(key: str, old_scene, scene) -> list[str]:
+    """The scene keys behind a changed scene component `key` ("hbm~methods", "contact.mu"),
+    with their old and new values ("hbm.n_time 1000 -> 1024"); [] when old_scene is None
+    (then the component's name is all the reason says)."""
+    if old_scene is None:
         return []
     try:
-        old = parse_scene(old_text, scene.path).value(key)
-    except (SceneError, ValueError, TypeError, AttributeError):
+        old = old_scene.value(key)
+    except AttributeError:  # a key the recorded scene's version did not have
         return []
     new = scene.value(key)
     if not (isinstance(old, dict) and isinstance(new, dict)):
@@ -143,11 +154,15 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
         old = json.loads(attrs.get("inputs", ""))
     except ValueError:
         return "made from other inputs"
-    changed = []
+    changed, recorded, parsed = [], None, False
     for k in sorted(set(old) | set(inputs)):
         if old.get(k) == inputs.get(k):
             continue
-        keys = _changed_keys(k, attrs.get("scene", ""), scene) if scene is not None and k.startswith("scene ") else []
+        keys = []
+        if scene is not None and k.startswith("scene "):
+            if not parsed:  # once, at the first changed scene key
+                recorded, parsed = _recorded_scene(attrs.get("scene", ""), scene), True
+            keys = _changed_keys(k.split(" ", 1)[1], recorded, scene)
         changed.extend(keys or [_component_name(k)])
     changed = list(dict.fromkeys(changed))
     if len(changed) > 4:  # another scene altogether: the first few say enough

@@ -19,12 +19,12 @@ import pytest
 
 from pipelines.cli import main
 from pipelines.stages.fem import factor_bytes
+from support import needs_mpirun
 
 ROOT = Path(__file__).resolve().parents[2]
 COARSE = ROOT / "scenes" / "rotor67_coarse.toml"
 MPIRUN = shutil.which("mpirun")
-pytestmark = pytest.mark.skipif(MPIRUN is None, reason="mpirun not found: the MPI run needs an MPI launcher "
-                                "(Debian: openmpi-bin, installed by .ci/install)")
+pytestmark = needs_mpirun
 
 
 def _mpirun(n: int, *args: str, timeout: float = 300, **env) -> subprocess.CompletedProcess:
