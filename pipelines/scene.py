@@ -188,7 +188,7 @@ def _build_section(name: str, cls: type, table: dict):
     try:
         return cls(**kwargs)
     except (ValueError, TypeError) as exc:
-        raise SceneError(f"[{name}]: {exc}") from exc
+        raise SceneError(f"[{name}] {exc}") from exc
 
 
 def parse_override(item: str) -> tuple[str, str, object]:

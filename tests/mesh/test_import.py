@@ -300,17 +300,17 @@ def test_gmsh_msh_file_through_meshio(tmp_path, kind):
 
 
 @pytest.mark.parametrize("text, message", [
-    ('mesh = "b.inp"\ngeometry = "t.dat"\nunits = "mm"', r"\[blade\]: geometry .* and mesh .* are mutually exclusive"),
-    ('mesh = "b.inp"', r"\[blade\]: units is required with mesh"),
+    ('mesh = "b.inp"\ngeometry = "t.dat"\nunits = "mm"', r"\[blade\] geometry .* and mesh .* are mutually exclusive"),
+    ('mesh = "b.inp"', r"\[blade\] units is required with mesh"),
     ('mesh = "b.inp"\nunits = "furlong"', r"unknown length unit 'furlong'"),
-    ('mesh = "b.inp"\nunits = "mm"\naxis = "w"', r"\[blade\]: axis must be one of x, y, z"),
-    ('mesh = "b.inp"\nunits = "mm"\nroot = "clamp"', r"\[blade\]: root must be"),
-    ('mesh = "b.inp"\nunits = "mm"\nroot = "nset:"', r"\[blade\]: root must be"),
+    ('mesh = "b.inp"\nunits = "mm"\naxis = "w"', r"\[blade\] axis must be one of x, y, z"),
+    ('mesh = "b.inp"\nunits = "mm"\nroot = "clamp"', r"\[blade\] root must be"),
+    ('mesh = "b.inp"\nunits = "mm"\nroot = "nset:"', r"\[blade\] root must be"),
     ('mesh = "b.inp"\nunits = "mm"\ncontact_nodes = [3]', r"contact_nodes needs at least 2 node ids"),
     ('mesh = "b.inp"\nunits = "mm"\ncontact_nodes = [3, 4, 3]', r"contact_nodes lists a node twice"),
     ('mesh = "b.inp"\nunits = "mm"\ncontact_nodes = [3, 4.5]', r"\[blade\] contact_nodes"),
-    ('axis = "x"', r"\[blade\]: axis applies to a mesh file only"),
-    ('contact_nodes = [1, 2]', r"\[blade\]: contact_nodes applies to a mesh file only"),
+    ('axis = "x"', r"\[blade\] axis applies to a mesh file only"),
+    ('contact_nodes = [1, 2]', r"\[blade\] contact_nodes applies to a mesh file only"),
     ('mesh = "b.inp"\nunits = "mm"\nroots = "hub"', r"unknown key 'roots' in \[blade\] \(did you mean 'root'\?\)"),
 ])
 def test_scene_keys_are_validated(text, message):
