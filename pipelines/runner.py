@@ -422,7 +422,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         _describe = None
 
 
-def figure_hash(scene, out: Path, fig: Figure) -> str:
+def figure_components(scene, out: Path, fig: Figure) -> dict:
     """What a figure is drawn from: its scene keys, and each input artifact's inputs and the
     instant it was written (an artifact computed again from the same inputs, after --force or
     a deleted file, is a new result whose figures must be redrawn)."""
@@ -430,7 +430,31 @@ def figure_hash(scene, out: Path, fig: Figure) -> str:
     for name in fig.inputs(scene):
         attrs = art.read_attrs(out / name)
         comp[f"input {name}"] = f"{attrs.get('inputs_hash', 'absent')} {attrs.get('created', '')}"
-    return _digest(comp)
+    return comp
+
+
+def figure_hash(scene, out: Path, fig: Figure) -> str:
+    """The digest of figure_components: what the figure manifest records."""
+    return _digest(figure_components(scene, out, fig))
+
+
+def _figure_changes(old: dict, new: dict) -> str:
+    """What differs between a figure's recorded components and today's: "scene hbm.n_time",
+    "ti.h5 (new)", "nfrc_rl.h5 (recomputed)", "ti.h5 (gone)"; "" when nothing can be named."""
+    changed = []
+    for k in sorted(set(old) | set(new)):
+        if old.get(k) == new.get(k):
+            continue
+        kind, _, name = k.partition(" ")
+        if kind != "input":
+            changed.append(f"{kind} {name}")
+        elif str(old.get(k, "absent")).startswith("absent"):
+            changed.append(f"{name} (new)")
+        elif str(new.get(k, "absent")).startswith("absent"):
+            changed.append(f"{name} (gone)")
+        else:
+            changed.append(f"{name} (recomputed)")
+    return ", ".join(changed)
 
 
 def _figure_current(entry, h: str, folder_: Path, files) -> bool:
@@ -457,16 +481,23 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
             files = fig.files(scene)
             if not files or not any((out / name).is_file() for name in fig.inputs(scene)):
                 continue
-            h = figure_hash(scene, out, fig)
+            comp = figure_components(scene, out, fig)
+            h = _digest(comp)
             entry = manifest.get(fig.name)
             if _figure_current(entry, h, folder_, files):
                 continue
             with progress.stage(f"figure {fig.name}") as record:
-                record.why = ("missing" if entry is None else "inputs changed"
-                              if not isinstance(entry, dict) or entry.get("inputs") != h else "file missing or damaged")
+                if entry is None:
+                    record.why = "missing"
+                elif not isinstance(entry, dict) or entry.get("inputs") != h:
+                    recorded = entry.get("components") if isinstance(entry, dict) else None
+                    named = _figure_changes(recorded, comp) if isinstance(recorded, dict) else ""
+                    record.why = f"inputs changed: {named}" if named else "inputs changed"
+                else:
+                    record.why = "file missing or damaged"
                 fig.draw(Context(scene, out, progress))
-            manifest[fig.name] = {"inputs": h, "files": {f: file_hash(folder_ / f) for f in files
-                                                         if (folder_ / f).is_file()}}
+            manifest[fig.name] = {"inputs": h, "components": comp,
+                                  "files": {f: file_hash(folder_ / f) for f in files if (folder_ / f).is_file()}}
             folder_.mkdir(parents=True, exist_ok=True)
             with art.atomic_output(path) as tmp:
                 tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))

@@ -247,8 +247,33 @@ def test_an_artifact_computed_again_redraws_its_figures(tiny, tmp_path):
     for m in ("dlft", "rl"):
         (out / f"nfrc_{m}.h5").unlink()
     rec = _records(scene, out)
-    assert rec["hbm"][0] == "computed" and rec["figure nfrc"] == ("computed", "inputs changed")
+    assert rec["hbm"][0] == "computed"
+    assert rec["figure nfrc"] == ("computed", "inputs changed: nfrc_dlft.h5 (recomputed), nfrc_rl.h5 (recomputed)")
     assert rec["ti"][0] == "reused"
+
+
+def test_a_figure_says_which_input_changed(tiny, tmp_path):
+    """The figure's reason names the scene keys and the artifacts that differ from those it
+    was drawn from; a manifest of an older version, without them, says only 'inputs changed'."""
+    import json
+
+    from pipelines.runner import _figure_changes
+
+    old = {"scene hbm": "a", "input nfrc_dlft.h5": "h1 t1", "input ti.h5": "absent ", "input isolas.h5": "h3 t3"}
+    new = {"scene hbm": "b", "input nfrc_dlft.h5": "h1 t1", "input ti.h5": "h2 t2", "input isolas.h5": "absent "}
+    assert _figure_changes(old, new) == "isolas.h5 (gone), ti.h5 (new), scene hbm"
+    assert _figure_changes(old, old) == ""
+
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    path = out / "figures" / "manifest.json"
+    manifest = json.loads(path.read_text())
+    for entry in manifest.values():  # as an older version wrote it
+        entry.pop("components")
+    path.write_text(json.dumps(manifest))
+    for m in ("dlft", "rl"):
+        (out / f"nfrc_{m}.h5").unlink()
+    assert _records(scene, out)["figure nfrc"] == ("computed", "inputs changed")
 
 
 def test_render_command(tiny, tmp_path, capsys):
