@@ -454,6 +454,11 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
             a_rrT[j, i] = a_rr[i, j]
             a_rtT[j, i] = a_rt[i, j]
             a_rzT[j, i] = a_rz[i, j]
+    # the massless scheme's pending forces (a march run in chunks: the last call ended on a
+    # contact step) act on rh through their compliance columns, which are work, not state
+    for b in range(m_prev[0]):
+        j = idx_prev[b]
+        _compliance_row(Acol_prev, a_rrT, a_rtT, a_rzT, j, mu * st_prev[j], mu * sz_prev[j])
     n_prof = profile.shape[0]
     kp = (step0 + 1) % n_prof if n_prof else 0  # the profile's row of the step being computed
     if n_prof:

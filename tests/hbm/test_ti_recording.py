@@ -8,7 +8,7 @@ chunks (the sweep's early stop) must not depend on where the chunks end.
 import numpy as np
 
 from hbm.options import CasingOptions
-from hbm.ti.march import Marcher, Recording, rom_modal_system
+from hbm.ti.march import Marcher, Recording, critical_time_step, massless_system, rom_modal_system
 from support import standin_rom
 
 OMEGA, DT, N = 1500.0, 2e-6, 600
@@ -62,3 +62,30 @@ def test_a_march_in_uneven_chunks_records_exactly_what_one_call_records():
     assert one.contact_steps > 20 and chunked.n_steps == one.n_steps == N
     for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
         assert np.array_equal(getattr(chunked, name), getattr(one, name)), name
+
+
+def test_a_massless_march_split_at_any_contact_step_is_one_march():
+    """The massless scheme carries the forces of a contact step into the next step: a call
+    that ends on one must hand them over whole (their compliance columns included, or the next
+    step's prediction misses their correction and its forces come out wrong; a split at
+    almost any contact step then moved the forces by ~100 N). Every contact step of the march
+    is tried as the split, bit for bit."""
+    full = rom_modal_system(standin_rom())
+    system = massless_system(full, cutoff=np.sort(full.omega)[len(full.omega) // 2])
+    dt = min(DT, 0.5 * critical_time_step(system, MU))
+    x0, v0 = start_state()
+    rec = Recording(start=1, stride=1, n_samples=N, dofs=np.array([0, 24]), force_nodes=np.arange(9),
+                    section_stride=4, extreme_stride=50)
+
+    def make():
+        return Marcher(system, CasingOptions(), MU, OMEGA, x0, v0, dt, N, rec)
+
+    one = make().advance(N).result()
+    contact = np.nonzero((one.normal_force > 0).any(axis=1))[0] + 1  # massless: sample k is lam at step k + 1
+    assert len(contact) > 50
+    for split in contact[contact < N]:
+        m = make()
+        m.advance(int(split))
+        chunked = m.advance(N - int(split)).result()
+        for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
+            assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
