@@ -382,6 +382,14 @@ class Marcher:
         self.step = 0
         dofs = np.asarray(rec.dofs, dtype=np.int64).reshape(-1)
         self._fnodes = np.asarray(rec.force_nodes, dtype=np.int64).reshape(-1)
+        # the kernel indexes its node tables with these unchecked (a wrong one would read
+        # or write past them); numpy would wrap a negative dof round to the last ones
+        bad = dofs[(dofs < 0) | (dofs >= n)]
+        if len(bad):
+            raise ValueError(f"recording: dof {bad.tolist()} outside the {n} dof 0 .. {n - 1}")
+        bad = self._fnodes[(self._fnodes < 0) | (self._fnodes >= nb)]
+        if len(bad):
+            raise ValueError(f"recording: force node {bad.tolist()} outside the {nb} contact nodes 0 .. {nb - 1}")
         self._dofs = dofs
         self._rec_rows = np.ascontiguousarray(system.phi[dofs]) if len(dofs) else np.zeros((0, nm))
         self._rec_frows = (np.ascontiguousarray(system.residual[dofs]) if system.is_massless and len(dofs)

@@ -6,6 +6,7 @@ Block means must keep the impulse of the multipliers they average, and a march a
 chunks (the sweep's early stop) must not depend on where the chunks end.
 """
 import numpy as np
+import pytest
 
 from hbm.options import CasingOptions
 from hbm.ti.march import Marcher, Recording, critical_time_step, massless_system, rom_modal_system
@@ -89,3 +90,18 @@ def test_a_massless_march_split_at_any_contact_step_is_one_march():
         chunked = m.advance(N - int(split)).result()
         for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
             assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
+
+
+@pytest.mark.parametrize("field, value, message", [
+    ("force_nodes", [9], r"force node \[9\] outside the 9 contact nodes 0 .. 8"),
+    ("force_nodes", [0, -1], r"force node \[-1\] outside"),
+    ("dofs", [39], r"dof \[39\] outside the 39 dof 0 .. 38"),
+    ("dofs", [-2], r"dof \[-2\] outside"),
+])
+def test_a_recording_of_a_node_or_dof_the_model_lacks_is_refused(field, value, message):
+    """Refused by name, not read past the kernel's tables (a node past the last recorded 0 N,
+    or wrote beyond them) nor wrapped round to the last ones."""
+    kwargs = dict(start=1, stride=1, n_samples=10, dofs=np.array([0]), force_nodes=np.arange(9))
+    kwargs[field] = np.array(value)
+    with pytest.raises(ValueError, match=message):
+        marcher(Recording(**kwargs))
