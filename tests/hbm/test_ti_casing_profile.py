@@ -49,6 +49,9 @@ def test_no_profile_where_a_casing_period_is_not_whole_steps():
     _, dt = sweep_dt(1000.0)
     assert casing_profile(CASING, theta, 1000.0, dt).shape[0] > 0
     assert casing_profile(CASING, theta, 1000.0, 1.0001 * dt).shape == (0, 9)  # not whole steps
+    # whole to round-off only: 1e-12 off would shift the table's phase every casing period
+    assert casing_profile(CASING, theta, 1000.0, (1.0 + 1e-12) * dt).shape == (0, 9)
+    assert casing_profile(CASING, theta, 1000.0, (1.0 + 4e-16) * dt).shape[0] > 0
     assert casing_profile(CASING, theta, 0.0, dt).shape == (0, 9)  # a casing at rest
     assert casing_profile(CASING, theta, 1e-3, dt).shape == (0, 9)  # far too long a period to keep
 
