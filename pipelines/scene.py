@@ -283,6 +283,9 @@ def _check_combinations(scene: Scene) -> None:
     if scene.render.n_modes > scene.fem.n_modes:
         raise SceneError(f"[render] n_modes = {scene.render.n_modes} exceeds [fem] n_modes = {scene.fem.n_modes}: "
                          f"only {scene.fem.n_modes} modes are computed to be drawn")
+    if scene.ti.n_keep * scene.casing.n_lobes < 2:
+        raise SceneError(f"[ti] n_keep = {scene.ti.n_keep} with [casing] n_lobes = {scene.casing.n_lobes}: the "
+                         "periodicity class needs at least 3 Poincare sections (n_keep n_lobes + 1)")
 
 
 def scene_warnings(scene: Scene) -> list[str]:

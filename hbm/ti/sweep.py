@@ -93,8 +93,8 @@ class SweepResult:
     sections: radial displacement of every contact node at each casing period of the kept
         window (Poincare sections), (n_omega, n_keep n_l + 1, n_b), m.
     contact_fraction: share of the steps with at least one node in contact, (n_omega,), -.
-    max_penetration: largest r_j - d_j after the contact correction, (n_omega,), m (round-off;
-        -inf when no node ever came near the casing).
+    max_penetration: largest r_j - d_j after the contact correction, (n_omega,), m (round-off
+        where a node touched; else the closest approach, < 0, or -inf: see March).
     revolutions: revolutions marched, n_revolutions unless the march settled earlier, (n_omega,).
     transient_bound: bound on the transient left in the window, relative to each node's range
         (hbm.ti.settle), (n_omega,), -; <= settle_rtol where the march stopped early, inf where
@@ -141,6 +141,9 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
     t_start = time.perf_counter()
     system = scheme_system(system, options.scheme, options.massless_cutoff)
     n_l, spr, n_keep = casing.n_lobes, options.samples_per_revolution, options.n_keep
+    if n_keep * n_l < 2:  # checked before the march, not after its first n_keep + 1 revolutions
+        raise ValueError(f"n_keep = {n_keep} revolutions of a casing with {n_l} lobe(s) give {n_keep * n_l + 1} "
+                         "Poincare sections; the periodicity class needs at least 3")
     n_rev = steps_per_revolution(omega, options.dt, math.lcm(n_l * SUBSECTIONS, spr))
     dt = 2.0 * math.pi / (omega * n_rev)
     nb = system.n_boundary

@@ -372,3 +372,18 @@ def test_the_modal_system_is_the_same_whatever_the_blas_threads():
     for name in ("omega", "phi", "phi_t_m", "damping"):
         assert np.array_equal(getattr(a, name), getattr(b, name)), name
     assert np.array_equal(am.residual, bm.residual)
+
+
+def test_a_window_too_short_to_classify_is_refused_before_the_march():
+    """One revolution of a one-lobe casing is 2 Poincare sections: no period can be seen
+    twice. Refused at once, by name, not after the first revolutions with the classifier's
+    own message."""
+    from hbm.ti.sweep import simulate
+
+    opts = TimeIntegrationOptions(n_revolutions=4, n_keep=1)
+    with pytest.raises(ValueError, match=r"n_keep = 1 revolutions of a casing with 1 lobe\(s\) give 2 Poincare "
+                                         r"sections; the periodicity class needs at least 3"):
+        simulate(rom_modal_system(standin_rom()), CasingOptions(n_lobes=1), 0.1, 1000.0, opts)
+    # two lobes: 3 sections, classified
+    r = simulate(rom_modal_system(standin_rom()), CasingOptions(n_lobes=2), 0.1, 1000.0, opts)
+    assert r.revolutions == 4

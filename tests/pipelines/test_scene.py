@@ -101,6 +101,8 @@ def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_pat
     ("[rom]\nn_low_modes = -1\n", r"n_low_modes must be >= 0 \(a count of modes\)"),
     ("[render]\nscale = 0\n", r"scale must be > 0 \(the largest displacement drawn"),
     ("[render]\nn_modes = 13\n", r"\[render\] n_modes = 13 exceeds \[fem\] n_modes = 12"),
+    ("[ti]\nn_keep = 1\n[casing]\nn_lobes = 1\n",
+     r"\[ti\] n_keep = 1 with \[casing\] n_lobes = 1: the periodicity class needs at least 3 Poincare sections"),
     ("[limits]\nmemory_gb = -1\n", r"memory_gb must be >= 0 GB"),
     ("[hbm]\nstability_max_gap = 0\n", r"stability_max_gap must be >= 1 \(1: every point analysed\)"),
 ])
