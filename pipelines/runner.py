@@ -121,15 +121,33 @@ def _changed_keys(key: str, old_scene, scene) -> list[str]:
         return []
     new = scene.value(key)
     if not (isinstance(old, dict) and isinstance(new, dict)):
-        return [f"{key} {_short(old)} -> {_short(new)}"] if old != new else []
+        return [_change(key, old, new)] if old != new else []
     section = key.split("~")[0]
-    return [f"{section}.{f} {_short(old.get(f))} -> {_short(new.get(f))}"
+    return [_change(f"{section}.{f}", old.get(f), new.get(f))
             for f in sorted(set(old) | set(new)) if old.get(f) != new.get(f)]
 
 
+def _change(name: str, old, new) -> str:
+    """"hbm.n_time 1000 -> 1024"; where the cut values would read the same (long lists), the
+    first item that differs ("isolas.amplitudes[2] 0.0046 -> 0.005") or the lengths."""
+    a, b = _short(old), _short(new)
+    if a != b:
+        return f"{name} {a} -> {b}"
+    if isinstance(old, list) and isinstance(new, list):
+        if len(old) != len(new):
+            return f"{name} ({len(old)} -> {len(new)} items)"
+        i = next(i for i, (u, v) in enumerate(zip(old, new)) if u != v)
+        return _change(f"{name}[{i}]", old[i], new[i])
+    return f"{name} changed"
+
+
 def _component_name(component: str) -> str:
-    """"scene hbm~methods" -> "hbm except methods", "upstream rom.h5" -> "rom.h5"."""
-    section, *dropped = component.split(" ", 1)[-1].split("~")
+    """"scene hbm~methods" -> "hbm except methods", "file mesh" -> "mesh file" (its content),
+    "upstream rom.h5" -> "rom.h5"."""
+    kind, _, name = component.partition(" ")
+    if kind == "file":
+        return f"{name} file"
+    section, *dropped = (name or kind).split("~")
     return f"{section} except {', '.join(dropped)}" if dropped else section
 
 
@@ -162,7 +180,15 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
         if scene is not None and k.startswith("scene "):
             if not parsed:  # once, at the first changed scene key
                 recorded, parsed = _recorded_scene(attrs.get("scene", ""), scene), True
-            keys = _changed_keys(k.split(" ", 1)[1], recorded, scene)
+            key = k.split(" ", 1)[1]
+            # the recorded text read with today's defaults is the old scene only where it
+            # gives the recorded hash (not after a default changed: the old value is unknown)
+            try:
+                same = recorded is not None and recorded.key_hash(key) == old.get(k)
+            except AttributeError:  # a key the recorded scene's version did not have
+                same = False
+            if same:
+                keys = _changed_keys(key, recorded, scene)
         changed.extend(keys or [_component_name(k)])
     changed = list(dict.fromkeys(changed))
     if len(changed) > 4:  # another scene altogether: the first few say enough

@@ -7,6 +7,7 @@ revolutions), then the validation stage (20 periods per point), the figures and 
 import os
 import re
 from contextlib import contextmanager
+from pathlib import Path
 
 import h5py
 import numpy as np
@@ -498,3 +499,65 @@ def test_nfrc_files_carry_the_dynamical_content_of_every_point(tiny):
     h = stored.extras["harmonic_contribution"]
     assert h[:, 1::2].max() < 1e-6 * h.max()  # to the Newton tolerance
     assert np.all(mc[:, :2].sum(axis=1) > 0.85)
+
+
+def _fake_artifact(folder, scene, stage, file, recorded_text):
+    """An artifact of `stage` as `scene` would make it (its inputs, no data), recording
+    `recorded_text` as its scene; returns (path)."""
+    import json
+
+    from pipelines.runner import expected_inputs
+
+    comp, h = expected_inputs(scene, (stage,))[file]
+    path = folder / file
+    with h5py.File(path, "w") as h5:
+        h5.attrs["scene"] = recorded_text
+        h5.attrs["inputs_hash"] = h
+        h5.attrs["inputs"] = json.dumps(comp, sort_keys=True)
+    return path
+
+
+def _reason(path, scene, stage):
+    from pipelines.runner import expected_inputs, why_stale
+
+    comp, h = expected_inputs(scene, (stage,))[path.name]
+    return why_stale(path, comp, h, verify=False, scene=scene)
+
+
+def test_a_reason_never_quotes_an_old_value_that_a_changed_default_made_up(tmp_path):
+    """An artifact made when n_time, unset in the scene file, defaulted to 1000: its
+    recorded text read with today's default (1024) is not the scene it was made with, so the
+    reason cannot quote the old value; it names what the stage reads. Where the recorded text
+    does give the recorded hash, the key and its two values are named."""
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    text = base.read_text().replace("n_time = 1024\n", "")
+    assert "n_time" not in text
+    made = parse_scene(text, base, ["hbm.n_time=1000"])  # what was hashed then
+    path = _fake_artifact(tmp_path, made, "hbm", "nfrc_dlft.h5", text)
+    now = parse_scene(text.replace("[hbm]\n", "[hbm]\nn_time = 2048\n"), base)
+    assert _reason(path, now, "hbm") == "inputs changed: hbm except methods"  # not "1024 -> 2048"
+    path = _fake_artifact(tmp_path, parse_scene(text, base), "hbm", "nfrc_dlft.h5", text)
+    assert _reason(path, now, "hbm") == "inputs changed: hbm.n_time 1024 -> 2048"
+
+
+def test_a_long_list_that_changed_names_its_first_changed_item(tmp_path):
+    """Lists cut to 40 characters can read the same on both sides: the first item that
+    differs is named, or the lengths."""
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    text = base.read_text()
+    old = parse_scene(text, base, ["isolas.harmonics=[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14]"])
+    path = _fake_artifact(tmp_path, old, "isolas", "isolas.h5", old.text)
+    new = parse_scene(text, base, ["isolas.harmonics=[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 15]"])
+    assert _reason(path, new, "isolas") == "inputs changed: isolas.harmonics[13] 14 -> 15"
+    new = parse_scene(text, base, ["isolas.harmonics=[1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15]"])
+    assert _reason(path, new, "isolas") == "inputs changed: isolas.harmonics (14 -> 15 items)"
+
+
+def test_a_changed_input_file_is_named_as_a_file():
+    """The user's mesh file and the [mesh] section are told apart."""
+    from pipelines.runner import _component_name
+
+    assert _component_name("file mesh") == "mesh file"
+    assert _component_name("scene mesh") == "mesh"
+    assert _component_name("scene hbm~methods") == "hbm except methods"
+    assert _component_name("upstream rom.h5") == "rom.h5"
