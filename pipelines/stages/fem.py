@@ -147,6 +147,6 @@ def write_modes_vtu(ctx: Context) -> None:
 MODES_VTU = Figure("modes_vtu", files=lambda s: ("modes.vtu",) if s.render.n_modes else (),
                    depends=("render.n_modes",), inputs=lambda s: (MESH.file, FEM.file), draw=write_modes_vtu)
 
-STAGE = Stage("fem", depends=("material", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
+STAGE = Stage("fem", depends=("material~name", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
               outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES, MODES_VTU), estimate=_estimate,
               distributed=True)

@@ -510,5 +510,5 @@ def _estimate(scene, out, outputs) -> Estimate:
                     advice="lower [isolas] n_omega, n_modes, harmonics or amplitudes")
 
 
-STAGE = Stage("isolas", depends=("isolas", "hbm", "casing", "contact"), upstream=("rom", "hbm", "ti"),
+STAGE = Stage("isolas", depends=("isolas~workers", "hbm", "casing", "contact"), upstream=("rom", "hbm", "ti"),
               outputs=lambda scene: (ISOLAS,), compute=_compute, estimate=_estimate, distributed=True)

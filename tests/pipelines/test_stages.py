@@ -561,3 +561,14 @@ def test_a_changed_input_file_is_named_as_a_file():
     assert _component_name("scene mesh") == "mesh"
     assert _component_name("scene hbm~methods") == "hbm except methods"
     assert _component_name("upstream rom.h5") == "rom.h5"
+
+
+@pytest.mark.parametrize("stage, file, override", [
+    ("fem", "fem.h5", 'material.name="Ti-6246"'),  # a label: no number of the FEM reads it
+    ("isolas", "isolas.h5", "isolas.workers=1"),  # the search's result does not depend on it
+])
+def test_settings_no_result_reads_leave_the_artifact_current(tmp_path, stage, file, override):
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    made = parse_scene(base.read_text(), base)
+    path = _fake_artifact(tmp_path, made, stage, file, made.text)
+    assert _reason(path, parse_scene(base.read_text(), base, [override]), stage) is None
