@@ -122,7 +122,11 @@ def _coerce(cls: type, section: str, key: str, value, hint):
     if hint is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise SceneError(f"{where} must be a number, got {value!r}")
-        return float(value)
+        try:
+            return float(value)
+        except OverflowError:  # an integer past 1.8e308
+            raise SceneError(f"{where} must be a finite number, got an integer of {len(str(abs(value)))} digits") \
+                from None
     if hint is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise SceneError(f"{where} must be an integer, got {value!r}")
@@ -220,7 +224,16 @@ def parse_override(item: str) -> tuple[str, str, object]:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
         value = raw
+    if not isinstance(value, str) and _is_string_key(section, key):
+        value = raw  # name=2024, material.name=nan: text, as the key expects
     return section, key, value
+
+
+def _is_string_key(section: str, key: str) -> bool:
+    if not section:
+        return key == "name"
+    hints = typing.get_type_hints(SECTIONS[section])
+    return hints.get(key) is str
 
 
 def _merge_overrides(data: dict, overrides) -> dict:
@@ -251,7 +264,7 @@ def parse_scene(text: str, path: Path | str = Path("scene.toml"), overrides=()) 
     data = _merge_overrides(data, overrides)
     name = data.pop("name", path.stem)
     if not isinstance(name, str):
-        raise SceneError("top-level 'name' must be a string")
+        raise SceneError(f"top-level 'name' must be a string, got {name!r}")
     for key in data:
         if key not in SECTIONS:
             raise SceneError(f"unknown section [{key}]{_suggest(key, SECTIONS)} in {path}; "

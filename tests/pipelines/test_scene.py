@@ -32,6 +32,20 @@ def test_int_accepted_for_float_but_not_reverse():
         parse_scene("[hbm]\nn_harmonics = 40.5\n")
 
 
+def test_a_string_key_takes_the_command_lines_text_as_it_is():
+    """--set takes text that is not TOML as a string; a string key takes the text even where
+    it reads as TOML (a number, nan), as a file's quoted string would give it."""
+    s = parse_scene("", overrides=["name=2024", "material.name=nan", "ti.scheme=massless"])
+    assert (s.name, s.material.name, s.ti.scheme) == ("2024", "nan", "massless")
+    with pytest.raises(SceneError, match=r"top-level 'name' must be a string, got 2024"):
+        parse_scene("name = 2024\n")
+
+
+def test_an_integer_too_large_for_a_float_is_named():
+    with pytest.raises(SceneError, match=r"\[material\] E must be a finite number, got an integer of 400 digits"):
+        parse_scene("[material]\nE = " + "9" * 400 + "\n")
+
+
 @pytest.mark.parametrize("text, message", [
     ("[material]\nyoung = 1e9\n", r"unknown key 'young' in \[material\]"),
     ("[materail]\nE = 1e9\n", r"unknown section \[materail\] .*did you mean 'material'"),
