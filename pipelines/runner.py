@@ -111,17 +111,11 @@ def _recorded_scene(text: str, scene):
 
 def _changed_keys(key: str, old_scene, scene) -> list[str]:
     """The scene keys behind a changed scene component `key` ("hbm~methods", "contact.mu"),
-    with their old and new values ("hbm.n_time 1000 -> 1024"); [] when old_scene is None
-    (then the component's name is all the reason says)."""
-    if old_scene is None:
-        return []
-    try:
-        old = old_scene.value(key)
-    except AttributeError:  # a key the recorded scene's version did not have
-        return []
-    new = scene.value(key)
+    with their old and new values ("hbm.n_time 1000 -> 1024"); old_scene: the artifact's
+    recorded scene, known to give the component's recorded hash (why_stale)."""
+    old, new = old_scene.value(key), scene.value(key)
     if not (isinstance(old, dict) and isinstance(new, dict)):
-        return [_change(key, old, new)] if old != new else []
+        return [_change(key, old, new)]
     section = key.split("~")[0]
     return [_change(f"{section}.{f}", old.get(f), new.get(f))
             for f in sorted(set(old) | set(new)) if old.get(f) != new.get(f)]
