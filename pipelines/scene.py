@@ -78,6 +78,13 @@ class Scene:
         p = Path(p).expanduser()
         return p if p.is_absolute() else (self.path.parent / p).resolve()
 
+    @property
+    def fixed_interface_modes(self) -> int:
+        """Fixed-interface modes the fem stage computes: max([fem] n_fixed_interface_modes,
+        [rom] n_fixed_modes), so that one factorisation of K serves the ROM. A stage key of
+        its own: fem.h5 changes with this count, not with either key alone."""
+        return max(self.fem.n_fixed_interface_modes, self.rom.n_fixed_modes)
+
     def section_hash(self, *names: str) -> str:
         """Hash of the named sections' values (defaults included): what a stage depends on."""
         payload = {n: _jsonable(dataclasses.asdict(getattr(self, n))) for n in names}

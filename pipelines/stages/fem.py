@@ -20,8 +20,7 @@ def read_fem(out):
 
 def _options(scene):
     """The FEM stage also computes the ROM's fixed-interface modes from its factorisation of K."""
-    n = max(scene.fem.n_fixed_interface_modes, scene.rom.n_fixed_modes)
-    return dataclasses.replace(scene.fem, n_fixed_interface_modes=n)
+    return dataclasses.replace(scene.fem, n_fixed_interface_modes=scene.fixed_interface_modes)
 
 
 def _compute(ctx: Context, outputs) -> None:
@@ -64,7 +63,7 @@ def fem_bytes(scene, nodes: float) -> float:
     for tet10, 8-byte values and 4-byte indices) and the full-model, constraint and
     fixed-interface modes (8 bytes per dof each). 144 MB for the coarse mesh (24 104 nodes)."""
     per_dof = 2 * 66 * 12 + 8 * (scene.fem.n_modes + 3 * scene.mesh.n_boundary
-                                 + max(scene.fem.n_fixed_interface_modes, scene.rom.n_fixed_modes))
+                                 + scene.fixed_interface_modes)
     return 3 * nodes * per_dof
 
 
@@ -147,6 +146,8 @@ def write_modes_vtu(ctx: Context) -> None:
 MODES_VTU = Figure("modes_vtu", files=lambda s: ("modes.vtu",) if s.render.n_modes else (),
                    depends=("render.n_modes",), inputs=lambda s: (MESH.file, FEM.file), draw=write_modes_vtu)
 
-STAGE = Stage("fem", depends=("material~name", "fem", "rom.n_fixed_modes"), upstream=("mesh",),
+# the count of fixed-interface modes computed, not the two keys it comes from: [rom]
+# n_fixed_modes raised up to [fem] n_fixed_interface_modes leaves fem.h5 current
+STAGE = Stage("fem", depends=("material~name", "fem~n_fixed_interface_modes", "fixed_interface_modes"), upstream=("mesh",),
               outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES, MODES_VTU), estimate=_estimate,
               distributed=True)

@@ -572,3 +572,19 @@ def test_settings_no_result_reads_leave_the_artifact_current(tmp_path, stage, fi
     made = parse_scene(base.read_text(), base)
     path = _fake_artifact(tmp_path, made, stage, file, made.text)
     assert _reason(path, parse_scene(base.read_text(), base, [override]), stage) is None
+
+
+def test_fem_h5_follows_the_count_of_fixed_interface_modes_it_computes(tmp_path):
+    """The fem stage computes max([fem] n_fixed_interface_modes, [rom] n_fixed_modes) modes:
+    fewer ROM modes, or more up to the fem key, leave fem.h5 current; more than it computed
+    make it stale, and the reason gives both counts."""
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    made = parse_scene(base.read_text(), base, ["rom.n_fixed_modes=8"])
+    assert made.fixed_interface_modes == 12  # [fem] n_fixed_interface_modes's default
+    path = _fake_artifact(tmp_path, made, "fem", "fem.h5", made.text)
+    for n in (4, 12):
+        assert _reason(path, parse_scene(base.read_text(), base, [f"rom.n_fixed_modes={n}"]), "fem") is None
+    more = parse_scene(base.read_text(), base, ["rom.n_fixed_modes=14"])
+    assert _reason(path, more, "fem") == "inputs changed: fixed_interface_modes 12 -> 14"
+    assert _reason(path, parse_scene(base.read_text(), base, ["fem.n_fixed_interface_modes=14"]),
+                   "fem") == "inputs changed: fixed_interface_modes 12 -> 14"
