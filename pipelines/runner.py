@@ -166,7 +166,7 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
         old = json.loads(attrs.get("inputs", ""))
     except ValueError:
         return "made from other inputs"
-    changed, recorded, parsed = [], None, False
+    changed, recorded, parsed, regrouped = [], None, False, False
     for k in sorted(set(old) | set(inputs)):
         if old.get(k) == inputs.get(k):
             continue
@@ -175,19 +175,41 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
             if not parsed:  # once, at the first changed scene key
                 recorded, parsed = _recorded_scene(attrs.get("scene", ""), scene), True
             key = k.split(" ", 1)[1]
-            # the recorded text read with today's defaults is the old scene only where it
-            # gives the recorded hash (not after a default changed: the old value is unknown)
-            try:
-                same = recorded is not None and recorded.key_hash(key) == old.get(k)
-            except AttributeError:  # a key the recorded scene's version did not have
-                same = False
-            if same:
-                keys = _changed_keys(key, recorded, scene)
-        changed.extend(keys or [_component_name(k)])
+            if k not in inputs or k not in old:
+                # the stage read this key then and not now, or the other way round (another kind
+                # of output, or an earlier version's keys): what it reads now counts, and only
+                # where its value differs from the recorded scene's (the component names it then)
+                if k not in inputs or recorded is not None and _same_value(key, recorded, scene):
+                    regrouped = True
+                    continue
+            else:
+                # the recorded text read with today's defaults is the old scene only where it
+                # gives the recorded hash (not after a default changed: the old value is unknown)
+                try:
+                    same = recorded is not None and recorded.key_hash(key) == old.get(k)
+                except AttributeError:  # a key the recorded scene's version did not have
+                    same = False
+                if same:
+                    keys = _changed_keys(key, recorded, scene)
+        name = _component_name(k)
+        if not keys and not k.startswith("scene ") and (k not in old or k not in inputs):
+            name += " (new)" if k not in old else " (gone)"
+        changed.extend(keys or [name])
     changed = list(dict.fromkeys(changed))
     if len(changed) > 4:  # another scene altogether: the first few say enough
         changed = changed[:3] + [f"{len(changed) - 3} more"]
-    return "inputs changed: " + ", ".join(changed) if changed else "made from other inputs"
+    if changed:
+        return "inputs changed: " + ", ".join(changed)
+    return "made by an earlier version, which read other scene keys" if regrouped else "made from other inputs"
+
+
+def _same_value(key: str, recorded, scene) -> bool:
+    """Whether `key` has the same value in the recorded scene and the run's (False where the
+    recorded scene's version has no such key)."""
+    try:
+        return recorded.value(key) == scene.value(key)
+    except AttributeError:
+        return False
 
 
 @dataclass
@@ -459,7 +481,7 @@ def figure_hash(scene, out: Path, fig: Figure) -> str:
 
 
 def _figure_changes(old: dict, new: dict) -> str:
-    """What differs between a figure's recorded components and today's: "scene hbm.n_time",
+    """What differs between a figure's recorded components and today's: "hbm.n_time",
     "ti.h5 (new)", "nfrc_rl.h5 (recomputed)", "ti.h5 (gone)"; "" when nothing can be named."""
     changed = []
     for k in sorted(set(old) | set(new)):
@@ -467,7 +489,7 @@ def _figure_changes(old: dict, new: dict) -> str:
             continue
         kind, _, name = k.partition(" ")
         if kind != "input":
-            changed.append(f"{kind} {name}")
+            changed.append(_component_name(k))
         elif str(old.get(k, "absent")).startswith("absent"):
             changed.append(f"{name} (new)")
         elif str(new.get(k, "absent")).startswith("absent"):

@@ -262,7 +262,7 @@ def test_a_figure_says_which_input_changed(tiny, tmp_path):
 
     old = {"scene hbm": "a", "input nfrc_dlft.h5": "h1 t1", "input ti.h5": "absent ", "input isolas.h5": "h3 t3"}
     new = {"scene hbm": "b", "input nfrc_dlft.h5": "h1 t1", "input ti.h5": "h2 t2", "input isolas.h5": "absent "}
-    assert _figure_changes(old, new) == "isolas.h5 (gone), ti.h5 (new), scene hbm"
+    assert _figure_changes(old, new) == "isolas.h5 (gone), ti.h5 (new), hbm"  # as the stages name it
     assert _figure_changes(old, old) == ""
 
     scene, base = tiny
@@ -588,3 +588,41 @@ def test_fem_h5_follows_the_count_of_fixed_interface_modes_it_computes(tmp_path)
     assert _reason(path, more, "fem") == "inputs changed: fixed_interface_modes 12 -> 14"
     assert _reason(path, parse_scene(base.read_text(), base, ["fem.n_fixed_interface_modes=14"]),
                    "fem") == "inputs changed: fixed_interface_modes 12 -> 14"
+
+
+def test_a_blade_source_of_another_kind_names_the_files_not_the_keys_now_read(tmp_path):
+    """mesh.h5 meshed from a table, then the scene gives a mesh file: the two files and the
+    changed unit are named; [blade] axis, root and contact_nodes, read for a mesh file only,
+    are named only where they differ from the recorded scene's."""
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    table = parse_scene(base.read_text(), base)
+    path = _fake_artifact(tmp_path, table, "mesh", "mesh.h5", table.text)
+    (tmp_path / "blade.inp").write_text("*NODE\n1, 0, 0, 0\n")
+    lines = [line for line in base.read_text().splitlines()
+             if not line.startswith(("geometry", "format", "units", "hub_section", "tip_section"))]
+    text = "\n".join(lines).replace("[blade]", f'[blade]\nmesh = "{tmp_path / "blade.inp"}"\nunits = "m"')
+    assert _reason(path, parse_scene(text, base), "mesh") == \
+        'inputs changed: geometry file (gone), mesh file (new), blade.units "ft" -> "m"'
+    assert _reason(path, parse_scene(text, base, ["blade.axis=x"]), "mesh") == \
+        'inputs changed: geometry file (gone), mesh file (new), blade.axis, blade.units "ft" -> "m"'
+
+
+def test_an_artifact_made_when_the_stage_read_other_keys_says_so(tmp_path):
+    """fem.h5 recorded with the keys an earlier version read ([fem] whole, [rom]
+    n_fixed_modes): unchanged values give no list of keys, a changed one is named."""
+    import json
+
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    made = parse_scene(base.read_text(), base)
+    path = _fake_artifact(tmp_path, made, "fem", "fem.h5", made.text)
+    with h5py.File(path, "r+") as h5:
+        comp = json.loads(h5.attrs["inputs"])
+        for key in ("fem~n_fixed_interface_modes", "fixed_interface_modes"):
+            del comp[f"scene {key}"]
+        for key in ("fem", "rom.n_fixed_modes"):
+            comp[f"scene {key}"] = made.key_hash(key)
+        h5.attrs["inputs"] = json.dumps(comp, sort_keys=True)
+        h5.attrs["inputs_hash"] = "an earlier version's"
+    assert _reason(path, made, "fem") == "made by an earlier version, which read other scene keys"
+    assert _reason(path, parse_scene(base.read_text(), base, ["fem.tol=1e-9"]), "fem") == \
+        "inputs changed: fem except n_fixed_interface_modes"
