@@ -185,7 +185,7 @@ def main(argv: list[str] | None = None) -> int:
     for p in (run, show, ren):
         p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",
                        help="override a scene value (repeatable), validated like the file: "
-                            "--set material.E=110e9 --set contact.mu=0.1")
+                            "--set material.E=110e9 --set contact.mu=0.1 --set hbm.methods=dlft")
     args = parser.parse_args(argv)
     if not _FORK_HOOK:
         os.register_at_fork(after_in_child=_silent_forked_child)

@@ -207,7 +207,8 @@ def parse_override(item: str) -> tuple[str, str, object]:
 
     The value is read as a TOML value (110e9, 0.1, true, "dlft", ["dlft", "rl"]); text that
     is not one (omega_min, le-leads, +) is taken as a string, so strings need no quotes on a
-    command line. Raises SceneError naming the item.
+    command line. A list key also takes one item or items separated by commas, without the
+    brackets (hbm.methods=dlft, isolas.harmonics=1,2,3). Raises SceneError naming the item.
     """
     if "=" not in item:
         raise SceneError(f"--set {item!r}: expected SECTION.KEY=VALUE, e.g. material.E=110e9")
@@ -233,7 +234,24 @@ def parse_override(item: str) -> tuple[str, str, object]:
         value = raw
     if not isinstance(value, str) and _is_string_key(section, key):
         value = raw  # name=2024, material.name=nan: text, as the key expects
+    if not isinstance(value, list) and _is_list_key(section, key):
+        value = [_item(part.strip()) for part in raw.split(",")] if isinstance(value, str) else [value]
     return section, key, value
+
+
+def _item(text: str):
+    """One item of a list given without brackets: a TOML value, else text."""
+    try:
+        return tomllib.loads(f"v = {text}")["v"]
+    except tomllib.TOMLDecodeError:
+        return text
+
+
+def _is_list_key(section: str, key: str) -> bool:
+    if not section:
+        return False
+    hint = typing.get_type_hints(SECTIONS[section]).get(key)
+    return any(typing.get_origin(h) is tuple for h in (hint, *typing.get_args(hint)))
 
 
 def _is_string_key(section: str, key: str) -> bool:

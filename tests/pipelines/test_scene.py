@@ -41,6 +41,20 @@ def test_a_string_key_takes_the_command_lines_text_as_it_is():
         parse_scene("name = 2024\n")
 
 
+def test_a_list_key_takes_one_item_or_commas_on_the_command_line():
+    """--set hbm.methods=dlft is the one-item list a user means; items may be given with
+    commas and no brackets; a file still needs the list, and a bad item is still named."""
+    s = parse_scene("", overrides=["hbm.methods=rl", "isolas.harmonics=1, 3,5", "isolas.amplitudes=2e-3"])
+    assert (s.hbm.methods, s.isolas.harmonics, s.isolas.amplitudes) == (("rl",), (1, 3, 5), (2e-3,))
+    assert parse_scene("", overrides=["hbm.methods=dlft,rl"]).hbm.methods == ("dlft", "rl")
+    assert parse_scene("", overrides=["blade.contact_nodes=7,9", "blade.mesh=x.inp", "blade.units=m"]
+                       ).blade.contact_nodes == (7, 9)
+    with pytest.raises(SceneError, match=r"\[hbm\] methods must be a list, got 'rl'"):
+        parse_scene('[hbm]\nmethods = "rl"\n')
+    with pytest.raises(SceneError, match=r"\[isolas\] harmonics must be an integer, got 'x'"):
+        parse_scene("", overrides=["isolas.harmonics=1,x"])
+
+
 def test_an_integer_too_large_for_a_float_is_named():
     with pytest.raises(SceneError, match=r"\[material\] E must be a finite number, got an integer of 400 digits"):
         parse_scene("[material]\nE = " + "9" * 400 + "\n")
