@@ -184,11 +184,10 @@ class ValidationOptions:
     def __post_init__(self):
         if self.n_periods < 3:
             raise ValueError(f"n_periods must be >= 3, got {self.n_periods}")
-        if (self.n_candidates < 1 or self.n_scan < 2 or self.pd_points < 2 or self.pd_tries < 1
-                or self.primary_tries < 1 or self.isola_tries < 1):
-            raise ValueError(f"need n_candidates >= 1, n_scan >= 2, pd_points >= 2, pd_tries >= 1, "
-                             f"primary_tries >= 1, isola_tries >= 1, got {self.n_candidates}, {self.n_scan}, "
-                             f"{self.pd_points}, {self.pd_tries}, {self.primary_tries}, {self.isola_tries}")
+        for name, least in (("n_candidates", 1), ("n_scan", 2), ("pd_points", 2), ("pd_tries", 1),
+                            ("primary_tries", 1), ("isola_tries", 1)):
+            if getattr(self, name) < least:
+                raise ValueError(f"{name} must be >= {least}, got {getattr(self, name)}")
         if self.harmonic_checks < 0:
             raise ValueError(f"harmonic_checks must be >= 0, got {self.harmonic_checks}")
         if self.dt_refinement < 1:
