@@ -25,7 +25,8 @@ class KnownBranch:
         if converged is not None:
             keep = np.asarray(converged, dtype=bool)
             omega, x = omega[keep], x[keep]
-        return cls(omega, x.reshape(len(omega), -1), label)
+        # (m, n) even for m = 0 (an NFRC whose start did not converge: no point to meet)
+        return cls(omega, x.reshape(len(omega), x.shape[-1] if x.ndim == 2 else -1), label)
 
 
 def polyline_distance(x: np.ndarray, omega: float, branch: KnownBranch, x_scale=1.0,

@@ -21,13 +21,16 @@ Two phases:
    of an open branch halves, that of a closed one does not change. The halves are merged
    into one branch and classified:
      primary: it merges into (runs along) the primary NFRC;
-     bifurcated: it crosses another branch (a branch point), or passes through a located
+     bifurcated: it crosses another branch (a branch point), merges into a known branch
+       other than the primary (search's `primaries`), or passes through a located
        bifurcation point of one;
      isola: a closed loop, or both ends inside the omega range;
      detached: otherwise (an end on the range's bound, never meeting the primary).
    A half that merges into a branch found earlier makes the new one part of it: its seeds
-   go to that branch, its points are dropped. Seeds lying on a branch found later are
-   attributed to it and never continued. The caller's `describe` (per-point data, e.g. the
+   go to that branch, its points are dropped, and the branch takes the connection the new
+   one brings (primary before bifurcated before its own kind). Seeds lying on a branch
+   found later are attributed to it and never continued. Either way the branch is passed
+   to on_branch again, so that an interrupted run has them on disk. The caller's `describe` (per-point data, e.g. the
    stability, and per-branch tables) runs on the merged branch, in two chunks at once on
    the two processes when it is long (_described).
 
@@ -380,9 +383,14 @@ def _parallel(points, b: KnownBranch, xn, wn, opts) -> bool:
     sx, sw = opts.x_scale, opts.omega_scale
     a = np.append((points[-1].x - points[-2].x) / sx, (points[-1].omega - points[-2].omega) / sw)
     P = np.column_stack([b.x / sx, b.omega / sw])
-    k = int(np.argmin(np.linalg.norm(P - np.append(xn / sx, wn / sw), axis=1)))
-    k = min(k, len(P) - 2)
-    s = P[k + 1] - P[k]
+    # the segment (xn, wn) lies on, not the one after the nearest vertex: past a segment's
+    # middle that is the next one, which at a fold runs the other way
+    seg = P[1:] - P[:-1]
+    rel = np.append(xn / sx, wn / sw) - P[:-1]
+    L2 = np.einsum("sn,sn->s", seg, seg)
+    t = np.clip(np.einsum("sn,sn->s", rel, seg) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
+    k = int(np.argmin(np.einsum("sn,sn->s", rel - t[:, None] * seg, rel - t[:, None] * seg)))
+    s = seg[k]
     na, ns = np.linalg.norm(a), np.linalg.norm(s)
     return bool(na == 0 or ns == 0 or abs(a @ s) / (na * ns) > _PARALLEL_COS)
 
@@ -454,13 +462,14 @@ def _at_bound(status: str) -> bool:
     return status.startswith(STATUS_OMEGA_MIN) or status.startswith(STATUS_OMEGA_MAX)
 
 
-def _classify(halves, omega, x, bifurcation_points, options: SearchOptions):
-    """(kind, closed) of a merged branch from its halves [(Branch, joined)]."""
+def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, primaries: int):
+    """(kind, closed) of a merged branch from its halves [(Branch, joined)]; the known
+    branches of index < primaries are the primary NFRC(s)."""
     closed = any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves)
     joined = [j for _, j in halves if j is not None]
-    if any(j[1] < 0 and j[2] for j in joined):  # merges into the primary
+    if any(-1 - primaries < j[1] < 0 and j[2] for j in joined):  # merges into the primary
         return "primary", closed
-    if any(not j[2] for j in joined):
+    if any(not j[2] or j[1] < 0 for j in joined):  # crosses a branch, or merges into a known non-primary one
         return "bifurcated", closed
     if bifurcation_points is not None and len(bifurcation_points.omega) and len(omega) > 1:
         b = KnownBranch.of(omega, x, "new")
@@ -473,8 +482,13 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions):
     return "detached", closed
 
 
+#: Which kind a branch that another one joins takes: the connection to the primary first,
+#: then a crossing; an isola or detached branch keeps its own.
+_KIND_RANK = {"primary": 0, "bifurcated": 1}
+
+
 def search(factory, seeds, known, options: SearchOptions, *, comm=None, corrections: Corrections | None = None,
-           seed_factory=None, branches=(), bifurcation_points: KnownBranch | None = None,
+           seed_factory=None, branches=(), bifurcation_points: KnownBranch | None = None, primaries: int | None = None,
            describe: Callable[[np.ndarray, np.ndarray], dict] | None = None,
            on_corrections: Callable[[Corrections], None] | None = None,
            on_branch: Callable[[int, FoundBranch], None] | None = None,
@@ -493,6 +507,9 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
       starts); None: factory.
     bifurcation_points: located bifurcations of the known branches (omega (k,), x (k, n)):
       a branch through one is "bifurcated".
+    primaries: the first `primaries` known branches are the primary NFRC(s) (None: all); a
+      branch merging into another known one (e.g. an isola of the scene's basis, embedded
+      in that of Omega / 2) is "bifurcated", not "primary".
     describe(omega (m,), x (m, n)) -> {name: (m, ...) array}: per-point data of each branch
       (of its converged points; nan or 0 elsewhere), and optionally "tables": {name:
       {column: (array, unit)}}, per-branch tables whose `index` column (a position among
@@ -503,6 +520,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
     """
     t_wall = time.perf_counter()
     seeds = tuple(seeds)
+    primaries = len(known) if primaries is None else primaries
     progress = on_progress or (lambda phase, done, total: None)
     if corrections is None:
         corrections = correct_seeds(seed_factory or factory, seeds, known, options, comm,
@@ -538,6 +556,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             if k >= 0:
                 owner[i] = k
                 found[k] = replace(found[k], seeds=found[k].seeds + (i,))
+                if on_branch is not None:  # saved again: a resumed search must not continue i
+                    on_branch(k, found[k])
                 continue
             t0 = time.process_time()
             others = ([(f"known branch {j} ({b.label})", -1 - j, b) for j, b in enumerate(known)]
@@ -564,14 +584,19 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             computed = len(first) + (len(second) - 1 if second is not None else 0)
             n_pts += computed
             merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
-            if merged_into:  # part of a branch found before: its seeds go there
-                k = merged_into[0]
-                owner[i] = k
-                found[k] = replace(found[k], seeds=found[k].seeds + (i,),
-                                   n_points_computed=found[k].n_points_computed + computed)
-                continue
             omega, x, conv = _merge(first, second)
-            kind, closed = _classify(halves, omega, x, bifurcation_points, options)
+            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries)
+            if merged_into:  # part of a branch found before: its seeds go there, and its other
+                k = merged_into[0]  # end's connection (to the primary, a crossing) too
+                old = found[k]
+                new_kind = kind if _KIND_RANK.get(kind, 2) < _KIND_RANK.get(old.kind, 2) else old.kind
+                joined_status = f"; joined by the branch from seed {i}: {kind}" if new_kind != old.kind else ""
+                owner[i] = k
+                found[k] = replace(old, seeds=old.seeds + (i,), kind=new_kind, status=old.status + joined_status,
+                                   n_points_computed=old.n_points_computed + computed)
+                if on_branch is not None:
+                    on_branch(k, found[k])
+                continue
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
             ok = np.asarray(conv, bool)
             doing[0] = f"branch being described: from seed {i} at {w0:g} rad/s"

@@ -229,7 +229,9 @@ class _Partial:
             if name in g["branches"]:
                 del g["branches"][name]
             _write_branch(g["branches"].create_group(name), fb, nu)
-            g.attrs["n_branches"] = index + 1  # last: the branch counts once all of it is written
+            # last: the branch counts once all of it is written (an earlier one saved again
+            # with the seeds that joined it leaves the count as it is)
+            g.attrs["n_branches"] = max(int(g.attrs.get("n_branches", 0)), index + 1)
             _count_branches(h5)
 
 
@@ -409,10 +411,10 @@ def _compute(ctx: Context, outputs) -> None:
     from hbm.harmonic.content import branch_content, rom_modes
 
     modes = rom_modes(rom.K, rom.M)
-    def run_part(key, problem, res, seeds, known, bif, label):
+    def run_part(key, problem, res, seeds, known, bif, label, primaries=None):
         """One search (a treatment, or its period-doubled part; res: problem's residual, built
         once by the caller for its seeds): resumed from and saved to isolas.partial.h5 under
-        `key`. -> (IsolaSearch, CPU s, wall s)."""
+        `key`; known[:primaries] are the primary NFRC (None: all). -> (IsolaSearch, CPU s, wall s)."""
         corrections, done = partial.resume(key) if root else (None, [])
         if comm is not None:
             corrections, done = comm.bcast((corrections, done), root=0)
@@ -428,7 +430,7 @@ def _compute(ctx: Context, outputs) -> None:
 
             result = search(problem, seeds, known, opts, comm=comm, corrections=corrections,
                             seed_factory=problem.for_seeds(), branches=done,
-                            bifurcation_points=bif,
+                            bifurcation_points=bif, primaries=primaries,
                             describe=BranchDescriber(problem, problem.hbm.stability, (co.x_scale, co.omega_scale),
                                                      stab),
                             on_corrections=lambda c: partial.corrections(key, c) if root else None,
@@ -478,7 +480,8 @@ def _compute(ctx: Context, outputs) -> None:
                 pd_known = [_embedded(k, res, pd_res) for k in known + found]
                 pd_bif = _embedded(bif, res, pd_res) if bif is not None else None
                 pd_result, pd_cpu, pd_wall = run_part(f"{method}.period_doubled", pd_problem, pd_res, pd_seeds,
-                                                      pd_known, pd_bif, f"{method}, period-doubled orbits of the sweep")
+                                                      pd_known, pd_bif, f"{method}, period-doubled orbits of the sweep",
+                                                      primaries=len(known))
                 pd_result = _born_at_doublings(pd_result, res, pd_res, known + found, opts, ctx if root else None)
                 parts.append((pd_result, pd_res))
                 cpu, wall = cpu + pd_cpu, wall + pd_wall

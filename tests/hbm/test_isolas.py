@@ -230,6 +230,106 @@ def test_an_interrupted_search_resumes_without_recomputing(primary):
     np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
 
 
+@pytest.mark.parametrize("third", [1, 2])
+def test_a_search_interrupted_after_merges_resumes_to_the_uninterrupted_result(third):
+    """Short halves (15 points) make later seeds merge into branches found before, or lie on
+    them: those seeds are saved with their branch as they join it, so a search interrupted
+    after them continues none of them again and ends with the uninterrupted result."""
+    from dataclasses import replace
+
+    opts = options()
+    opts = replace(opts, continuation=replace(opts.continuation, max_points=15))
+    seeds = modal_seeds()
+    full = search(factory, seeds, [], opts)
+    n_cand = len(full.corrections.candidates())
+    assert full.n_continued > len(full.branches) + 5  # many merges
+    cut = third * n_cand // 3
+    saved = {"branches": {}}
+
+    def stop(phase, done, total):
+        if phase == "branches" and done == cut:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        search(factory, seeds, [], opts, on_corrections=lambda c: saved.update(corrections=c),
+               on_branch=lambda i, b: saved["branches"].__setitem__(i, b), on_progress=stop)
+    done = [saved["branches"][k] for k in range(len(saved["branches"]))]
+    again = search(factory, seeds, [], opts, corrections=saved["corrections"], branches=done)
+    np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
+    assert [(b.kind, b.seeds, b.n_points_computed) for b in again.branches] == \
+        [(b.kind, b.seeds, b.n_points_computed) for b in full.branches]
+    # every candidate the first run went through is on disk with its branch: none is tried again
+    assert {int(i) for i in full.corrections.candidates()[:cut]} <= {sd for b in done for sd in b.seeds}
+    assert again.n_continued < full.n_continued
+
+
+def _primary_solution(w):
+    """The primary curve's solution at w, from the one-harmonic balance's smallest amplitude."""
+    from hbm.continuation.newton import newton_solve
+
+    return newton_solve(Oscillator(), np.array([amplitudes(w)[0], 0.0]), w).x
+
+
+def test_a_branch_merging_into_a_known_branch_other_than_the_primary_is_bifurcated(primary):
+    """Known: the primary and a piece of the isola (as the period-doubled search knows the
+    first search's branches); a seed on the isola's lower sheet runs into the piece at both
+    ends. With only the first known branch the primary, it is not called primary."""
+    from dataclasses import replace
+
+    a = amplitudes(1.0)
+    piece = continue_branch(Oscillator(), np.array([0.0, a[2]]), 1.0, replace(continuation(), max_points=25))
+    isola_piece = KnownBranch.of(piece.omega, piece.x, "an isola", piece.converged)
+    seed = [Seed(1.0, np.array([0.0, a[1]]), "lower sheet")]
+    res = search(factory, seed, [primary, isola_piece], options(), primaries=1)
+    (b,) = res.branches
+    assert "met known branch 1 (an isola)" in b.status and b.kind == "bifurcated"
+    assert search(factory, seed, [primary, isola_piece], options()).branches[0].kind == "primary"  # all primaries
+
+
+def test_a_branch_found_before_becomes_primary_when_a_later_one_links_it_to_the_primary():
+    """The known primary is cut at 0.95; seed A (1.15) continues a piece of the primary curve
+    that ends on the step cap short of it; seed B (1.0) runs into the known primary one way
+    and into A's branch the other: A's branch is then connected to the primary."""
+    from dataclasses import replace
+
+    prim = continue_branch(Oscillator(), np.array([F / (1 - W_MIN ** 2), 0.0]), W_MIN, continuation())
+    keep = prim.converged & (prim.omega <= 0.95)
+    known = KnownBranch.of(prim.omega[keep], prim.x[keep], "primary")
+    seeds = [Seed(1.15, _primary_solution(1.15), "A"), Seed(1.0, _primary_solution(1.0), "B")]
+    opts = options()
+    opts = replace(opts, continuation=replace(opts.continuation, max_points=12))
+    alone = search(factory, seeds[:1], [known], opts)
+    assert [b.kind for b in alone.branches] == ["detached"]
+    res = search(factory, seeds, [known], opts)
+    (b,) = res.branches
+    assert b.seeds == (0, 1) and b.kind == "primary" and "joined by the branch from seed 1: primary" in b.status
+
+
+def test_a_join_is_measured_on_the_segment_it_lies_on():
+    """The half branch runs along the known polyline's first segment, past its middle, the
+    nearest vertex being that of the turn: merging, not crossing."""
+    from types import SimpleNamespace
+
+    from hbm.isolas.membership import nearest_on_polyline
+    from hbm.isolas.search import _parallel
+
+    b = KnownBranch.of([0.0, 1.0, 1.0], [[0.0], [0.0], [1.0]], "known")
+    pts = [SimpleNamespace(x=np.array([0.0]), omega=0.8), SimpleNamespace(x=np.array([0.0]), omega=0.9)]
+    d, xn, wn, _ = nearest_on_polyline(pts[-1].x, pts[-1].omega, b)
+    opts = SimpleNamespace(x_scale=1.0, omega_scale=1.0)
+    assert d == 0.0 and _parallel(pts, b, xn, wn, opts)
+    turn = [SimpleNamespace(x=np.array([0.1]), omega=1.0), SimpleNamespace(x=np.array([0.2]), omega=1.0)]
+    assert not _parallel(turn, b, np.array([0.0]), 0.9, opts)  # across the first segment
+
+
+def test_a_primary_nfrc_with_no_converged_point_is_a_branch_nothing_lies_on():
+    from hbm.isolas.membership import polyline_distance
+
+    b = KnownBranch.of([2000.0, 1999.0], np.ones((2, 6)), "primary", converged=[False, False])
+    assert b.x.shape == (0, 6)
+    assert polyline_distance(np.zeros(6), 1990.0, b)[0] == np.inf
+
+
 #: the third speed of modal_seeds' grid, where _killed kills its worker
 KILLED_AT = float(np.linspace(W_MIN, W_MAX, 41)[2])
 

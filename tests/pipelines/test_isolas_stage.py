@@ -157,6 +157,13 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     assert list(b.bifurcations["kind"]) == ["period doubling"] and b.bifurcations["omega"][0] == 1.05
     np.testing.assert_array_equal(b.stable, [True, False])
     assert len(p.resume("rl")[1]) == 2
+    # an earlier branch saved again with the seeds that joined it keeps the later ones
+    from dataclasses import replace
+
+    p.branch("rl", 0, replace(fb, seeds=(0, 2)), 1)
+    done = p.resume("rl")[1]
+    assert [b.seeds for b in done] == [(0, 2), (0,)]
+    assert art.read_attrs(tmp_path / "isolas.partial.h5")["n_branches"] == 3
     assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").resume("dlft") == (None, [])  # other inputs
     # in folders copied with hard links (cp -al), a search resumed or started over writes its
     # own file, never through the link into the original's
