@@ -324,6 +324,13 @@ def _check_combinations(scene: Scene) -> None:
     if scene.ti.n_keep * scene.casing.n_lobes < 2:
         raise SceneError(f"[ti] n_keep = {scene.ti.n_keep} with [casing] n_lobes = {scene.casing.n_lobes}: the "
                          "periodicity class needs at least 3 Poincare sections (n_keep n_lobes + 1)")
+    lo, hi = scene.isolas.omega_range(scene.hbm)
+    if not lo < hi:  # one of the two set in [isolas], the other taken from [hbm]
+        def where(key):
+            own = getattr(scene.isolas, key) is not None
+            return f"[{'isolas' if own else 'hbm'}] {key} = {lo if key == 'omega_min' else hi:g}"
+        raise SceneError(f"{where('omega_min')} is not below {where('omega_max')}: the isola search's "
+                         "speed range is empty")
 
 
 def scene_warnings(scene: Scene) -> list[str]:

@@ -88,7 +88,7 @@ def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np
     """Eq. (31): x0(t) = A rho_tip Phi_j cos(k omega t) for every omega of the grid (rad/s),
     mode j < n_modes, harmonic k of iso.harmonics within the residual's N_h (of the basis'
     fundamental Omega / nu), amplitude A of iso.amplitudes (rho_tip: mean radius of the
-    contact nodes, m; Phi_j: boundary_modes). Origins read "modal j=2 k=4 A=3.2e-03" (j from 1)."""
+    contact nodes, m; Phi_j: boundary_modes). Origins read "modal j=2 k=4 A=0.0032" (j from 1)."""
     _, phi = boundary_modes(rom, iso.n_modes)
     rho_tip = float(np.mean(rom.rho))
     nh = res.basis.n_harmonics

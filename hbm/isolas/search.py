@@ -71,7 +71,7 @@ _PARALLEL_COS = 0.9
 @dataclass(frozen=True)
 class Seed:
     """A start guess: omega, rad/s; x (n,) in the residual's unknowns; origin, in words
-    (e.g. "modal j=2 k=4 A=3.2e-03")."""
+    (e.g. "modal j=2 k=4 A=0.0032")."""
 
     omega: float
     x: np.ndarray

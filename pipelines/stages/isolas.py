@@ -384,9 +384,10 @@ def _compute(ctx: Context, outputs) -> None:
         from pipelines.stages.ti import read_sweep
 
         sweep = read_sweep(out)
-        if sweep.boundary is None and root:
-            ctx.progress.warn("ti.h5 holds no boundary states (written by an older version): no seeds from the "
-                              "time integration; rerun the ti stage (--force) to get them")
+        if sweep.boundary is None:
+            if root:
+                ctx.progress.warn("ti.h5 holds no boundary states (written by an older version): no seeds from the "
+                                  "time integration; rerun the ti stage (--force) to get them")
         else:
             held = sweep.boundary.shape[1] // scene.ti.samples_per_revolution
             need = hbm.subharmonic * (2 if iso.ti_period_doubled else 1)

@@ -15,7 +15,7 @@ from pipelines import artifacts as art
 from pipelines.cli import main
 from pipelines.progress import Progress
 from pipelines.runner import run_scene
-from pipelines.scene import load_scene
+from pipelines.scene import load_scene, parse_scene
 from pipelines.stages.isolas import read_isolas
 
 
@@ -176,3 +176,32 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
         q.branch("dlft", 1, fb, 1)
         assert art.read_attrs(tmp_path / name / "isolas.partial.h5")["inputs_hash"] == inputs_hash
     assert (tmp_path / "isolas.partial.h5").read_bytes() == before
+
+
+def test_every_mpi_rank_goes_past_a_ti_h5_without_boundary_states(tmp_path, monkeypatch):
+    """A ti.h5 of an older version has no boundary states: rank 0 warns and every rank goes
+    on without the sweep's seeds (rank 1 used to read the missing array's shape). The fake
+    context stops each rank at the next thing it lacks, the output's hash."""
+    from types import SimpleNamespace
+
+    import pipelines.parallel as parallel
+    import pipelines.stages.isolas as stage
+    import pipelines.stages.ti as ti
+
+    class Comm:
+        rank, size = 0, 2
+
+        def bcast(self, obj, root=0):
+            return obj
+
+    monkeypatch.setattr(parallel, "world", lambda: Comm())
+    monkeypatch.setattr(stage, "read_rom", lambda out: "rom")
+    monkeypatch.setattr(ti, "read_sweep", lambda out: SimpleNamespace(boundary=None))
+    (tmp_path / "ti.h5").write_bytes(b"")
+    for rank in (0, 1):
+        Comm.rank = rank
+        warned = []
+        ctx = SimpleNamespace(scene=parse_scene(""), out=tmp_path, progress=SimpleNamespace(warn=warned.append))
+        with pytest.raises(AttributeError, match="hashes"):
+            stage._compute(ctx, None)
+        assert len(warned) == (1 if rank == 0 else 0)

@@ -134,6 +134,8 @@ def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_pat
     ("[limits]\nmemory_gb = -1\n", r"memory_gb must be >= 0 GB"),
     ("[hbm]\nstability_max_gap = 0\n", r"stability_max_gap must be >= 1 \(1: every point analysed\)"),
     ("[validation]\nn_scan = 1\n", r"^\[validation\] n_scan must be >= 2, got 1$"),
+    ("[isolas]\nomega_min = 2500\n", r"\[isolas\] omega_min = 2500 is not below \[hbm\] omega_max = 2000: the isola "),
+    ("[isolas]\nomega_max = 300\n", r"\[hbm\] omega_min = 400 is not below \[isolas\] omega_max = 300"),
     ("[validation]\nisola_tries = 0\n", r"^\[validation\] isola_tries must be >= 1, got 0$"),
 ])
 def test_value_out_of_range_is_named_with_its_reason(text, message):
