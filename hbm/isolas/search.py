@@ -30,9 +30,10 @@ Two phases:
    go to that branch, its points are dropped, and the branch takes the connection the new
    one brings (primary before bifurcated before its own kind). Seeds lying on a branch
    found later are attributed to it and never continued. Either way the branch is passed
-   to on_branch again, so that an interrupted run has them on disk. The caller's `describe` (per-point data, e.g. the
-   stability, and per-branch tables) runs on the merged branch, in two chunks at once on
-   the two processes when it is long (_described).
+   to on_branch again, so that an interrupted run has them on disk. The caller's
+   `describe` (per-point data, e.g. the stability, and per-branch tables) runs on the
+   merged branch, in two chunks when it is long, at once on the two processes when there
+   are two, and the same chunks in one process (_described).
 
 Resume: `search` takes the corrections and finished branches of an interrupted run of the
 same inputs and only computes what is missing; the result is the uninterrupted one.
@@ -414,26 +415,34 @@ def _run_describe(describe, omega, x):
 
 
 def _described(describe, omega: np.ndarray, x: np.ndarray, pool=None) -> tuple[dict, float]:
-    """(describe's dict, CPU s spent in worker processes). With a pool, the points are
-    described in two chunks at once, sharing one point k, where Omega runs monotonically
-    through k-1, k, k+1: what describe finds between two neighbours (e.g. a stability change)
-    lies in one chunk, and no turn in Omega is cut. The chunks' per-point arrays are joined
-    (k once) and their tables concatenated, the second's `index` shifted by k."""
+    """(describe's dict, CPU s spent in worker processes). A long branch is described in two
+    chunks sharing one point k, where Omega runs monotonically through k-1, k, k+1: what
+    describe finds between two neighbours (e.g. a stability change) lies in one chunk, and
+    no turn in Omega is cut. With a pool the chunks run at once, else one after the other:
+    the same chunks either way, so that the result does not depend on the worker count (a
+    describe that schedules its work along the points, as the stability monitor does,
+    would otherwise analyse other points). The chunks' per-point arrays are joined (k once)
+    and their tables concatenated, the second's `index` shifted by k."""
     n = len(omega)
-    if pool is None or n < 2 * _MIN_CHUNK:
+    if n < 2 * _MIN_CHUNK:
         return dict(describe(omega, x)), 0.0
     d = np.diff(omega)
     mid = n // 2
     k = next((j for r in range(n // 2 - _MIN_CHUNK) for j in (mid - r, mid + r) if d[j - 1] * d[j] > 0), None)
     if k is None:
         return dict(describe(omega, x)), 0.0
-    try:
-        pickle.dumps(describe)
-    except (pickle.PicklingError, AttributeError, TypeError):  # e.g. a closure: described here
-        return dict(describe(omega, x)), 0.0
-    fa = pool.submit(_run_describe, describe, omega[:k + 1], x[:k + 1])
-    fb = pool.submit(_run_describe, describe, omega[k:], x[k:])
-    (a, ca), (b, cb) = fa.result(), fb.result()
+    if pool is not None:
+        try:
+            pickle.dumps(describe)
+        except (pickle.PicklingError, AttributeError, TypeError):  # e.g. a closure: described here
+            pool = None
+    if pool is None:
+        (a, _), (b, _) = _run_describe(describe, omega[:k + 1], x[:k + 1]), _run_describe(describe, omega[k:], x[k:])
+        ca = cb = 0.0  # spent in this process: counted by the caller's clock
+    else:
+        fa = pool.submit(_run_describe, describe, omega[:k + 1], x[:k + 1])
+        fb = pool.submit(_run_describe, describe, omega[k:], x[k:])
+        (a, ca), (b, cb) = fa.result(), fb.result()
     ta, tb = a.pop("tables", {}), _reindexed(b.pop("tables", {}), np.arange(k, n))
     out = {name: np.concatenate([np.asarray(a[name]), np.asarray(b[name])[1:]]) for name in a}
     tables = {}

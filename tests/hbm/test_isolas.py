@@ -514,6 +514,30 @@ def test_a_branch_described_in_two_chunks_is_described_as_a_whole():
         np.testing.assert_array_equal(parts["tables"]["turns"][c][0], whole["tables"]["turns"][c][0])
 
 
+def scheduled(omega, x):
+    """A describe that, like the stability monitor, works on every third point from where
+    it starts and fills the others in: its result depends on where a chunk starts."""
+    analysed = np.arange(len(omega)) % 3 == 0
+    return {"analysed": analysed, "value": np.where(analysed, x[:, 0], np.nan)}
+
+
+def test_a_branch_is_described_alike_with_any_number_of_workers():
+    """isolas.h5 does not depend on [isolas] workers (not in its inputs hash): the chunks are
+    the same with two processes and with one."""
+    import concurrent.futures
+
+    from hbm.isolas.search import _described
+
+    s = np.linspace(0.0, 1.0, 101)
+    omega, x = 1.0 + 0.1 * s, np.column_stack([np.cos(7 * s), np.sin(7 * s)])
+    alone, _ = _described(scheduled, omega, x)
+    with concurrent.futures.ProcessPoolExecutor(2) as pool:
+        two, _ = _described(scheduled, omega, x, pool)
+    np.testing.assert_array_equal(two["analysed"], alone["analysed"])
+    np.testing.assert_array_equal(two["value"], alone["value"])
+    assert not np.array_equal(alone["analysed"], scheduled(omega, x)["analysed"])  # chunked, not whole
+
+
 def test_the_describers_keep_a_bounded_number_of_residuals(monkeypatch):
     """A process keeps the residuals of the last few BranchDescribers only (each holds its
     ROM's matrices): six describers used in turn build six residuals, keep four, and the
