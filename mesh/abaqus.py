@@ -11,13 +11,26 @@ where the blade is clamped (all four checked on meshio 5.0.0). What is read:
   their variants (C3D8R, C3D10M, C3D20R, ...), data lines continued until the node count is
   complete; other C3Dn types are kept as unknown solids (refused later, by name); elements
   of lower dimension (shells, membranes, beams, surfaces) are counted and skipped.
-- *NSET, NSET=... (GENERATE, ELSET=) and *ELSET, ELSET=... (GENERATE): ids or set names.
+  An *ELEMENT block without data lines (exporters write one per type or section) is dropped.
+- *NSET, NSET=... (GENERATE, ELSET=) and *ELSET, ELSET=... (GENERATE): ids or set names;
+  GENERATE lines are "first, last[, increment]" (increment 1 when left out, as CalculiX
+  reads "20, 24"), and a GENERATE range keeps only the ids the deck defines (CalculiX runs
+  a deck whose range crosses gaps in the numbering). Other ids a set names that no *NODE
+  defines refuse the deck only where the set is used: in *BOUNDARY or as the root.
 - *BOUNDARY (TYPE=DISPLACEMENT, the default): "node or set, first dof[, last dof[, value]]"
   or "node or set, ENCASTRE | PINNED | XSYMM | ...": which translations (dof 1-3) are fixed.
-  A non-zero prescribed value is not a clamp and is refused.
+  Fields are read by position: a blank last dof is the first ("ROOT, 1,, 0"). A non-zero
+  prescribed value is not a clamp and is refused.
 - *INCLUDE, INPUT=...: read in place, relative to the including file.
-Keywords, parameters and set names are case-insensitive (names are kept in upper case).
-Decks with *PART/*INSTANCE (Abaqus/CAE's default) are refused with the way out.
+Keywords, parameters and set names are case-insensitive (names are kept in upper case);
+a UTF-8 byte order mark is skipped.
+Refused, by name, rather than skipped (a skipped one would silently give another blade):
+decks with *PART/*INSTANCE (Abaqus/CAE's default, with the way out); keywords that make or
+move nodes or elements from others (*NGEN, *NFILL, *NCOPY, *NMAP, *SYSTEM, *ELGEN, *ELCOPY);
+INPUT= on *NODE, *ELEMENT, *NSET, *ELSET and *BOUNDARY (data lines in another file, which
+CalculiX does not read there either: write them in the deck or *INCLUDE them); a keyword
+line continued on the next one (ending in "," before a line of parameters), which
+CalculiX rejects as well. A keyword line merely ending in "," is read, as CalculiX does.
 """
 from __future__ import annotations
 
@@ -34,6 +47,13 @@ _SOLID = re.compile(r"^C3D(\d+)")
 # Abaqus shorthands of *BOUNDARY and the dof they fix (only 1-3, translations, matter here)
 _SHORTHAND = {"ENCASTRE": (1, 2, 3), "PINNED": (1, 2, 3), "XSYMM": (1,), "YSYMM": (2,), "ZSYMM": (3,),
               "XASYMM": (2, 3), "YASYMM": (1, 3), "ZASYMM": (1, 2)}
+# keywords that make or move nodes or elements from others: not read, so refused (skipping
+# one would import another blade without a word), with what each does
+_GENERATORS = {"NGEN": "generates nodes", "NFILL": "generates nodes", "NCOPY": "copies nodes",
+               "NMAP": "maps node coordinates", "SYSTEM": "moves the *NODE lines that follow into a local frame",
+               "ELGEN": "generates elements", "ELCOPY": "copies elements"}
+# keywords read here whose data lines INPUT= would take from another file (not read: refused)
+_WITH_DATA = ("NODE", "ELEMENT", "NSET", "ELSET", "BOUNDARY")
 
 
 def _keyword_lines(path: Path, seen: tuple[Path, ...] = ()):
@@ -42,7 +62,7 @@ def _keyword_lines(path: Path, seen: tuple[Path, ...] = ()):
     if path.resolve() in seen:
         raise MeshImportError(f"{path}: *INCLUDE loop")
     try:
-        text = path.read_text(errors="replace")
+        text = path.read_text(encoding="utf-8-sig", errors="replace")  # -sig: a BOM would hide a first *NODE
     except OSError as exc:
         raise MeshImportError(f"cannot read {path}: {exc}") from exc
     for no, line in enumerate(text.splitlines(), 1):
@@ -68,7 +88,7 @@ def included_files(path: Path, seen: tuple[Path, ...] = ()) -> list[Path]:
     if path.resolve() in seen:
         raise MeshImportError(f"{path}: *INCLUDE loop")
     out = []
-    text = path.read_text(errors="replace")
+    text = path.read_text(encoding="utf-8-sig", errors="replace")
     if "*include" not in text.lower():  # the common case, 20x faster than the regex on a big deck
         return out
     for m in re.finditer(r"(?im)^[ \t]*\*include[ \t]*,(.*)$", text):
@@ -92,17 +112,43 @@ def _params(line: str) -> dict:
 
 def _blocks(path: Path):
     """(keyword, params, data lines, where) for each keyword of the deck."""
-    keyword, params, data, where = None, {}, [], ""
+    keyword, params, data, where, line = None, {}, [], "", ""
     for f, no, s in _keyword_lines(path):
         if s.startswith("*"):
             if keyword is not None:
                 yield keyword, params, data, where
             keyword = s[1:].split(",")[0].strip().upper()
-            params, data, where = _params(s), [], f"{f.name}:{no}"
+            params, data, where, line = _params(s), [], f"{f.name}:{no}", s
         elif keyword is not None:
+            if not data:
+                _refuse_continuation(line, s, where)
             data.append(s)
     if keyword is not None:
         yield keyword, params, data, where
+
+
+def _refuse_continuation(keyword_line: str, first_data: str, where: str) -> None:
+    """Abaqus continues a keyword line that ends in "," on the next line; CalculiX does not
+    (it stops at the parameters as data), and reading them as data here would misread the
+    block, so a continued line is refused. A trailing "," before real data lines (which
+    never hold "=") is harmless and CalculiX reads it: left alone."""
+    if keyword_line.rstrip().endswith(",") and "=" in first_data:
+        raise MeshImportError(f"{where}: keyword line '{keyword_line}' is continued on the next line "
+                              f"('{first_data}'); CalculiX does not read continued keyword lines either: "
+                              "write the keyword and all its parameters on one line")
+
+
+def _refuse_unread(keyword: str, params: dict, where: str) -> None:
+    """Keywords (and INPUT= data files) that would change the nodes or elements but are not
+    read here: refused by name, so that a deck is never imported as another blade."""
+    if keyword in _GENERATORS:
+        raise MeshImportError(f"{where}: *{keyword} {_GENERATORS[keyword]}, which bladerub does not read; "
+                              "write the nodes and elements out explicitly (e.g. the deck your pre-processor "
+                              "or CalculiX's cgx writes)")
+    if keyword in _WITH_DATA and "INPUT" in params:
+        raise MeshImportError(f"{where}: *{keyword}, INPUT={params['INPUT']}: data lines in another file are "
+                              f"not read (nor by CalculiX); write them under *{keyword} or *INCLUDE a file "
+                              "that holds the keyword line and its data")
 
 
 def _numbers(lines: list[str], dtype, where: str) -> np.ndarray:
@@ -134,38 +180,70 @@ def _tokens(lines: list[str]) -> list[str]:
     return [t.strip() for line in lines for t in line.split(",") if t.strip()]
 
 
-def _ints(tokens: list[str], where: str) -> np.ndarray:
-    try:
-        return np.array([int(t) for t in tokens], dtype=np.int64)
-    except ValueError as exc:
-        raise MeshImportError(f"{where}: expected integers: {exc}") from exc
-
-
-def _set_members(tokens: list[str], params: dict, sets: dict, kind: str, where: str) -> list:
-    """Ids (ints) and members of named sets of an *NSET/*ELSET data block."""
-    if "GENERATE" in params:
-        vals = _ints(tokens, where)
-        if len(vals) % 3:
-            raise MeshImportError(f"{where}: GENERATE needs 'first, last, increment' lines")
-        out = []
-        for a, b, c in vals.reshape(-1, 3):
-            out.extend(range(a, b + 1, c or 1))
-        return out
+def _generate(lines: list[str], where: str) -> list[int]:
+    """Ids of GENERATE data lines, read one line at a time as "first, last[, increment]":
+    the increment is optional (1 when missing or blank, as CalculiX reads "20, 24"), so the
+    numbers of a block cannot be cut into threes."""
     out = []
-    for t in tokens:
+    for line in lines:
+        t = [x.strip() for x in line.split(",")]
+        while len(t) > 2 and not t[-1]:
+            t.pop()  # a trailing ","
+        try:
+            if len(t) not in (2, 3):
+                raise ValueError
+            first, last = int(t[0]), int(t[1])
+            step = int(t[2]) if len(t) == 3 and t[2] else 1
+        except ValueError:
+            raise MeshImportError(f"{where}: GENERATE needs 'first, last[, increment]' lines, got '{line}'") from None
+        if step < 0 or last < first:
+            raise MeshImportError(f"{where}: GENERATE line '{line}' needs first <= last and a positive increment")
+        out.extend(range(first, last + 1, step or 1))
+    return out
+
+
+def _set_members(lines: list[str], params: dict, sets: dict, kind: str, where: str) -> tuple[list, list]:
+    """Members of an *NSET/*ELSET data block: (ids listed or from named sets, ids from GENERATE
+    ranges). sets: name -> (listed ids, generated ids) of the sets defined so far. The two
+    are kept apart because a GENERATE range may cross ids the deck does not define."""
+    if "GENERATE" in params:
+        return [], _generate(lines, where)
+    listed, generated = [], []
+    for t in _tokens(lines):
         if re.fullmatch(r"[+-]?\d+", t):
-            out.append(int(t))
+            listed.append(int(t))
         elif t.upper() in sets:
-            out.extend(sets[t.upper()])
+            listed.extend(sets[t.upper()][0])
+            generated.extend(sets[t.upper()][1])
         else:
             raise MeshImportError(f"{where}: unknown {kind} '{t}'")
-    return out
+    return listed, generated
+
+
+def _boundary_line(line: str, where: str) -> tuple[str, tuple[int, ...]]:
+    """(node or set, fixed translations) of a *BOUNDARY data line, its fields read by
+    position: "ROOT, 1,, 0" has a blank last dof (= the first), not the value in its place."""
+    t = [x.strip() for x in line.split(",")]
+    if len(t) < 2 or not t[0] or not t[1]:
+        raise MeshImportError(f"{where}: *BOUNDARY line '{line}' names no dof")
+    if t[1].upper() in _SHORTHAND:
+        return t[0], _SHORTHAND[t[1].upper()]
+    try:
+        first = int(t[1])
+        last = int(t[2]) if len(t) > 2 and t[2] else first
+        value = float(t[3]) if len(t) > 3 and t[3] else 0.0
+    except ValueError:
+        raise MeshImportError(f"{where}: cannot read *BOUNDARY line '{line}'") from None
+    if value != 0.0:
+        raise MeshImportError(f"{where}: *BOUNDARY '{line}' prescribes a non-zero "
+                              "displacement; only a clamp (0) can define the root")
+    return t[0], tuple(d for d in range(first, last + 1) if d <= 3)
 
 
 def read_deck(path: Path) -> SourceMesh:
     """Read an Abaqus/CalculiX deck into a SourceMesh (node sets by upper-case name, ids as in the file)."""
     path = Path(path)
-    node_chunks, node_set_ids, elem_set_ids = [], {}, {}
+    node_chunks, node_set_ids, elem_set_ids = [], {}, {}  # set name -> (listed ids, GENERATE'd ids)
     elements = []  # (type, ids (k,), node ids (k, n), where)
     ignored = {}
     boundary = []  # (node id or set name, dofs, where)
@@ -174,6 +252,7 @@ def read_deck(path: Path) -> SourceMesh:
             raise MeshImportError(
                 f"{where}: *{keyword}: decks with parts and assemblies are not supported; write a flat "
                 "deck (Abaqus/CAE: model attributes, 'Do not use parts and assemblies in input files')")
+        _refuse_unread(keyword, params, where)
         if keyword == "NODE":
             if "SYSTEM" in params and params["SYSTEM"].upper() != "R":
                 raise MeshImportError(f"{where}: *NODE, SYSTEM={params['SYSTEM']}: only rectangular coordinates")
@@ -185,11 +264,15 @@ def read_deck(path: Path) -> SourceMesh:
             if arr.size:
                 node_chunks.append(arr)
                 if "NSET" in params:
-                    node_set_ids.setdefault(params["NSET"].upper(), []).extend(arr[:, 0].astype(np.int64))
+                    node_set_ids.setdefault(params["NSET"].upper(), ([], []))[0].extend(arr[:, 0].astype(np.int64))
         elif keyword == "ELEMENT":
             etype = params.get("TYPE", "").upper()
             if not etype:
                 raise MeshImportError(f"{where}: *ELEMENT without TYPE=")
+            if not data:  # an empty block: neither a type of the blade nor something skipped
+                if "ELSET" in params:
+                    elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))
+                continue
             m = _SOLID.match(etype)
             if m is None:
                 ignored[etype] = ignored.get(etype, 0) + len(data)
@@ -202,7 +285,7 @@ def read_deck(path: Path) -> SourceMesh:
             vals = vals.reshape(-1, n + 1)
             elements.append((SOLID_TYPES.get(n, etype), vals[:, 0], vals[:, 1:], where))
             if "ELSET" in params:
-                elem_set_ids.setdefault(params["ELSET"].upper(), []).extend(vals[:, 0])
+                elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))[0].extend(vals[:, 0])
         elif keyword == "NSET":
             name = params.get("NSET", "").upper()
             if not name:
@@ -211,39 +294,26 @@ def read_deck(path: Path) -> SourceMesh:
                 es = params["ELSET"].upper()
                 if es not in elem_set_ids:
                     raise MeshImportError(f"{where}: *NSET, ELSET={es}: unknown element set")
-                wanted = np.asarray(elem_set_ids[es])
+                wanted = np.concatenate([np.asarray(v, dtype=np.int64) for v in elem_set_ids[es]])
                 ids = [e[2][np.isin(e[1], wanted)].ravel() for e in elements]
-                node_set_ids.setdefault(name, []).extend(np.concatenate(ids) if ids else [])
-            members = _set_members(_tokens(data), params, node_set_ids, "node set", where)
-            node_set_ids.setdefault(name, []).extend(members)
+                node_set_ids.setdefault(name, ([], []))[0].extend(np.concatenate(ids) if ids else [])
+            listed, generated = _set_members(data, params, node_set_ids, "node set", where)
+            entry = node_set_ids.setdefault(name, ([], []))
+            entry[0].extend(listed)
+            entry[1].extend(generated)
         elif keyword == "ELSET":
             name = params.get("ELSET", "").upper()
             if not name:
                 raise MeshImportError(f"{where}: *ELSET without ELSET=")
-            elem_set_ids.setdefault(name, []).extend(
-                _set_members(_tokens(data), params, elem_set_ids, "element set", where))
+            listed, generated = _set_members(data, params, elem_set_ids, "element set", where)
+            entry = elem_set_ids.setdefault(name, ([], []))
+            entry[0].extend(listed)
+            entry[1].extend(generated)
         elif keyword == "BOUNDARY":
             if params.get("TYPE", "DISPLACEMENT").upper() != "DISPLACEMENT":
                 continue
             for line in data:
-                t = [x.strip() for x in line.split(",")]
-                t = [x for x in t if x] or [""]
-                if len(t) < 2:
-                    raise MeshImportError(f"{where}: *BOUNDARY line '{line}' names no dof")
-                if t[1].upper() in _SHORTHAND:
-                    dofs = _SHORTHAND[t[1].upper()]
-                else:
-                    try:
-                        first = int(t[1])
-                        last = int(t[2]) if len(t) > 2 else first
-                        value = float(t[3]) if len(t) > 3 else 0.0
-                    except ValueError:
-                        raise MeshImportError(f"{where}: cannot read *BOUNDARY line '{line}'") from None
-                    if value != 0.0:
-                        raise MeshImportError(f"{where}: *BOUNDARY '{line}' prescribes a non-zero "
-                                              "displacement; only a clamp (0) can define the root")
-                    dofs = tuple(d for d in range(first, last + 1) if d <= 3)
-                boundary.append((t[0], dofs, where))
+                boundary.append((*_boundary_line(line, where), where))
 
     if not node_chunks:
         raise MeshImportError(f"{path}: no *NODE lines")
@@ -275,11 +345,15 @@ def read_deck(path: Path) -> SourceMesh:
         merged.setdefault(b.type, []).append(b)
     blocks = tuple(SolidBlock(t, np.concatenate([b.connectivity for b in bs]), np.concatenate([b.ids for b in bs]))
                    for t, bs in merged.items())
-    node_sets = {name: np.unique(index(ids, f"node set {name}")) for name, ids in node_set_ids.items()}
+    node_sets, unknown_ids = _resolve_node_sets(node_set_ids, node_ids, index)
     fixed = np.zeros((len(nodes), 3), dtype=bool)
     for target, dofs, where in boundary:
         if re.fullmatch(r"[+-]?\d+", target):
             idx = index([int(target)], f"*BOUNDARY ({where})")
+        elif target.upper() in unknown_ids:
+            missing = unknown_ids[target.upper()]
+            raise MeshImportError(f"{where}: *BOUNDARY set '{target}' names node ids not in the deck: "
+                                  f"{missing[:10].tolist()}{' ...' if missing.size > 10 else ''}")
         elif target.upper() in node_sets:
             idx = node_sets[target.upper()]
         else:
@@ -288,4 +362,23 @@ def read_deck(path: Path) -> SourceMesh:
             fixed[idx, d - 1] = True
     return SourceMesh(points=np.ascontiguousarray(nodes[:, 1:]), node_ids=node_ids, blocks=blocks,
                       node_sets=node_sets, fixed=fixed, ignored=ignored,
-                      files=(path, *included_files(path)))
+                      files=(path, *included_files(path)), unknown_ids=unknown_ids)
+
+
+def _resolve_node_sets(node_set_ids: dict, node_ids: np.ndarray, index) -> tuple[dict, dict]:
+    """Node sets as node indices, and the ids each names that the deck does not define.
+
+    A GENERATE range keeps the ids the deck defines (CalculiX runs a deck whose "1, 120"
+    crosses gaps in the numbering); other unknown ids are set aside, not refused: a set the
+    blade does not use (in *BOUNDARY or as the root) must not refuse the deck, as CalculiX
+    runs it. index: node ids -> node indices (all known)."""
+    node_sets, unknown_ids = {}, {}
+    for name, (listed, generated) in node_set_ids.items():
+        listed = np.asarray(listed, dtype=np.int64)
+        generated = np.asarray(generated, dtype=np.int64)
+        known = np.isin(listed, node_ids)
+        if not known.all():
+            unknown_ids[name] = np.unique(listed[~known])
+        ids = np.concatenate([listed[known], generated[np.isin(generated, node_ids)]])
+        node_sets[name] = np.unique(index(ids, f"node set {name}"))
+    return node_sets, unknown_ids

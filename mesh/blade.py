@@ -263,7 +263,7 @@ class BoundaryNodes:
     """Tip contact nodes, LE (0) to TE.
 
     index: (n_b,) mesh node indices. xyz: (n_b, 3), m. rho: (n_b,) radius, m.
-    theta: (n_b,) angle relative to node 0, rad. frames: (n_b, 3, 3) rows e_r, e_theta, e_z.
+    theta: (n_b,) angle relative to node 0, rad, in (-pi, pi]. frames: (n_b, 3, 3) rows e_r, e_theta, e_z.
     targets: (n_b, 3) the evenly spaced camber points the nodes were snapped from, m.
     """
 
@@ -306,8 +306,16 @@ def contact_geometry(nodes: np.ndarray, index: np.ndarray, targets: np.ndarray |
     frames = np.stack([np.column_stack([np.cos(phi), np.sin(phi), zero]),
                        np.column_stack([-np.sin(phi), np.cos(phi), zero]),
                        np.column_stack([zero, zero, zero + 1.0])], axis=1)
-    return BoundaryNodes(index=index, xyz=xyz, rho=rho, theta=phi - phi[0], frames=frames,
+    return BoundaryNodes(index=index, xyz=xyz, rho=rho, theta=_wrapped(phi - phi[0]), frames=frames,
                          targets=xyz.copy() if targets is None else targets)
+
+
+def _wrapped(angle: np.ndarray) -> np.ndarray:
+    """Angles in (-pi, pi]: atan2 jumps by 2 pi where a blade crosses its cut (the -x axis), and
+    a jump would turn the sign of theta_TE - theta_LE (rom.rotation's sense of rotation). Only
+    the angles beyond +-pi move, so theta is bit for bit phi - phi[0] where nothing wraps."""
+    out = np.where(angle > np.pi, angle - 2.0 * np.pi, angle)
+    return np.where(out <= -np.pi, out + 2.0 * np.pi, out)
 
 
 def boundary_nodes(nodes: np.ndarray, tip_facets: np.ndarray, tip: Section, n: int) -> BoundaryNodes:

@@ -54,8 +54,8 @@ AXIS_ROTATIONS = {
 }
 FACING_COS = 0.5  # a facet faces away from (towards) the axis within 60 degrees of e_r (-e_r)
 CREASE_COS = np.cos(np.radians(30.0))  # neighbours across a sharper crease belong to another face
-MAX_FACE_EXTENT = 0.5
-MIN_ASPECT = 0.2  # radial extent over axial extent below which the axis cannot be the blade's  # radial extent of the tip/hub face over the blade's: above it, wrong axis
+MAX_FACE_EXTENT = 0.5  # radial extent of the tip/hub face over the blade's: above it, wrong axis
+MIN_ASPECT = 0.2  # radial extent over axial extent below which the axis cannot be the blade's
 # tet10 faces in gmsh ordering, outward for a positive cell: vertices, then mid nodes of 01, 12, 20
 TET10_FACES = np.array([[0, 2, 1, 6, 5, 4], [0, 1, 3, 4, 9, 7], [0, 3, 2, 7, 8, 6], [1, 2, 3, 5, 8, 9]])
 
@@ -143,7 +143,10 @@ def import_blade(blade: BladeOptions, options: MeshOptions, path: Path, node_ord
 
 
 def _check_elements(src: SourceMesh, path: Path) -> None:
-    types = {b.type: len(b.ids) for b in src.blocks}
+    """Only quadratic solids; the message counts every block of a type (meshio files may hold several)."""
+    types = {}
+    for b in src.blocks:
+        types[b.type] = types.get(b.type, 0) + len(b.ids)
     if not types:
         other = ", ".join(f"{t} x {n}" for t, n in src.ignored.items()) or "none"
         raise MeshImportError(f"{path}: no solid elements (other elements: {other})")
@@ -266,6 +269,10 @@ def _root_set(src: SourceMesh, root: str, path: Path) -> np.ndarray:
     if not match:
         known = ", ".join(sorted(src.node_sets)) or "none"
         raise MeshImportError(f"{path}: root node set '{name}' not found; the file's node sets: {known}")
+    missing = src.unknown_ids.get(match[0])
+    if missing is not None:
+        raise MeshImportError(f"{path}: root node set '{name}' names node ids not in the file: "
+                              f"{missing[:10].tolist()}{' ...' if missing.size > 10 else ''}")
     idx = src.node_sets[match[0]]
     if idx.size == 0:
         raise MeshImportError(f"{path}: root node set '{name}' is empty")

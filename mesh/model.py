@@ -23,7 +23,7 @@ class BladeMesh:
     tip_facets: (n_tip, 6) tri6.
     boundary_node_index: (n_b,) mesh nodes of the contact points, LE (0) to TE (n_b - 1).
     boundary_xyz: (n_b, 3), m. boundary_rho: (n_b,) radius, m.
-    boundary_theta: (n_b,) angular position relative to the LE node, rad.
+    boundary_theta: (n_b,) angular position relative to the LE node, rad, in (-pi, pi].
     boundary_frames: (n_b, 3, 3), rows e_r, e_theta, e_z (global components).
     volume: volume of the meshed solid, m^3.
     reference_volume: independent section-wise integral of the tabulated thickness, m^3;

@@ -33,7 +33,10 @@ class BladeOptions:
         translations the file fixes (*BOUNDARY of an .inp deck), "nset:NAME" = a node set
         of the file, "hub" = the nodes of the boundary faces that face the axis.
     contact_nodes: node ids as numbered in the mesh file, leading edge first (mesh only);
-        None: [mesh] n_boundary nodes along the tip face, as for the tables.
+        None: [mesh] n_boundary nodes along the tip face, as for the tables. "As numbered":
+        the file's own ids where the reader keeps them (an .inp deck's *NODE ids, a Nastran
+        .bdf's GRID ids); for the other formats read through meshio (.msh, .med, .vtu,
+        .xdmf, ...) the 1-based position of the node in the file's node list.
     rotation: sense of rotation, one of ROTATIONS: "+" or "-" (right-hand rule about the
       rotation axis (z of the product's frame; a mesh file's `axis`, turned onto z by a proper
       rotation): "+" turns the blade towards +theta), or
