@@ -227,6 +227,17 @@ class _Partial:
             g = h5[method]
             name = f"{index:03d}"
             if name in g["branches"]:
+                old = g["branches"][name]
+                if int(old.attrs.get("start", -1)) == fb.start and old["omega"].shape == np.shape(fb.omega):
+                    # the same branch, joined by more seeds: only its attributes change (a search
+                    # saves a branch again at every seed that joins it; rewriting its points
+                    # each time would write its megabytes hundreds of times); seeds last, so
+                    # that a kill before them leaves the seed to be tried again
+                    a = old.attrs
+                    a["kind"], a["status"] = fb.kind, fb.status
+                    a["n_points_computed"], a["cpu_time"] = int(fb.n_points_computed), float(fb.cpu_time)
+                    a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
+                    return
                 del g["branches"][name]
             _write_branch(g["branches"].create_group(name), fb, nu)
             # last: the branch counts once all of it is written (an earlier one saved again

@@ -160,10 +160,16 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     # an earlier branch saved again with the seeds that joined it keeps the later ones
     from dataclasses import replace
 
-    p.branch("rl", 0, replace(fb, seeds=(0, 2)), 1)
+    with h5py.File(tmp_path / "isolas.partial.h5", "r") as h5:
+        offset = h5["rl/branches/000/x"].id.get_offset()
+    p.branch("rl", 0, replace(fb, seeds=(0, 2), kind="primary", status="+: closed loop; joined"), 1)
     done = p.resume("rl")[1]
     assert [b.seeds for b in done] == [(0, 2), (0,)]
+    assert (done[0].kind, done[0].status) == ("primary", "+: closed loop; joined")
+    np.testing.assert_array_equal(done[0].x, fb.x)
     assert art.read_attrs(tmp_path / "isolas.partial.h5")["n_branches"] == 3
+    with h5py.File(tmp_path / "isolas.partial.h5", "r") as h5:  # its points were not written again
+        assert h5["rl/branches/000/x"].id.get_offset() == offset
     assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").resume("dlft") == (None, [])  # other inputs
     # in folders copied with hard links (cp -al), a search resumed or started over writes its
     # own file, never through the link into the original's
