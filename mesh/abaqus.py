@@ -21,7 +21,8 @@ where the blade is clamped (all four checked on meshio 5.0.0). What is read:
   or "node or set, ENCASTRE | PINNED | XSYMM | ...": which translations (dof 1-3) are fixed.
   Fields are read by position: a blank last dof is the first ("ROOT, 1,, 0"). A non-zero
   prescribed value is not a clamp and is refused.
-- *INCLUDE, INPUT=...: read in place, relative to the including file.
+- *INCLUDE, INPUT=...: read in place, relative to the including file, or, where it names
+  no file there, to the top deck's folder (CalculiX's rule, from the folder it runs in).
 Keywords, parameters and set names are case-insensitive (names are kept in upper case);
 a UTF-8 byte order mark is skipped.
 Refused, by name, rather than skipped (a skipped one would silently give another blade):
@@ -73,13 +74,35 @@ def _keyword_lines(path: Path, seen: tuple[Path, ...] = ()):
             params = _params(s)
             if "INPUT" not in params:
                 raise MeshImportError(f"{path}:{no}: *INCLUDE without INPUT=")
-            inc = Path(params["INPUT"].strip('"'))
-            inc = inc if inc.is_absolute() else path.parent / inc
+            inc = _include_path(params["INPUT"], path, seen)
             if not inc.is_file():
-                raise MeshImportError(f"{path}:{no}: included file not found: {inc}")
+                raise MeshImportError(f"{path}:{no}: included file not found: {inc}"
+                                      + _also_tried(params["INPUT"], path, seen))
             yield from _keyword_lines(inc, seen + (path.resolve(),))
             continue
         yield path, no, s
+
+
+def _include_path(name: str, path: Path, seen: tuple[Path, ...]) -> Path:
+    """The file an *INCLUDE, INPUT=name of `path` reads: relative to `path`'s folder, or,
+    where no such file exists, to the top deck's (seen[0]; CalculiX resolves every INPUT=
+    from the folder it runs in, usually the top deck's, so a nested include written for it
+    names its file from there)."""
+    inc = Path(name.strip('"'))
+    if inc.is_absolute():
+        return inc
+    here = path.parent / inc
+    if here.is_file() or not seen:
+        return here
+    top = seen[0].parent / inc
+    return top if top.is_file() else here
+
+
+def _also_tried(name: str, path: Path, seen: tuple[Path, ...]) -> str:
+    inc = Path(name.strip('"'))
+    if inc.is_absolute() or not seen or seen[0].parent == path.parent.resolve():
+        return ""
+    return f" (nor {seen[0].parent / inc}, from the top deck's folder)"
 
 
 def included_files(path: Path, seen: tuple[Path, ...] = ()) -> list[Path]:
@@ -92,8 +115,7 @@ def included_files(path: Path, seen: tuple[Path, ...] = ()) -> list[Path]:
     if "*include" not in text.lower():  # the common case, 20x faster than the regex on a big deck
         return out
     for m in re.finditer(r"(?im)^[ \t]*\*include[ \t]*,(.*)$", text):
-        inc = Path(_params("*INCLUDE," + m.group(1)).get("INPUT", "").strip('"'))
-        inc = inc if inc.is_absolute() else path.parent / inc
+        inc = _include_path(_params("*INCLUDE," + m.group(1)).get("INPUT", ""), path, seen)
         if inc.is_file():
             out.append(inc)
             out.extend(included_files(inc, seen + (path.resolve(),)))

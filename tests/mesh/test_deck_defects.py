@@ -287,3 +287,25 @@ def test_element_counts_sum_every_block_of_a_type(tmp_path):
                      blocks=(block("tetra10", 10, 3), block("tetra", 4, 7), block("tetra", 4, 2)))
     with pytest.raises(MeshImportError, match=r"linear 4-node tetrahedra \(9\) with quadratic tetra10 \(3\)"):
         _check_elements(src, tmp_path / "mixed.msh")
+
+
+def test_a_nested_include_named_from_the_top_decks_folder_is_read(tmp_path, plain):
+    """job.inp includes mesh/part.inp, which includes mesh/nodes.inp as "mesh/nodes.inp":
+    CalculiX, run from job.inp's folder, reads it so (and gives the plain deck's
+    frequencies); bladerub reads it too, the same nodes and root, and hashes the file."""
+    deck, freqs, root = plain
+    lines = deck.read_text().splitlines()
+    i = lines.index("*NODE, NSET=NALL")
+    j = next(k for k, line in enumerate(lines) if line.startswith("*ELEMENT"))
+    (tmp_path / "mesh").mkdir()
+    (tmp_path / "mesh" / "nodes.inp").write_text("\n".join(lines[i:j]) + "\n")
+    (tmp_path / "mesh" / "part.inp").write_text("*INCLUDE, INPUT=mesh/nodes.inp\n")
+    job = tmp_path / "top.inp"
+    job.write_text("\n".join(lines[:i] + ["*INCLUDE, INPUT=mesh/part.inp"] + lines[j:]) + "\n")
+    np.testing.assert_allclose(ccx_frequencies(job, tmp_path), freqs, rtol=1e-9)  # run from top.inp's folder
+    assert _root_ids(_import(job)) == root
+    assert source_files(job) == [job, tmp_path / "mesh" / "part.inp", tmp_path / "mesh" / "nodes.inp"]
+    (tmp_path / "mesh" / "part.inp").write_text("*INCLUDE, INPUT=mesh/none.inp\n")
+    with pytest.raises(MeshImportError, match=r"included file not found: .*mesh/mesh/none.inp \(nor .*"
+                                              r"/mesh/none.inp, from the top deck's folder\)"):
+        _import(job)
