@@ -351,10 +351,13 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return Branch.from_points(points, n, status, detail)
 
     sc = _Scaling(np.broadcast_to(np.asarray(opt.x_scale, dtype=float), (n,)), float(opt.omega_scale))
-    if ds is None:
-        ds = opt.ds
-        if len(points) >= 2:
-            ds = opt.next_step(points[-1].step, points[-1].iterations, _turn(points, sc))
+    if ds is None:  # resumed: the step the uninterrupted run took after its last point
+        ds = opt.next_step(points[-1].step, points[-1].iterations, _turn(points, sc)) if len(points) >= 3 else opt.ds
+        if len(points) == 2:  # point 1 turned from the start's tangent, not from a secant
+            tx0, tw0 = _tangent(residual, points[0].x, points[0].omega, opt.direction, sc, solver)
+            tx1, tw1 = sc.unit(points[1].x - points[0].x, points[1].omega - points[0].omega)
+            cos = float(tx0 @ tx1) + tw0 * tw1
+            ds = opt.next_step(points[1].step, points[1].iterations, math.degrees(math.acos(max(-1.0, min(1.0, cos)))))
     ref_x, ref_w = points[0].x, points[0].omega
     d_min = opt.closed_loop_tol
 
@@ -362,7 +365,11 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
 
     armed = any(far(p.x) for p in points)
-    crawl = 0  # successive points taken at a step below crawl_ratio ds_min
+    crawl = 0  # successive points taken at a step below crawl_ratio ds_min (a resumed run's last ones)
+    for p in reversed(points[1:]):
+        if not p.step < opt.crawl_ratio * opt.ds_min:
+            break
+        crawl += 1
     trail = _Trail(n)
     for p in points:
         trail.add(p)
@@ -415,6 +422,8 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         x_new, w_new, rn, it, step = cx, cw, c.residual_norm, c.iterations, ds
         bound = opt.omega_max if w_new > opt.omega_max else opt.omega_min if w_new < opt.omega_min else None
         if bound is not None:
+            if last.omega == bound:  # started on the bound, heading out of the range: nothing to add
+                return done(STATUS_OMEGA_MAX if bound == opt.omega_max else STATUS_OMEGA_MIN)
             if opt.land_on_bounds:
                 f = (bound - last.omega) / (w_new - last.omega)
                 sol = newton_solve(residual, last.x + f * (x_new - last.x), bound, opt.newton, solver=solver,

@@ -122,9 +122,9 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
                 t *= 0.5
         y = y + t * dy
         step_norm = float(np.linalg.norm(t * dy / scale))
-    return NewtonResult(y, False, rn, options.max_iter,
-                        f"no convergence in {options.max_iter} iterations{where} "
-                        f"(||R||={rn:.3e} > {options.tol_residual:.1e})")
+    why = (f"||R||={rn:.3e} > {options.tol_residual:.1e}" if rn > options.tol_residual
+           else f"||R||={rn:.3e} within tolerance, but the last step {step_norm:.3e} > tol_step {options.tol_step:.1e}")
+    return NewtonResult(y, False, rn, options.max_iter, f"no convergence in {options.max_iter} iterations{where} ({why})")
 
 
 def newton_solve(residual: Residual, x0: np.ndarray, omega: float, options: NewtonOptions = NewtonOptions(),

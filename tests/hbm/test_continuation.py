@@ -322,3 +322,28 @@ def test_bordered_solve_regular_uses_block_elimination():
     A = np.block([[J, r_w[:, None]], [p[None, :], np.array([[0.5]])]])
     np.testing.assert_allclose(A @ np.concatenate([dx, [dw]]), -np.concatenate([R, [0.1]]), atol=1e-12)
     assert not used_full
+
+
+def test_newton_names_the_step_test_when_only_it_fails():
+    """R = x^3 from x = 1e-3: ||R|| is below tol_residual at once, the steps (x / 3) stay above
+    tol_step for 3 iterations: the reason says so, not that ||R|| is too large."""
+    from hbm.continuation.newton import NewtonOptions, newton_solve
+
+    def cubic(x, w):
+        return np.array([x[0] ** 3]), np.array([[3 * x[0] ** 2]]), np.array([0.0])
+
+    r = newton_solve(cubic, np.array([1e-3]), 1.0, NewtonOptions(tol_residual=1e-8, tol_step=1e-6, max_iter=3))
+    assert not r.converged and r.residual_norm < 1e-8
+    assert "within tolerance, but the last step 1.481e-04 > tol_step 1.0e-06" in r.reason
+
+
+def test_a_start_on_the_bound_heading_out_adds_no_point():
+    from hbm.continuation.arclength import ContinuationOptions, continue_branch
+
+    def line(x, w):
+        return np.array([x[0] - w]), np.array([[1.0]]), np.array([-1.0])
+
+    b = continue_branch(line, [2.0], 2.0, ContinuationOptions(0.0, 2.0, direction=1))
+    assert len(b) == 1 and b.status.startswith("reached omega_max")
+    b = continue_branch(line, [0.5], 0.5, ContinuationOptions(0.5, 2.0, direction=-1))
+    assert len(b) == 1 and b.status.startswith("reached omega_min")

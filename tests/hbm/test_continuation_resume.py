@@ -92,3 +92,42 @@ def test_resume_drops_a_failed_tail_and_can_go_further(tmp_path):
 def head(b, m):
     """The first m points of a Branch."""
     return replace(b, **{f: getattr(b, f)[:m] for f in FIELDS + ("time",)})
+
+
+def test_a_resume_keeps_counting_the_points_at_the_step_floor():
+    """A straight branch walked at ds = ds_min (below crawl_ratio ds_min): the crawl rule
+    ends it after 5 such points, resumed after 3 of them or not."""
+    import numpy as np
+
+    from hbm.continuation.arclength import ContinuationOptions, continue_branch
+    from hbm.continuation.newton import NewtonOptions
+
+    def line(x, w):
+        return np.array([x[0] - w]), np.array([[1.0]]), np.array([-1.0])
+
+    kw = dict(ds=0.01, ds_min=0.01, ds_max=0.02, crawl_points=5, crawl_ratio=4.0,
+              newton=NewtonOptions(tol_residual=1e-12))
+    full = continue_branch(line, [0.0], 0.0, ContinuationOptions(0.0, 10.0, **kw))
+    part = continue_branch(line, [0.0], 0.0, ContinuationOptions(0.0, 10.0, max_points=4, **kw))
+    resumed = continue_branch(line, None, None, ContinuationOptions(0.0, 10.0, **kw), resume=part)
+    assert len(full) == 6 and full.status.startswith("crawled")
+    assert (len(resumed), resumed.status) == (len(full), full.status)
+
+
+def test_a_resume_after_the_first_step_takes_the_uninterrupted_second_step():
+    """On the circle, the first step turns from the start's tangent: with turn_shrink_deg = 1
+    the uninterrupted run halves the next step; a run resumed from those two points does too."""
+    import numpy as np
+
+    from hbm.continuation.arclength import ContinuationOptions, continue_branch
+    from hbm.continuation.newton import NewtonOptions
+    from systems import Circle
+
+    kw = dict(ds=0.02, ds_max=0.05, turn_shrink_deg=1.0, newton=NewtonOptions(tol_residual=1e-10))
+    x0 = np.array([2.5, 1.5625])
+    full = continue_branch(Circle(), x0, 1.5, ContinuationOptions(0.0, 5.0, max_points=6, **kw))
+    part = continue_branch(Circle(), x0, 1.5, ContinuationOptions(0.0, 5.0, max_points=2, **kw))
+    resumed = continue_branch(Circle(), None, None, ContinuationOptions(0.0, 5.0, max_points=6, **kw), resume=part)
+    assert full.step[2] == 0.5 * full.step[1]
+    np.testing.assert_array_equal(resumed.step, full.step)
+    np.testing.assert_allclose(resumed.x, full.x, rtol=0, atol=1e-12)
