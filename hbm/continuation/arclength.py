@@ -273,12 +273,18 @@ def _rejoined(trail: _Trail, x, w, tx, tw, ds: float, sc: _Scaling, residual, op
     return None
 
 
-def _turn(points, sc: _Scaling) -> float:
-    """Angle between the last two secants of a branch, deg (0 with fewer than 3 points)."""
-    if len(points) < 3:
+def _turn(points, sc: _Scaling, start_tangent=None) -> float:
+    """Angle between the last two secants of a branch, deg; with two points, between the
+    start's unit tangent (tx, tw), the direction the first step was taken in, and the
+    secant (0 with fewer points, or two and no tangent)."""
+    if len(points) < 2 or len(points) == 2 and start_tangent is None:
         return 0.0
-    p2, p1, p0 = points[-3], points[-2], points[-1]
-    a = np.append(*sc.unit(p1.x - p2.x, p1.omega - p2.omega))
+    p1, p0 = points[-2], points[-1]
+    if len(points) == 2:
+        a = np.append(*start_tangent)
+    else:
+        p2 = points[-3]
+        a = np.append(*sc.unit(p1.x - p2.x, p1.omega - p2.omega))
     b = np.append(*sc.unit(p0.x - p1.x, p0.omega - p1.omega))
     return math.degrees(math.acos(max(-1.0, min(1.0, float(a @ b)))))
 
@@ -352,12 +358,11 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
 
     sc = _Scaling(np.broadcast_to(np.asarray(opt.x_scale, dtype=float), (n,)), float(opt.omega_scale))
     if ds is None:  # resumed: the step the uninterrupted run took after its last point
-        ds = opt.next_step(points[-1].step, points[-1].iterations, _turn(points, sc)) if len(points) >= 3 else opt.ds
-        if len(points) == 2:  # point 1 turned from the start's tangent, not from a secant
-            tx0, tw0 = _tangent(residual, points[0].x, points[0].omega, opt.direction, sc, solver)
-            tx1, tw1 = sc.unit(points[1].x - points[0].x, points[1].omega - points[0].omega)
-            cos = float(tx0 @ tx1) + tw0 * tw1
-            ds = opt.next_step(points[1].step, points[1].iterations, math.degrees(math.acos(max(-1.0, min(1.0, cos)))))
+        ds = opt.ds
+        if len(points) >= 2:  # point 1 turned from the start's tangent, later ones from a secant
+            start = _tangent(residual, points[0].x, points[0].omega, opt.direction, sc, solver) \
+                if len(points) == 2 else None
+            ds = opt.next_step(points[-1].step, points[-1].iterations, _turn(points, sc, start))
     ref_x, ref_w = points[0].x, points[0].omega
     d_min = opt.closed_loop_tol
 

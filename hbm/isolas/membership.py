@@ -60,22 +60,31 @@ def nearest_on_polyline(x: np.ndarray, omega: float, branch: KnownBranch, x_scal
     """polyline_distance's (distance, x_near, omega_near) and k, the index of the branch
     point that ends the nearest segment on the side of the nearest point (-1 when nothing
     was measured)."""
+    d, xn, wn, seg, t = nearest_segment(x, omega, branch, x_scale, omega_scale, within)
+    return d, xn, wn, seg + int(t > 0.5) if seg >= 0 else -1
+
+
+def nearest_segment(x: np.ndarray, omega: float, branch: KnownBranch, x_scale=1.0, omega_scale: float = 1.0,
+                    within: float | None = None) -> tuple[float, np.ndarray, float, int, float]:
+    """(distance, x_near, omega_near, s, t): the nearest point lies on segment s (points s,
+    s + 1) at the fraction t of it (s = 0, t = 0 for a one-point branch; s = -1 when nothing
+    was measured; `within` as in polyline_distance)."""
     m = len(branch.omega)
     if m == 0:
-        return np.inf, x, omega, -1
+        return np.inf, x, omega, -1, 0.0
     q = np.append(np.asarray(x, dtype=float) / x_scale, omega / omega_scale)
     W = branch.omega / omega_scale
     if m == 1:
         if within is not None and abs(W[0] - q[-1]) > within:
-            return np.inf, x, omega, -1
+            return np.inf, x, omega, -1, 0.0
         d = float(np.linalg.norm(np.append(branch.x[0] / x_scale, W[0]) - q))
-        return d, branch.x[0], float(branch.omega[0]), 0
+        return d, branch.x[0], float(branch.omega[0]), 0, 0.0
     seg_i = np.arange(m - 1)
     if within is not None:
         lo, hi = np.minimum(W[:-1], W[1:]), np.maximum(W[:-1], W[1:])
         seg_i = np.flatnonzero((lo - within <= q[-1]) & (q[-1] <= hi + within))
         if not seg_i.size:
-            return np.inf, x, omega, -1
+            return np.inf, x, omega, -1, 0.0
     A = np.column_stack([branch.x[seg_i] / x_scale, W[seg_i]])  # segment starts (s, n + 1)
     B = np.column_stack([branch.x[seg_i + 1] / x_scale, W[seg_i + 1]])
     seg = B - A
@@ -86,7 +95,7 @@ def nearest_on_polyline(x: np.ndarray, omega: float, branch: KnownBranch, x_scal
     d2 = np.einsum("sn,sn->s", diff, diff)
     j = int(np.argmin(d2))
     near = A[j] + t[j] * seg[j]
-    return float(np.sqrt(d2[j])), near[:-1] * x_scale, float(near[-1] * omega_scale), int(seg_i[j]) + int(t[j] > 0.5)
+    return float(np.sqrt(d2[j])), near[:-1] * x_scale, float(near[-1] * omega_scale), int(seg_i[j]), float(t[j])
 
 
 def nearest_branch(x: np.ndarray, omega: float, branches, x_scale=1.0, omega_scale: float = 1.0):

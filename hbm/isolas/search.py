@@ -56,7 +56,7 @@ from threadpoolctl import threadpool_limits
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
-from hbm.isolas.membership import KnownBranch, nearest_on_polyline, polyline_distance, segment_length
+from hbm.isolas.membership import KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance, segment_length
 from hbm.processes import (gathered, limit_blas_threads, on_root, process_context, reported_deaths, run_flagged,
                            running, set_start_flags, start_flags)
 
@@ -383,15 +383,10 @@ def _parallel(points, b: KnownBranch, xn, wn, opts) -> bool:
         return True
     sx, sw = opts.x_scale, opts.omega_scale
     a = np.append((points[-1].x - points[-2].x) / sx, (points[-1].omega - points[-2].omega) / sw)
-    P = np.column_stack([b.x / sx, b.omega / sw])
     # the segment (xn, wn) lies on, not the one after the nearest vertex: past a segment's
     # middle that is the next one, which at a fold runs the other way
-    seg = P[1:] - P[:-1]
-    rel = np.append(xn / sx, wn / sw) - P[:-1]
-    L2 = np.einsum("sn,sn->s", seg, seg)
-    t = np.clip(np.einsum("sn,sn->s", rel, seg) / np.where(L2 > 0, L2, 1.0), 0.0, 1.0)
-    k = int(np.argmin(np.einsum("sn,sn->s", rel - t[:, None] * seg, rel - t[:, None] * seg)))
-    s = seg[k]
+    k = nearest_segment(xn, wn, b, sx, sw)[3]
+    s = np.append((b.x[k + 1] - b.x[k]) / sx, (b.omega[k + 1] - b.omega[k]) / sw)
     na, ns = np.linalg.norm(a), np.linalg.norm(s)
     return bool(na == 0 or ns == 0 or abs(a @ s) / (na * ns) > _PARALLEL_COS)
 
