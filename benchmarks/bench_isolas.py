@@ -90,7 +90,12 @@ def main():
             if phase == "branches":
                 print(f"  [{time.perf_counter() - t0:.0f} s] branches: candidate {done}/{total}", flush=True)
 
-        def on_branch(i, b):
+        printed = set()
+
+        def on_branch(i, b):  # a branch is passed again each time a seed joins it: said once
+            if i in printed:
+                return
+            printed.add(i)
             ok = b.converged
             print(f"  [{time.perf_counter() - t0:.0f} s] branch {i}: {b.kind}, {int(ok.sum())} points, "
                   f"{b.cpu_time:.0f} s CPU, {b.status}", flush=True)
