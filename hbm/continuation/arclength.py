@@ -369,6 +369,14 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
     def far(x):  # left the d_min neighbourhood of the start, metric of eq. (27)
         return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
 
+    def closes(last, x_new, w_new):  # eq. (26)-(27): the step from last to (x_new, w_new) crosses omega_0 within d_min
+        if not ((armed or far(x_new)) and last.index >= 1
+                and ((last.omega < ref_w <= w_new) or (last.omega > ref_w >= w_new))):
+            return None
+        x_int = last.x + (ref_w - last.omega) / (w_new - last.omega) * (x_new - last.x)
+        d_int = float(np.linalg.norm(x_int - ref_x) / max(np.linalg.norm(x_int), 1e-300))
+        return d_int if d_int < d_min else None
+
     armed = any(far(p.x) for p in points)
     crawl = 0  # successive points taken at a step below crawl_ratio ds_min (a resumed run's last ones)
     for p in reversed(points[1:]):
@@ -403,7 +411,9 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
                 turn = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
                 rejoin = None
                 if d > 0 and (turn <= opt.max_turn_deg or (floor and turn <= 90.0)):
-                    if not opt.rejoin_check:
+                    # A loop coming back to its start lands on its own first segment: the
+                    # crossing test closes it there, before the rejoin test would refuse it.
+                    if not opt.rejoin_check or closes(last, cx, cw) is not None:
                         break
                     rejoin = _rejoined(trail, cx, cw, *sc.unit(cx - last.x, cw - last.omega), ds, sc, residual,
                                        opt, solver)
@@ -441,14 +451,11 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
 
         trail.add(emit(x_new, w_new, True, rn, it, step, t0))
         crawl = crawl + 1 if step < opt.crawl_ratio * opt.ds_min else 0
+        d_int = closes(last, x_new, w_new)
         armed = armed or far(x_new)
-        crossed = (last.omega < ref_w <= w_new) or (last.omega > ref_w >= w_new)
-        if armed and last.index >= 1 and crossed:  # eq. (26)-(27)
-            x_int = last.x + (ref_w - last.omega) / (w_new - last.omega) * (x_new - last.x)
-            d_int = float(np.linalg.norm(x_int - ref_x) / max(np.linalg.norm(x_int), 1e-300))
-            if d_int < d_min:
-                return done(STATUS_CLOSED_LOOP, f"d_int={d_int:.3e} < {d_min:.3e} "
-                                                f"between points {last.index} and {last.index + 1}")
+        if d_int is not None:
+            return done(STATUS_CLOSED_LOOP, f"d_int={d_int:.3e} < {d_min:.3e} "
+                                            f"between points {last.index} and {last.index + 1}")
         if opt.crawl_points is not None and crawl >= opt.crawl_points:
             return done(f"{STATUS_CRAWL}: {crawl} successive points with ds < {opt.crawl_ratio:g} ds_min "
                         f"near omega={w_new:.6g}")

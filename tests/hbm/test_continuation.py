@@ -138,6 +138,9 @@ def test_isola_stops_after_one_turn(direction):
     b = continue_branch(c, x0, 1.5, opts(0.0, 5.0, direction=direction, closed_loop_tol=1e-2))
     assert b.status == STATUS_CLOSED_LOOP
     assert b.converged.all()
+    # Closed by the crossing test of eq. (26)-(27) at full steps: landing on its own first
+    # segment is the loop's end, not a retrace to refuse down to the step floor.
+    assert b.detail.startswith("d_int=") and b.step[1:].min() >= 0.02
     # Went round once: through both omega extremes of the circle (two folds), back to the start,
     # and not through the other crossing of omega0 (x1 = 1.5, d_int = 0.88).
     assert len(reversals(b.omega)) == 2
