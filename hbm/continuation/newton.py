@@ -115,11 +115,12 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
             return NewtonResult(y, False, rn, it, f"singular Jacobian{where}: non-finite step")
         t = 1.0
         if options.line_search and merit is not None:
-            for _ in range(options.max_halvings + 1):
+            for halvings in range(options.max_halvings + 1):  # t = 1, 1/2, ..., 2^-max_halvings
+                if halvings:
+                    t *= 0.5
                 rt = merit(y + t * dy)
                 if math.isfinite(rt) and rt < (1.0 - 1e-4 * t) * rn:
                     break
-                t *= 0.5
         y = y + t * dy
         step_norm = float(np.linalg.norm(t * dy / scale))
     why = (f"||R||={rn:.3e} > {options.tol_residual:.1e}" if rn > options.tol_residual

@@ -299,6 +299,25 @@ def test_unconverged_newton_is_not_converged(duffing):
     assert newton_solve(duffing, r.x, 1.0, NewtonOptions(tol_residual=1e-12)).iterations == 0
 
 
+@pytest.mark.parametrize("max_halvings", [0, 1, 4])
+def test_line_search_halves_at_most_max_halvings_times(max_halvings):
+    """The line search tries t = 1, 1/2, ..., 2^-max_halvings and takes the first that
+    decreases ||R||, else the last it tried."""
+    def uphill(x, w, jacobian=True):  # Jacobian of the wrong sign: ||R|| grows at every t > 0
+        return x.copy() if not jacobian else (x.copy(), -np.eye(1), np.zeros(1))
+
+    def atan(x, w, jacobian=True):  # from x = 2: t = 1 overshoots to |R| = 1.30 > 1.11, t = 1/2 gives 0.65
+        R = np.arctan(x)
+        return R if not jacobian else (R, np.array([[1.0 / (1.0 + x[0] ** 2)]]), np.zeros(1))
+
+    o = NewtonOptions(max_iter=1, line_search=True, max_halvings=max_halvings)
+    r = newton_solve(uphill, np.array([1.0]), 1.0, o)
+    assert r.x[0] == pytest.approx(1.0 + 2.0 ** -max_halvings, rel=1e-14)
+    r = newton_solve(atan, np.array([2.0]), 1.0, o)
+    t = 1.0 if max_halvings == 0 else 0.5
+    assert r.x[0] == pytest.approx(2.0 - t * 5.0 * np.arctan(2.0), rel=1e-14)
+
+
 # ---------------------------------------------------------------- bordered solve
 @pytest.mark.parametrize("sparse", [False, True])
 @pytest.mark.parametrize("case", ["exact", "rotated", "near"])
