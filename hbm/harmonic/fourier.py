@@ -103,12 +103,17 @@ class FourierBasis:
         """D with derivative(c) = D @ c, (2 N_h + 1, 2 N_h + 1), 1 per rad."""
         return self.derivative(np.eye(self.n_coeffs))
 
-    def lanczos_sigma(self) -> np.ndarray:
+    def lanczos_sigma(self, nu: int = 1) -> np.ndarray:
         """Lanczos sigma factors of eq. (21) per coefficient row, (2 N_h + 1,).
 
-        sigma_k = sinc(k / (N_h + 1)) with the normalised sinc sin(pi x) / (pi x).
+        sigma_k = sinc(k / (N_h + 1)) with the normalised sinc sin(pi x) / (pi x), for a basis
+        of Omega. In a basis of Omega / nu, harmonic k is the frequency k / nu of Omega and
+        the filter is that of the basis of Omega with floor(N_h / nu) harmonics at it,
+        sinc(k / (nu (floor(N_h / nu) + 1))): an orbit of period 2 pi / Omega is then a
+        solution in both bases (a period-doubled branch meets the primary one at its
+        bifurcation), whether the doubled basis has 2 N_h or 2 N_h + 1 harmonics.
         """
-        return np.sinc(self.orders / (self.n_harmonics + 1.0))
+        return np.sinc(self.orders / (nu * (self.n_harmonics // nu + 1.0)))
 
     # -- Jacobians through AFT -------------------------------------------------------------
     def weighted_product(self, weights: np.ndarray) -> np.ndarray:

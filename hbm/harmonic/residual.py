@@ -91,7 +91,7 @@ class HarmonicBalanceResidual:
         self.obstacle_scale = 1.0
         self.alpha = float(alpha if alpha is not None else 1.0 / max(casing.clearance, 1e-5))
         self.k_ref = float(np.mean(np.abs(np.diag(self.model.operator(0.0).Z0))))
-        sig = self.basis.lanczos_sigma() if (method == "rl" and contact.lanczos) else np.ones(self.basis.n_coeffs)
+        sig = self.basis.lanczos_sigma(self.nu) if (method == "rl" and contact.lanczos) else np.ones(self.basis.n_coeffs)
         self.sigma = sig
         self.n_c = self.basis.n_coeffs
         self.size = self.n_c * self.n_r

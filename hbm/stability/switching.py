@@ -7,9 +7,9 @@ and y has the harmonics of 1 / (2 T_min) that are odd multiples of it.
 
 - An orbit of the HBM basis' own period (T = 2 pi nu / Omega, g = 1): the new branch needs
   the basis of Omega / (2 nu) (HbmOptions.subharmonic = 2 nu, with 2 N_h + 1 harmonics
-  and 2 N_t samples: the same first dropped frequency, hence the same Lanczos factors for
-  RL); the old orbit is embedded on its even harmonics (embed_harmonics), an exact
-  solution there, and y lies on the odd ones.
+  and 2 N_t samples: the same first dropped frequency; RL's Lanczos factors follow the
+  frequency, FourierBasis.lanczos_sigma); the old orbit is embedded on its even harmonics
+  (embed_harmonics), an exact solution there, and y lies on the odd ones.
 - An orbit of period T / 2 in that basis (g = 2, the rotor 67 NFRC: only even harmonics of
   Omega): the doubled period T is already the basis', y lies on its odd harmonics (in the
   omega = Omega basis this is the symmetry-breaking branch point of the even solution).

@@ -2,8 +2,9 @@
 
 A basis of Omega / 2 holds every Omega-periodic orbit on its even harmonics. So the nu = 1
 solution of the rotor 67 ROM (N_h harmonics), embedded in the nu = 2 basis with
-N_h' = 2 (N_h + 1) - 1 harmonics (the same first dropped frequency (N_h + 1) Omega, hence
-the same Lanczos factors for RL), must solve the nu = 2 equations to the FFT's round-off:
+N_h' = 2 N_h + 1 harmonics (branch switching's) or 2 N_h (the isola search's doubled basis;
+RL's Lanczos factors are those of the frequencies k Omega / nu, so the same in both), must
+solve the nu = 2 equations to the FFT's round-off:
 this checks the casing sampled at nu tau, the velocity scaled by Omega / nu, friction's
 rho Omega and the harmonic Z blocks at k Omega / nu. The nu = 2
 Jacobians must match finite differences (dR/dOmega has the 1 / nu chain rule), and a
@@ -30,16 +31,17 @@ def rom():
     return coarse_rom()
 
 
+@pytest.mark.parametrize("nh2", [2 * NH + 1, 2 * NH])
 @pytest.mark.parametrize("method", ["dlft", "rl"])
-def test_embedded_omega_periodic_solution_solves_the_nu_2_equations(rom, method):
+def test_embedded_omega_periodic_solution_solves_the_nu_2_equations(rom, method, nh2):
     o1 = HbmOptions(n_harmonics=NH, n_time=NT, omega_min=1800.0, omega_max=OMEGA)
     r1 = build_residual(rom, CasingOptions(), ContactOptions(), o1, method=method)
     u1, note = solve_start(r1, OMEGA, default_continuation(o1), HbmSolver())
     R1 = r1(u1, OMEGA, jacobian=False)
     assert np.linalg.norm(R1) < 1e-8, note
-    o2 = HbmOptions(n_harmonics=2 * NH + 1, n_time=2 * NT, subharmonic=2)
+    o2 = HbmOptions(n_harmonics=nh2, n_time=2 * NT, subharmonic=2)
     r2 = build_residual(rom, CasingOptions(), ContactOptions(), o2, method=method)
-    u2 = embed_harmonics(u1, r2.n_r, 2, 2 * NH + 1)
+    u2 = embed_harmonics(u1, r2.n_r, 2, nh2)
     R2 = r2(u2, OMEGA, jacobian=False)
     # the same equations on twice the samples of a twice longer period: equal to round-off
     # (the FFTs and sums of 2 N_t samples, ||u|| ~ 60): 1e-10 absolute, against 1e-8 for
