@@ -27,19 +27,23 @@ def damped_newton(res, u0: np.ndarray, omega: float, opts: NewtonOptions, solver
 
 def penalty_homotopy(res: HarmonicBalanceResidual, u_soft: np.ndarray, omega: float, opts: ContinuationOptions,
                      solver: LinearSolver, kappa_start: float) -> tuple[np.ndarray | None, str]:
-    """RL's solution at the scene's kappa, followed from a solution u_soft of the softer
-    penalty kappa_start by an arc length in q = log10 kappa (the RL solution can fold in
-    kappa: it does at Omega = 400 rad/s on the rotor 67 ROM). Returns (u, note), u None
-    when the homotopy does not reach the scene's kappa."""
+    """RL's solution at the scene's kappa, followed from u_soft, a solution (or a close guess,
+    corrected first) at the penalty kappa_start, by an arc length in q = log10 kappa, up or
+    down (the RL solution can fold in kappa: it does at Omega = 400 rad/s on the rotor 67
+    ROM); at kappa_start = kappa, Newton from u_soft. Returns (u, note), u None when
+    neither reaches a solution at the scene's kappa."""
     c = res.contact
     rk = build_residual(res.rom, res.casing, c, res.options, method="rl", forcing=res.forcing,
                         alpha=res.alpha, friction=res.friction, distance=res._distance)
-    lo, hi = np.log10(min(kappa_start, c.kappa)), np.log10(c.kappa)
-    if not hi > lo:
-        return u_soft, "no kappa homotopy needed"
+    lo, hi = np.log10(kappa_start), np.log10(c.kappa)
+    if hi == lo:
+        sol = newton_solve(rk, u_soft, omega, opts.newton, solver=solver)
+        return (sol.x, "Newton at kappa") if sol.converged else (None, f"Newton at kappa: {sol.reason}")
 
     def penalty(u, q, jacobian=True):  # q = log10 kappa; dR/dq by central difference
         rk.contact = replace(c, kappa=float(10.0 ** q))
+        if not jacobian:  # a line search's merit: R alone
+            return rk(u, omega, jacobian=False)
         R, J, _ = rk(u, omega)
         h = 1e-5
         rk.contact = replace(c, kappa=float(10.0 ** (q + h)))
@@ -48,8 +52,8 @@ def penalty_homotopy(res: HarmonicBalanceResidual, u_soft: np.ndarray, omega: fl
         Rm = rk(u, omega, jacobian=False)
         return R, J, (Rp - Rm) / (2 * h)
 
-    kopt = replace(opts, omega_min=lo, omega_max=hi, omega_scale=0.5, ds=0.05, ds_max=0.5,
-                   closed_loop_tol=None, direction=1, max_points=300)
+    kopt = replace(opts, omega_min=min(lo, hi), omega_max=max(lo, hi), omega_scale=0.5, ds=0.05, ds_max=0.5,
+                   closed_loop_tol=None, direction=1 if hi > lo else -1, max_points=300)
     br = continue_branch(penalty, u_soft, lo, kopt, solver=solver)
     if br.converged[-1] and abs(br.omega[-1] - hi) < 1e-9:
         return br.x[-1], f"kappa homotopy ({len(br)} points)"
@@ -65,6 +69,8 @@ def obstacle_homotopy(res: HarmonicBalanceResidual, omega: float, opts: Continua
     def homotopy(u, s, jacobian=True):
         res.set_obstacle_scale(s)
         try:
+            if not jacobian:  # a line search's merit: R alone
+                return res(u, omega, jacobian=False)
             R, J, _ = res(u, omega)
             h = 1e-6
             res.set_obstacle_scale(s + h)

@@ -79,6 +79,30 @@ def test_kappa_homotopy_reaches_the_stiff_penalty_solution(monkeypatch):
     assert np.abs(x - ref).max() / np.abs(ref).max() < 1e-3
 
 
+@pytest.mark.parametrize("kappa_start, line_search", [(3.0, True), (1e3, False), (100.0, False)])
+def test_kappa_homotopy_from_either_side_and_with_a_line_search(monkeypatch, kappa_start, line_search):
+    """The kappa homotopy from a softer (3), a stiffer (1e3: down) or the same penalty (100:
+    Newton alone) reaches the solution at kappa = 100, the exact piecewise-linear orbit to the
+    N_h = 32 truncation (3.4e-4, as above); with the corrector's line search on, its merit
+    takes R alone from the homotopy's residual."""
+    from hbm.harmonic.start import penalty_homotopy
+    monkeypatch.setattr(t, "KAPPA", 100.0)
+    hbm = HbmOptions(n_harmonics=32, n_time=2048)
+    flat = lambda tau: np.full((len(tau), 1), t.D)  # noqa: E731
+    res, dl = _residual("rl", 100.0, flat, hbm=hbm), _residual("dlft", 100.0, flat, hbm=hbm)
+    opts = default_continuation(hbm)
+    opts = replace(opts, newton=replace(opts.newton, line_search=line_search))
+    u_dlft = damped_newton(dl, dl.linear_solution(t.W), t.W, opts.newton, DirectSolver()).x
+    u, note = penalty_homotopy(res, u_dlft, t.W, opts, DirectSolver(), kappa_start)
+    assert u is not None, note
+    assert np.linalg.norm(res(u, t.W, jacobian=False)) <= opts.newton.tol_residual
+    basis = FourierBasis(32, t.NG)
+    c = res.expand_harmonics(u, t.W)[:, [0]]
+    x, v = basis.to_time(c)[:, 0], t.W * basis.to_time(basis.derivative(c))[:, 0]
+    ref = t._reference(np.array([x[0], v[0]]))
+    assert np.abs(x - ref).max() / np.abs(ref).max() < 1e-3
+
+
 def test_start_from_the_other_end(monkeypatch):
     """When no start converges at the end of the range the scene names, compute_nfrc starts
     at the other end and runs back: the same curve as a run started there."""
