@@ -49,7 +49,9 @@ class Bifurcation:
     kind: one of KINDS. omega: Omega at the bifurcation, rad/s. le_amplitude: LE amplitude
     there (half peak-to-peak radial displacement), m. index: the branch point after which it
     lies; fraction: its position between points index and index + 1 in arc length, [0, 1].
-    omega_bracket: (Omega at index, at index + 1), rad/s: the located value is inside;
+    omega_bracket: (Omega at index, at index + 1), rad/s: the located value is inside,
+    except for a fold, whose omega is the vertex of the parabola Omega(s) through the three
+    points around the turn (an extremum of Omega, beyond both points' Omegas by O(ds^2));
     the interpolation error is a fraction of this bracket (see `locate`).
     multiplier: the crossing multiplier of the minimal period at the point on its unstable
     side (where a period doubling's is real), -.
@@ -107,10 +109,17 @@ def classify(mu: complex, fold: bool) -> str:
 
 
 def upper_half(mu: np.ndarray) -> np.ndarray:
-    """(m,) bool: one multiplier of each conjugate pair (Im >= 0) and every real one (also a
-    real negative one whose round-off put it at arg = -pi)."""
-    a = np.angle(np.asarray(mu))
-    return (a >= -REAL_ARG_TOL) | (np.abs(a) >= np.pi - REAL_ARG_TOL)
+    """(m,) bool: one multiplier of each conjugate pair (Im >= 0) and every real one, also a
+    near-real one with Im < 0 (within REAL_ARG_TOL of 0 or pi) whose conjugate is not listed
+    (round-off at arg = -pi, or the truncation's move off the axis, see lone_real); a pair
+    within that band keeps one member, as it crosses the circle as one."""
+    mu = np.asarray(mu)
+    a = np.angle(mu)
+    out = a >= 0.0
+    band = ~out & ((a >= -REAL_ARG_TOL) | (a <= REAL_ARG_TOL - np.pi))
+    if band.any():
+        out[band] = lone_real(mu)[band]
+    return out
 
 
 def pair_multipliers(mu_a: np.ndarray, mu_b: np.ndarray, floor: float, window: float = 1.0):

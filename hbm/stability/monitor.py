@@ -32,8 +32,10 @@ control keeps such stretches short where multipliers are near the unit circle.
 
 The points are handed on (`on_point`) only once their stability is final: the last
 analysed point is held back until the next analysis has been compared with it, because
-that comparison may widen its window (below) and change its count. Up to max_gap + 1
-points are held back.
+that comparison may widen its window (below) and change its count; and the points between
+it and the analysed point before it too, because such a change moves the stability change
+to between those two, where it is then bisected and located. Up to 2 max_gap points are
+held back.
 """
 from __future__ import annotations
 
@@ -164,10 +166,12 @@ class StabilityMonitor:
     #: analyses by what asked for them (they sum to n_analyses): "first", "turn" (Omega
     #: turned), "next point" (the gap rule gave 1: a multiplier close to the circle and moving
     #: towards it), "reach" (a longer gap from the same rule), "gap cap" (max_gap points),
-    #: "last", "bisection", "widening"
+    #: "last", "bisection", "widening"; "first" also counts the seeded points of a resumed
+    #: branch (seed)
     causes: dict = field(default_factory=dict)
     _buffer: list = field(default_factory=list)
-    _last: _Entry | None = None  # last analysed point (held: _buffer[0] until the next analysis)
+    _last: _Entry | None = None  # last analysed point (held until the next analysis)
+    _before: _Entry | None = None  # the analysed point before _last (handed on; the points between are held)
     _recent: list = field(default_factory=list)  # the last three points: (index, omega, s, amplitude)
     _counts: dict = field(default_factory=dict)  # index -> n_unstable of recent points
     _folds: list = field(default_factory=list)  # trios (f - 1, f, f + 1) around a turn in Omega
@@ -199,7 +203,8 @@ class StabilityMonitor:
                 self._folds.append(list(self._recent))
                 turned = True
         since = e.index - self._last.index if self._last is not None else 0
-        waiting = len(self._buffer) - (self._buffer[0] is self._last)  # points not yet analysed
+        waiting = sum(q.index > self._last.index for q in self._buffer) if self._last is not None \
+            else len(self._buffer)  # points not yet analysed
         if self._last is None or turned or since >= self._gap or waiting >= self.options.max_gap:
             cause = ("first" if self._last is None else "turn" if turned
                      else "gap cap" if self._gap >= self.options.max_gap or since < self._gap
@@ -209,18 +214,25 @@ class StabilityMonitor:
 
     def seed(self, points, extras: list) -> None:
         """Start after points already handed on (a resumed branch): the last one is analysed
-        (the reference for the next), the last three feed the fold detection."""
+        (the reference for the next), the last three feed the fold detection. A turn in Omega
+        at the last or the one before it is seen only with the new points, and its fold needs
+        their counts (_record_folds): the stored ones where extras hold them (n_unstable,
+        period_ratio: the monitor's per-point keys), else from an analysis."""
         pts = list(points)[-3:]
         exs = list(extras)[-3:]
-        for p, ex in zip(pts, exs):
+        for k, (p, ex) in enumerate(zip(pts, exs)):
             self._s += float(p.step) if self._recent else 0.0
             self._recent = (self._recent + [(p.index, float(p.omega), self._s, float(ex.get("le_amplitude", np.nan)))])[-3:]
-        if pts:
-            p, ex = pts[-1], exs[-1]
             e = _Entry(p.index, float(p.omega), self._s, float(ex.get("le_amplitude", np.nan)), np.asarray(p.x), (p, ex))
-            self._spectrum(e, "first")
-            self._last = e
-            self._counts[e.index] = (e.n_unstable, e.g)
+            if k == len(pts) - 1:
+                self._spectrum(e, "first")
+                self._last = e
+                self._counts[e.index] = (e.n_unstable, e.g)
+            elif "n_unstable" in ex and "period_ratio" in ex:
+                self._counts[e.index] = (int(ex["n_unstable"]), int(ex["period_ratio"]))
+            elif k == len(pts) - 2:
+                self._spectrum(e, "first")
+                self._counts[e.index] = (e.n_unstable, e.g)
 
     def finish(self) -> list:
         """Analyse the last held point and hand on everything still held."""
@@ -233,9 +245,11 @@ class StabilityMonitor:
 
     def released_bifurcations(self) -> list:
         """The located bifurcations whose two points have been handed on (a caller that
-        stores points as they come stores these with them: the others may still move)."""
+        stores points as they come stores these with them: the others may still move), less
+        the branch points that a fold still waiting for its counts will take (_record_folds)."""
         first_held = self._buffer[0].index if self._buffer else math.inf
-        return [b for b in self.bifurcations if b.index + 1 < first_held]
+        claimed = {id(b) for trio in self._folds for b in self._claimed_by(trio)}
+        return [b for b in self.bifurcations if b.index + 1 < first_held and id(b) not in claimed]
 
     # -- internals --------------------------------------------------------------------------
     def _spectrum(self, e: _Entry, cause: str) -> None:
@@ -251,15 +265,20 @@ class StabilityMonitor:
         self.causes[cause] = self.causes.get(cause, 0) + 1
 
     def _analyse_and_release(self, e: _Entry, cause: str) -> list:
-        """Analyse e, resolve it against the last analysed point, hand on the points before e
-        (e is held: the next analysis may widen its window)."""
+        """Analyse e, resolve it against the last analysed point prev, hand on the points up to
+        prev (those after it are held: the next analysis may widen e's window, and then the
+        stretch from prev to e is resolved again)."""
         self._spectrum(e, cause)
         prev = self._last
-        if prev is not None:
+        if prev is not None and prev is not e:
+            n_prev = prev.n_unstable
             self._resolve(prev, e)
+            if prev.n_unstable != n_prev and self._before is not None:
+                self._redo(self._before, prev)
             self._gap = self._next_gap(prev, e)
+            self._before = prev
         self._last = e
-        out = self._release(self._buffer.index(e))
+        out = self._release(self._buffer.index(prev) + 1 if prev is not None and prev in self._buffer else 0)
         self._record_folds()
         return out
 
@@ -273,8 +292,9 @@ class StabilityMonitor:
         pairs = pair_multipliers(sa.multipliers, sb.multipliers, floor, self.options.window)
         paired = {j for _, j in pairs}
         lb_all = np.log(np.abs(sb.multipliers))
+        up = upper_half(sb.multipliers)
         for j in range(len(lb_all)):
-            if j not in paired and upper_half(sb.multipliers[j:j + 1])[0] and abs(sb.multipliers[j]) > floor \
+            if j not in paired and up[j] and abs(sb.multipliers[j]) > floor \
                     and abs(lb_all[j]) < self.options.margin:
                 return 1  # a multiplier near the circle that came from nowhere: look closely
         reach = np.inf
@@ -347,9 +367,30 @@ class StabilityMonitor:
             m = mid[len(mid) // 2]
             self._spectrum(m, "bisection")
             self._resolve(a, m)
+            n_m = m.n_unstable
             self._resolve(m, b)
+            if m.n_unstable != n_m:
+                self._redo(a, m)
             return
         self._locate(a, b)
+
+    def _redo(self, a: _Entry, b: _Entry) -> None:
+        """Resolve the stretch from a to b again after b's count changed (b widened at its
+        comparison with the analysed point after it, when a and b had been resolved on b's
+        narrow count): the crossings recorded from the last analysed point c before b (a, or
+        one a bisection analysed) go, c and b are resolved again, and so on back to a while
+        that widens c. Each widening raises a count from 0, once per point: this ends. a itself,
+        already handed on, may be widened here too: it keeps the verdict it was handed on
+        with, and the stretch before it is not resolved again (a multiplier past the window
+        of three analyses in a row)."""
+        c = max((e for e in self._buffer if a.index < e.index < b.index and e.spectrum is not None),
+                key=lambda e: e.index, default=a)
+        # a fold is recorded only once its three points are handed on: none lies in (c, b)
+        self.bifurcations = [x for x in self.bifurcations if x.kind == FOLD or not c.index <= x.index < b.index]
+        n_c = c.n_unstable
+        self._resolve(c, b)
+        if c is not a and c.n_unstable != n_c:
+            self._redo(a, c)
 
     def _far_only(self, a: _Entry, b: _Entry) -> bool:
         """Whether a and b, both unstable, differ only by multipliers far from the unit circle
@@ -506,6 +547,12 @@ class StabilityMonitor:
             index=a.index, fraction=0.5, omega_bracket=(a.omega, b.omega), direction=direction, kind_from=source,
             **_mode(side, j)))
 
+    def _claimed_by(self, trio) -> list:
+        """The branch points that are the fold of trio's: its real multiplier +1, located
+        between two of the trio's points before the turn was seen (it needs the point after
+        the turn)."""
+        return [x for x in self.bifurcations if x.kind == BRANCH_POINT and x.index in (trio[0][0], trio[1][0])]
+
     def _record_folds(self) -> None:
         """Folds whose three points all have their counts: the vertex of the parabola Omega(s)
         through them (interpolation error O(ds^3) in Omega), direction from the counts."""
@@ -518,9 +565,7 @@ class StabilityMonitor:
             k = 0 if ss <= s[1] else 1
             frac = (ss - s[k]) / (s[k + 1] - s[k]) if s[k + 1] > s[k] else 0.0
             n0, n2 = self._counts[trio[0][0]][0], self._counts[trio[2][0]][0]
-            # the fold's real multiplier +1 may have been located (as a branch point) before the
-            # turn was seen (it needs the point after the turn): it is the fold's
-            near = [x for x in self.bifurcations if x.kind == BRANCH_POINT and x.index in (trio[0][0], trio[1][0])]
+            near = self._claimed_by(trio)
             if near:
                 self.bifurcations.remove(near[0])
             self.bifurcations.append(Bifurcation(

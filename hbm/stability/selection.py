@@ -486,7 +486,9 @@ def _classify(residual, omega, x, amplitude, idx, pos, a, b, spec) -> Bifurcatio
                  {"le_amplitude": float(amplitude[k])})
         prev = k
     mon.finish()
-    pds = [bf for bf in mon.bifurcations if bf.kind == PERIOD_DOUBLING and bf.eigenvector is not None]
+    # the neighbours' own crossings are located too: only the one between a and b is asked for
+    pds = [bf for bf in mon.bifurcations if bf.kind == PERIOD_DOUBLING and bf.eigenvector is not None
+           and bf.index == a]
     return pds[0] if pds else None
 
 

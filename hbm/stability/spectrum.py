@@ -194,14 +194,19 @@ def harmonic_centre(P: np.ndarray, n_edge: int | None = None) -> tuple[np.ndarra
 MEMBER_DRIFT = 4e-3
 
 
+def _near_half(lam: np.ndarray, omega: float) -> np.ndarray:
+    """(m,) bool: exponents lam (m,) 1/s with Im lam = omega / 2 modulo omega to 1e-2 omega,
+    those of (near-)real negative multipliers."""
+    return np.abs((np.imag(lam) / omega) % 1.0 - 0.5) < 1e-2
+
+
 def _real_tolerance(a: complex, b: complex, m: int, omega: float) -> float:
     """How far apart (1/s) the real parts of Arnoldi eigenvalues a and b, m harmonics apart,
     may lie and still be members of one family (see _families): MEMBER_DRIFT per harmonic,
     but 2e-3 omega when both are near-real negative multipliers (Im = omega / 2 modulo omega,
     to 1e-2 omega), where two families just born from a complex pair have parallel
     eigenvectors and only their real parts tell them apart."""
-    half = [abs((x.imag / omega) % 1.0 - 0.5) < 1e-2 for x in (a, b)]
-    return (2e-3 if all(half) else MEMBER_DRIFT * max(1, abs(m))) * omega
+    return (2e-3 if _near_half(np.array([a, b]), omega).all() else MEMBER_DRIFT * max(1, abs(m))) * omega
 
 
 def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, dense: bool):
@@ -213,7 +218,10 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     among them, so those are the representatives (Lazarus and Thomas); the rest, including
     truncation artefacts (eigenvalues whose eigenvector no shift brings to the band's
     centre), is dropped. The family of a real negative multiplier has two members at
-    |k_bar| = 1/2 (lam and conj(lam) = lam - i omega): one multiplier, counted once.
+    |k_bar| = 1/2 (lam and conj(lam) = lam - i omega): one multiplier, counted once. The
+    truncation moves Im lam off omega / 2 (by 3e-6 omega for a Mathieu oscillator at
+    N_h = 2), so that lam - i omega is not conj(lam) any more; conj(lam), an eigenvalue of
+    the real problem to round-off, is the member merged then.
     Otherwise (the Arnoldi window): eigenpair i joins the family of representative j when
     lam_i = lam_j + i m omega for an integer m, to 1e-2 omega in the imaginary part and
     _real_tolerance in the real part, and p_i is parallel to p_j shifted by m harmonics
@@ -231,9 +239,12 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     keep = np.isfinite(lam) & (edge <= max_edge) & (centred if dense else True)
     cand = order[keep[order]]
     if dense:  # only the two centred members of a real negative multiplier's family are one
-        d = lam[cand][:, None] - lam[cand][None, :]
+        lc = lam[cand]
+        d = lc[:, None] - lc[None, :]
         m = np.round(d.imag / omega)
         dup = (m != 0) & (np.abs(d.imag - m * omega) <= 1e-6 * omega) & (np.abs(d.real) <= 1e-6 * omega)
+        half = _near_half(lc, omega)
+        dup |= (m != 0) & half[:, None] & half[None, :] & (np.abs(lc[:, None] - np.conj(lc)[None, :]) <= 1e-6 * omega)
         kept = np.zeros(len(cand), dtype=bool)
         for c in range(len(cand)):
             kept[c] = not dup[c, :c][kept[:c]].any()
@@ -270,6 +281,12 @@ def _spectrum(lam, P, H: HillOperator, floor: float, method: str, note: str, max
     if len(lam) and not len(ex):  # every eigenvector at the truncation edge: say so, claim nothing
         note = (note + "; " if note else "") + "no eigenvector inside the harmonic band (too few harmonics)"
         floor = 1.0
+    elif method == "dense" and len(ex) < round(len(lam) / H.n_c):
+        # all eigenvalues at hand: one family per 2 N + 1 of them, and a family dropped whole
+        # (no member inside the band) is a multiplier missing from the verdict
+        note = (note + "; " if note else "") + (
+            f"{round(len(lam) / H.n_c) - len(ex)} of {round(len(lam) / H.n_c)} exponent families have no "
+            "eigenvector inside the harmonic band (too few harmonics): their multipliers are missing")
     T = 2.0 * np.pi / H.omega
     mu = np.exp(ex * T)
     order = np.argsort(-np.abs(mu), kind="stable")

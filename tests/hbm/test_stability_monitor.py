@@ -125,8 +125,10 @@ def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
     # window) back inside the circle at s = 108.75. The first analysis that sees it (at
     # log|mu| < 2.5) widens the analysed point before it, whose count rises from 0 to 1:
     # that point must be handed on with its widened verdict, not the narrow one it had when
-    # it was analysed. The points before it, every one analysed with the narrow window
-    # only, are "stable up to the ceiling" (a window's documented limit).
+    # it was analysed; and so must the points between it and the analysis before it, which
+    # is widened in turn (its count rises too, but it was handed on already). The points up
+    # to that one, analysed with the narrow window only, are "stable up to the ceiling" (a
+    # window's documented limit).
     log_mod = lambda s: 4.35 - 0.04 * s  # noqa: E731
     n = 120
     widened = []
@@ -139,17 +141,18 @@ def test_a_point_widened_by_its_successor_is_stored_with_the_widened_verdict():
                            options=StabilityOptions())
     got = _feed(mon, OMEGA - np.arange(n))
     assert sorted(got) == list(range(n))
-    assert len(widened) == 1
-    w = widened[0]
+    assert len(widened) == 2
+    w, v = widened
     assert 2.0 < log_mod(w) < 2.5 + 0.04 * StabilityOptions().max_gap  # found near the narrow window's edge
     ex = got[w]
     assert not ex["stable"] and ex["n_unstable"] == 1 and ex["stability_analysed"]
     assert [i for i in range(n) if got[i]["stability_widened"]] == [w]
     assert ex["leading_multipliers"][0] == pytest.approx(np.exp(log_mod(w)), rel=1e-12)
-    assert all(got[i]["stable"] == (log_mod(i) <= 0) for i in range(w, n))
+    assert all(got[i]["stable"] == (log_mod(i) <= 0) for i in range(v + 1, n))
     assert [(b.index, b.direction) for b in mon.bifurcations] == [(108, -1)]
-    # before w, only the narrow window: the multiplier past its ceiling e^2.5 is not seen
-    assert all(got[i]["stable"] for i in range(w)) and log_mod(w - 1) > 2.0
+    # up to v, only the narrow window: the multiplier past its ceiling e^2.5 is not seen
+    assert v == w - StabilityOptions().max_gap and got[v]["stability_analysed"]
+    assert all(got[i]["stable"] for i in range(v + 1)) and log_mod(v) > 2.5
 
 
 def test_a_multiplier_leaving_the_window_of_an_unstable_orbit_is_neither_widened_nor_bisected():

@@ -19,7 +19,6 @@ from hbm.stability.bifurcation import PARITY, PERIOD_DOUBLING
 from hbm.stability.monitor import StabilityOptions, monitor_branch
 from hbm.stability.selection import locate_period_doubling, switch_to_doubled
 from hbm.stability.spectrum import orbit_spectrum
-from hbm.stability.switching import switch_branch
 from support import coarse_dlft_nfrc
 
 
@@ -52,8 +51,6 @@ def test_period_doublings_the_pairing_misses_are_found_by_parity_and_switch(stre
         # where Newton can stall: at 1459.6 rad/s on one host, |R| 6e-5 with every step)
         start = switch_to_doubled(res, loc.switch_starts(omega, x), loc.bifurcation)
         assert start.newton.converged, (b.omega, start.newton)
+        # (a switch from 40 points up the NFRC, ~1505 rad/s, is no control: an orbit with odd
+        # harmonics, 1.3 % of its content, exists there too, at 1507.5 rad/s)
         assert abs(start.omega - b.omega) < 5.0 and start.odd_content > 5e-3, (start.omega, start.odd_content)
-        # no such orbit away from the doubling: the switch's convergence is the evidence
-        far = keep[loc.index] - 40  # up the NFRC, 40 points before
-        assert not switch_branch(res, x_all[far], float(omega_all[far]), loc.bifurcation).newton.converged, \
-            omega_all[far]
