@@ -130,7 +130,7 @@ def main() -> None:
                                     subharmonic=br.subharmonic, n_periods=100, dt=scene.ti.dt)
                 print(f"    TI from Omega = {br.omega[i]:.1f} rad/s (LE {1e3 * br.le_amplitude[i]:.3f} mm): "
                       f"{ti.verdict().replace('leaves', 'LEAVES', 1)} (growth {ti.growth:.2f}, last deviation "
-                      f"{ti.deviation[-10:].max():.3g}), contact force at the end up to {ti.force_peak.max():.0f} N",
+                      f"{ti.last_deviation:.3g}), contact force at the end up to {ti.force_peak.max():.0f} N",
                       flush=True)
 
 

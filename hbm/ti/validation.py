@@ -24,7 +24,9 @@ Two things are measured:
   multiplier method delivers impacts as one-step impulses that no N_h-harmonic signal can
   follow, so the time-integration force is first projected on the HBM's own N_h harmonics
   (the Fourier coefficients of the force over the period, impulses included) and that
-  truncated signal is compared with the HBM force (DLFT or regularised penalty).
+  truncated signal is compared with the HBM force (DLFT or regularised penalty). The HBM
+  force is the one of its equilibrium: with RL that is the penalty force's harmonics
+  filtered by the residual's Lanczos sigma, not the raw penalty force.
 
 Every signal lives on one grid of n_time phases tau_i = 2 pi i / n_time of the basis
 (tau = Omega t / nu, t = 0 the HBM orbit's time origin).
@@ -104,17 +106,22 @@ class OrbitValidation:
     distance: casing distance d_j at those phases, (n_time, 3), m (contact when r_j = d_j).
     displacement: TI radial displacement over the last period, (n_time, 3), m.
     force: TI normal force over the last period projected on the orbit's N_h harmonics,
-    (n_time, 3), N. force_peak: largest TI multiplier over the last period (unprojected), (3,), N.
+    (n_time, 3), N. force_peak: largest unprojected TI force over the last period, (3,), N: the
+    peak of the multipliers averaged over each recording interval T / n_time (the force
+    samples are such block means), not of the single steps' multipliers, so it grows with
+    n_time towards the impulses' one-step peaks.
     deviation: (n_periods, 2), max over each period of |r_TI - r_HBM| at the LE and TE
     relative to the HBM orbit's half peak-to-peak radial displacement there, -.
     drift: max over the last period of |r(t) - r(t - T)| relative to the same amplitude, (2,), -.
     repeat: the smallest p <= MAX_REPEAT such that over the last tenth of the periods (at least
-    p + 1 of them) |r(t) - r(t - p T)| <= SETTLED_DRIFT times the amplitude at the LE and TE;
-    0 when there is none (not settled, or a longer period). p > 1: the march left the orbit
-    for a state of period p T, which is not the orbit's (stays is then False).
+    p + 1 of them) |r(t) - r(t - p T)| <= SETTLED_DRIFT times the amplitude at the LE and TE,
+    p > 1 only when that window is not a transient decaying towards a T-periodic state
+    (repeat_period); 0 when there is none (not settled, or a longer period). p > 1: the march
+    left the orbit for a state of period p T, which is not the orbit's (stays is then False).
     growth: deviation over the last tenth of the periods over that of the first
     BASELINE_PERIODS periods (fewer when a tenth is fewer), both raised to DEVIATION_FLOOR (max
-    over LE and TE), -. stays: growth <= GROWTH_TOL and that last deviation <= DEVIATION_TOL.
+    over LE and TE), -. stays: growth <= GROWTH_TOL and that last deviation (last_deviation)
+    <= DEVIATION_TOL.
     max_penetration: largest r_j - d_j after the contact correction, m.
     contact_fraction: share of the samples of the last tenth of the periods where each
     boundary node (LE to TE) carries a normal force, (n_b,), -.
@@ -155,6 +162,12 @@ class OrbitValidation:
         return np.flatnonzero(np.asarray(self.contact_fraction) >= 1.0)
 
     @property
+    def last_deviation(self) -> float:
+        """The deviation over the last tenth of the periods that `stays` is judged on (max over
+        those periods, LE and TE), -."""
+        return float(np.asarray(self.deviation)[-last_tenth(self.n_periods):].max())
+
+    @property
     def settled(self) -> bool:
         """Whether the last period repeats the one before within SETTLED_DRIFT (LE and TE)."""
         return bool(np.max(self.drift) <= SETTLED_DRIFT)
@@ -185,10 +198,16 @@ class OrbitComparison:
 
     source: where the orbit comes from, in words. converged: whether it is a solution (when
     not, the signals are nan and source says why). displacement: HBM radial displacement,
-    (n_time, 3), m. force: HBM normal force, (n_time, 3), N (columns as OrbitValidation).
-    displacement_error: max_t |r_TI - r_HBM| / max_t |r_HBM| at the LE and TE, (2,), -.
+    (n_time, 3), m. force: HBM normal force, (n_time, 3), N (columns as OrbitValidation): the
+    force of the HBM equilibrium, i.e. sigma_k F_k(lam) with the residual's filter sigma on
+    the force harmonics (RL with Lanczos: the sigma-filtered penalty force; force_filter says
+    which). force_filter: "none" or "sigma" (the residual's sigma applied).
+    displacement_error: max_t |r_TI - r_HBM| over the HBM orbit's half peak-to-peak radial
+    displacement, at the LE and TE, (2,), - (the scale of OrbitValidation.deviation: the
+    static offset of r does not enter).
     force_error: max_t |lam_TI,Nh - lam_HBM| / max_t max(|lam_HBM|, |lam_TI,Nh|) at the LE and
-    TE, (2,), - (0 where neither is ever in contact).
+    TE, (2,), - (0 where neither is ever in contact); the normal force is one-sided (>= 0, 0
+    off contact), so its maximum is its peak-to-peak and the scale holds no offset.
     multiplier: largest |mu| of this orbit by Hill's method with its own treatment's Jacobian,
     over its minimal period, -; n_unstable: its multipliers outside the unit circle. Both treatments
     are analysed at every point, so a stability verdict of each stands beside time integration's
@@ -201,6 +220,7 @@ class OrbitComparison:
     force: np.ndarray = field(metadata={"unit": "N"})
     displacement_error: np.ndarray = field(metadata={"unit": "1"})
     force_error: np.ndarray = field(metadata={"unit": "1"})
+    force_filter: str = "none"
     multiplier: float = field(default=float("nan"), metadata={"unit": "1"})
     n_unstable: int = field(default=-1, metadata={"unit": "1"})
 
@@ -208,6 +228,17 @@ class OrbitComparison:
 def validation_nodes(n_boundary: int) -> np.ndarray:
     """The three compared contact nodes: LE (0), the second boundary node, TE (n_b - 1)."""
     return np.array([0, min(1, n_boundary - 1), n_boundary - 1])
+
+
+def last_tenth(n_periods: int) -> int:
+    """Periods in the last tenth of a march of n_periods (at least 1), on which it is judged."""
+    return max(1, int(n_periods) // 10)
+
+
+def half_ptp(r: np.ndarray) -> np.ndarray:
+    """An orbit's amplitude: half the peak-to-peak of r, (n_time, k) -> (k,), r's unit (raised
+    to 1e-300 to divide by)."""
+    return np.maximum(0.5 * np.ptp(np.asarray(r, dtype=float), axis=0), 1e-300)
 
 
 def departure(deviation: np.ndarray) -> tuple[float, bool]:
@@ -222,7 +253,7 @@ def departure(deviation: np.ndarray) -> tuple[float, bool]:
     d = np.asarray(deviation, dtype=float)
     if d.ndim != 2 or len(d) < 1:
         raise ValueError(f"deviation must be (n_periods, k) with n_periods >= 1, got {d.shape}")
-    n10 = max(1, len(d) // 10)
+    n10 = last_tenth(len(d))
     first = d[:min(BASELINE_PERIODS, n10)].max(axis=0)
     last = d[-n10:].max(axis=0)
     growth = float(np.max(np.maximum(last, DEVIATION_FLOOR) / np.maximum(first, DEVIATION_FLOOR)))
@@ -233,6 +264,9 @@ def repeat_period(x: np.ndarray, amplitude: np.ndarray, n_last: int, max_repeat:
                   tol: float = SETTLED_DRIFT) -> int:
     """The smallest lag p <= max_repeat (in periods) at which the last max(n_last, p + 1)
     periods of x repeat: max |x[k] - x[k - p]| <= tol amplitude for every signal; 0 if none.
+    A lag p > 1 is not taken when those periods are a transient decaying towards a T-periodic
+    state (_decays_to_period_one): along a multiplier near -1 such a transient alternates
+    from period to period and repeats at lag 2 long before its lag-1 difference is within tol.
 
     x: (n_periods, n_time, k) signals period by period, m. amplitude: (k,) their scale, m.
     """
@@ -244,8 +278,30 @@ def repeat_period(x: np.ndarray, amplitude: np.ndarray, n_last: int, max_repeat:
             break
         w = x[-n:]
         if (np.abs(w[p:] - w[:-p]).max(axis=(0, 1)) / scale <= tol).all():
-            return p
+            if p == 1 or not _decays_to_period_one(w, scale, tol):
+                return p
     return 0
+
+
+def _decays_to_period_one(w: np.ndarray, scale: np.ndarray, tol: float) -> bool:
+    """Whether the periods w, (n, n_time, k), are a transient decaying towards a T-periodic state.
+
+    Their lag-1 difference (max over the period relative to scale, (k,), worst signal), averaged
+    over three equal runs of periods as a > b > c, is extrapolated by Aitken's delta-squared,
+    exact for D + C q^k: limit D = c - (b - c) q / (1 - q), q = (b - c) / (a - b). A limit <= tol
+    is a T-periodic state; above tol, a state of longer period that the march approaches. A
+    difference that does not shrink, or not geometrically (q >= 1), extrapolates nothing: False,
+    as with fewer than 4 periods.
+    """
+    d1 = (np.abs(np.diff(w, axis=0)).max(axis=1) / scale).max(axis=1)  # (n - 1,)
+    m = len(d1) // 3
+    if m < 1:
+        return False
+    a, b, c = d1[len(d1) - 3 * m:].reshape(3, m).mean(axis=1)
+    if not a > b > c:
+        return False
+    q = (b - c) / (a - b)
+    return bool(q < 1.0 and c - (b - c) * q / (1.0 - q) <= tol)
 
 
 def grid_size(n_harmonics: int, minimum: int = 1024) -> int:
@@ -310,10 +366,10 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     f = f_all[:, :, nodes]
     at = (i0 + 1 + np.arange(n_s)) % n_s  # grid index of each sample of a period
     ref = grid.to_time(c[:, cols])  # (n_s, 3)
-    amp = np.maximum(0.5 * np.ptp(ref, axis=0), 1e-300)
+    amp = half_ptp(ref)
     dev = (np.abs(x - ref[at]).max(axis=1) / amp)[:, [0, 2]]
     drift = (np.abs(x[-1] - x[-2]).max(axis=0) / amp)[[0, 2]]
-    n10 = max(1, n_periods // 10)
+    n10 = last_tenth(n_periods)
     growth, stays = departure(dev)
     repeat = repeat_period(x[:, :, [0, 2]], amp[[0, 2]], n10)
     stays = stays and repeat <= 1
@@ -373,13 +429,16 @@ def confirm_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> Orbi
 
 
 def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.ndarray | None,
-                     source: str) -> OrbitComparison:
+                     source: str, sigma: np.ndarray | None = None) -> OrbitComparison:
     """An HBM orbit against the time integration `ti` (same Omega and subharmonic).
 
     coeffs: the orbit's full-dof harmonics (2 N_h + 1, n), m, in ti's basis; None when there
     is no orbit (source then says why). forces: its normal forces lam on its own AFT grid
-    (N_t, n_b), N (e.g. HarmonicBalanceResidual.signals(...)["lam"]). Both treatments use
-    the scene's N_h, so ti.force (projected on the marched orbit's N_h) is compared as it is.
+    (N_t, n_b), N (e.g. HarmonicBalanceResidual.signals(...)["lam"]). sigma: the residual's
+    filter on the force harmonics (HarmonicBalanceResidual.sigma), (2 N_h + 1,), -; the HBM
+    force compared is sigma_k F_k(lam), the one in the HBM equilibrium (RL with Lanczos: the
+    sigma-filtered penalty force, not lam); None: no filter (DLFT). Both treatments use the
+    scene's N_h, so ti.force (projected on the marched orbit's N_h) is compared as it is.
     """
     n_s = len(ti.tau)
     nan = np.full((n_s, 3), np.nan)
@@ -390,8 +449,11 @@ def compare_with_hbm(ti: OrbitValidation, coeffs: np.ndarray | None, forces: np.
     grid = FourierBasis(nh, n_s)
     disp = grid.to_time(c[:, 3 * ti.nodes])
     lam = np.asarray(forces, dtype=float)
-    hbm_f = grid.to_time(FourierBasis(nh, lam.shape[0]).to_freq(lam[:, ti.nodes]))
-    return _compared(ti, source, disp, hbm_f)
+    harmonics = FourierBasis(nh, lam.shape[0]).to_freq(lam[:, ti.nodes])
+    filtered = sigma is not None and not np.all(np.asarray(sigma) == 1.0)
+    if filtered:
+        harmonics = np.asarray(sigma, dtype=float)[:, None] * harmonics
+    return replace(_compared(ti, source, disp, grid.to_time(harmonics)), force_filter="sigma" if filtered else "none")
 
 
 def compare_again(ti: OrbitValidation, previous: OrbitComparison) -> OrbitComparison:
@@ -403,15 +465,15 @@ def compare_again(ti: OrbitValidation, previous: OrbitComparison) -> OrbitCompar
     if previous.displacement.shape[0] != len(ti.tau):
         raise ValueError(f"the comparison holds {previous.displacement.shape[0]} phases, the march "
                          f"{len(ti.tau)}: not the same grid")
-    return replace(_compared(ti, previous.source, previous.displacement, previous.force),
-                   multiplier=previous.multiplier, n_unstable=previous.n_unstable)
+    fresh = _compared(ti, previous.source, previous.displacement, previous.force)
+    return replace(previous, displacement_error=fresh.displacement_error, force_error=fresh.force_error)
 
 
 def _compared(ti: OrbitValidation, source: str, disp: np.ndarray, hbm_f: np.ndarray) -> OrbitComparison:
     """OrbitComparison of the HBM displacement disp and force hbm_f, (n_time, 3) on ti's grid."""
     ti_f = ti.force
     cols = [0, 2]
-    derr = np.abs(ti.displacement - disp).max(axis=0)[cols] / np.abs(disp).max(axis=0)[cols]
+    derr = np.abs(ti.displacement - disp).max(axis=0)[cols] / half_ptp(disp)[cols]
     scale = np.maximum(np.abs(hbm_f).max(axis=0), np.abs(ti_f).max(axis=0))[cols]
     diff = np.abs(ti_f - hbm_f).max(axis=0)[cols]
     ferr = np.where(scale > 0, diff / np.where(scale > 0, scale, 1.0), 0.0)

@@ -76,7 +76,8 @@ class ValidationPoint:
     rad/s. subharmonic: nu of its basis (the orbit's period 2 pi nu / Omega). u: its
     unknowns, (n_u,). le_amplitude: m. stable, verdict, n_unstable, multiplier: its stability
     (hbm.stability.selection.ChosenPoint). ti: the march from it; dlft, rl: each treatment's
-    orbit at that Omega against the march (hbm.ti.validation), absent when not found.
+    orbit at that Omega against the march (hbm.ti.validation.OrbitComparison: the RL force is
+    the sigma-filtered one of the RL-HBM equilibrium), absent when not found.
     refined_from: when the march with [ti] dt left a stable point for anything but the
     friction lock and the point was marched again with dt / [validation] dt_refinement (ti,
     dlft and rl are then from that march, ti.dt its step): the first march's verdict and
@@ -223,7 +224,7 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
             sp, _ = orbit_spectrum(res, sol_u, omega)
             mu, n_unstable = sp.largest_modulus, sp.n_unstable
         comps[m] = replace(compare_with_hbm(ti, res.expand_harmonics(sol_u, omega), res.signals(sol_u, omega)["lam"],
-                                            src), multiplier=float(mu), n_unstable=int(n_unstable))
+                                            src, sigma=res.sigma), multiplier=float(mu), n_unstable=int(n_unstable))
     return ValidationPoint(kind, method, True, chosen.reason, branch, chosen.index, omega, nu, np.asarray(u, float),
                            chosen.le_amplitude, chosen.stable, chosen.verdict, chosen.n_unstable, chosen.multiplier,
                            ti, comps["dlft"], comps["rl"])
@@ -686,7 +687,7 @@ def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
         s = (f"Omega = {p.omega:.1f} rad/s, nu = {p.subharmonic}, {'stable' if p.stable else 'UNSTABLE'} "
              f"(|mu| {p.multiplier:.4g}); TI {ti_verdict(p.ti, rom, mu).replace('leaves', 'LEAVES', 1)} "
              f"(growth {p.ti.growth:.2f}, "
-             f"last deviation {p.ti.deviation[-10:].max():.3f}{_landing(p.ti)}"
+             f"last deviation {p.ti.last_deviation:.3f}{_landing(p.ti)}"
              + (f"; dt = {p.ti.dt:.3g} s, the first march {p.refined_from})" if p.refined_from else ")"))
         for m in ("dlft", "rl"):
             c = getattr(p, m)

@@ -49,21 +49,23 @@ def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees()
     # stays on its orbit: the distance to it over the last 10 periods at most GROWTH_TOL (1.5)
     # times that over the first 10 and below DEVIATION_TOL (0.6) of the amplitude (measured:
     # growth 0.98, deviation 0.06 LE and 0.14 TE)
-    assert ti.stays and ti.growth <= GROWTH_TOL and ti.deviation[-10:].max() <= DEVIATION_TOL
+    assert ti.stays and ti.growth <= GROWTH_TOL and ti.last_deviation <= DEVIATION_TOL
     assert ti.max_penetration < 1e-12
     own = compare_with_hbm(ti, res.expand_harmonics(ch.u, ch.omega), res.signals(ch.u, ch.omega)["lam"], "self")
-    # measured: displacement 3.5 % LE, 11.5 % TE (DLFT's Gibbs ripple at the impacts); force
-    # after projection on N_h harmonics 3.4 % LE, 5.2 % TE
+    # measured, relative to the half peak-to-peak: displacement 5.3 % LE, 11.2 % TE (DLFT's
+    # Gibbs ripple at the impacts); force after projection on N_h harmonics 2.6 % LE, 5.3 % TE
     assert np.all(own.displacement_error < [0.06, 0.16]), own.displacement_error
     assert np.all(own.force_error < [0.06, 0.08]), own.force_error
     # the RL orbit at the same Omega, by damped Newton from the DLFT point (moved 5.6 %):
-    # displacement 7.7 % / 17 %, force 36 % / 31 % (the penalty's regularised impacts)
+    # displacement 12.5 % / 16.9 %, force 13.8 % / 17.4 % against the sigma-filtered force of
+    # the RL-HBM equilibrium (37 % / 32 % against the raw penalty force)
     rl = build_residual(rom, casing, contact, opts, method="rl")
     sol = damped_newton(rl, ch.u, ch.omega, NewtonOptions(tol_residual=1e-8), HbmSolver(atol=1e-9))
     assert sol.converged, sol.reason
-    other = compare_with_hbm(ti, rl.expand_harmonics(sol.x, ch.omega), rl.signals(sol.x, ch.omega)["lam"], "rl")
-    assert np.all(other.displacement_error < [0.11, 0.24]), other.displacement_error
-    assert np.all(other.force_error < [0.5, 0.45]), other.force_error
+    other = compare_with_hbm(ti, rl.expand_harmonics(sol.x, ch.omega), rl.signals(sol.x, ch.omega)["lam"], "rl",
+                             sigma=rl.sigma)
+    assert np.all(other.displacement_error < [0.16, 0.24]), other.displacement_error
+    assert np.all(other.force_error < [0.2, 0.24]), other.force_error
 
 
 # -- period doubling: the forced RL obstacle oscillator ---------------------------------------

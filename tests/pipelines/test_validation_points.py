@@ -130,6 +130,10 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
         assert own.source == "the point itself" and own.converged
         assert "Newton" in other.source
         assert np.all(np.isfinite(own.displacement_error)) and np.all(np.isfinite(own.force_error))
+        # the RL force compared is that of the RL-HBM equilibrium (Lanczos sigma applied)
+        for m, c in ((t.method, own), ("rl" if t.method == "dlft" else "dlft", other)):
+            if c.converged:
+                assert c.force_filter == ("sigma" if m == "rl" else "none"), (m, c.force_filter)
         # each treatment's own Hill verdict on its orbit is kept beside the march; for the
         # point's own treatment it is that of the analysis that chose the point (reused when
         # the stage made it, computed when the verdict was the branch file's): a stable
