@@ -260,7 +260,8 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                                            float(old.residual_norm[i]), int(old.iterations[i]), float(old.step[i]),
                                            float(old.time[i])) for i in range(max(0, m0 - 3), m0)]
                 t = time.perf_counter()
-                monitor.seed(seeds, [nfrc_extras(res, q.x) for q in seeds])
+                # the stored counts spare the monitor an analysis of the second-to-last point
+                monitor.seed(seeds, [{**nfrc_extras(res, q.x), **per_point.get(q.index, {})} for q in seeds])
                 # a crossing or a fold lies before the last of the points it was located from
                 monitor.bifurcations.extend(b for b in resume_bifurcations if b.index <= m0 - 2)
                 told[0] = [id(b) for b in monitor.bifurcations]
