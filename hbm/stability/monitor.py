@@ -30,12 +30,23 @@ Points between two analyses with the same count, and no fold between them, get t
 analyses gap points apart (e.g. a Neimark-Sacker pair leaving and coming back); the gap
 control keeps such stretches short where multipliers are near the unit circle.
 
+An analysis without a verdict (FloquetSpectrum.decided: ARPACK stopped short of the
+eigenvalues asked for after orbit_spectrum's retries with wider windows, or no multiplier
+is left) gives its point n_unstable -1 and stable False, stability_analysed True, the
+reason in StabilityMonitor.undecided. Such a point is no reference: nothing is inferred
+from it, no crossing is located against it, bisection passes it by. The next point is
+analysed and compared with the last analysed point that has a verdict, the stretch
+between them resolved as usual (a crossing located there has the undecided points inside
+its bracket); when more than max_gap + 1 points wait past that point without one, the
+chain is cut: the points without a count are handed on with n_unstable -1 and the next
+analysis starts afresh.
+
 The points are handed on (`on_point`) only once their stability is final: the last
 analysed point is held back until the next analysis has been compared with it, because
 that comparison may widen its window (below) and change its count; and the points between
 it and the analysed point before it too, because such a change moves the stability change
 to between those two, where it is then bisected and located. Up to 2 max_gap points are
-held back.
+held back (2 max_gap + 2 after an analysis without a verdict).
 """
 from __future__ import annotations
 
@@ -116,6 +127,11 @@ class _Entry:
     n_eig: int = 0  # Hill eigenvalues of a widened analysis (0: the default window)
     cpu: float = 0.0  # CPU time of the analyses made at this point, s
 
+    @property
+    def undecided(self) -> bool:
+        """Analysed, without a verdict (FloquetSpectrum.decided)."""
+        return self.spectrum is not None and not self.spectrum.decided
+
 
 @dataclass
 class StabilityMonitor:
@@ -123,6 +139,8 @@ class StabilityMonitor:
     now known, their extras completed with:
 
     stable (bool), n_unstable (int): multipliers outside the unit circle (minimal period);
+    -1 (and stable False) where no verdict is known: an analysis at the point that gave
+    none (the reason in `undecided`), or a point between analyses with none;
     stability_analysed (bool): computed at this point (else inferred, see the module doc);
     stability_widened (bool): analysed again with a wider window (below);
     stability_cpu_time (float): CPU time of the analyses made at this point, s (0 when
@@ -130,6 +148,7 @@ class StabilityMonitor:
     leading_multipliers ((n_leading,) float): the largest |mu|, nan when not analysed;
     period_ratio (int): g, minimal period T / g.
     finish() hands on the rest. bifurcations: the located ones, in the order found.
+    undecided: {index: why} of the points whose analysis gave no verdict (module doc).
     analyse(x, omega) -> (FloquetSpectrum, g) is the Floquet analysis of one point;
     widen(x, omega, n_eig) -> the same with n_eig Hill eigenvalues (None: never widened).
 
@@ -166,9 +185,10 @@ class StabilityMonitor:
     #: analyses by what asked for them (they sum to n_analyses): "first", "turn" (Omega
     #: turned), "next point" (the gap rule gave 1: a multiplier close to the circle and moving
     #: towards it), "reach" (a longer gap from the same rule), "gap cap" (max_gap points),
-    #: "last", "bisection", "widening"; "first" also counts the seeded points of a resumed
-    #: branch (seed)
+    #: "last", "bisection", "widening", "after undecided" (the point after an analysis without
+    #: a verdict); "first" also counts the seeded points of a resumed branch (seed)
     causes: dict = field(default_factory=dict)
+    undecided: dict = field(default_factory=dict)
     _buffer: list = field(default_factory=list)
     _last: _Entry | None = None  # last analysed point (held until the next analysis)
     _before: _Entry | None = None  # the analysed point before _last (handed on; the points between are held)
@@ -207,6 +227,7 @@ class StabilityMonitor:
             else len(self._buffer)  # points not yet analysed
         if self._last is None or turned or since >= self._gap or waiting >= self.options.max_gap:
             cause = ("first" if self._last is None else "turn" if turned
+                     else "after undecided" if any(q.undecided and q.index > self._last.index for q in self._buffer)
                      else "gap cap" if self._gap >= self.options.max_gap or since < self._gap
                      else "next point" if self._gap == 1 else "reach")
             return self._analyse_and_release(e, cause)
@@ -226,7 +247,8 @@ class StabilityMonitor:
             e = _Entry(p.index, float(p.omega), self._s, float(ex.get("le_amplitude", np.nan)), np.asarray(p.x), (p, ex))
             if k == len(pts) - 1:
                 self._spectrum(e, "first")
-                self._last = e
+                if not e.undecided:  # else the first new point is analysed as the first
+                    self._last = e
                 self._counts[e.index] = (e.n_unstable, e.g)
             elif "n_unstable" in ex and "period_ratio" in ex:
                 self._counts[e.index] = (int(ex["n_unstable"]), int(ex["period_ratio"]))
@@ -257,7 +279,9 @@ class StabilityMonitor:
             c0 = time.process_time()
             e.spectrum, e.g = self.analyse(e.x, e.omega)
             e.cpu += time.process_time() - c0
-            e.n_unstable = e.spectrum.n_unstable
+            e.n_unstable = e.spectrum.n_unstable  # -1 without a verdict
+            if e.undecided:
+                self.undecided[e.index] = e.spectrum.note or "no verdict"
             self._count(cause)
 
     def _count(self, cause: str) -> None:
@@ -270,6 +294,16 @@ class StabilityMonitor:
         stretch from prev to e is resolved again)."""
         self._spectrum(e, cause)
         prev = self._last
+        if e.undecided and e is not prev:
+            # no reference (module doc): the next point is analysed and compared with prev, or
+            # the chain is cut
+            self._gap = 1
+            if prev is not None and sum(q.index > prev.index for q in self._buffer) <= self.options.max_gap + 1:
+                return []
+            out = self._release(len(self._buffer))
+            self._last = self._before = None
+            self._record_folds()
+            return out
         if prev is not None and prev is not e:
             n_prev = prev.n_unstable
             self._resolve(prev, e)
@@ -316,8 +350,10 @@ class StabilityMonitor:
             point, extras = e.payload
             if e.spectrum is None and "harmonics" in extras:
                 e.g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4)
-            lead = (e.spectrum.leading(self.options.n_leading) if e.spectrum is not None
+            lead = (e.spectrum.leading(self.options.n_leading) if e.spectrum is not None and not e.undecided
                     else np.full(self.options.n_leading, np.nan))
+            if e.n_unstable is None:  # no verdict on either side (a cut chain, the end of the branch)
+                e.n_unstable = -1
             out.append((point, dict(extras, stable=bool(e.n_unstable == 0), n_unstable=int(e.n_unstable),
                                     stability_analysed=e.spectrum is not None, stability_widened=e.n_eig > 0,
                                     stability_cpu_time=float(e.cpu), leading_multipliers=lead,
@@ -344,12 +380,15 @@ class StabilityMonitor:
                 done = y.n_eig >= MAX_EIG or not np.isfinite(ceiling) or sy.note
                 if done or math.log(big) < WIDEN_FRACTION * math.log(max(ceiling, 1.0 + 1e-12)):
                     break
-                y.n_eig = min(2 * (y.n_eig or self.options.n_eig), MAX_EIG)
+                k = min(2 * (y.n_eig or self.options.n_eig), MAX_EIG)
                 c0 = time.process_time()
-                y.spectrum, y.g = self.widen(y.x, y.omega, y.n_eig)
+                sp, g = self.widen(y.x, y.omega, k)
                 y.cpu += time.process_time() - c0
-                y.n_unstable = y.spectrum.n_unstable
                 self._count("widening")
+                if not sp.decided:  # no verdict from the wider window: y keeps its narrow one
+                    break
+                y.n_eig, y.spectrum, y.g = k, sp, g
+                y.n_unstable = y.spectrum.n_unstable
                 if y.index in self._counts:
                     self._counts[y.index] = (y.n_unstable, y.g)
 
@@ -358,14 +397,19 @@ class StabilityMonitor:
         neighbours (bisection), record its bifurcations, give the points between their counts."""
         if a.n_unstable != b.n_unstable:
             self._widen(a, b)
-        mid = [e for e in self._buffer if a.index < e.index < b.index]
+        # the points analysed without a verdict keep -1, and are no bisection's reference
+        mid = [e for e in self._buffer if a.index < e.index < b.index and not e.undecided]
         if a.n_unstable == b.n_unstable or self._far_only(a, b):
             for e in mid:
                 e.n_unstable, e.g = a.n_unstable, a.g
             return
-        if mid:
+        while mid:
             m = mid[len(mid) // 2]
             self._spectrum(m, "bisection")
+            if not m.undecided:
+                break
+            mid.remove(m)
+        if mid:
             self._resolve(a, m)
             n_m = m.n_unstable
             self._resolve(m, b)
@@ -383,7 +427,8 @@ class StabilityMonitor:
         already handed on, may be widened here too: it keeps the verdict it was handed on
         with, and the stretch before it is not resolved again (a multiplier past the window
         of three analyses in a row)."""
-        c = max((e for e in self._buffer if a.index < e.index < b.index and e.spectrum is not None),
+        c = max((e for e in self._buffer if a.index < e.index < b.index and e.spectrum is not None
+                 and not e.undecided),
                 key=lambda e: e.index, default=a)
         # a fold is recorded only once its three points are handed on: none lies in (c, b)
         self.bifurcations = [x for x in self.bifurcations if x.kind == FOLD or not c.index <= x.index < b.index]
@@ -565,6 +610,8 @@ class StabilityMonitor:
             k = 0 if ss <= s[1] else 1
             frac = (ss - s[k]) / (s[k + 1] - s[k]) if s[k + 1] > s[k] else 0.0
             n0, n2 = self._counts[trio[0][0]][0], self._counts[trio[2][0]][0]
+            if min(n0, n2) < 0:  # a count without a verdict: the direction is not known
+                n0 = n2 = 0
             near = self._claimed_by(trio)
             if near:
                 self.bifurcations.remove(near[0])
@@ -606,6 +653,7 @@ class BranchStability:
     (m,) bool; stability_cpu_time (m,) s; leading_multipliers (m, n_leading) float (nan where
     not analysed); period_ratio (m,) int;
     bifurcations: Bifurcation tuple, `index` counting the given points; n_analyses.
+    undecided: {index: why} of the points analysed without a verdict (n_unstable -1).
     """
 
     stable: np.ndarray
@@ -617,6 +665,7 @@ class BranchStability:
     period_ratio: np.ndarray
     bifurcations: tuple
     n_analyses: int
+    undecided: dict = field(default_factory=dict)
 
     def per_point(self) -> dict:
         """{name: (m, ...) array} of the per-point fields."""
@@ -660,4 +709,5 @@ def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_sc
         stability_cpu_time=np.array([done[i]["stability_cpu_time"] for i in range(m)], dtype=float),
         leading_multipliers=np.array([done[i]["leading_multipliers"] for i in range(m)], dtype=float).reshape(m, k),
         period_ratio=np.array([done[i]["period_ratio"] for i in range(m)], dtype=np.int64),
-        bifurcations=tuple(sorted(mon.bifurcations, key=lambda b: (b.index, b.fraction))), n_analyses=mon.n_analyses)
+        bifurcations=tuple(sorted(mon.bifurcations, key=lambda b: (b.index, b.fraction))), n_analyses=mon.n_analyses,
+        undecided=dict(mon.undecided))

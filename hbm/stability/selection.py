@@ -42,8 +42,8 @@ class ChosenPoint:
     (n_u,) scaled as the branch's residual. le_amplitude: m. stable: the verdict at the point.
     verdict: "analysed" (Floquet analysis made here) or "stored" (the branch file's, not
     recomputed). n_unstable: multipliers outside the unit circle (-1 unknown). multiplier:
-    largest |mu| over the minimal period (nan when not analysed here). n_analyses: Floquet
-    analyses made to choose it.
+    largest |mu| over the minimal period (nan when not analysed here, or without a verdict).
+    n_analyses: Floquet analyses made to choose it.
     """
 
     found: bool
@@ -89,7 +89,9 @@ def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligi
     n_candidates points near the peak (_candidates: dense at the peak, down to half its
     amplitude) are analysed by decreasing amplitude and the first stable one (log|mu| <
     -margin) is chosen. When none is, the least unstable candidate is
-    chosen and the reason says so (stable False).
+    chosen and the reason says so (stable False); a candidate whose analysis gives no verdict
+    (FloquetSpectrum.decided) is neither stable nor the least unstable, and is chosen (n_unstable
+    -1) only when no candidate has a verdict.
     """
     omega, amplitude = np.asarray(omega, float), np.asarray(amplitude, float)
     ok = np.asarray(converged, bool) & np.isfinite(amplitude)
@@ -103,12 +105,12 @@ def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligi
     def analyse(i):
         if i not in tried:
             sp, _ = orbit_spectrum(residual, x[i], float(omega[i]))
-            mu = sp.largest_modulus
-            tried[i] = (sp.stable and (mu == 0.0 or math.log(mu) < -margin), sp.n_unstable, mu)
+            mu = sp.largest_modulus if sp.decided else math.nan
+            tried[i] = (sp.stable and (mu == 0.0 or math.log(mu) < -margin), sp.n_unstable, mu, sp.note)
         return tried[i]
 
     def chosen(i, reason):
-        s, n, mu = tried[i]
+        s, n, mu, _ = tried[i]
         return ChosenPoint(True, reason, int(i), float(omega[i]), np.array(x[i], float), float(amplitude[i]), bool(s),
                            "analysed", int(n), float(mu), len(tried))
 
@@ -123,8 +125,14 @@ def choose_point(residual, omega, x, amplitude, converged, stable=None, *, eligi
         if analyse(i)[0]:
             return chosen(i, f"largest LE amplitude among the stable ones of {len(candidates)} candidates near the "
                              f"peak (analysed here)")
-    i = min(tried, key=lambda j: tried[j][2])
-    return chosen(i, f"no stable point among {len(tried)} analysed candidates near the peak: the least "
+    decided = [j for j in tried if tried[j][1] >= 0]
+    if not decided:
+        i = next(iter(tried))
+        return chosen(i, f"no analysis of the {len(tried)} candidates near the peak gave a verdict "
+                         f"({tried[i][3]}): the first one, stability unknown")
+    i = min(decided, key=lambda j: tried[j][2])
+    undecided = f", {len(tried) - len(decided)} without a verdict" if len(decided) < len(tried) else ""
+    return chosen(i, f"no stable point among {len(tried)} analysed candidates near the peak{undecided}: the least "
                      f"unstable one (|mu| = {tried[i][2]:.4g})")
 
 
@@ -157,7 +165,8 @@ def branch_stability(residual, omega, x, converged, *, x_scale=1.0, omega_scale:
     for name, a in st.per_point().items():
         full[name][idx] = a
     bifs = tuple(replace(b, index=int(idx[b.index])) for b in st.bifurcations)
-    return BranchStability(**full, bifurcations=bifs, n_analyses=st.n_analyses)
+    return BranchStability(**full, bifurcations=bifs, n_analyses=st.n_analyses,
+                           undecided={int(idx[i]): why for i, why in st.undecided.items()})
 
 
 def stable_stretch(residual, omega, x, converged, index: int, stable=None) -> tuple[int, int]:
@@ -166,10 +175,10 @@ def stable_stretch(residual, omega, x, converged, index: int, stable=None) -> tu
     residual, omega (m,) rad/s, x (m, n_u), converged (m,) bool: the branch, as for
     choose_point. stable: (m,) bool stored verdicts (the run is read from them), or None:
     the run's ends are then found by Floquet analyses, stepping out from `index` by doubling
-    steps to the first unstable point and bisecting back to a neighbouring pair (about
-    2 log2 of the run's length analyses each way). Like every gapped schedule, a short
-    unstable stretch between two stable points analysed is not seen. (index, index) when the
-    point itself is not stable.
+    steps to the first point not stable (unstable, or no verdict: FloquetSpectrum.decided)
+    and bisecting back to a neighbouring pair (about 2 log2 of the run's length analyses
+    each way). Like every gapped schedule, a short unstable stretch between two stable
+    points analysed is not seen. (index, index) when the point itself is not stable.
     """
     ok = np.asarray(converged, bool)
     m, i = len(ok), int(index)
@@ -282,6 +291,9 @@ def check_harmonics(residual, u: np.ndarray, omega: float, *, factor: int = 2, s
     if not (stable and residual.method == "rl"):
         return HarmonicCheck(True, f"exists with N_h = {nh} (moved {moved:.1%})", nh, moved, u=sol.x)
     spec, _ = orbit_spectrum(fine, sol.x, float(omega))
+    if not spec.decided:
+        return HarmonicCheck(False, f"no stability verdict with N_h = {nh} ({spec.note}; moved {moved:.1%})", nh,
+                             moved, u=sol.x)
     mu = float(np.abs(spec.multipliers).max(initial=0.0))
     if not spec.stable:
         return HarmonicCheck(False, f"unstable with N_h = {nh} (|mu| = {mu:.4g}, moved {moved:.1%})", nh, moved, mu,
@@ -336,8 +348,11 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
     multipliers between two of them is a bracket. Each bracket is bisected on the stored
     points down to two neighbours, where a StabilityMonitor (hbm.stability.monitor) pairs,
     classifies and locates the crossing (folds told apart by the turn in Omega) and gives
-    its mode. max_analyses bounds the Floquet analyses. brackets_from: where the brackets come
-    from, in words, for the reason.
+    its mode. Points whose analysis gives no verdict (FloquetSpectrum.decided) are passed by:
+    the scan's brackets join the points with one, the bisection takes the point nearest the
+    middle with one, and stops at two points with only points without one between them.
+    max_analyses bounds the Floquet analyses. brackets_from: where the brackets come from, in
+    words, for the reason.
     """
     omega, x = np.asarray(omega, float), np.asarray(x, float)
     idx = np.flatnonzero(np.asarray(converged, bool))
@@ -365,7 +380,8 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
             how = f"from {brackets_from}"
         else:
             scan = idx[np.unique(np.linspace(0, len(idx) - 1, min(n_scan, len(idx))).round().astype(int))]
-            pairs = [(int(a), int(b)) for a, b in zip(scan[:-1], scan[1:]) if count(a) != count(b)]
+            known = [int(i) for i in scan if count(i) >= 0]
+            pairs = [(a, b) for a, b in zip(known[:-1], known[1:]) if count(a) != count(b)]
             how = f"located here (scan of {len(scan)} points and bisection)"
             if not pairs:
                 return LocatedDoubling(None, -1, f"no change of stability among {len(scan)} points spread over the "
@@ -373,7 +389,10 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
         for a, b in pairs:
             checked += 1
             while pos[b] - pos[a] > 1:
-                mid = int(idx[(pos[a] + pos[b]) // 2])
+                inner = sorted(range(pos[a] + 1, pos[b]), key=lambda p: abs(p - 0.5 * (pos[a] + pos[b])))
+                mid = next((int(idx[p]) for p in inner if count(int(idx[p])) >= 0), None)
+                if mid is None:  # only points without a verdict between a and b
+                    break
                 if count(mid) != count(a):
                     b = mid
                 else:
@@ -452,6 +471,8 @@ def refine_crossing(residual, omega, x, amplitude, idx, pos, a, b, spec, levels:
         computed += 1
         u_m, w_m = sol.x[:n], float(sol.x[n])
         s_m = orbit_spectrum(residual, u_m, w_m)
+        if not s_m[0].decided:  # no side to put it on: keep the last classified bracket
+            break
         k = 0 if s_m[0].n_unstable == sp[0][0].n_unstable else 1
         u[k], w[k], sp[k] = u_m, w_m, s_m
         om = np.array([omega[j] for j in before] + w + [omega[j] for j in after], float)

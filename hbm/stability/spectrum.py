@@ -83,6 +83,7 @@ class FloquetSpectrum:
     modulus_floor: every multiplier with modulus_floor < |mu| < 1 / modulus_floor is listed
     (0: all of them; see modulus_ceiling).
     method: "dense" or "arnoldi". note: why the result may be incomplete ("" if not).
+    complete: False when ARPACK stopped short of the eigenvalues asked for (see decided).
     """
 
     omega: float
@@ -94,6 +95,7 @@ class FloquetSpectrum:
     modulus_floor: float = 0.0
     method: str = "dense"
     note: str = ""
+    complete: bool = True
 
     @property
     def period(self) -> float:
@@ -111,12 +113,23 @@ class FloquetSpectrum:
         return self.exponents.real * self.period > GROWTH_TOL
 
     @property
+    def decided(self) -> bool:
+        """Whether the multipliers give a verdict. Not when ARPACK stopped short (complete
+        False: the eigenvalues it did not converge may be the unstable ones, and no window
+        bounds them) or when none is listed (every family dropped as a truncation artefact,
+        or no eigenvalue at all): note says why. A dense spectrum that drops some families
+        keeps the verdict of the others, and its note says so."""
+        return self.complete and len(self.multipliers) > 0
+
+    @property
     def n_unstable(self) -> int:
-        """Number of multipliers outside the unit circle (with multiplicity: a complex pair is 2)."""
-        return int(np.count_nonzero(self.unstable))
+        """Number of multipliers outside the unit circle (with multiplicity: a complex pair is 2);
+        -1 (unknown) when not decided, whatever the listed ones say."""
+        return int(np.count_nonzero(self.unstable)) if self.decided else -1
 
     @property
     def stable(self) -> bool:
+        """No multiplier outside the unit circle, and a decided spectrum (False when not decided)."""
         return self.n_unstable == 0
 
     @property
@@ -273,17 +286,22 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     return ex, edge[idx], vec, centred[idx]
 
 
-def _spectrum(lam, P, H: HillOperator, floor: float, method: str, note: str, max_edge: float) -> FloquetSpectrum:
+def _spectrum(lam, P, H: HillOperator, floor: float, method: str, note: str, max_edge: float,
+              complete: bool = True) -> FloquetSpectrum:
     P = np.asarray(P).reshape(len(lam), H.n_c, H.n)
-    norms = np.linalg.norm(P.reshape(len(lam), -1), axis=1)
+    norms = np.linalg.norm(P.reshape(len(lam), H.n_c * H.n), axis=1)
     P = P / np.where(norms > 0, norms, 1.0)[:, None, None]
     ex, edge, vec, centred = _families(np.asarray(lam), P, H.omega, max_edge, dense=method == "dense")
     if len(lam) and not len(ex):  # every eigenvector at the truncation edge: say so, claim nothing
         note = (note + "; " if note else "") + "no eigenvector inside the harmonic band (too few harmonics)"
         floor = 1.0
+    elif not len(lam) and not note:
+        note = "no eigenvalue"
     elif method == "dense" and len(ex) < round(len(lam) / H.n_c):
         # all eigenvalues at hand: one family per 2 N + 1 of them, and a family dropped whole
-        # (no member inside the band) is a multiplier missing from the verdict
+        # (no member inside the band) is a multiplier missing from the verdict. The verdict of
+        # the others stands: a rule on the dropped families' members would read the truncation
+        # artefacts among them (log|mu| up to ~80 on the coarse rotor 67 ROM at low N_h) as growth
         note = (note + "; " if note else "") + (
             f"{round(len(lam) / H.n_c) - len(ex)} of {round(len(lam) / H.n_c)} exponent families have no "
             "eigenvector inside the harmonic band (too few harmonics): their multipliers are missing")
@@ -292,7 +310,7 @@ def _spectrum(lam, P, H: HillOperator, floor: float, method: str, note: str, max
     order = np.argsort(-np.abs(mu), kind="stable")
     return FloquetSpectrum(omega=H.omega, exponents=ex[order], multipliers=mu[order],
                            centred=centred[order], edge_energy=edge[order], eigenvectors=vec[order],
-                           modulus_floor=floor, method=method, note=note)
+                           modulus_floor=floor, method=method, note=note, complete=complete)
 
 
 def dense_spectrum(H: HillOperator, max_edge: float = 0.05) -> FloquetSpectrum:
@@ -337,7 +355,7 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
         return np.concatenate([-S(H.tail(z[:n], z[n:])), z[:n]])
 
     A = spla.LinearOperator((2 * n, 2 * n), matvec=op, dtype=float)
-    note = ""
+    note, complete = "", True
     try:
         # a fixed start vector: ARPACK's own comes from a seed that every earlier eigs call
         # advances, and ill-conditioned multipliers far outside the unit circle (|mu| 4 to
@@ -346,8 +364,9 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
         v0 = np.random.default_rng(0).standard_normal(2 * n)
         theta, V = spla.eigs(A, k=k, ncv=min(2 * n, 2 * k + 1), tol=tol, maxiter=20 * n, v0=v0)
     except spla.ArpackNoConvergence as exc:
+        # the converged ones are exact but need not be the k nearest 0: no verdict (decided)
         theta, V = exc.eigenvalues, exc.eigenvectors
-        note = f"ARPACK converged {len(theta)} of {k} eigenvalues"
+        note, complete = f"ARPACK converged {len(theta)} of {k} eigenvalues", False
     good = np.abs(theta) > 0
     lam = 1.0 / theta[good]
     P = V[:n, good].T
@@ -357,7 +376,7 @@ def arnoldi_spectrum(H: HillOperator, n_eig: int = 40, solver: HillSolver | None
         rho = np.abs(lam).max()
         delta = np.sqrt(max(rho * rho - 0.25 * H.omega ** 2, 0.0))
         floor = float(np.exp(-delta * 2.0 * np.pi / H.omega))
-    return _spectrum(lam, P, H, floor, "arnoldi", note, max_edge)
+    return _spectrum(lam, P, H, floor, "arnoldi", note, max_edge, complete)
 
 
 #: orbit_spectrum's default min_ceiling: a stable verdict must hold for every multiplier up
@@ -385,7 +404,8 @@ def orbit_spectrum(residual, u: np.ndarray, omega: float, *, jacobian=None, n_ei
     Arnoldi spectrum finds no unstable multiplier but its window reaches only multipliers
     below this modulus (FloquetSpectrum.modulus_ceiling), n_eig is doubled (up to MAX_EIG)
     until it does or one is found; 1 turns this off (the stability monitor does, and widens
-    from its neighbours instead). Returns (spectrum, g).
+    from its neighbours instead). An Arnoldi spectrum without a verdict is retried the same
+    way (widened_spectrum); check FloquetSpectrum.decided. Returns (spectrum, g).
     """
     from hbm.stability.hill import harmonic_period, restrict
 
@@ -403,10 +423,13 @@ def widened_spectrum(H: HillOperator, n_eig: int = 40, min_ceiling: float = MIN_
                      solver: HillSolver | None = None) -> FloquetSpectrum:
     """arnoldi_spectrum with n_eig eigenvalues, doubled (up to MAX_EIG, one factorisation for
     all) while the verdict is stable but its window ends below min_ceiling (see
-    orbit_spectrum)."""
+    orbit_spectrum), or while there is no verdict (FloquetSpectrum.decided: a wider window is
+    another Krylov run, which may converge where ARPACK stopped short, and reaches more
+    family members, of which one may lie inside the band). The result can still be undecided."""
     solver = solver or HillSolver(H)
     spec = arnoldi_spectrum(H, n_eig=n_eig, solver=solver)
-    while spec.stable and spec.modulus_ceiling < min_ceiling and n_eig < MAX_EIG and not spec.note:
+    while n_eig < MAX_EIG and (not spec.decided
+                               or spec.stable and spec.modulus_ceiling < min_ceiling and not spec.note):
         n_eig = min(2 * n_eig, MAX_EIG)
         spec = arnoldi_spectrum(H, n_eig=n_eig, solver=solver)
     return spec

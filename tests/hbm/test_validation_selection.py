@@ -475,7 +475,9 @@ def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator
     picks = [i for i in (300, 1000, 1500, 1884, 2026, 2033) if i < len(br.omega)]
     verdicts = {}
     for j in picks:
-        assert orbit_spectrum(res, br.x[j], br.omega[j])[0].stable, j
+        # stable, or (1500 and 2026) no verdict: N_h = 3 leaves no eigenvector inside the band
+        sp = orbit_spectrum(res, br.x[j], br.omega[j])[0]
+        assert sp.stable or (not sp.decided and "harmonic band" in sp.note), (j, sp.note)
         ch = check_harmonics(res, br.x[j], br.omega[j], stable=False)
         d = ti_distance(j)
         verdicts[j] = ch.passed
