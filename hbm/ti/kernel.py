@@ -367,7 +367,9 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
     rec = (start, stride, n_samples, section_stride, extreme_stride): see hbm.ti.march.Recording.
     rec_rows (n_x, n): recorded dof in modal coordinates; rec_frows (n_x, 3 n_b): their static
     response to the boundary forces (massless scheme). fnodes (n_f,): recorded force nodes.
-    out_x (n_samples, n_x), out_f (n_samples, n_f, 3), out_sec (n_sec, n_b),
+    out_x (n_samples, n_x), out_f (n_samples, n_f, 4): per force block, the means of lam, of
+    the friction's theta and z components and the number of steps with lam > 0 (a whole
+    number), out_sec (n_sec, n_b),
     out_ext (n_blocks, 2, n_b): radial max and min per block; stats = [max penetration,
     min multiplier], counts = [contact steps, active-set failures]: accumulated in place.
 
@@ -617,7 +619,8 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
         if near:  # nodes ruled free by the bound are certainly below the casing
             for j in range(nb):  # branch-free, as the extremes below
                 max_pen = max(max_pen, rh[j] - d[j] if exact[j] else -np.inf)
-        # forces: block means (counters, not divisions: an integer division costs as much as a mode)
+        # forces: block means, and the steps in contact per block (counters, not divisions: an
+        # integer division costs as much as a mode); nothing to do on a step without contact
         if m1 - fshift == f_next:
             f_block += 1
             f_next += stride
@@ -629,6 +632,7 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
                     out_f[f_block, a, 0] += lam[j] * inv_stride
                     out_f[f_block, a, 1] -= mu * st[j] * lam[j] * inv_stride
                     out_f[f_block, a, 2] -= mu * sz[j] * lam[j] * inv_stride
+                    out_f[f_block, a, 3] += 1.0 if lam[j] > 0.0 else 0.0  # a step with a force
                     a = fnext[a]
         # record the state at step m1: radial extremes of its block, the sampled dof (massless:
         # with the static response to this step's forces) and the Poincare section

@@ -262,7 +262,8 @@ class Recording:
     lam_m denotes the multiplier computed at step m (it moves x_m to x_{m+1}). Force sample i
     is the block mean of lam_m over the s steps m = n0 + i s - s//2 .. n0 + i s + s - 1 - s//2,
     so that impulsive forces keep their impulse once downsampled (s = 1: lam at step n0 + i);
-    multipliers at the last step (m = n_steps) are never computed and read 0.
+    multipliers at the last step (m = n_steps) are never computed and read 0. The steps of
+    that block with lam_m > 0 are counted too (March.force_steps).
     """
 
     start: int
@@ -288,6 +289,9 @@ class March:
     times: sample times, (n_samples,), s. displacement: recorded dof, (n_samples, n_x), m.
     normal_force: lam of the recorded nodes (block means), (n_samples, n_f), N.
     friction_force: friction on the blade, (theta, z) of the recorded nodes, (n_samples, n_f, 2), N.
+    force_steps: steps of each force sample's block (Recording) in which the node carried a
+    normal force (lam_m > 0), (n_samples, n_f), - (whole numbers, 0 to the stride s): a block
+    mean is > 0 as soon as one step of the block is in contact, force_steps / s is the share.
     section_times: (n_sec,), s. sections: radial displacement of all contact nodes at the
     Poincare sections, (n_sec, n_b), m.
     extremes: largest and smallest radial displacement of each node per block of
@@ -318,6 +322,7 @@ class March:
     x_final: np.ndarray = field(metadata={"unit": "m"})
     v_final: np.ndarray = field(metadata={"unit": "m/s"})
     dt: float = field(metadata={"unit": "s"})
+    force_steps: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "1"})
 
     @property
     def radial_max(self) -> np.ndarray:
@@ -404,7 +409,7 @@ class Marcher:
         self._rec = (int(rec.start), int(rec.stride), int(rec.n_samples), int(rec.section_stride),
                      int(rec.extreme_stride))
         self.out_x = np.zeros((rec.n_samples, len(dofs)))
-        self.out_f = np.zeros((rec.n_samples, len(self._fnodes), 3))
+        self.out_f = np.zeros((rec.n_samples, len(self._fnodes), 4))  # lam, friction (theta, z), steps
         self.out_sec = np.zeros((n_sec, nb))
         self.out_ext = np.empty((n_ext, 2, nb))
         self.out_ext[:, 0] = -np.inf
@@ -442,11 +447,11 @@ class Marcher:
         steps = rec.start + rec.stride * np.arange(rec.n_samples)
         sec_steps = rec.start + rec.section_stride * np.arange(len(self.out_sec))
         return March(times=steps * dt, displacement=self.out_x, normal_force=self.out_f[:, :, 0],
-                     friction_force=self.out_f[:, :, 1:], section_times=sec_steps * dt, sections=self.out_sec,
+                     friction_force=self.out_f[:, :, 1:3], section_times=sec_steps * dt, sections=self.out_sec,
                      extremes=self.out_ext, max_penetration=float(self._stats[0]),
                      min_multiplier=float(self._stats[1]), contact_steps=int(self._counts[0]),
                      active_set_failures=int(self._counts[1]), n_steps=self.step, x_final=x_final,
-                     v_final=sys_.phi @ ((q - qm) / dt), dt=float(dt))
+                     v_final=sys_.phi @ ((q - qm) / dt), dt=float(dt), force_steps=self.out_f[:, :, 3])
 
 
 def march(system: ModalSystem, casing: CasingOptions, mu: float, omega: float, x0: np.ndarray,

@@ -123,12 +123,14 @@ class OrbitValidation:
     over LE and TE), -. stays: growth <= GROWTH_TOL and that last deviation (last_deviation)
     <= DEVIATION_TOL.
     max_penetration: largest r_j - d_j after the contact correction, m.
-    contact_fraction: share of the samples of the last tenth of the periods where each
-    boundary node (LE to TE) carries a normal force, (n_b,), -.
+    contact_fraction: share of the time steps of the last tenth of the periods in which each
+    boundary node (LE to TE) carries a normal force (lam > 0), (n_b,), -: counted step by step
+    (March.force_steps), not from the force samples, whose block means are > 0 as soon as one
+    step of their block is in contact. 1 for a node in contact at every step.
     outcome: "stays" (= stays), "permanent contact" (left the orbit, and a node never lets go
-    of the casing over the last tenth of the periods: the friction lock when mu >= the ROM's
-    mu_set), "another solution" (within the distance bounds, but the HBM solution through
-    the last period is another one: see reached) or "leaves" (anything else).
+    of the casing over the last tenth of the periods, contact_fraction 1: the friction lock
+    when mu >= the ROM's mu_set), "another solution" (within the distance bounds, but the HBM
+    solution through the last period is another one: see reached) or "leaves" (anything else).
     last_harmonics: every dof's harmonics over the last period, in the orbit's basis and time
     origin, (2 N_h + 1, n), m, eq. (5) order; empty unless asked for (record_all).
     reached: where the march went in the HBM's unknowns (reached_orbit), None unless asked.
@@ -376,7 +378,9 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
     # Permanent contact does not ask the march to have settled: past the friction-lock limit
     # the contact response is not unique, and a locked node's force may wander from period
     # to period (by 1-2 % on the two-node toy of tests/hbm/test_friction_lock_ti.py).
-    in_contact = (f_all[-n10:] > 0.0).mean(axis=(0, 1))  # over the last tenth of the march
+    # share of the steps of the last tenth with a force (the force blocks tile those steps)
+    steps = m.force_steps.reshape(n_periods, n_s, nb)
+    in_contact = steps[-n10:].sum(axis=(0, 1)) / (n10 * n_s * stride)
     outcome = "stays" if stays else ("permanent contact" if (in_contact >= 1.0).any() else "leaves")
     disp = np.empty((n_s, 3))
     disp[at] = x[-1]
