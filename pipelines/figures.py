@@ -302,14 +302,18 @@ def _note(ax, text: str) -> None:
 SIGNAL_COLOURS = {"dlft": "#1f77b4", "rl": "#d62728", "ti": "#111111"}
 
 
-def plot_validation_signals(points: dict, out_png, *, title: str | None = None) -> Path:
+def plot_validation_signals(points: dict, out_png, *, title: str | None = None, verdict=None) -> Path:
     """Time signals at the validation points (paper Fig. 9): one row per point (primary, isola,
     period-doubled), radial displacement and normal contact force at the LE (solid) and TE
     (dashed): DLFT-HBM, RL-HBM and time integration over the orbit's last period.
 
     points: {kind: a pipelines.stages.validation.ValidationPoint (found, reason, omega,
     subharmonic, ti, dlft, rl)}. A point not found gets its reason written in its row.
+    verdict: the words of a march's verdict in each row's title, verdict(ti) -> str; default
+    ti.verdict(), which cannot tell the friction lock from other permanent contact (that
+    needs the ROM's mu_set: the validation stage passes its ti_verdict).
     """
+    verdict = verdict or (lambda ti: ti.verdict())
     fig, axes = plt.subplots(len(points), 2, figsize=GRID_FIGSIZE, constrained_layout=True, squeeze=False)
     for row, (kind, p) in zip(axes, points.items()):
         name = kind.replace("_", " ")
@@ -332,7 +336,7 @@ def plot_validation_signals(points: dict, out_png, *, title: str | None = None) 
             ax.set_ylabel(f"{'radial displacement' if what == 'displacement' else 'normal force'} ({unit})", fontsize=8)
             stab = "stable" if p.stable else "unstable"
             # the verdict can be long (the friction lock names its nodes): wrapped, not cut at the edge
-            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {p.ti.verdict()})", 80),
+            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {verdict(p.ti)})", 80),
                          fontsize=8)
         row[0].legend(fontsize=6, loc="best", ncol=3)
     for ax in axes[-1]:

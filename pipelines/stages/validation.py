@@ -734,9 +734,15 @@ def draw_time_signals(ctx: Context) -> None:
 
     a = read_validation(ctx.out)
     fig = ctx.out / "figures"
+    # the verdicts in the log's words (ti_verdict: permanent contact past the ROM's mu_set is the
+    # friction lock); rom.h5 and [contact] are not among the figure's inputs: validation.h5,
+    # which is, is computed again whenever either changes
+    rom = read_rom(ctx.out) if (ctx.out / "rom.h5").is_file() else None
+    mu = ctx.scene.contact.mu
     for m, t in _points(a).items():
         plot_validation_signals({p.kind: p for p in (t.primary, t.isola, t.period_doubling)}, fig / f"validation_{m}.png",
-                                title=f"points on the {m.upper()}-HBM solution set against time integration")
+                                title=f"points on the {m.upper()}-HBM solution set against time integration",
+                                verdict=lambda ti: ti_verdict(ti, rom, mu))
         plot_contact_event(t.primary, fig / f"contact_{m}.png",
                            title=f"{m.upper()} primary point, \u03a9 = {t.primary.omega:.1f} rad/s")
 
