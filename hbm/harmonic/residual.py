@@ -53,6 +53,21 @@ class NonlinearSamples:
     aux: dict = field(default_factory=dict)
 
 
+@dataclass(frozen=True, eq=False)
+class CasingObstacle:
+    """The casing of eq. (28) as a residual's obstacle: d(tau) -> (len(tau), n_b), m, at the
+    casing angle tau = Omega t (rad) for nodes at the angles theta (signed by the sense of
+    rotation), (n_b,), rad. A residual handed one as its distance (refined, or a residual
+    built from another's _distance) knows it faces the casing, whose lobes' symmetry images()
+    needs; any other callable is another obstacle."""
+
+    theta: np.ndarray = field(metadata={"unit": "rad"})
+    casing: CasingOptions
+
+    def __call__(self, tau: np.ndarray) -> np.ndarray:
+        return casing_distance(tau, self.theta, self.casing)
+
+
 class HarmonicBalanceResidual:
     """residual(u, omega) -> (R, dR_du, dR_domega) for DLFT- or RL-HBM on the condensed ROM.
 
@@ -85,8 +100,9 @@ class HarmonicBalanceResidual:
         # distance(tau) -> (len(tau), n_b), m, tau the casing angle Omega t: the casing of
         # eq. (28) unless another obstacle is given; d(s tau + theta_j) = d(tau + s theta_j)
         # since d is even about 0 (module docstring); sampled at tau = nu (basis angle)
-        self._casing_obstacle = distance is None  # images(): the casing's lobes repeat in time
-        self._distance = distance or (lambda tau: casing_distance(tau, self.rotation * self.theta, casing))
+        self._distance = distance or CasingObstacle(self.rotation * self.theta, casing)
+        # images(): the lobes of this casing repeat in time
+        self._casing_obstacle = isinstance(self._distance, CasingObstacle) and self._distance.casing == casing
         self.distance = self._distance(self.nu * self.basis.tau)  # (N_t, n_b), m
         self.obstacle_scale = 1.0
         self.alpha = float(alpha if alpha is not None else 1.0 / max(casing.clearance, 1e-5))
