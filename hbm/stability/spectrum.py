@@ -117,9 +117,12 @@ class FloquetSpectrum:
         """Whether the multipliers give a verdict. Not when ARPACK stopped short (complete
         False: the eigenvalues it did not converge may be the unstable ones, and no window
         bounds them) or when none is listed (every family dropped as a truncation artefact,
-        or no eigenvalue at all): note says why. A dense spectrum that drops some families
-        keeps the verdict of the others, and its note says so."""
-        return self.complete and len(self.multipliers) > 0
+        or no eigenvalue at all): note says why; nor when an Arnoldi window bounds nothing
+        (modulus_floor 1: its farthest eigenvalue lies within omega / 2 of 0, so a family
+        centred at Im = omega / 2, a multiplier near -1, may lie just outside it). A dense
+        spectrum that drops some families keeps the verdict of the others, and its note says so."""
+        return (self.complete and len(self.multipliers) > 0
+                and not (self.method == "arnoldi" and self.modulus_floor >= 1.0))
 
     @property
     def n_unstable(self) -> int:

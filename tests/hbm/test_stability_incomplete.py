@@ -205,3 +205,28 @@ def test_a_period_doubling_is_located_between_the_verdicts_around_a_point_withou
     assert b.omega_bracket == (OMEGA - 4, OMEGA - 6)
     assert res.index == 6 and res.bracket == (6, 4)
 
+
+
+def test_an_arnoldi_window_that_bounds_nothing_is_no_verdict():
+    """The Mathieu tongue beside two slow, overdamped dof (x'' + 10 x' + x = 0: exponents near
+    -0.1): the two Hill eigenvalues nearest 0 are theirs, within omega / 2 of 0, so the window
+    bounds nothing (modulus_floor 1) and the unstable multiplier -1.934 (shooting, and the
+    dense spectrum) lies outside it. Two eigenvalues give no verdict, and the widened window
+    (the monitor's min_ceiling 1) finds the unstable one, where both used to call it stable."""
+    from hbm.harmonic.fourier import FourierBasis
+    from hbm.stability.hill import HillOperator
+
+    w, eps, z = 2.0, 0.9, 0.01
+    T = 2 * np.pi / w
+    wt = eps * np.cos(w * np.arange(32) * T / 32)
+    H = HillOperator(K=np.eye(3), M=np.eye(3), C=np.diag([2 * z, 10.0, 10.0]), omega=w, basis=FourierBasis(8, 32),
+                     nodes=np.array([0]), weights=wt[None, None], sigma=np.ones(17), g_eps=1.0, g_z=0.0,
+                     nl=np.arange(3))
+    shoot = mathieu(8)[1][0]  # the same Mathieu dof: -1.934
+    assert spm.dense_spectrum(H).n_unstable == 1
+    two = spm.arnoldi_spectrum(H, n_eig=2)
+    assert two.modulus_floor == 1.0 and np.all(np.abs(two.multipliers) < 1.0)
+    assert not two.decided and not two.stable and two.n_unstable == -1
+    wide = spm.widened_spectrum(H, n_eig=2, min_ceiling=1.0)
+    assert wide.decided and wide.n_unstable == 1
+    assert wide.multipliers[0].real == pytest.approx(shoot, rel=1e-6)
