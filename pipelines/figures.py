@@ -308,7 +308,8 @@ def plot_validation_signals(points: dict, out_png, *, title: str | None = None, 
     (dashed): DLFT-HBM, RL-HBM and time integration over the orbit's last period.
 
     points: {kind: a pipelines.stages.validation.ValidationPoint (found, reason, omega,
-    subharmonic, ti, dlft, rl)}. A point not found gets its reason written in its row.
+    subharmonic, ti, dlft, rl, refined_from)}. A point not found gets its reason written in its
+    row; a point marched again with a finer step gets that step and the first march's verdict.
     verdict: the words of a march's verdict in each row's title, verdict(ti) -> str; default
     ti.verdict(), which cannot tell the friction lock from other permanent contact (that
     needs the ROM's mu_set: the validation stage passes its ti_verdict).
@@ -335,9 +336,12 @@ def plot_validation_signals(points: dict, out_png, *, title: str | None = None, 
             ax.grid(True, lw=0.4, alpha=0.5)
             ax.set_ylabel(f"{'radial displacement' if what == 'displacement' else 'normal force'} ({unit})", fontsize=8)
             stab = "stable" if p.stable else "unstable"
+            # a march repeated with a finer step says so, and what the first one did, as the log does
+            first = getattr(p, "refined_from", "")
+            refined = f"; dt = {p.ti.dt:.3g} s, the first march {first}" if first else ""
             # the verdict can be long (the friction lock names its nodes): wrapped, not cut at the edge
-            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {verdict(p.ti)})", 80),
-                         fontsize=8)
+            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {verdict(p.ti)}"
+                                       f"{refined})", 80), fontsize=8)
         row[0].legend(fontsize=6, loc="best", ncol=3)
     for ax in axes[-1]:
         ax.set_xlabel("time (ms)")

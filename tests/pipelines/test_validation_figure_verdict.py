@@ -1,5 +1,5 @@
 """Fig. 9 (validation_METHOD.png, drawn by the validation stage's draw_time_signals) names the
-friction lock as the stage's log does.
+friction lock, and a march repeated with a finer step, as the stage's log does.
 
 A march that ends in permanent contact with mu at or above the ROM's contact-set limit
 mu_set (rom.friction_lock) is the friction lock, a state of the model; below mu_set it is
@@ -7,6 +7,7 @@ permanent contact only. The log line says which (ti_verdict); the figure's row t
 say the same, not OrbitValidation.verdict() alone, which cannot tell them apart.
 """
 import shutil
+from dataclasses import replace
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -41,17 +42,24 @@ def _locked_march(n_b: int) -> OrbitValidation:
                            contact_fraction=frac, outcome="permanent contact", repeat=1)
 
 
-@pytest.mark.parametrize("mu, words", [
-    (0.15, "TI leaves for permanent contact (LE): the friction lock, mu = 0.15 >= mu_set = 0.123)"),
-    (0.1, "TI leaves for permanent contact (LE))"),
+FIRST = "leaves (growth 3.1) with dt = 1e-07 s"
+
+
+@pytest.mark.parametrize("mu, refined_from, words", [
+    (0.15, "", "TI leaves for permanent contact (LE): the friction lock, mu = 0.15 >= mu_set = 0.123)"),
+    (0.1, "", "TI leaves for permanent contact (LE))"),
+    # a march repeated with a finer step (the stage's dt_refinement): the figure says so as the log does
+    (0.1, FIRST, f"TI leaves for permanent contact (LE); dt = 5e-08 s, the first march {FIRST})"),
 ])
-def test_fig9_title_names_the_friction_lock_as_the_log_does(tmp_path, monkeypatch, mu, words):
+def test_fig9_title_names_the_friction_lock_as_the_log_does(tmp_path, monkeypatch, mu, refined_from, words):
     rom = load_rom(ROM)
     assert rom.friction_lock.mu_set == pytest.approx(0.1232, abs=1e-4)
     ti = _locked_march(rom.n_boundary)
+    if refined_from:
+        ti = replace(ti, dt=5e-8)
     assert ti.verdict() == "leaves for permanent contact (LE)"
     p = stage.ValidationPoint("primary", "dlft", True, "chosen", "nfrc_dlft.h5", 3, 1000.0, 1, np.zeros(4), 1e-3,
-                              True, "analysed", 0, 0.97, ti)
+                              True, "analysed", 0, 0.97, ti, refined_from=refined_from)
     t = stage.TreatmentValidation("dlft", p, stage.ValidationPoint("isola", "dlft", False, "none"),
                                   stage.ValidationPoint("period_doubling", "dlft", False, "none"),
                                   DoubledBranch(False, "none"), 0.0)
@@ -72,5 +80,7 @@ def test_fig9_title_names_the_friction_lock_as_the_log_does(tmp_path, monkeypatc
     assert primary == [f"primary, \u03a9 = 1000.0 rad/s (stable, {words}"] * 2
     assert ("friction lock" in primary[0]) == (mu >= rom.friction_lock.mu_set)
     # the log line says the same
-    assert words[:-1].replace("TI leaves", "TI LEAVES") in stage._summary(t, rom, mu)[0]
+    log = stage._summary(t, rom, mu)[0]
+    assert words.split(";")[0].rstrip(")").replace("TI leaves", "TI LEAVES") in log
+    assert (f"dt = 5e-08 s, the first march {FIRST})" in log) == bool(refined_from)
     assert imread(tmp_path / "figures" / "validation_dlft.png")[..., :3].std() > 0.02
