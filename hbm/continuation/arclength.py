@@ -28,7 +28,8 @@ import numpy as np
 from hbm.continuation.branch import (STATUS_CLOSED_LOOP, STATUS_CRAWL, STATUS_MAX_POINTS, STATUS_OMEGA_MAX,
                                      STATUS_OMEGA_MIN, STATUS_START_FAILED, STATUS_STEP_FLOOR, Branch,
                                      ContinuationPoint)
-from hbm.continuation.newton import NewtonOptions, NewtonResult, Residual, newton_iterate, newton_solve
+from hbm.continuation.newton import (NewtonOptions, NewtonResult, Residual, named_solve, newton_iterate, newton_solve,
+                                     nonfinite_jacobian)
 from hbm.linalg.dense import DirectSolver
 from hbm.linalg.errors import SingularMatrixError
 from hbm.linalg.protocol import LinearSolver
@@ -174,15 +175,16 @@ def _correct(residual, x, w, x_prev, w_prev, ds, sc: _Scaling, nopt: NewtonOptio
         R = np.asarray(R, dtype=float).reshape(-1)
         r_w = np.asarray(r_w, dtype=float).reshape(-1)
         rn = float(np.linalg.norm(R))
-        if not np.all(np.isfinite(r_w)):
-            rn = math.nan
         dxs, dws = (xi - x_prev) / sc.sx, (wi - w_prev) / sc.sw
         P = float(dxs @ dxs) + dws * dws - ds * ds  # eq. (22)
 
         def step():
-            dx, dw, _ = solver.factorize(J).solve_bordered(r_w, 2.0 * dxs / sc.sx, 2.0 * dws / sc.sw, R, P)
+            dx, dw, _ = named_solve(J, lambda: solver.factorize(J).solve_bordered(r_w, 2.0 * dxs / sc.sx,
+                                                                                   2.0 * dws / sc.sw, R, P))
             return np.append(dx, dw)
 
+        if math.isfinite(rn) and not np.all(np.isfinite(r_w)):
+            return math.nan, step, "dR_domega"
         return rn, step
 
     return newton_iterate(np.append(x, w), linearise, nopt, scale=scale, where=f" near omega={w:.6g}")
@@ -196,12 +198,18 @@ def _tangent(residual, x, w, direction, sc: _Scaling, solver: LinearSolver):
     """
     _, J, r_w = residual(x, w)
     r_w = np.asarray(r_w, dtype=float).reshape(-1)
+    if not np.all(np.isfinite(r_w)):
+        raise ValueError(f"the residual's dR_domega has NaN or inf entries at the solution omega={w:.6g} "
+                         f"(needed for the tangent)")
     try:
         b = np.asarray(solver.factorize(J).solve(r_w)).reshape(-1)
         if not np.all(np.isfinite(b)):
             raise SingularMatrixError("non-finite tangent")
         tx, tw = sc.unit(-b, 1.0)
     except SingularMatrixError:
+        if nonfinite_jacobian(J):
+            raise ValueError(f"the residual's dR_dx has NaN or inf entries at the solution omega={w:.6g} "
+                             f"(needed for the tangent)") from None
         Jd = J.toarray() if hasattr(J, "toarray") else np.asarray(J, dtype=float)
         v = np.linalg.svd(np.column_stack([Jd, r_w]))[2][-1]
         tx, tw = sc.unit(v[:-1], v[-1])
@@ -440,12 +448,16 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
             if last.omega == bound:  # started on the bound, heading out of the range: nothing to add
                 return done(STATUS_OMEGA_MAX if bound == opt.omega_max else STATUS_OMEGA_MIN)
             if opt.land_on_bounds:
+                # From the chord's interpolation first; near a fold beyond the bound (the
+                # corrected point in the fold's cap) that guess can lead Newton to the far
+                # sheet, more than a step away: then from the last point, on its own sheet.
                 f = (bound - last.omega) / (w_new - last.omega)
-                sol = newton_solve(residual, last.x + f * (x_new - last.x), bound, opt.newton, solver=solver,
-                                   x_scale=sc.sx)
-                if sol.converged and sc.dist(sol.x, bound, last.x, last.omega) <= step * (1 + 1e-9) + 1e-300:
-                    x_new, w_new, rn, it = sol.x, bound, sol.residual_norm, sol.iterations
-                    step = sc.dist(x_new, w_new, last.x, last.omega)
+                for guess in (last.x + f * (x_new - last.x), last.x):
+                    sol = newton_solve(residual, guess, bound, opt.newton, solver=solver, x_scale=sc.sx)
+                    if sol.converged and sc.dist(sol.x, bound, last.x, last.omega) <= step * (1 + 1e-9) + 1e-300:
+                        x_new, w_new, rn, it = sol.x, bound, sol.residual_norm, sol.iterations
+                        step = sc.dist(x_new, w_new, last.x, last.omega)
+                        break
             emit(x_new, w_new, True, rn, it, step, t0)
             return done(STATUS_OMEGA_MAX if bound == opt.omega_max else STATUS_OMEGA_MIN)
 

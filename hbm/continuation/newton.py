@@ -17,12 +17,40 @@ from dataclasses import dataclass
 from typing import Callable, NamedTuple
 
 import numpy as np
+import scipy.sparse as sp
 
 from hbm.linalg.dense import DirectSolver
 from hbm.linalg.errors import SingularMatrixError
 from hbm.linalg.protocol import LinearSolver
 
 Residual = Callable[[np.ndarray, float], tuple]
+
+
+class NonFiniteJacobianError(SingularMatrixError):
+    """dR_dx holds NaN or inf: the caller's residual, not a singular matrix, is at fault."""
+
+
+def nonfinite_jacobian(J) -> bool:
+    """Whether a Jacobian (ndarray, scipy sparse, or anything with __array__) holds NaN or inf.
+    Called only once a solve has failed: it may make a structured Jacobian dense."""
+    try:
+        a = J.data if sp.issparse(J) else np.asarray(J, dtype=float)
+        return not bool(np.all(np.isfinite(a)))
+    except (TypeError, ValueError):
+        return False
+
+
+def named_solve(J, solve):
+    """solve() with its failure named: NonFiniteJacobianError where J has NaN or inf entries
+    (the factorisation then reports a zero pivot or a non-finite result, which would read as
+    a singular Jacobian)."""
+    try:
+        out = solve()
+    except SingularMatrixError as exc:
+        if nonfinite_jacobian(J):
+            raise NonFiniteJacobianError("dR_dx has NaN or inf entries") from exc
+        raise
+    return out
 
 
 @dataclass(frozen=True)
@@ -83,7 +111,9 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
     """The Newton loop.
 
     y0: first iterate (n,). linearise(y) -> (||R(y)||, step): the residual norm at y and a
-    callable step() -> dy solving the linearised system (it may raise SingularMatrixError).
+    callable step() -> dy solving the linearised system (it may raise SingularMatrixError);
+    or (||R(y)||, step, what): what names the non-finite quantity when the norm is not
+    finite (default "residual", e.g. "dR_domega").
     scale: scalar or (n,), the size of y for options.tol_step. merit(y) -> ||R(y)||, used by
     the line search only. where: appended to failure reasons (e.g. " at omega=1000").
     Never raises on non-convergence: check `converged` and `reason`.
@@ -94,9 +124,11 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
     history = []
     k = options.stall_iterations
     for it in range(options.max_iter + 1):
-        rn, step = linearise(y)
+        out = linearise(y)
+        rn, step = out[0], out[1]
         if not math.isfinite(rn):
-            return NewtonResult(y, False, rn, it, f"non-finite residual{where}")
+            what = out[2] if len(out) > 2 else "residual"
+            return NewtonResult(y, False, rn, it, f"non-finite {what}{where}")
         step_ok = options.tol_step is None or (it > 0 and step_norm <= options.tol_step)
         if rn <= options.tol_residual and step_ok:
             return NewtonResult(y, True, rn, it, "")
@@ -109,6 +141,8 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
             break
         try:
             dy = np.asarray(step(), dtype=float).reshape(y.shape)
+        except NonFiniteJacobianError as exc:
+            return NewtonResult(y, False, rn, it, f"non-finite Jacobian{where}: {exc}")
         except SingularMatrixError as exc:
             return NewtonResult(y, False, rn, it, f"singular Jacobian{where}: {exc}")
         if not np.all(np.isfinite(dy)):
@@ -143,7 +177,7 @@ def newton_solve(residual: Residual, x0: np.ndarray, omega: float, options: Newt
     def linearise(x):
         R, J, _ = residual(x, omega)
         R = np.asarray(R, dtype=float).reshape(-1)
-        return float(np.linalg.norm(R)), lambda: solver.factorize(J).solve(-R)
+        return float(np.linalg.norm(R)), lambda: named_solve(J, lambda: solver.factorize(J).solve(-R))
 
     def merit(x):
         # the line search needs ||R|| only: skip the Jacobian where the residual can
@@ -173,12 +207,16 @@ def newton_solve_on_plane(residual: Residual, x0: np.ndarray, omega0: float, p: 
         xi, wi = y[:n], float(y[n])
         R, J, r_w = residual(xi, wi)
         R = np.asarray(R, dtype=float).reshape(-1)
+        r_w = np.asarray(r_w, dtype=float).reshape(-1)
         P = float((xi - x0) @ p + q * (wi - omega0))
 
         def step():
-            dx, dw, _ = solver.factorize(J).solve_bordered(np.asarray(r_w, dtype=float).reshape(-1), p, q, R, P)
+            dx, dw, _ = named_solve(J, lambda: solver.factorize(J).solve_bordered(r_w, p, q, R, P))
             return np.append(dx, dw)
 
-        return float(np.hypot(np.linalg.norm(R), P)), step
+        rn = float(np.hypot(np.linalg.norm(R), P))
+        if math.isfinite(rn) and not np.all(np.isfinite(r_w)):
+            return math.nan, step, "dR_domega"
+        return rn, step
 
     return newton_iterate(np.append(x0, float(omega0)), linearise, options, where=where)

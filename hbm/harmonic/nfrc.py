@@ -266,6 +266,10 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                 monitor.bifurcations.extend(b for b in resume_bifurcations if b.index <= m0 - 2)
                 told[0] = [id(b) for b in monitor.bifurcations]
                 t_stab[0] += time.perf_counter() - t
+            # A run that could not start at the end its direction names started at the other
+            # end, going back (below): its first steps (the start's tangent) go that way again.
+            if m0 and float(old.omega[0]) == (opts.omega_max if opts.direction > 0 else opts.omega_min):
+                opts = replace(opts, direction=-opts.direction)
             branch = continue_branch(res, None, None, opts, on_point=record, solver=fac, resume=old)
         elif guess is not None:
             w0 = float(guess[0])
