@@ -107,3 +107,61 @@ def nearest_branch(x: np.ndarray, omega: float, branches, x_scale=1.0, omega_sca
         if d < best[1]:
             best = (i, d, xn, wn)
     return best
+
+
+def segment_polyline_distance(x0: np.ndarray, omega0: float, x1: np.ndarray, omega1: float, branch: KnownBranch,
+                              x_scale=1.0, omega_scale: float = 1.0,
+                              within: float | None = None) -> tuple[float, np.ndarray, float]:
+    """Smallest distance between the segment (x0, omega0)-(x1, omega1) and the branch's
+    polyline in the scaled metric, with the nearest point on the polyline: (distance, x_near,
+    omega_near); (inf, x1, omega1) for an empty branch or when no segment qualifies.
+
+    A continuation that crosses a branch between two of its points passes farther than the
+    tolerance from the branch at both when its step is longer than the tolerance; the chord
+    between them passes through (to the curves' sagitta). within: as in polyline_distance,
+    on the omega span of the segment."""
+    m = len(branch.omega)
+    if m == 0:
+        return np.inf, x1, omega1
+    P0 = np.append(np.asarray(x0, dtype=float) / x_scale, omega0 / omega_scale)
+    P1 = np.append(np.asarray(x1, dtype=float) / x_scale, omega1 / omega_scale)
+    W = branch.omega / omega_scale
+    Y = np.column_stack([branch.x / x_scale, W])
+    if m == 1:
+        A, B = Y[:1], Y[:1]
+        seg_i = np.zeros(1, dtype=np.int64)
+    else:
+        A, B = Y[:-1], Y[1:]
+        seg_i = np.arange(m - 1)
+    if within is not None:
+        lo, hi = np.minimum(A[:, -1], B[:, -1]), np.maximum(A[:, -1], B[:, -1])
+        plo, phi = min(P0[-1], P1[-1]), max(P0[-1], P1[-1])
+        keep = (lo - within <= phi) & (plo <= hi + within)
+        A, B, seg_i = A[keep], B[keep], seg_i[keep]
+        if not len(seg_i):
+            return np.inf, x1, omega1
+    d1 = P1 - P0
+    d2 = B - A
+    r = P0 - A
+    a = float(d1 @ d1)
+    e = np.einsum("sn,sn->s", d2, d2)
+    f = np.einsum("sn,sn->s", d2, r)
+    c = r @ d1
+    b = d2 @ d1
+    tiny = 1e-300
+    if a <= tiny:  # the segment is a point
+        s = np.zeros(len(e))
+        t = np.clip(f / np.where(e > tiny, e, 1.0), 0.0, 1.0)
+    else:
+        denom = a * e - b * b
+        s = np.where(denom > 1e-14 * a * np.maximum(e, tiny), np.clip((b * f - c * e) / np.where(denom > 0, denom, 1.0),
+                                                                         0.0, 1.0), 0.0)
+        t = np.where(e > tiny, (b * s + f) / np.where(e > tiny, e, 1.0), 0.0)
+        low, high = (t < 0.0) | (e <= tiny), t > 1.0  # a one-point polyline segment: t = 0
+        t = np.clip(t, 0.0, 1.0)
+        s = np.where(low, np.clip(-c / a, 0.0, 1.0), np.where(high, np.clip((b - c) / a, 0.0, 1.0), s))
+    diff = (P0 + s[:, None] * d1) - (A + t[:, None] * d2)
+    d2n = np.einsum("sn,sn->s", diff, diff)
+    j = int(np.argmin(d2n))
+    near = A[j] + t[j] * d2[j]
+    return float(np.sqrt(d2n[j])), near[:-1] * x_scale, float(near[-1] * omega_scale)

@@ -15,15 +15,16 @@ Two phases:
 2. branches: each remaining solution, in seed order, unless it lies on a branch found so
    far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
    test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
-   half branch also ends when it (or its image) meets a known or found branch. Where two
+   half branch also ends when it (or its image) meets a known or found branch: when the
+   chord from its previous point passes within the tolerance of that branch's polyline. Where two
    cores are usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
    two processes, and the second is dropped when the first closes the loop: the wall time
    of an open branch halves, that of a closed one does not change. The halves are merged
    into one branch and classified:
      primary: it merges into (runs along) the primary NFRC;
-     bifurcated: it crosses another branch (a branch point), merges into a known branch
-       other than the primary (search's `primaries`), or passes through a located
-       bifurcation point of one;
+     bifurcated: it crosses another branch (a branch point; a found branch it crosses is
+       made bifurcated too), merges into a known branch other than the primary (search's
+       `primaries`), or passes through a located bifurcation point of one;
      isola: a closed loop, or both ends inside the omega range;
      detached: otherwise (an end on the range's bound, never meeting the primary).
    A half that merges into a branch found earlier makes the new one part of it: its seeds
@@ -56,7 +57,8 @@ from threadpoolctl import threadpool_limits
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
-from hbm.isolas.membership import KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance, segment_length
+from hbm.isolas.membership import (KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance,
+                                     segment_length, segment_polyline_distance)
 from hbm.processes import (gathered, limit_blas_threads, on_root, process_context, reported_deaths, run_flagged,
                            running, set_start_flags, start_flags)
 
@@ -197,6 +199,7 @@ class _Corrector:
         out = []
         kept = []  # (index, x) of the distinct converged solutions at this omega
         tol = self.options.tolerance
+        sx = self.options.continuation.x_scale  # the membership's metric (scaled unknowns)
         for i, w, x0 in items:
             solver = copy.deepcopy(self._solver)
             sol = newton_solve(self.residual, x0, w, self.options.newton, solver=solver)
@@ -205,7 +208,7 @@ class _Corrector:
                 continue
             mine = [sol.x, *images(self.residual, sol.x)]
             k = lies_on_any(self.residual, sol.x, w, self.known, self.options, solver, x_images=mine[1:])
-            same = next((j for j, xj in kept if any(np.linalg.norm(xq - xj) <= tol for xq in mine)), -1)
+            same = next((j for j, xj in kept if any(np.linalg.norm((xq - xj) / sx) <= tol for xq in mine)), -1)
             if k < 0 and same < 0:
                 kept.append((i, sol.x))
             out.append((i, True, sol.iterations, k, same, sol.x))
@@ -352,9 +355,14 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         points.append(p)
         if not p.converged or p.index == 0:
             return
+        # the chord from the previous point: a branch crossed between two points passes farther
+        # than tol from it at both when the step is longer than tol
+        prev = points[-2] if len(points) >= 2 and points[-2].converged else p
+        prev_images = [prev.x, *images(residual, prev.x)]
         for q, xq in enumerate([p.x, *images(residual, p.x)]):
             for label, idx, b in others:
-                d, xn, wn = polyline_distance(xq, p.omega, b, opts.x_scale, opts.omega_scale, within=tol)
+                d, xn, wn = segment_polyline_distance(prev_images[q], prev.omega, xq, p.omega, b, opts.x_scale,
+                                                      opts.omega_scale, within=tol)
                 if d <= tol:  # q > 0: this branch's image meets b, i.e. this branch meets b's image
                     tail = points[-2:] if q == 0 else [SimpleNamespace(x=images(residual, t.x)[q - 1], omega=t.omega)
                                                         for t in points[-2:]]
@@ -590,6 +598,15 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
             omega, x, conv = _merge(first, second)
             kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries)
+            for k in sorted({j[1] for _, j in halves if j is not None and j[1] >= 0 and not j[2]}):
+                # a crossing is a branch point of both branches: the one crossed is bifurcated
+                # too, whichever of the two was found first
+                old = found[k]
+                if _KIND_RANK["bifurcated"] < _KIND_RANK.get(old.kind, 2):
+                    found[k] = replace(old, kind="bifurcated",
+                                       status=f"{old.status}; crossed by the branch from seed {i}")
+                    if on_branch is not None:
+                        on_branch(k, found[k])
             if merged_into:  # part of a branch found before: its seeds go there, and its other
                 k = merged_into[0]  # end's connection (to the primary, a crossing) too
                 old = found[k]
