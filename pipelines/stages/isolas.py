@@ -186,8 +186,10 @@ class _Partial:
     def __init__(self, path, inputs_hash: str):
         self.path, self.hash = path, inputs_hash
 
-    def resume(self, method: str):
-        """(corrections or None, [FoundBranch]) of an interrupted run of these inputs."""
+    def resume(self, method: str, seeds=None):
+        """(corrections or None, [FoundBranch]) of an interrupted run of these inputs; (None, [])
+        when that run corrected other seeds than `seeds` (given: e.g. a sweep computed again
+        under the same inputs brings other seeds from time integration)."""
         import h5py
 
         if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
@@ -198,6 +200,9 @@ class _Partial:
                     return None, []
                 g = h5[method]
                 c = _read_corrections(g["corrections"])
+                if seeds is not None and (len(c.converged) != len(seeds) or _text(
+                        g["corrections"].attrs.get("seeds_digest", _seeds_digest(seeds))) != _seeds_digest(seeds)):
+                    return None, []
                 found = []
                 for k in range(int(g.attrs.get("n_branches", 0))):
                     found.append(_read_found(g["branches"][f"{k:03d}"]))
@@ -212,12 +217,14 @@ class _Partial:
             return h5
         return art.open_in_place(self.path, "a")
 
-    def corrections(self, method: str, c) -> None:
+    def corrections(self, method: str, c, seeds=None) -> None:
         with self._open() as h5:
             if method in h5:
                 del h5[method]
             g = h5.create_group(method)
             _write_corrections(g.create_group("corrections"), c)
+            if seeds is not None:
+                g["corrections"].attrs["seeds_digest"] = _seeds_digest(seeds)
             g.create_group("branches")
             g.attrs["n_branches"] = 0
             _count_branches(h5)
@@ -246,6 +253,17 @@ class _Partial:
             _count_branches(h5)
 
 
+def _seeds_digest(seeds) -> str:
+    """sha256 of the seeds' Omega and start guesses: what the corrections on disk were made from."""
+    import hashlib
+
+    h = hashlib.sha256()
+    for sd in seeds:
+        h.update(np.float64(sd.omega).tobytes())
+        h.update(np.ascontiguousarray(sd.x, dtype=np.float64).tobytes())
+    return h.hexdigest()
+
+
 def _count_branches(h5) -> None:
     """The root attribute n_branches: every treatment's finished branches, for what an
     interrupted run says it kept (pipelines.runner)."""
@@ -268,8 +286,10 @@ def _merged(parts):
         if branches:  # known branches: [primary, the first part's branches in order]
             c = r.corrections
             on = np.array(c.on_known, dtype=np.int64)
-            dup = np.asarray(c.same_as) >= 0
-            on[dup] = on[np.asarray(c.same_as)[dup]]  # a duplicate lies where its representative does
+            # a duplicate on no known branch itself lies where its representative does (one on
+            # a known branch keeps it: a representative is on none)
+            dup = (np.asarray(c.same_as) >= 0) & (on < 0)
+            on[dup] = on[np.asarray(c.same_as)[dup]]
             moved = (sb == ON_KNOWN) & (on >= 1) & (on <= first)
             sb[moved] = on[moved] - 1
             for i in np.flatnonzero(moved):  # the branch carries the seeds that lie on it
@@ -427,7 +447,7 @@ def _compute(ctx: Context, outputs) -> None:
         """One search (a treatment, or its period-doubled part; res: problem's residual, built
         once by the caller for its seeds): resumed from and saved to isolas.partial.h5 under
         `key`; known[:primaries] are the primary NFRC (None: all). -> (IsolaSearch, CPU s, wall s)."""
-        corrections, done = partial.resume(key) if root else (None, [])
+        corrections, done = partial.resume(key, seeds) if root else (None, [])
         if comm is not None:
             corrections, done = comm.bcast((corrections, done), root=0)
         if root and corrections is not None:
@@ -445,7 +465,7 @@ def _compute(ctx: Context, outputs) -> None:
                             bifurcation_points=bif, primaries=primaries,
                             describe=BranchDescriber(problem, problem.hbm.stability, (co.x_scale, co.omega_scale),
                                                      stab),
-                            on_corrections=lambda c: partial.corrections(key, c) if root else None,
+                            on_corrections=lambda c: partial.corrections(key, c, seeds) if root else None,
                             on_branch=lambda i, fb: partial.branch(key, i, fb, res.nu) if root else None,
                             on_progress=on_progress)
         wall = time.perf_counter() - t0

@@ -1,0 +1,55 @@
+"""pipelines.stages.isolas._merged: a seed of the period-doubled search that lies on a branch of
+the first search (a known branch there) is that branch's, also when it duplicates another seed
+at its Omega. Residual: R(x, w) = x (x - R1) (x - R2), the lines x = 0, R1, R2 at every Omega."""
+from types import SimpleNamespace
+
+import numpy as np
+
+from hbm.continuation.arclength import ContinuationOptions
+from hbm.continuation.newton import NewtonOptions
+from hbm.isolas.membership import KnownBranch
+from hbm.isolas.search import ON_KNOWN, SearchOptions, Seed, search
+from hbm.linalg.dense import DirectSolver
+from pipelines.stages.isolas import _merged
+
+R1, R2 = 0.007, 0.015
+TOL = 1e-2
+
+
+class ThreeLines:
+    def __call__(self, x, w, jacobian=True):
+        y = x[0]
+        R = np.array([y * (y - R1) * (y - R2)])
+        if not jacobian:
+            return R
+        return R, np.array([[(y - R1) * (y - R2) + y * (y - R2) + y * (y - R1)]]), np.array([0.0])
+
+
+def three_lines():
+    return ThreeLines(), DirectSolver()
+
+
+def test_a_duplicate_seed_lying_on_a_first_search_branch_is_that_branchs():
+    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.05, ds_min=1e-6, ds_max=0.2, x_scale=1.0,
+                             omega_scale=1.0, max_points=100, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-14, max_iter=12))
+    opts = SearchOptions(tolerance=TOL, continuation=co, workers=1,
+                         newton=NewtonOptions(tol_residual=1e-14, max_iter=40, line_search=True))
+    first = search(three_lines, [Seed(0.3, np.array([-0.002]), "to 0")], [], opts)
+    (line0,) = first.branches  # x = 0 over the range
+    np.testing.assert_allclose(line0.x[:, 0], 0.0, atol=1e-9)
+    primary = KnownBranch(np.array([0.0, 1.0]), np.array([[1.0], [1.0]]), "primary")  # x = 1: far from all
+    known = [primary, KnownBranch.of(line0.omega, line0.x, "branch 000")]
+    # at Omega = 0.5: seed a lands on R2 (1.5 tolerances from x = 0: new), seed b on R1 (0.7
+    # tolerances from x = 0: on the first search's branch; 0.8 from R2: a duplicate of a)
+    seeds = [Seed(0.5, np.array([0.02]), "to R2"), Seed(0.5, np.array([0.0072]), "to R1")]
+    second = search(three_lines, seeds, known, opts, primaries=1)
+    np.testing.assert_allclose(second.corrections.x[:, 0], [R2, R1], atol=1e-12)
+    assert list(second.corrections.on_known) == [-1, 1] and list(second.corrections.same_as) == [-1, 0]
+    nu = SimpleNamespace(nu=1)
+    _, _, seed_branch, branches = _merged([(first, nu), (second, nu)])
+    # seed 0: the first search's line; 1: the period-doubled part's own branch (x = R2); 2: on
+    # the first search's line x = 0, not "on the primary" (x = 1)
+    assert list(seed_branch) == [0, 1, 0] and ON_KNOWN not in seed_branch
+    assert branches[0][0].seeds == (0, 2)
+    np.testing.assert_allclose(branches[1][0].x[:, 0], R2, atol=1e-12)
