@@ -159,6 +159,9 @@ class BranchStore:
         keep: truncate to the first `keep` points (e.g. to drop the failed point that a
         resumed continuation will redo); default: all fully written points. units: {extra
         name: unit} of extras this run records that the file may not hold yet (see append).
+        A partial file marked complete (a run killed inside `finalize`, between the flag and
+        the rename) is not complete (that takes the final name): its flag and checksums are
+        cleared and its points kept.
         """
         part = partial_path(path)
         if not part.is_file():
@@ -166,7 +169,9 @@ class BranchStore:
         h5 = open_in_place(part, "r+")
         try:
             if int(h5.attrs["complete"]):
-                raise ValueError(f"{part} is marked complete")
+                h5.attrs["complete"] = 0
+                if CHECKSUMS in h5.attrs:
+                    del h5.attrs[CHECKSUMS]
             m = int(h5.attrs["n_points"])
             keep = m if keep is None else keep
             if not 0 <= keep <= m:
