@@ -65,7 +65,8 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
     A period p is accepted when every section of the window repeats after p casing periods:
     max_k max_ch |y_{k+p} - y_k| / range_ch <= rtol over k = 0 .. n_sec - 1 - p, and only
     p <= (n_sec - 1) / 2 are tried so that each accepted period is seen at least twice.
-    A signal of zero range (constant) has period 1.
+    A signal of zero range (constant) has period 1; one with a value (or a scale) that is not
+    finite has none (NONE, mismatch nan).
     """
     y = np.asarray(sections, dtype=float)
     if y.ndim == 1:
@@ -74,6 +75,8 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
     if n_sec < 3:
         raise ValueError(f"need at least 3 Poincare sections, got {n_sec}")
     rng = y.max(axis=0) - y.min(axis=0) if scale is None else np.broadcast_to(np.asarray(scale, float), y.shape[1:])
+    if not (np.isfinite(y).all() and np.isfinite(rng).all()):  # a march that blew up repeats nothing
+        return Periodicity(code=PeriodClass.NONE, period=0, order=float("nan"), mismatch=float("nan"))
     keep = rng > 0.0
     if not keep.any():
         return Periodicity(code=PeriodClass.CASING, period=1, order=1.0 / n_lobes, mismatch=0.0)

@@ -32,6 +32,16 @@ what is left cannot change the reported numbers by more than a stated tolerance.
    tolerance for ever; over 20 revolutions it is about 1. A transient shows over a long lag
    as much as over a short one (m_L grows as 1 - rho^L), so nothing is traded for it.
 
+5. A part of the response that does not decay (a weak quasi-periodic component, which the
+   classifier's 1e-2 lets through) breaks the assumption of rule 3, and a long lag of rule 4
+   can straddle it by chance (a lag that is nearly a whole number of its cycles). Whatever
+   the model, two instants of the window one lag apart differ by at most twice the window's
+   distance from an orbit of that period, so half of that difference (every lag shorter than
+   the window, both instants in it) is a lower bound on what is left; the bound is at least
+   that. A decaying transient within the bound differs by at most twice the bound between
+   two instants of the window (plus the time grid's floor of rule 4, far below the
+   tolerance), so this does not delay a stop the rules above allow.
+
 What the bound assumes: no part of the transient decays slower than the slowest mode of
 the contact-free structure. Between contacts the motion is that free motion, and contacts
 (plastic impacts, friction) only dissipate; a transient kept alive by contact near a
@@ -43,7 +53,8 @@ pass), and the test holds over the whole window (n_keep revolutions, n_keep n_l 
 pairs), so the transient is seen over many periods, not one. On the default rotor 67 sweep
 every speed stopped early has its class and LE amplitude (to 3e-4) of 200 revolutions
 (benchmarks/bench_ti.py --full-sweep --compare-full). A quasi-periodic or chaotic response
-never repeats to 1e-2 over a window, so it never stops early: it runs the n_revolutions cap.
+does not repeat to 1e-2 over a window (no period), nor, when its non-periodic part is weaker,
+to 2 settle_rtol (rule 5), so it never stops early: it runs the n_revolutions cap.
 """
 from __future__ import annotations
 
@@ -68,9 +79,9 @@ class Settling:
         per-revolution extremes and contact forces of every node), -; nan without a period
         or history.
     decay: rho, the slowest free decay over one period p T_c, -.
-    bound: the smallest m_L rho^L / (1 - rho^L) over the lags L (rule 4), the bound on the
-        remaining transient / range, -; inf when it cannot be computed (no period, not
-        enough history, undamped structure).
+    bound: the smallest m_L rho^L / (1 - rho^L) over the lags L (rule 4), at least half the
+        window's own non-repeat (rule 5), the bound on the remaining transient / range, -;
+        inf when it cannot be computed (no period, not enough history, undamped structure).
     lag: the lag that gave the bound, in casing periods (0 when bound is inf).
     """
 
@@ -94,8 +105,8 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
         the last full one of the window, then the lone final step, (n_rev + 1, 2, n_b), m.
     forces: normal contact force of every node, block means at samples_per_revolution per
         revolution, the last one complete and half a sample interval before the end of the
-        window, (n_s, n_b), N (the force part is skipped when a period is not a whole number
-        of samples).
+        window, (n_s, n_b), N (when a period is not a whole number of samples, the forces are
+        compared over the whole revolutions of a multiple of the period instead).
     n_lobes: n_l. n_keep: revolutions in the window. omega: Omega, rad/s.
     decay_time: tau, s (ModalSystem.slowest_decay_time). rtol, max_order: the classifier's.
     settle_rtol: tolerance on the bound, relative to each signal's range, -.
@@ -117,6 +128,17 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
     y = subsections[:, keep] / scale[keep]
     e = extremes[:-1, :, keep] / scale[keep]  # full revolutions only (the last is the lone final step)
 
+    own = [0.0]  # rule 5: half the largest difference of two instants both in the window
+
+    def largest(d: np.ndarray, lag: int, n: int, unit: float = 1.0) -> float:
+        """max of d / unit (rows of d: the window's n + 1 or n instants, each against the one
+        lag earlier), its rows whose earlier instant lies in the window too counted into own."""
+        if lag < n:
+            inner = float(d[lag:].max()) / unit
+            own[0] = max(own[0], 0.5 * inner)
+            return max(inner, float(d[:lag].max()) / unit)
+        return float(d.max()) / unit
+
     def mismatch(lag_sub: int, lag_rev: int, lag_f: int) -> float | None:
         """Largest difference between the window and itself lag_sub sub-sections (lag_rev
         revolutions of extremes, lag_f force samples; 0: not compared) earlier, relative to
@@ -126,13 +148,13 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
             return None
         m = 0.0
         if lag_sub and keep.any():
-            m = float(np.abs(y[-(n_win + 1):] - y[-(n_win + 1 + lag_sub):-lag_sub]).max())
+            m = largest(np.abs(y[-(n_win + 1):] - y[-(n_win + 1 + lag_sub):-lag_sub]), lag_sub, n_win)
         if lag_rev and keep.any():
             ee = e[-(n_keep + lag_rev):]
-            m = max(m, float(np.abs(ee[lag_rev:] - ee[:-lag_rev]).max()))
+            m = max(m, largest(np.abs(ee[lag_rev:] - ee[:-lag_rev]), lag_rev, n_keep))
         if lag_f and f_scale > 0.0:
             ff = forces[-(n_fwin + lag_f):]
-            m = max(m, float(np.abs(ff[lag_f:] - ff[:-lag_f]).max()) / f_scale)
+            m = max(m, largest(np.abs(ff[lag_f:] - ff[:-lag_f]), lag_f, n_fwin, f_scale))
         return m
 
     # rule 3, one period: sub-sections and forces over p T_c, extremes over the whole
@@ -141,7 +163,9 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
     whole = (per.period * samples_per_revolution) % n_lobes == 0  # a period is whole force samples
     lag_f = per.period * samples_per_revolution // n_lobes if whole else 0
     m_sub = mismatch(per.period * sub, 0, lag_f)
-    m_ext = mismatch(0, revs, 0) if m_sub is not None else None
+    # forces whose period is not whole samples (n_l = 3 lobes at 256 samples a revolution):
+    # compared over the revs whole revolutions of the extremes instead, never skipped
+    m_ext = mismatch(0, revs, 0 if whole else revs * samples_per_revolution) if m_sub is not None else None
     if m_sub is None or m_ext is None:
         return Settling(False, per, nan, nan, math.inf)
     rho_sub = math.exp(-per.period * t_c / decay_time)
@@ -159,4 +183,7 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
         if b < bound:
             bound, lag = b, lag_rev * n_lobes
         lag_rev *= 2
+    # rule 5: the window's own non-repeat, both instants inside it (a persistent
+    # quasi-periodic part the long lags of rule 4 may straddle by chance)
+    bound = max(bound, own[0])
     return Settling(bool(bound <= settle_rtol), per, max(m_sub, m_ext), rho_sub, float(bound), lag)
