@@ -268,8 +268,12 @@ def _prepared(rom, contact: ContactOptions, ti_options: TimeIntegrationOptions, 
     if omegas is None:
         omegas = ti_options.omegas
     omegas = np.atleast_1d(np.asarray(omegas, dtype=float))
-    if not (omegas > 0).all():
-        raise ValueError("rotation speeds must be > 0 rad/s")
+    if omegas.ndim != 1 or omegas.size == 0:
+        raise ValueError(f"the sweep needs a list of rotation speeds, got {omegas.size} speed(s) of shape "
+                         f"{omegas.shape}")
+    bad = omegas[~(np.isfinite(omegas) & (omegas > 0))]
+    if len(bad):
+        raise ValueError(f"rotation speeds must be finite and > 0 rad/s, got {', '.join(f'{w:g}' for w in bad)}")
     return system, omegas
 
 
