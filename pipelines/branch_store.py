@@ -191,7 +191,7 @@ class BranchStore:
         return store
 
     def append(self, point: ContinuationPoint, extras: dict | None = None) -> None:
-        """Write one point (and its named extra scalars/arrays) and flush it to disk.
+        """Write one point (and its named extra scalars/arrays; text as str) and flush it to disk.
 
         The set of extras is fixed by the first point: every later point gives the same
         names with the same shapes. A reopened store (a resume) also takes extras that its
@@ -204,9 +204,9 @@ class BranchStore:
             g = self._h5["extras"]
             for k in sorted(set(extras) - self._extras):
                 v = extras[k]
-                fill = NOT_RECORDED.get(v.dtype.kind, 0)
+                fill = {} if _is_text(v) else {"fillvalue": NOT_RECORDED.get(v.dtype.kind, 0)}  # text: ""
                 ds = g.create_dataset(k, shape=(self.n_points,) + v.shape, maxshape=(None,) + v.shape,
-                                      dtype=v.dtype, chunks=True, fillvalue=fill)
+                                      dtype=_h5_dtype(v), chunks=True, **fill)
                 ds.attrs["unit"] = self._units.get(k, "1")
                 ds.attrs["recorded_from"] = self.n_points
             self._extras = set(extras)
@@ -216,7 +216,7 @@ class BranchStore:
         if self.n_points == 0 and not self._extras:
             g = self._h5["extras"]
             for k, v in extras.items():
-                ds = g.create_dataset(k, shape=(0,) + v.shape, maxshape=(None,) + v.shape, dtype=v.dtype,
+                ds = g.create_dataset(k, shape=(0,) + v.shape, maxshape=(None,) + v.shape, dtype=_h5_dtype(v),
                                       chunks=True)
                 ds.attrs["unit"] = self._units.get(k, "1")
             self._extras = set(extras)
@@ -236,7 +236,7 @@ class BranchStore:
         for name, v in extras.items():
             ds = self._h5["extras"][name]
             ds.resize(m + 1, axis=0)
-            ds[m] = v
+            ds[m] = v.astype(object) if _is_text(v) else v  # h5py writes text from str objects
         self._h5.attrs["n_points"] = m + 1  # last: the row counts only once all of it is written
         self._h5.flush()
         self.n_points = m + 1
@@ -276,6 +276,15 @@ class BranchStore:
         self.close()
 
 
+def _is_text(v: np.ndarray) -> bool:
+    """An extra of str (numpy U, or an object array of str): stored as variable-length text."""
+    return v.dtype.kind == "U" or (v.dtype == object and all(isinstance(e, str) for e in v.reshape(-1)))
+
+
+def _h5_dtype(v: np.ndarray):
+    return h5py.string_dtype() if _is_text(v) else v.dtype
+
+
 def _datasets(h5: h5py.File):
     yield from (h5[name] for name in _FIELDS)
     yield from h5["extras"].values()
@@ -302,7 +311,8 @@ def load_branch(path: Path | str, *, allow_partial: bool = False) -> StoredBranc
             raise ValueError(f"{path} is not a complete branch file (interrupted run?); "
                              f"pass allow_partial=True to read its points")
         arrays = {name: h5[name][:m] for name in _FIELDS}
-        extras = {name: ds[:m] for name, ds in h5["extras"].items()}
+        extras = {name: (np.array(ds.asstr()[:m], dtype=object) if h5py.check_string_dtype(ds.dtype) else ds[:m])
+                  for name, ds in h5["extras"].items()}
     branch = Branch(**arrays, status=attrs["status"], detail=attrs["detail"])
     return StoredBranch(branch, extras, attrs, complete)
 

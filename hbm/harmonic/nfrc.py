@@ -68,7 +68,8 @@ class NfrcResult:
     start: how the start point was found (solve_start's note; "resumed" for a resume).
     With stability (see compute_nfrc; None otherwise): stable (m,) bool; n_unstable (m,)
     int, Floquet multipliers of the minimal period outside the unit circle (-1: unknown,
-    the failed last point); stability_analysed (m,) bool, computed there (else inferred
+    the failed last point); stability_note (m,) object array of str, why n_unstable is -1
+    ("" where it is not; hbm.stability.monitor); stability_analysed (m,) bool, computed there (else inferred
     from the analysed neighbours, hbm.stability.monitor); leading_multipliers (m, k), the
     k largest |multipliers| (nan where not analysed). bifurcations: the located
     hbm.stability.bifurcation.Bifurcation, in branch order (after a resume: with the
@@ -93,6 +94,7 @@ class NfrcResult:
     start: str = ""
     stable: np.ndarray | None = None
     n_unstable: np.ndarray | None = None
+    stability_note: np.ndarray | None = None
     stability_analysed: np.ndarray | None = None
     leading_multipliers: np.ndarray | None = None
     bifurcations: tuple = ()
@@ -310,6 +312,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
 
         k = sopts.n_leading
         stab = dict(stable=col("stable", False, bool), n_unstable=col("n_unstable", -1, int),
+                    stability_note=col("stability_note", "", object),
                     stability_analysed=col("stability_analysed", False, bool),
                     leading_multipliers=np.array([np.asarray(per_point.get(p.index, {}).get(
                         "leading_multipliers", np.full(k, np.nan)), dtype=float) for p in pts]).reshape(m, k),

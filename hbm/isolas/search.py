@@ -625,12 +625,13 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 else ({}, 0.0)
             cpu_workers += cpu_desc
             tables = _reindexed(extras.pop("tables", {}), np.flatnonzero(ok))
-            if extras:  # per-point data of the converged points, nan elsewhere
+            if extras:  # per-point data of the converged points, nan (0, "") elsewhere
                 full = {}
                 for name, v in extras.items():
                     v = np.asarray(v)
-                    arr = np.zeros((len(omega),) + v.shape[1:], dtype=v.dtype) if v.dtype.kind in "biu" \
-                        else np.full((len(omega),) + v.shape[1:], np.nan)
+                    shape = (len(omega),) + v.shape[1:]
+                    arr = (np.zeros(shape, dtype=v.dtype) if v.dtype.kind in "biu"
+                           else np.full(shape, "", dtype=object) if v.dtype.kind in "OU" else np.full(shape, np.nan))
                     arr[ok] = v
                     full[name] = arr
                 extras = full

@@ -141,6 +141,8 @@ class StabilityMonitor:
     stable (bool), n_unstable (int): multipliers outside the unit circle (minimal period);
     -1 (and stable False) where no verdict is known: an analysis at the point that gave
     none (the reason in `undecided`), or a point between analyses with none;
+    stability_note (str): why n_unstable is -1 ("" where it is not): the analysis' reason
+    (FloquetSpectrum.undecided_reason) or NOT_INFERRED;
     stability_analysed (bool): computed at this point (else inferred, see the module doc);
     stability_widened (bool): analysed again with a wider window (below);
     stability_cpu_time (float): CPU time of the analyses made at this point, s (0 when
@@ -281,7 +283,7 @@ class StabilityMonitor:
             e.cpu += time.process_time() - c0
             e.n_unstable = e.spectrum.n_unstable  # -1 without a verdict
             if e.undecided:
-                self.undecided[e.index] = e.spectrum.note or "no verdict"
+                self.undecided[e.index] = e.spectrum.undecided_reason
             self._count(cause)
 
     def _count(self, cause: str) -> None:
@@ -352,12 +354,14 @@ class StabilityMonitor:
                 e.g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4)
             lead = (e.spectrum.leading(self.options.n_leading) if e.spectrum is not None and not e.undecided
                     else np.full(self.options.n_leading, np.nan))
+            note = self.undecided.get(e.index, "") if e.undecided else ""
             if e.n_unstable is None:  # no verdict on either side (a cut chain, the end of the branch)
                 e.n_unstable = -1
+                note = NOT_INFERRED
             out.append((point, dict(extras, stable=bool(e.n_unstable == 0), n_unstable=int(e.n_unstable),
                                     stability_analysed=e.spectrum is not None, stability_widened=e.n_eig > 0,
                                     stability_cpu_time=float(e.cpu), leading_multipliers=lead,
-                                    period_ratio=int(e.g))))
+                                    period_ratio=int(e.g), stability_note=note)))
             self._counts[e.index] = (e.n_unstable, e.g)
         if k:
             # a fold waits for the counts of its three points (_record_folds), the last of them
@@ -637,12 +641,19 @@ def unknown_stability(extras: dict, options: StabilityOptions = StabilityOptions
     be inferred (a failed final point): stable False, n_unstable -1, leading nan."""
     g = harmonic_period(np.asarray(extras["harmonics"]), 1e-4) if "harmonics" in extras else 1
     return dict(extras, stable=False, n_unstable=-1, stability_analysed=False, stability_widened=False,
-                stability_cpu_time=0.0, leading_multipliers=np.full(options.n_leading, np.nan), period_ratio=int(g))
+                stability_cpu_time=0.0, leading_multipliers=np.full(options.n_leading, np.nan), period_ratio=int(g),
+                stability_note=NOT_CONVERGED)
 
 
 #: the per-point stability keys the monitor adds to a point's extras
 PER_POINT = ("stable", "n_unstable", "stability_analysed", "stability_widened", "stability_cpu_time",
-             "leading_multipliers", "period_ratio")
+             "leading_multipliers", "period_ratio", "stability_note")
+
+#: stability_note of a point without a count because no analysis with a verdict lies on one
+#: side of it within reach (the chain cut after analyses without one; module doc)
+NOT_INFERRED = "not inferred: no analysis with a verdict on one side within the gap cap"
+#: stability_note of a point that was not analysed because it is not a solution
+NOT_CONVERGED = "not analysed: the point did not converge"
 
 
 @dataclass(frozen=True, eq=False)
@@ -651,7 +662,8 @@ class BranchStability:
 
     stable (m,) bool; n_unstable (m,) int; stability_analysed (m,) bool; stability_widened
     (m,) bool; stability_cpu_time (m,) s; leading_multipliers (m, n_leading) float (nan where
-    not analysed); period_ratio (m,) int;
+    not analysed); period_ratio (m,) int; stability_note (m,) object array of str (why
+    n_unstable is -1, "" where it is not);
     bifurcations: Bifurcation tuple, `index` counting the given points; n_analyses.
     undecided: {index: why} of the points analysed without a verdict (n_unstable -1).
     """
@@ -663,6 +675,7 @@ class BranchStability:
     stability_cpu_time: np.ndarray
     leading_multipliers: np.ndarray
     period_ratio: np.ndarray
+    stability_note: np.ndarray
     bifurcations: tuple
     n_analyses: int
     undecided: dict = field(default_factory=dict)
@@ -709,5 +722,6 @@ def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_sc
         stability_cpu_time=np.array([done[i]["stability_cpu_time"] for i in range(m)], dtype=float),
         leading_multipliers=np.array([done[i]["leading_multipliers"] for i in range(m)], dtype=float).reshape(m, k),
         period_ratio=np.array([done[i]["period_ratio"] for i in range(m)], dtype=np.int64),
+        stability_note=np.array([done[i]["stability_note"] for i in range(m)], dtype=object),
         bifurcations=tuple(sorted(mon.bifurcations, key=lambda b: (b.index, b.fraction))), n_analyses=mon.n_analyses,
         undecided=dict(mon.undecided))

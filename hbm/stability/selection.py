@@ -22,7 +22,7 @@ from hbm.continuation.newton import NewtonOptions, newton_solve_on_plane
 from hbm.harmonic.nfrc import nfrc_extras
 from hbm.harmonic.solver import HbmSolver
 from hbm.stability.bifurcation import GUESS, PARITY, PERIOD_DOUBLING, Bifurcation
-from hbm.stability.monitor import BranchStability, StabilityMonitor, StabilityOptions, monitor_branch
+from hbm.stability.monitor import NOT_CONVERGED, BranchStability, StabilityMonitor, StabilityOptions, monitor_branch
 from hbm.stability.spectrum import orbit_spectrum
 from hbm.stability.switching import BranchStart, switch_branch
 
@@ -161,7 +161,7 @@ def branch_stability(residual, omega, x, converged, *, x_scale=1.0, omega_scale:
     full = {"stable": np.zeros(m, bool), "n_unstable": np.full(m, -1, np.int64),
             "stability_analysed": np.zeros(m, bool), "stability_widened": np.zeros(m, bool),
             "stability_cpu_time": np.zeros(m), "leading_multipliers": np.full((m, k), np.nan),
-            "period_ratio": np.ones(m, np.int64)}
+            "period_ratio": np.ones(m, np.int64), "stability_note": np.full(m, NOT_CONVERGED, dtype=object)}
     for name, a in st.per_point().items():
         full[name][idx] = a
     bifs = tuple(replace(b, index=int(idx[b.index])) for b in st.bifurcations)

@@ -125,6 +125,17 @@ class FloquetSpectrum:
                 and not (self.method == "arnoldi" and self.modulus_floor >= 1.0))
 
     @property
+    def undecided_reason(self) -> str:
+        """Why the multipliers give no verdict, in words ("" when decided)."""
+        if self.decided:
+            return ""
+        if not self.complete or not len(self.multipliers):
+            return self.note or "no multiplier"
+        return ((self.note + "; " if self.note else "")
+                + "the Arnoldi window bounds no multiplier (modulus floor 1: its farthest eigenvalue lies "
+                "within omega / 2 of 0)")
+
+    @property
     def n_unstable(self) -> int:
         """Number of multipliers outside the unit circle (with multiplicity: a complex pair is 2);
         -1 (unknown) when not decided, whatever the listed ones say."""

@@ -25,8 +25,8 @@ Layout of isolas.h5 (root: the usual provenance attributes):
       [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
       stability_analysed (m,) bool, stability_widened (m,) bool, stability_cpu_time (m,) s
       (of the analyses at each point: sum it for a branch's stability cost),
-      leading_multipliers (m, 4), period_ratio (m,) int,
-      and bifurcations/ (the table of hbm.stability.bifurcation.bifurcation_arrays, index
+      leading_multipliers (m, 4), period_ratio (m,) int, stability_note (m,) text (why
+      n_unstable is -1, "" where it is not), and bifurcations/ (the table of hbm.stability.bifurcation.bifurcation_arrays, index
       counting this branch's points). attrs kind ("primary" |
       "isola" | "bifurcated" | "detached"), closed (bool), status (str), subharmonic (nu),
       seeds (int array), start (seed continued), n_points_computed, cpu_time (s)
@@ -49,7 +49,7 @@ ISOLAS = Output("isolas.h5")
 _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "harmonics": "m", "stable": "1",
           "modal_contribution": "1", "harmonic_contribution": "m",
           "n_unstable": "1", "stability_analysed": "1", "stability_widened": "1", "stability_cpu_time": "s",
-          "leading_multipliers": "1", "period_ratio": "1"}
+          "leading_multipliers": "1", "period_ratio": "1", "stability_note": "-"}
 
 
 
@@ -61,7 +61,8 @@ class IsolaBranch:
     "detached"; closed; status (how each half ended); subharmonic: nu (basis Omega / nu);
     seeds (k,) int: indices into the treatment's seeds. omega (m,) rad/s; x (m, n_u) scaled
     unknowns; converged (m,) bool; le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m;
-    stable (m,) bool and n_unstable (m,) int, or None without stability. modal_contribution
+    stable (m,) bool and n_unstable (m,) int, or None without stability; stability_note (m,)
+    str, why n_unstable is -1 ("" where it is not; None in files without it). modal_contribution
     (m, n) and harmonic_contribution (m, N_h + 1), m: the dynamical content of each point
     (hbm.harmonic.content, eqs. 32-34), or None in files without it. bifurcations: the
     branch's table {column: array} (hbm.stability.bifurcation.bifurcation_arrays; index
@@ -83,6 +84,7 @@ class IsolaBranch:
     harmonics: np.ndarray
     stable: np.ndarray | None = None
     n_unstable: np.ndarray | None = None
+    stability_note: np.ndarray | None = None
     modal_contribution: np.ndarray | None = None
     harmonic_contribution: np.ndarray | None = None
     bifurcations: dict | None = None
@@ -96,6 +98,13 @@ class IsolaBranch:
 
 def _text(v) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
+
+
+def _column(ds) -> np.ndarray:
+    """A per-point dataset; text (stability_note) as an object array of str."""
+    import h5py
+
+    return np.array(ds.asstr()[()], dtype=object) if h5py.check_string_dtype(ds.dtype) else ds[()]
 
 
 def read_isolas(path) -> dict[str, list[IsolaBranch]]:
@@ -121,6 +130,7 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     converged=b["converged"][()].astype(bool), le_amplitude=b["le_amplitude"][()],
                     harmonics=b["harmonics"][()], stable=b["stable"][()].astype(bool) if "stable" in b else None,
                     n_unstable=b["n_unstable"][()] if "n_unstable" in b else None,
+                    stability_note=_column(b["stability_note"]) if "stability_note" in b else None,
                     modal_contribution=b["modal_contribution"][()] if "modal_contribution" in b else None,
                     harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None,
                     bifurcations=({k: v for k, (v, _) in read_table(b["bifurcations"]).items()}
@@ -132,11 +142,15 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
 
 # -- writing ---------------------------------------------------------------------------------
 def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
+    import h5py
+
     data = {"omega": fb.omega, "x": fb.x, "converged": np.asarray(fb.converged, bool)}
     data.update({k: v for k, v in fb.extras.items() if k in _UNITS})
     data.update({k: v for k, v in (content or {}).items() if k in _UNITS})
     for name, v in data.items():
-        group.create_dataset(name, data=np.asarray(v)).attrs["unit"] = _UNITS[name]
+        v = np.asarray(v)
+        text = {"dtype": h5py.string_dtype()} if v.dtype.kind in "OU" else {}  # stability_note
+        group.create_dataset(name, data=v.astype(object) if text else v, **text).attrs["unit"] = _UNITS[name]
     write_tables(group, fb.extras.get("tables", {}))
     a = group.attrs
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
@@ -150,7 +164,7 @@ def _read_found(group):
 
     a = group.attrs
     # per-point datasets read back into the FoundBranch's extras (resume)
-    extras = {k: group[k][()] for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
+    extras = {k: _column(group[k]) for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
     if "bifurcations" in group:
         extras["tables"] = {"bifurcations": read_table(group["bifurcations"])}
     return FoundBranch(omega=group["omega"][()], x=group["x"][()], converged=group["converged"][()].astype(bool),

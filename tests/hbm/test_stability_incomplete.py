@@ -14,7 +14,7 @@ import scipy.sparse.linalg as spla
 from hbm.stability import selection
 from hbm.stability import spectrum as spm
 from hbm.stability.bifurcation import PERIOD_DOUBLING
-from hbm.stability.monitor import StabilityMonitor, StabilityOptions, monitor_branch
+from hbm.stability.monitor import NOT_INFERRED, StabilityMonitor, StabilityOptions, monitor_branch
 from test_stability_defects import OMEGA, mathieu, spec_of
 
 EIGS = spla.eigs
@@ -124,6 +124,8 @@ def test_the_monitor_neither_calls_a_point_arpack_left_short_stable_nor_locates_
     assert (ex["stable"], ex["n_unstable"], ex["stability_analysed"]) == (False, -1, True)
     assert np.isnan(ex["leading_multipliers"]).all()
     assert mon.undecided == {9: "ARPACK converged 30 of 40 eigenvalues"}
+    # the reason travels with the point (the NFRC files' stability_note)
+    assert [got[i]["stability_note"] for i in (8, 9, 10)] == ["", "ARPACK converged 30 of 40 eigenvalues", ""]
     assert [got[i]["n_unstable"] for i in range(14)] == [0] * 9 + [-1] + [1] * 4
     assert [got[i]["stable"] for i in range(14)] == [True] * 9 + [False] * 5
     assert [(b.kind, b.index, b.omega_bracket, b.direction) for b in mon.bifurcations] == [
@@ -144,6 +146,7 @@ def test_a_point_without_multipliers_inside_an_unstable_stretch_is_no_stability_
     assert st.n_unstable.tolist() == [1] * 10 + [-1] + [1] * 9
     assert st.stability_analysed.all() and st.bifurcations == ()
     assert st.undecided == {10: BAND}
+    assert st.stability_note.tolist() == [""] * 10 + [BAND] + [""] * 9
 
 
 def test_a_long_stretch_without_verdicts_is_cut_and_handed_on_as_unknown():
@@ -162,6 +165,9 @@ def test_a_long_stretch_without_verdicts_is_cut_and_handed_on_as_unknown():
     assert [i for i in range(n) if got[i]["stability_analysed"]][:7] == [0, 1, 9, 10, 11, 12, 13]
     assert all(got[i]["stable"] == (counts[i] == 0) for i in range(n))
     assert sorted(mon.undecided) == [9, 10, 11, 12] and mon.bifurcations == []
+    # each point without a count says why: its own analysis' reason, or none inferable
+    notes = [got[i]["stability_note"] for i in range(n)]
+    assert notes == [""] * 2 + [NOT_INFERRED] * 7 + [BAND] * 4 + [""] * 27
     assert (mon.causes["after undecided"], mon.causes["first"]) == (2, 3)
 
 
@@ -227,6 +233,7 @@ def test_an_arnoldi_window_that_bounds_nothing_is_no_verdict():
     two = spm.arnoldi_spectrum(H, n_eig=2)
     assert two.modulus_floor == 1.0 and np.all(np.abs(two.multipliers) < 1.0)
     assert not two.decided and not two.stable and two.n_unstable == -1
+    assert "window bounds no multiplier" in two.undecided_reason
     wide = spm.widened_spectrum(H, n_eig=2, min_ceiling=1.0)
     assert wide.decided and wide.n_unstable == 1
     assert wide.multipliers[0].real == pytest.approx(shoot, rel=1e-6)
