@@ -1,5 +1,6 @@
-"""Audit of the settle test and the periodicity classifier on constructed histories whose
-answer is known analytically (hbm.ti.settle, hbm.ti.periodicity).
+"""The settle test and the periodicity classifier against what must not settle (a transient
+left in the forces only, a weak quasi-periodic part, a march that blew up), on constructed
+histories whose answer is known analytically (hbm.ti.settle, hbm.ti.periodicity).
 
 Histories are recorded as the sweep records them (tests/hbm/test_settle.py: sub-sections at
 SUBSECTIONS per casing period from the end of the first revolution, per-revolution radial

@@ -1,5 +1,6 @@
-"""Audit of hbm.isolas.search on residuals whose solution sets are known in closed form:
-straight lines x = const in (x, Omega), so every branch and every distance is exact."""
+"""How hbm.isolas.search tells branches apart and where they meet, on residuals whose
+solution sets are known in closed form: straight lines in (x, Omega), so every branch and
+every distance is exact."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Audit of the sweep's option checks (hbm.ti.sweep): bad speed lists are refused by name,
+"""The sweep's option checks (hbm.ti.sweep): bad speed lists are refused by name,
 before any march."""
 import numpy as np
 import pytest

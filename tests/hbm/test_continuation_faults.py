@@ -1,4 +1,4 @@
-"""Audit of the continuation: bad inputs named, landing on the bound next to a fold, and an
+"""The continuation's edges: bad inputs named, landing on the bound next to a fold, and an
 NFRC resumed after a start at the other end. Synthetic residuals with known solution sets."""
 from __future__ import annotations
 
