@@ -126,20 +126,18 @@ def segment_polyline_distance(x0: np.ndarray, omega0: float, x1: np.ndarray, ome
     P0 = np.append(np.asarray(x0, dtype=float) / x_scale, omega0 / omega_scale)
     P1 = np.append(np.asarray(x1, dtype=float) / x_scale, omega1 / omega_scale)
     W = branch.omega / omega_scale
-    Y = np.column_stack([branch.x / x_scale, W])
-    if m == 1:
-        A, B = Y[:1], Y[:1]
-        seg_i = np.zeros(1, dtype=np.int64)
-    else:
-        A, B = Y[:-1], Y[1:]
-        seg_i = np.arange(m - 1)
-    if within is not None:
-        lo, hi = np.minimum(A[:, -1], B[:, -1]), np.maximum(A[:, -1], B[:, -1])
+    start = np.zeros(1, dtype=np.int64) if m == 1 else np.arange(m - 1)
+    end = start if m == 1 else start + 1
+    if within is not None:  # the omega spans first: only the segments kept are copied (the search's
+        # meeting test calls this at every point against every branch)
+        lo, hi = np.minimum(W[start], W[end]), np.maximum(W[start], W[end])
         plo, phi = min(P0[-1], P1[-1]), max(P0[-1], P1[-1])
         keep = (lo - within <= phi) & (plo <= hi + within)
-        A, B, seg_i = A[keep], B[keep], seg_i[keep]
-        if not len(seg_i):
+        start, end = start[keep], end[keep]
+        if not len(start):
             return np.inf, x1, omega1
+    A = np.column_stack([branch.x[start] / x_scale, W[start]])
+    B = np.column_stack([branch.x[end] / x_scale, W[end]])
     d1 = P1 - P0
     d2 = B - A
     r = P0 - A
