@@ -33,8 +33,20 @@ def modal_contributions(x: np.ndarray, M: np.ndarray, modes: np.ndarray) -> np.n
 
     x: displacement of the ROM dof over one period, (..., N_t, n), m. M: (n, n), kg.
     modes: mass-normalised mode shapes (n, n_modes) (rom_modes). A motion at rest gives 0.
+    Raises ValueError for a motion that is not finite (NaN or inf: no contribution can be
+    told, and it is no motion at rest either) or whose shapes do not match.
     """
-    gamma = np.asarray(x, dtype=float) @ (np.asarray(M, dtype=float) @ modes)  # eq. (32), (..., N_t, n_modes)
+    x = np.asarray(x, dtype=float)
+    M = np.asarray(M, dtype=float)
+    modes = np.asarray(modes, dtype=float)
+    n = M.shape[0] if M.ndim == 2 else -1
+    if M.ndim != 2 or M.shape != (n, n) or x.ndim < 2 or x.shape[-1] != n or modes.ndim != 2 \
+            or modes.shape[0] != n:
+        raise ValueError(f"modal_contributions needs x (..., N_t, n), M (n, n), modes (n, n_modes); got x "
+                         f"{x.shape}, M {M.shape}, modes {modes.shape}")
+    if not np.all(np.isfinite(x)):
+        raise ValueError("modal_contributions: the motion x holds NaN or inf values")
+    gamma = x @ (M @ modes)  # eq. (32), (..., N_t, n_modes)
     peak = np.abs(gamma).max(axis=-2)
     total = peak.sum(axis=-1, keepdims=True)
     return np.divide(peak, total, out=np.zeros_like(peak), where=total > 0)
@@ -43,8 +55,11 @@ def modal_contributions(x: np.ndarray, M: np.ndarray, modes: np.ndarray) -> np.n
 def harmonic_contributions(coeffs: np.ndarray) -> np.ndarray:
     """|c_k| of eq. (34), k = 0 .. N_h, (N_h + 1, ...), same unit as coeffs.
 
-    coeffs: harmonics in eq. (5) order [c_0, a_1, b_1, ..., a_Nh, b_Nh], (2 N_h + 1, ...)."""
+    coeffs: harmonics in eq. (5) order [c_0, a_1, b_1, ..., a_Nh, b_Nh], (2 N_h + 1, ...);
+    an even number of rows (a cosine without its sine) raises ValueError."""
     c = np.asarray(coeffs, dtype=float)
+    if c.ndim == 0 or c.shape[0] % 2 != 1:
+        raise ValueError(f"coeffs must have 2 N_h + 1 rows [c_0, a_1, b_1, ..., a_Nh, b_Nh], got shape {c.shape}")
     return np.concatenate([np.abs(c[:1]), np.hypot(c[1::2], c[2::2])], axis=0)
 
 
@@ -58,7 +73,8 @@ def branch_content(residual, rom, unknowns: np.ndarray, omega: np.ndarray,
     Returns {"modal_contribution": (m, n) relative contributions (eq. 33) of the n ROM modes
     in ascending frequency, "harmonic_contribution": (m, N_h + 1) |c_k| of the LE radial
     displacement, m (eq. 34), "mode_frequencies": (n,), rad/s}. The max over time is taken
-    on the residual's AFT grid (N_t samples per period).
+    on the residual's AFT grid (N_t samples per period). A point whose unknowns are not
+    finite (NaN or inf) gets NaN contributions.
     """
     freq, phi = rom_modes(rom.K, rom.M) if modes is None else modes
     basis = residual.basis
@@ -66,6 +82,9 @@ def branch_content(residual, rom, unknowns: np.ndarray, omega: np.ndarray,
     modal = np.empty((len(u), phi.shape[1]))
     harmonic = np.empty((len(u), basis.n_harmonics + 1))
     for i, (ui, wi) in enumerate(zip(u, np.asarray(omega, dtype=float))):
+        if not (np.all(np.isfinite(ui)) and np.isfinite(wi)):
+            modal[i], harmonic[i] = np.nan, np.nan
+            continue
         full = residual.expand_harmonics(ui, float(wi))  # (2 N_h + 1, n), m
         modal[i] = modal_contributions(basis.to_time(full), rom.M, phi)
         harmonic[i] = harmonic_contributions(residual.to_coefficients(ui)[:, 0])

@@ -28,9 +28,24 @@ class FourierBasis:
     n_time: int
 
     def __post_init__(self):
-        if self.n_time < 2 * self.n_harmonics + 2:
-            # rfft bin N_t/2 has no sine part: keep every retained harmonic strictly below it
-            raise ValueError(f"n_time = {self.n_time} too small for {self.n_harmonics} harmonics")
+        for name in ("n_harmonics", "n_time"):
+            v = getattr(self, name)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer, float, np.floating)) \
+                    or not float(v).is_integer():
+                raise ValueError(f"{name} must be an integer, got {v!r}")
+            object.__setattr__(self, name, int(v))
+        if self.n_harmonics < 0:
+            raise ValueError(f"n_harmonics must be >= 0, got {self.n_harmonics}")
+        if self.n_time < 2 * self.n_harmonics + 1:
+            # N_t samples resolve harmonics strictly below N_t / 2 (rfft bin N_t / 2 of an even
+            # N_t has no sine part): N_t >= 2 N_h + 1, i.e. 2 N_h + 1 (odd) or 2 N_h + 2 (even)
+            raise ValueError(f"n_time = {self.n_time} too small for {self.n_harmonics} harmonics "
+                             f"(aliasing: n_time must be >= 2 n_harmonics + 1 = {2 * self.n_harmonics + 1})")
+
+    def _check_length(self, a: np.ndarray, axis: int, expected: int, what: str) -> None:
+        """A clear error for an array whose transformed axis has the wrong length."""
+        if a.ndim == 0 or a.shape[axis if _last_axis(axis, a.ndim) else 0] != expected:
+            raise ValueError(f"{what} must have {expected} rows along the transformed axis, got shape {a.shape}")
 
     @property
     def n_coeffs(self) -> int:
@@ -57,6 +72,7 @@ class FourierBasis:
         """
         c = np.asarray(coeffs)
         nh, nt = self.n_harmonics, self.n_time
+        self._check_length(c, axis, self.n_coeffs, "coeffs (2 n_harmonics + 1)")
         if _last_axis(axis, c.ndim):
             spec = np.zeros(c.shape[:-1] + (nt // 2 + 1,), dtype=complex)
             spec[..., 0] = nt * c[..., 0]
@@ -75,6 +91,7 @@ class FourierBasis:
         """
         s = np.asarray(signal)
         nh, nt = self.n_harmonics, self.n_time
+        self._check_length(s, axis, nt, "signal (n_time samples)")
         if _last_axis(axis, s.ndim):
             spec = sfft.rfft(s, axis=-1)[..., :nh + 1]
             out = np.empty(s.shape[:-1] + (2 * nh + 1,))
@@ -125,6 +142,8 @@ class FourierBasis:
         """
         w = np.asarray(weights, dtype=float)
         nh, nt = self.n_harmonics, self.n_time
+        if w.ndim == 0 or w.shape[-1] != nt:
+            raise ValueError(f"weights must have {nt} samples along the last axis, got shape {w.shape}")
         if nt // 2 >= 2 * nh:
             W = sfft.rfft(w, axis=-1)[..., :2 * nh + 1] / nt
         else:  # orders k + l beyond N_t / 2 alias: take them from the full FFT
