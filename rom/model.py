@@ -77,8 +77,13 @@ def modal_damping(K: np.ndarray, M: np.ndarray, ratios: np.ndarray) -> tuple[np.
 
     w2, phi = scipy.linalg.eigh(K, M)
     w = np.sqrt(np.clip(w2, 0.0, None))
+    xi = np.asarray(ratios, dtype=float)
+    if xi.ndim == 0:  # one ratio for every mode
+        xi = np.full(w.shape, float(xi))
+    if xi.shape != w.shape or not np.all(np.isfinite(xi)) or np.any(xi < 0.0):
+        raise ValueError(f"ratios must be {len(w)} finite damping ratios >= 0 (one per mode), got {ratios!r}")
     mp = M @ phi  # phi is M-orthonormal
-    C = mp @ np.diag(2.0 * np.asarray(ratios) * w) @ mp.T
+    C = mp @ np.diag(2.0 * xi * w) @ mp.T
     return 0.5 * (C + C.T), w
 
 

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+import numpy as np
+
 
 @dataclass(frozen=True)
 class RomOptions:
@@ -17,6 +19,10 @@ class RomOptions:
     n_low_modes: int = 3
 
     def __post_init__(self):
+        for k in ("n_fixed_modes", "n_low_modes"):  # counts (numpy integers too: read back from HDF5)
+            v = getattr(self, k)
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, np.integer)):
+                raise ValueError(f"{k} must be an integer (a count of modes), got {v!r}")
         if self.n_fixed_modes < 0:
             raise ValueError(f"n_fixed_modes must be >= 0, got {self.n_fixed_modes}")
         if self.n_low_modes < 0:
