@@ -50,8 +50,9 @@ def _cmd_run(args) -> int:
     from pipelines.parallel import is_root, world
 
     scene = load_scene(args.scene, args.set)
-    progress = Progress(quiet=args.quiet or not is_root(world()))
-    for text in scene_warnings(scene):
+    root = is_root(world())
+    progress = Progress(quiet=args.quiet or not root)
+    for text in scene_warnings(scene) if root else ():  # under mpirun, once (rank 0 talks)
         progress.warn(text)
     extra = ([] if args.until == STAGES[-1] else ["--until", args.until]) + (["--yes"] if args.yes else [])
     try:

@@ -122,6 +122,13 @@ def _suggest(word: str, choices) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
+def _elsewhere(key: str, section: str) -> str:
+    """" (a key of [ti])" when `key`, unknown in [section], is a key of other sections, else ""."""
+    owners = [f"[{sec}]" for sec, cls in SECTIONS.items()
+              if sec != section and key in {f.name for f in dataclasses.fields(cls) if f.init}]
+    return f" (a key of {' and '.join(owners)}, not of [{section}])" if owners else ""
+
+
 def _coerce(cls: type, section: str, key: str, value, hint):
     """Check a TOML value against the dataclass field's annotation; ints are accepted for floats."""
     where = f"[{section}] {key}"
@@ -149,11 +156,15 @@ def _coerce(cls: type, section: str, key: str, value, hint):
     if origin is tuple:
         if not isinstance(value, list):
             raise SceneError(f"{where} must be a list, got {value!r}")
+        if not value:  # no option of the pipeline means anything with none (hbm.methods = [] ran no NFRC)
+            raise SceneError(f"{where} must list at least one value, got []")
         args = typing.get_args(hint)
         item = args[0] if args else float
         return tuple(_coerce(cls, section, key, v, item) for v in value)
     if origin in (typing.Union, getattr(__import__("types"), "UnionType", None)):
         args = [a for a in typing.get_args(hint) if a is not type(None)]
+        if len(args) == 1:  # an optional key (float | None): its type's own message says what it takes
+            return _coerce(cls, section, key, value, args[0])
         for a in args:
             try:
                 return _coerce(cls, section, key, value, a)
@@ -189,7 +200,7 @@ def _build_section(name: str, cls: type, table: dict):
         if (name, key) in RENAMED:
             raise SceneError(f"[{name}] {key} was renamed to {RENAMED[name, key]}")
         if key not in fields:
-            raise SceneError(f"unknown key '{key}' in [{name}]{_suggest(key, fields)}; "
+            raise SceneError(f"unknown key '{key}' in [{name}]{_elsewhere(key, name) or _suggest(key, fields)}; "
                              f"known keys: {', '.join(sorted(fields))}")
         # Every number of every section, whatever its type: no option of the pipeline means
         # anything at NaN or infinity, and a range check `x < 0` lets NaN through.
@@ -224,10 +235,13 @@ def parse_override(item: str) -> tuple[str, str, object]:
                              f"known sections: {', '.join(SECTIONS)}")
         fields = {f.name for f in dataclasses.fields(SECTIONS[section]) if f.init}
         if key not in fields and (section, key) not in RENAMED:
-            raise SceneError(f"--set {item!r}: unknown key '{key}' in [{section}]{_suggest(key, fields)}; "
+            raise SceneError(f"--set {item!r}: unknown key '{key}' in [{section}]"
+                             f"{_elsewhere(key, section) or _suggest(key, fields)}; "
                              f"known keys: {', '.join(sorted(fields))}")
     if not raw:
         raise SceneError(f"--set {item!r}: no value after '='")
+    if not _is_text(raw):  # bytes that are not UTF-8 on the command line (surrogate escapes)
+        raise SceneError(f"--set {item!r}: the value is not UTF-8 text")
     try:
         value = tomllib.loads(f"v = {raw}")["v"]
     except tomllib.TOMLDecodeError:
@@ -237,6 +251,16 @@ def parse_override(item: str) -> tuple[str, str, object]:
     if not isinstance(value, list) and _is_list_key(section, key):
         value = [_item(part.strip()) for part in raw.split(",")] if isinstance(value, str) else [value]
     return section, key, value
+
+
+def _is_text(text: str) -> bool:
+    """Whether `text` can be written as UTF-8 (no lone surrogates, which Python makes of
+    command-line bytes that are not UTF-8)."""
+    try:
+        text.encode("utf-8")
+    except UnicodeEncodeError:
+        return False
+    return True
 
 
 def _item(text: str):
@@ -257,8 +281,8 @@ def _is_list_key(section: str, key: str) -> bool:
 def _is_string_key(section: str, key: str) -> bool:
     if not section:
         return key == "name"
-    hints = typing.get_type_hints(SECTIONS[section])
-    return hints.get(key) is str
+    hint = typing.get_type_hints(SECTIONS[section]).get(key)
+    return hint is str or set(typing.get_args(hint)) == {str, type(None)}  # str | None: a path, a unit
 
 
 def _merge_overrides(data: dict, overrides) -> dict:
@@ -291,6 +315,12 @@ def parse_scene(text: str, path: Path | str = Path("scene.toml"), overrides=()) 
     if not isinstance(name, str):
         raise SceneError(f"top-level 'name' must be a string, got {name!r}")
     for key in data:
+        if key not in SECTIONS and not isinstance(data[key], dict):  # a key above every [section]
+            owners = [sec for sec, cls in SECTIONS.items()
+                      if key in {f.name for f in dataclasses.fields(cls) if f.init}]
+            hint = f" (a key of [{owners[0]}]: write it below that section's header)" if len(owners) == 1 else ""
+            raise SceneError(f"unknown top-level key '{key}' in {path}{hint}; the only top-level key is 'name', "
+                             f"the others belong in sections: {', '.join(SECTIONS)}")
         if key not in SECTIONS:
             raise SceneError(f"unknown section [{key}]{_suggest(key, SECTIONS)} in {path}; "
                              f"known sections: {', '.join(SECTIONS)}")
@@ -361,7 +391,15 @@ def load_scene(path: Path | str, overrides=()) -> Scene:
     path = Path(path)
     if not path.is_file():
         raise SceneError(f"scene file not found: {path}")
-    return parse_scene(path.read_text(), path, overrides)
+    raw = path.read_bytes()
+    try:
+        text = raw.decode("utf-8")  # TOML is UTF-8 whatever the locale
+    except UnicodeDecodeError as exc:
+        line = raw.count(b"\n", 0, exc.start) + 1
+        column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
+        raise SceneError(f"{path}: not valid TOML: byte 0x{raw[exc.start]:02x} at line {line}, column {column} "
+                         "is not UTF-8 (save the file as UTF-8)") from None
+    return parse_scene(text, path, overrides)
 
 
 def _toml_value(v) -> str:
@@ -370,17 +408,26 @@ def _toml_value(v) -> str:
     if isinstance(v, (int, float)):
         return repr(v)  # Python's repr of a float is a TOML float (1e-07, 108000000000.0, inf)
     if isinstance(v, (str, Path)):
-        return json.dumps(str(v), ensure_ascii=False)  # JSON string escapes are TOML's
+        # JSON string escapes are TOML's; JSON leaves DEL as it is, which TOML does not allow
+        return json.dumps(str(v), ensure_ascii=False).replace("\x7f", "\\u007f")
     if isinstance(v, (list, tuple)):
         return "[" + ", ".join(_toml_value(x) for x in v) + "]"
     raise TypeError(f"no TOML form for {v!r}")
+
+
+def _comment(text: str) -> str:
+    """`text` as one TOML comment line: a newline or another control character (from a --set
+    value) escaped as in a TOML string, since a comment may hold neither."""
+    text = "".join(json.dumps(c)[1:-1] if (ord(c) < 0x20 and c != "\t") else "\\u007f" if c == "\x7f" else c
+                   for c in text)
+    return text if text.startswith("#") else f"# {text}"
 
 
 def resolved_toml(scene: Scene, header: str = "") -> str:
     """The scene with every key written out (defaults included), as TOML text that
     parse_scene reads back to the same values. Keys whose value is None (unset optional
     keys) are left out: TOML has no null, and leaving them out means the same thing."""
-    lines = [header] if header else []
+    lines = [_comment(header)] if header else []
     lines.append(f"name = {_toml_value(scene.name)}")
     for section, cls in SECTIONS.items():
         obj = getattr(scene, section)
