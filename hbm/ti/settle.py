@@ -19,8 +19,11 @@ what is left cannot change the reported numbers by more than a stated tolerance.
    transient that decays by a factor rho (or faster) per period, e(t) = rho e(t - T), gives
    |y(t) - y(t - T)| = |e(t) - e(t - T)| >= (1 - rho) |e(t - T)| >= e(t) (1 - rho) / rho, for
    any phase of the decaying oscillation (|rho' e^{i phi} - 1| >= 1 - |rho'|). The march stops
-   when e <= settle_rtol times the range, at every instant of the window; the amplitude
-   (half the range over the window) then differs from the limit cycle's by at most that.
+   when e <= settle_rtol times the range at the compared instants of the window; the
+   amplitude (half the range over the window) then differs from the limit cycle's by at most
+   that. Between those instants a transient decaying at exactly rho can exceed the tolerance
+   by about a tenth (1.106e-4 against 1e-4 in 600 random trials at 2.75 Omega; the amplitude
+   error stayed within 0.71 of the tolerance), which no safety factor is spent on.
 4. The same argument holds with the response compared with itself L whole revolutions
    earlier (L a multiple of the period): m_L rho^L / (1 - rho^L), rho per revolution. Each
    lag gives a valid bound, so the smallest is taken, over L = one period and L = 1, 2, 4,
