@@ -366,20 +366,44 @@ def _estimate(scene, out, outputs) -> Estimate:
     ROM at N_h = 10 to 160 (0.06 to 0.9 s per point); a whole NFRC is ~600-1800 points
     (default scene: 1176 DLFT, 1830 RL), max_points at most. The treatments run at once on
     as many cores, one each (_workers): the time is that of the rounds they take, the
-    memory that of the treatments at once."""
+    memory that of the treatments at once.
+
+    The AFT's time signals (N_t samples of each of the 3 n_b boundary dof: displacements,
+    velocities, forces, the Jacobian's weights) add AFT_BYTES per sample and dof, and
+    AFT_SECONDS per sample and dof for each residual and Jacobian of a point (a few Newton
+    iterations: taken as 3); the time fitted above includes the AFT at the n_time it was
+    fitted with, so a point costs the larger of the two."""
     h = scene.hbm
     n_c = 2 * h.n_harmonics + 1
-    n_u = n_c * 3 * scene.mesh.n_boundary
-    per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9
+    n_r = 3 * scene.mesh.n_boundary
+    n_u = n_c * n_r
+    aft = AFT_BYTES * h.n_time * n_r
+    per_point = max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9,
+                    3 * AFT_SECONDS * h.n_time * n_r)
     points = min(h.max_points, 1500)
     at_once = _workers(len(outputs))
     from pipelines.guard import count
 
-    return Estimate(size=f"{len(outputs)} NFRC(s) of {count(n_u)} unknowns (N_h = {h.n_harmonics})",
-                    memory=(0.2e9 + 10 * n_u ** 2 * 8.0) * at_once,
+    dense = 10 * n_u ** 2 * 8.0
+    size = f"{len(outputs)} NFRC(s) of {count(n_u)} unknowns (N_h = {h.n_harmonics})"
+    advice = f"lower [hbm] n_harmonics (now {h.n_harmonics}; the reference is 40)"
+    if aft > dense:  # the AFT's signals, not the unknowns, drive the memory
+        size = f"{len(outputs)} NFRC(s) of {count(n_u)} unknowns (N_h = {h.n_harmonics}, N_t = {count(h.n_time)})"
+        advice = f"lower [hbm] n_time (now {h.n_time}; the reference is 1024)"
+    return Estimate(size=size, memory=(0.2e9 + dense + aft) * at_once,
                     seconds=-(-len(outputs) // at_once) * points * per_point,
                     disk=len(outputs) * h.max_points * (n_u + n_c * 3 * scene.mesh.n_boundary + 16) * 8.0,
-                    advice=f"lower [hbm] n_harmonics (now {h.n_harmonics}; the reference is 40)")
+                    advice=advice)
+
+
+#: Bytes of the AFT's time signals per sample (n_time) and boundary dof (3 n_b), rounded up
+#: from 86 B: one residual with its Jacobian and a Jacobian product on the coarse rotor 67
+#: ROM with every contact node in contact, N_h = 5, n_time = 2^14 to 2^18 (tracemalloc, DLFT
+#: and RL alike; the process's peak RSS rose by 77-79 B at 2^21).
+AFT_BYTES = 96.0
+#: Seconds per sample and boundary dof of one residual with its Jacobian and a Jacobian
+#: product, same measurement: 1.8e-7 (RL) to 6.1e-7 (DLFT) at n_time = 2^18, one core.
+AFT_SECONDS = 4e-7
 
 
 # hbm~methods: adding or removing a treatment leaves the other's NFRC current

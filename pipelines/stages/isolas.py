@@ -554,9 +554,13 @@ def _estimate(scene, out, outputs) -> Estimate:
     n_seeds = iso.n_modes * len([k for k in iso.harmonics if k <= h.n_harmonics]) * len(iso.amplitudes) * iso.n_omega
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
     seconds = len(h.methods) * (n_seeds * 2 * per_point / cores + 5 * 2 * iso.max_points * per_point / 4)
+    # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,
+    # whatever the seeds: the advice names the key that sets their number
+    workers = (f"lower [isolas] workers (now {iso.workers}; ~0.3 GB each)" if iso.workers is not None
+               else f"set [isolas] workers below {cores} (unset: one per core; ~0.3 GB each)")
     return Estimate(size=f"{n_seeds} seeds per treatment", memory=0.3e9 * cores, seconds=seconds,
                     disk=len(h.methods) * 10 * iso.max_points * n_c * 3 * scene.mesh.n_boundary * 8.0 * 2,
-                    advice="lower [isolas] n_omega, n_modes, harmonics or amplitudes")
+                    advice=workers)
 
 
 STAGE = Stage("isolas", depends=("isolas~workers", "hbm", "casing", "contact"), upstream=("rom", "hbm", "ti"),

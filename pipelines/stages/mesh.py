@@ -93,9 +93,21 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     n = _estimated_nodes(scene)
     if n is None:
         return None
-    return Estimate(size=nodes_text(n, False), memory=0.15e9 + 1.2e3 * n, seconds=5.0 + 1.5e-4 * n,
-                    disk=40.0 * n, advice=f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m; "
-                                          "0.00145 m gives ~200 000 nodes on rotor 67) or lower [mesh] edge_layers")
+    size, memory = nodes_text(n, False), 0.15e9 + 1.2e3 * n
+    advice = (f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m; "
+              "0.00145 m gives ~200 000 nodes on rotor 67) or lower [mesh] edge_layers")
+    # the contact nodes: mesh.blade.nearest_nodes snaps n_b camber points to the tip face's
+    # n_tip nodes through an (n_b, n_tip, 3) array of differences and its norms, ~7 doubles
+    # per pair at its peak; the n_b nodes are distinct tip nodes, so n_tip >= n_b
+    n_b = scene.mesh.n_boundary
+    snap = 7 * 8.0 * float(n_b) ** 2
+    if snap > memory:  # they, not the mesh, drive the memory
+        from pipelines.guard import count
+
+        size = f"{size}, {count(n_b)} contact nodes"
+        advice = f"lower [mesh] n_boundary (now {n_b}; 9 in the reference scenes)"
+    memory += snap
+    return Estimate(size=size, memory=memory, seconds=5.0 + 1.5e-4 * n, disk=40.0 * n, advice=advice)
 
 
 def _source(scene) -> dict:

@@ -227,14 +227,32 @@ def _estimate(scene, out, outputs) -> Estimate:
     # ~110 ns per step without contact, about 2.5 times more in contact (README, bench_ti);
     # over the default scene's whole sweep, early stops included, 110 ns per step of the full
     # 200 revolutions, idle machine, spread over the cores
+    # The grid itself is built only while it is small: n_omega is the user's (a scene may say
+    # 1e12 or 2**63 - 1, which np.linspace cannot hold or index), and the estimate must name
+    # it, not fail on it. Past GRID_SUM_MAX speeds, sum(1 / Omega) over the evenly spaced grid
+    # is n_omega times the mean of 1 / Omega over [omega_min, omega_max] (the integral mean,
+    # ln(max / min) / (max - min)); the two differ by O(1 / n_omega), < 1e-5 there.
+    from pipelines.guard import count
+
     t = scene.ti
-    omegas = t.omegas
-    steps = float(np.sum(t.n_revolutions * 2 * np.pi / (omegas * t.dt)))
+    if t.n_omega <= GRID_SUM_MAX:
+        inverse = float(np.sum(1.0 / t.omegas))
+    elif t.omega_max > t.omega_min:
+        inverse = t.n_omega * np.log(t.omega_max / t.omega_min) / (t.omega_max - t.omega_min)
+    else:
+        inverse = t.n_omega / t.omega_min
+    steps = t.n_revolutions * 2 * np.pi / t.dt * inverse
     cores = len(__import__("os").sched_getaffinity(0))
-    return Estimate(size=f"{t.n_omega} speeds, {steps:.3g} steps", memory=0.3e9 * min(cores, t.n_omega),
-                    seconds=110e-9 * steps / min(cores, t.n_omega),
-                    disk=t.n_omega * (t.n_keep * t.samples_per_revolution * 4 + 64) * 8.0,
+    disk = t.n_omega * (t.n_keep * t.samples_per_revolution * 4 + 64) * 8.0
+    # memory: ~0.3 GB per worker, and the sweep's result (hbm.ti.sweep.SweepResult, every
+    # speed's kept signals, what ti.h5 holds) gathered in this process before ti.h5 is written
+    return Estimate(size=f"{count(t.n_omega)} speeds, {steps:.3g} steps", memory=0.3e9 * min(cores, t.n_omega) + disk,
+                    seconds=110e-9 * steps / min(cores, t.n_omega), disk=disk,
                     advice="lower [ti] n_omega or n_revolutions, or raise dt")
+
+
+#: Most speeds for which _estimate sums over the grid itself (an 8 MB array, ~ms).
+GRID_SUM_MAX = 1_000_000
 
 
 # only mu of [contact]: the sweep's contact is exact (Lagrange multipliers), not DLFT or RL
