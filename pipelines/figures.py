@@ -221,12 +221,16 @@ BIFURCATION_MARKERS = {"fold": "o", "branch point": "s", "period doubling": "D",
 GUESSED = "0.6"
 
 
-def _stability_runs(stable, converged):
+def _stability_runs(stable, converged, n_unstable=None):
     """Runs [(start, stop, state)] of equal state ("stable", "unstable", "unknown") over the
-    converged points; a run ends one point into the next so that the curve stays connected."""
+    converged points; a run ends one point into the next so that the curve stays connected.
+    stable None: all unknown; n_unstable (m,) int, given: unknown where it is -1 (no verdict,
+    stored with stable False, which is not "unstable")."""
     n = len(converged)
     state = np.array(["unknown"] * n, dtype=object) if stable is None else \
         np.where(np.asarray(stable, bool), "stable", "unstable").astype(object)
+    if stable is not None and n_unstable is not None:
+        state[np.asarray(n_unstable) < 0] = "unknown"
     runs, i = [], 0
     while i < n:
         if not converged[i]:
@@ -247,7 +251,8 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     sweep's points by periodicity class.
 
     curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude
-    (m,) m, converged (m,) bool, stable (m,) bool or None)], kind one of KIND_COLOURS;
+    (m,) m, converged (m,) bool, stable (m,) bool or None[, n_unstable (m,) int or None])],
+    kind one of KIND_COLOURS, n_unstable -1 drawn as unknown;
     marks: [(bifurcation kind, omega rad/s, amplitude m[, guessed])], guessed (default False):
     the kind is a guess (no multiplier paired across the circle and the parities of the real
     ones do not tell, Bifurcation.kind_from), drawn
@@ -257,11 +262,11 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
     handles, seen_styles, seen_marks, seen_guess = [], set(), set(), False
     for t, (label, (lines, marks)) in enumerate(curves.items()):
-        for kind, omega, amp, conv, stable in lines:
+        for kind, omega, amp, conv, stable, *count in lines:
             colour = KIND_COLOURS.get(kind, KIND_COLOURS["detached"])[t % 2]
             omega, amp = np.asarray(omega, float), k * np.asarray(amp, float)
             conv = np.asarray(conv, bool)
-            for a, b, state in _stability_runs(stable, conv):
+            for a, b, state in _stability_runs(stable, conv, count[0] if count else None):
                 ax.plot(omega[a:b], amp[a:b], STABILITY_STYLES[state], color=colour, lw=1.3)
                 seen_styles.add(state)
             handles.append(Line2D([], [], color=colour, lw=1.3, label=f"{label} {kind}"))

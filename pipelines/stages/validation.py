@@ -771,7 +771,8 @@ def _stability_bounds(table: dict, stable) -> list:
 def draw_solution_set(ctx: Context) -> None:
     """Fig. 8: the solution set of each treatment (solution_set_METHOD.png) and both together
     (solution_set.png), from the files that exist; the bifurcations marked are those where a
-    stable stretch begins or ends (_stability_bounds)."""
+    stable stretch begins or ends (_stability_bounds); points without a verdict (n_unstable
+    -1) drawn as unknown."""
     import h5py
 
     from pipelines.branch_store import load_branch, read_table
@@ -786,10 +787,10 @@ def draw_solution_set(ctx: Context) -> None:
         t = getattr(validation, m) if validation is not None else None
         if path.is_file():
             s = load_branch(path)
-            stable = s.extras.get("stable")
+            stable, count = s.extras.get("stable"), s.extras.get("n_unstable")
             if stable is None and t is not None and len(t.nfrc_stable) == len(s.branch.omega):
                 stable = t.nfrc_stable  # computed by the validation stage
-            lines.append(("primary", s.branch.omega, s.extras["le_amplitude"], s.branch.converged, stable))
+            lines.append(("primary", s.branch.omega, s.extras["le_amplitude"], s.branch.converged, stable, count))
             with h5py.File(path, "r") as h5:
                 if "bifurcations" in h5:
                     marks += _stability_bounds({k: v for k, (v, _) in read_table(h5["bifurcations"]).items()},
@@ -797,7 +798,7 @@ def draw_solution_set(ctx: Context) -> None:
         for br in read_branch_set(out / ISOLAS, m):
             if br.kind != "primary":  # the search's branches of twice the period drawn as period-doubled ones
                 kind = "period-doubled" if br.subharmonic > scene.hbm.subharmonic else br.kind
-                lines.append((kind, br.omega, br.le_amplitude, br.converged, br.stable))
+                lines.append((kind, br.omega, br.le_amplitude, br.converged, br.stable, br.n_unstable))
                 if br.bifurcations is not None:
                     marks += _stability_bounds(br.bifurcations, br.stable)
         if t is not None:
@@ -805,7 +806,8 @@ def draw_solution_set(ctx: Context) -> None:
                       if p.found]
             if t.pd_branch.found and not t.period_doubling.branch.startswith(ISOLAS):  # else drawn above
                 d = t.pd_branch
-                lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable))
+                lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable,
+                              d.n_unstable if len(d.n_unstable) == len(d.omega) else None))
         curves[m.upper()] = (lines, marks)
     ti = None
     if (out / "ti.h5").is_file():
