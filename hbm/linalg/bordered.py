@@ -68,13 +68,15 @@ def eliminate_bordered(solve, J, c, p, q, r, s, refine_tol: float = 1e-6) -> Bor
             return -a - b * dw, dw
 
         dx, dw = eliminate(s, a)
-        for _ in range(2):  # check, refine once with the same factors, check again
+        for refine in (True, False):  # check, refine once with the same factors, check again
             if not finite(dx, dw):
                 raise SingularMatrixError("block elimination: non-finite step")
             eR = J @ dx + c * dw + r
             eP = p @ dx + q * dw + s
             if np.sqrt(eR @ eR + eP * eP) <= refine_tol * rhs_norm:
                 return BorderedStep(dx, float(dw), False)
+            if not refine:  # a second refinement would go unchecked: solve the whole instead
+                break
             cx, cw = eliminate(eP, np.asarray(solve(eR)).reshape(-1))
             dx, dw = dx + cx, dw + cw
     except SingularMatrixError:
