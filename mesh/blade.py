@@ -289,9 +289,30 @@ def points_along(polyline: np.ndarray, n: int) -> np.ndarray:
 
 
 def nearest_nodes(nodes: np.ndarray, candidates: np.ndarray, targets: np.ndarray) -> np.ndarray:
-    """(n,) the candidate node nearest to each of the (n, 3) targets (not necessarily distinct)."""
-    d = np.linalg.norm(nodes[candidates][None, :, :] - targets[:, None, :], axis=2)
-    return candidates[np.argmin(d, axis=1)].astype(np.int64)
+    """(n,) the candidate node nearest to each of the (n, 3) targets (not necessarily distinct).
+
+    A target midway between nodes (as on a regular mesh, to round-off) takes, of those, the
+    one of smallest axial coordinate z, then radius, then angle from the candidates' mean
+    angle: never the lower node index, so that the same blade numbered differently, or
+    turned about the axis, gets the same nodes."""
+    candidates = np.asarray(candidates, dtype=np.int64)
+    x = nodes[candidates]
+    d = np.linalg.norm(x[None, :, :] - targets[:, None, :], axis=2)
+    if not x.size:
+        return candidates[np.argmin(d, axis=1)]
+    tol = 1e-9 * float(np.abs(x).max())
+    r = np.hypot(x[:, 0], x[:, 1])
+    phi = np.arctan2(x[:, 1], x[:, 0])
+    arc = r * np.angle(np.exp(1j * (phi - np.angle(np.exp(1j * phi).mean()))))  # m, about the mean angle
+    out = np.empty(len(d), dtype=np.int64)
+    for k, row in enumerate(d):
+        s = np.flatnonzero(row <= row.min() + tol)
+        for key in (x[:, 2], r, arc):
+            if s.size == 1:
+                break
+            s = s[key[s] <= key[s].min() + tol]
+        out[k] = s[0]
+    return candidates[out]
 
 
 def contact_geometry(nodes: np.ndarray, index: np.ndarray, targets: np.ndarray | None = None) -> BoundaryNodes:

@@ -129,6 +129,19 @@ def read_geometry(path: Path | str, format: str = "rotor67", units: str = "ft") 
     return _read_rotor37(lines, path, scale)
 
 
+def _check_stations(z: np.ndarray, r: np.ndarray, path: Path, where: str, j0: int) -> None:
+    """The blade's stations must advance along the axis, LE to TE: a repeated point (zero
+    meridional step) or one that goes back would fold the section (and divide by zero in
+    the edge sizing). j0: the table's point number J of z[0]."""
+    dz = np.diff(z)
+    bad = np.flatnonzero(~(dz > 0))
+    if bad.size:
+        j = j0 + int(bad[0]) + 1
+        what = "repeated station" if dz[bad[0]] == 0 and r[bad[0] + 1] == r[bad[0]] else "axial distance not increasing"
+        raise GeometryError(f"{path}: {where}: {what} at point J={j} ({z[bad[0]]:.6g} m then "
+                            f"{z[bad[0] + 1]:.6g} m; the blade's stations must advance from LE to TE)")
+
+
 # --- rotor 67 -------------------------------------------------------------------------
 
 _BLOCKS = ("axial", "rtheta", "thickness", "radius")
@@ -245,6 +258,7 @@ def _read_rotor67(lines: list[str], path: Path, scale: float) -> BladeGeometry:
                                 f"{t[j - jle] / scale:g} at point J={j} inside the blade (JLE={jle}..JTE={jte})")
         if np.any(r <= 0):
             raise GeometryError(f"{path}: surface {k}, block 'Radius': non-positive radius inside the blade")
+        _check_stations(arrays[k, "axial"][blade], r, path, f"surface {k}, block 'Axial Distance'", jle)
         sections.append(Section(number=k, z=arrays[k, "axial"][blade], r=r,
                                 rtheta_upper=arrays[k, "rtheta"][blade], thickness=t))
     mz = np.stack([arrays[k, "axial"] for k in expected])
@@ -294,6 +308,9 @@ def _read_rotor37(lines: list[str], path: Path, scale: float) -> BladeGeometry:
         a = np.asarray(surfaces[k], dtype=float)
         if a.shape[0] < 3:
             raise GeometryError(f"{path}: surface {k} truncated: {a.shape[0]} points")
+        if not np.all(np.isfinite(a)):
+            row = int(np.flatnonzero(~np.all(np.isfinite(a), axis=1))[0])
+            raise GeometryError(f"{path}: surface {k}: non-finite value at row {row + 1} of the surface")
         j = a[:, 0]
         if not np.array_equal(j, np.arange(1, a.shape[0] + 1)):
             raise GeometryError(f"{path}: surface {k}: point numbers J are not 1..{a.shape[0]} in order "
@@ -301,6 +318,7 @@ def _read_rotor37(lines: list[str], path: Path, scale: float) -> BladeGeometry:
         z, r, t1, t2 = a[:, 1] * scale, a[:, 2] * scale, a[:, 3], a[:, 4]
         if np.any(r <= 0):
             raise GeometryError(f"{path}: surface {k}: non-positive radius")
+        _check_stations(z, r, path, f"surface {k}", 1)
         # THETA1 is the upper surface when the blade is of positive thickness t1 - t2.
         t = r * (t1 - t2)
         if np.any(t < -1e-12):
