@@ -498,6 +498,11 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
 #: then a crossing; an isola or detached branch keeps its own.
 _KIND_RANK = {"primary": 0, "bifurcated": 1}
 
+#: What a per-point extra holds at a point describe did not see (not converged), by numpy
+#: dtype kind: nan, False, -1 for a count (n_unstable -1: unknown, as in the NFRC files; a
+#: 0 there read "no multiplier out"), and text saying so.
+NOT_DESCRIBED = {"f": np.nan, "c": np.nan, "b": False, "i": -1, "u": -1, "O": "not converged", "U": "not converged"}
+
 
 def search(factory, seeds, known, options: SearchOptions, *, comm=None, corrections: Corrections | None = None,
            seed_factory=None, branches=(), bifurcation_points: KnownBranch | None = None, primaries: int | None = None,
@@ -625,13 +630,14 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 else ({}, 0.0)
             cpu_workers += cpu_desc
             tables = _reindexed(extras.pop("tables", {}), np.flatnonzero(ok))
-            if extras:  # per-point data of the converged points, nan (0, "") elsewhere
+            if extras:  # per-point data of the converged points; elsewhere NOT_DESCRIBED's value
                 full = {}
                 for name, v in extras.items():
                     v = np.asarray(v)
                     shape = (len(omega),) + v.shape[1:]
-                    arr = (np.zeros(shape, dtype=v.dtype) if v.dtype.kind in "biu"
-                           else np.full(shape, "", dtype=object) if v.dtype.kind in "OU" else np.full(shape, np.nan))
+                    fill = NOT_DESCRIBED.get(v.dtype.kind, np.nan)
+                    arr = np.full(shape, fill, dtype=object if v.dtype.kind in "OU" else
+                                  v.dtype if v.dtype.kind in "biu" else float)
                     arr[ok] = v
                     full[name] = arr
                 extras = full

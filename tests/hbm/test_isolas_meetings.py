@@ -97,3 +97,47 @@ def test_two_crossing_branches_meet_and_are_both_bifurcated_in_either_seed_order
         start = seeds[1].omega
         end = second.omega.max() if start < 0.5 else second.omega.min()
         assert abs(end - 0.5) <= 0.05 and (end - 0.5) * (start - 0.5) <= 0
+
+
+class Ends:
+    """R(x, w) = x - 0.01: the line x = 0.01, its residual NaN above Omega = 0.7, where Newton
+    fails and the continuation keeps the failed last point, marked. Picklable."""
+
+    def __call__(self, x, w, jacobian=True):
+        R = np.array([x[0] - 0.01]) if w <= 0.7 else np.array([np.nan])
+        if not jacobian:
+            return R
+        return R, np.array([[1.0]]), np.array([0.0])
+
+
+def ends():
+    return Ends(), DirectSolver()
+
+
+class Described:
+    """describe(omega, u): a count, a flag, a number and a text per point, as the stability
+    monitor gives (n_unstable 0, stable, le_amplitude, stability_note). Picklable."""
+
+    def __call__(self, omega, u):
+        m = len(omega)
+        return {"n_unstable": np.zeros(m, np.int64), "stable": np.ones(m, bool), "le_amplitude": u[:, 0].copy(),
+                "stability_note": np.array([""] * m, dtype=object)}
+
+
+def test_a_point_that_did_not_converge_has_no_description():
+    """The branch's failed last point (above Omega = 0.7) was given n_unstable 0 ("no
+    multiplier out") and an empty note; it has the files' unknown: -1, "not converged", nan."""
+    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.05, ds_min=1e-3, ds_max=0.1, x_scale=1.0,
+                             omega_scale=1.0, max_points=200, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-12, max_iter=6))
+    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=1, newton=NewtonOptions(tol_residual=1e-12))
+    res = search(ends, [Seed(0.3, np.array([0.0]), "on the line")], [], opts, describe=Described())
+    (b,) = res.branches
+    bad = ~np.asarray(b.converged, bool)
+    assert bad.sum() == 1 and b.omega[bad][0] > 0.7  # the failed point, past the NaN edge
+    ex = b.extras
+    assert ex["n_unstable"][bad].tolist() == [-1] and set(ex["n_unstable"][~bad]) == {0}
+    assert ex["stability_note"][bad].tolist() == ["not converged"] and set(ex["stability_note"][~bad]) == {""}
+    assert not ex["stable"][bad].any() and ex["stable"][~bad].all()
+    assert np.isnan(ex["le_amplitude"][bad]).all()
+    np.testing.assert_allclose(ex["le_amplitude"][~bad], 0.01, atol=1e-12)
