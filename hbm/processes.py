@@ -122,7 +122,7 @@ def reported_deaths(what: str, tasks: Callable[[], str] | None = None):
         raise worker_died(what, tasks() if tasks is not None else "") from exc
 
 
-#: In a pool's worker process: the pool's start flags (set_start_flags), or None.
+#: In a pool's worker process: (its pid, the pool's start flags) (set_start_flags), or None.
 _STARTED = None
 
 
@@ -139,22 +139,25 @@ def start_flags(context, n: int):
 
 
 def set_start_flags(flags) -> None:
-    """Pool initializer (or part of one): this worker's tasks set their flags in `flags`."""
+    """Pool initializer (or part of one): this worker's tasks set their flags in `flags`
+    (this process's only: a pool started from a task forks workers that inherit them, whose
+    tasks are not this pool's)."""
     global _STARTED
-    _STARTED = flags
+    _STARTED = (os.getpid(), flags)
 
 
 def run_flagged(i: int, fn, *args):
     """fn(*args) as task i of a pool, its flag set around it (start_flags). fn travels with
     the task: a spawned worker imports its module afresh, where a test's replacement of a
     module function would be lost."""
-    if _STARTED is None:
+    if _STARTED is None or _STARTED[0] != os.getpid():  # not a worker of a flagged pool (or one it started)
         return fn(*args)
-    _STARTED[i] = 1
+    flags = _STARTED[1]
+    flags[i] = 1
     try:
         return fn(*args)
     finally:
-        _STARTED[i] = 2
+        flags[i] = 2
 
 
 def running(flags) -> list[int]:

@@ -38,6 +38,7 @@ from pathlib import Path
 
 from pipelines import artifacts as art
 from pipelines import folder
+from pipelines.child import ChildDied
 from pipelines.errors import Interrupted, Refused, StageFailed
 from pipelines.parallel import is_root, on_all, on_root, world
 from pipelines.progress import Progress
@@ -271,11 +272,13 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
                 if not detailed:
                     kept.append(f"the {_PARTS.get(o.file, 'points')} of {names}")
                     continue
-                counts = [art.read_attrs(f) for f in files]
+                # only those of these inputs: the stage starts over from a partial file of others
+                counts = {f: art.read_attrs(f) for f in files}
+                counts = {f: a for f, a in counts.items() if a.get("inputs_hash") == expected[o.file][1]}
                 for what in ("points", "branches", "speeds"):
-                    n = sum(int(a.get(f"n_{what}", 0)) for a in counts)
+                    n = sum(int(a.get(f"n_{what}", 0)) for a in counts.values())
                     if n:
-                        kept.append(f"{n} {what} of {names}")
+                        kept.append(f"{n} {what} of {', '.join(f.name for f in counts)}")
                         break
     return ", ".join(kept) if kept else "nothing new"
 
@@ -454,6 +457,14 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         on_root(comm, lambda: update_figures(scene, out, [s.stage for s in steps], progress))
     except KeyboardInterrupt:
         raise Interrupted(describe()) from None
+    except _FigureFailed as exc:  # after the stages: not "nothing was computed" (a ValueError's exit 2)
+        raise StageFailed(f"figure {exc.figure} failed: {art.first_line(exc.__cause__)}; kept: {kept()}") from exc
+    except ChildDied as exc:  # a stage's own process that ended without a word: the stage and what was kept
+        raise StageFailed(f"{where} failed: {exc}; kept: {kept()}") from exc
+    except SystemExit as exc:  # a child's sys.exit(), re-raised here (pipelines.child): never the run's own code
+        code = exc.code if exc.code is None or isinstance(exc.code, int) else repr(exc.code)
+        raise StageFailed(f"{where} failed: a process of it exited (code {0 if code is None else code}) "
+                          f"without an answer; kept: {kept()}") from None
     except OSError as exc:
         text = os.strerror(exc.errno) if exc.errno else art.first_line(exc)
         name = f" {exc.filename}" if getattr(exc, "filename", None) else ""
@@ -462,6 +473,14 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         for started in ahead.values():  # the run stopped before their turn
             started.cancel()
         _describe = None
+
+
+class _FigureFailed(ValueError):
+    """A figure's drawing raised a ValueError (its __cause__); figure: its name."""
+
+    def __init__(self, figure: str):
+        super().__init__(f"figure {figure} failed")
+        self.figure = figure
 
 
 def figure_components(scene, out: Path, fig: Figure) -> dict:
@@ -537,7 +556,10 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
                     record.why = f"inputs changed: {named}" if named else "inputs changed"
                 else:
                     record.why = "file missing or damaged"
-                fig.draw(Context(scene, out, progress))
+                try:
+                    fig.draw(Context(scene, out, progress))
+                except ValueError as exc:
+                    raise _FigureFailed(fig.name) from exc
             manifest[fig.name] = {"inputs": h, "components": comp,
                                   "files": {f: file_hash(folder_ / f) for f in files if (folder_ / f).is_file()}}
             folder_.mkdir(parents=True, exist_ok=True)

@@ -1,0 +1,99 @@
+"""Faults of a stage that the runner reports (pipelines.runner._execute, _kept): a stage's child
+process that ends without a word, a figure whose drawing raises a ValueError, a partial file
+left for other inputs. Each is one line naming the stage (or figure) and what was kept, exit 1.
+
+The stages are the coarse scene's mesh stage with its compute (or figures) replaced: nothing is
+meshed, a run takes well under a second (a spawned child: about one more).
+"""
+from __future__ import annotations
+
+import dataclasses
+import os
+import sys
+
+import h5py
+import pytest
+
+from pipelines.child import call_in_child
+from pipelines.cli import main
+from pipelines.runner import expected_inputs
+from pipelines.scene import load_scene
+from pipelines.stages import REGISTRY
+from pipelines.stages.base import Figure
+from support import coarse_text
+
+
+def one_line(err: str) -> str:
+    lines = [line for line in err.splitlines() if line.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+@pytest.fixture
+def scene(tmp_path):
+    path = tmp_path / "scene.toml"
+    path.write_text(coarse_text())
+    return path
+
+
+def mesh_stage(monkeypatch, compute=None, figures=None):
+    s = REGISTRY["mesh"]
+    changes = {"compute": compute} if compute is not None else {}
+    if figures is not None:
+        changes["figures"] = figures
+    monkeypatch.setitem(REGISTRY, "mesh", dataclasses.replace(s, **changes))
+
+
+def run(scene, out):
+    return main(["run", str(scene), "--out", str(out), "--until", "mesh", "--quiet"])
+
+
+@pytest.mark.parametrize("child, said", [
+    ((os._exit, 3), "_exit ended without an answer (exit code 3)"),  # killed or crashed: no answer
+    ((sys.exit, 3), "a process of it exited (code 3) without an answer"),  # re-raised by call_in_child
+])
+def test_a_stage_child_that_exits_without_a_word_is_one_line_naming_the_stage(child, said, scene, tmp_path,
+                                                                               monkeypatch, capsys):
+    # before: "bladerub: error: _exit ended without an answer (exit code 3)" (no stage, nothing
+    # said kept), and for sys.exit(3) no line at all and the child's code as the run's (sys.exit(0): 0)
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: call_in_child(*child))
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == f"bladerub: error: stage mesh failed: {said}; kept: nothing new"
+
+
+def test_a_stage_raising_system_exit_0_is_not_a_run_done(scene, tmp_path, monkeypatch, capsys):
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: sys.exit(0))
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == ("bladerub: error: stage mesh failed: a process of it exited (code 0) "
+                                                 "without an answer; kept: nothing new")
+
+
+def test_a_figure_raising_a_value_error_fails_the_run_with_exit_1_naming_the_figure(scene, tmp_path, monkeypatch,
+                                                                                    capsys):
+    # before: exit 2 ("nothing was computed") with the bare "bladerub: error: x and y must ..."
+    def draw(ctx):
+        raise ValueError("x and y must have same first dimension, but have shapes (3,) and (4,)")
+
+    fig = Figure("bad", lambda s: ("bad.png",), (), lambda s: ("scene.toml",), draw)
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: None, figures=(fig,))
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == (
+        "bladerub: error: figure bad failed: x and y must have same first dimension, but have shapes (3,) and (4,); "
+        "kept: mesh.h5")
+
+
+def test_a_partial_file_of_other_inputs_is_not_said_kept(scene, tmp_path, monkeypatch, capsys):
+    # rank 0's partial file left by a run of other inputs (the stage starts over from it), rank 1's
+    # of these inputs; before: "kept: 17 points of mesh.partial.h5, mesh.r1.partial.h5"
+    h = expected_inputs(load_scene(scene), ("mesh",))["mesh.h5"][1]
+    for name, n, inputs_hash in (("mesh.partial.h5", 12, "other inputs"), ("mesh.r1.partial.h5", 5, h)):
+        with h5py.File(tmp_path / name, "w") as f:
+            f.attrs["n_points"], f.attrs["inputs_hash"] = n, inputs_hash
+
+    def full(ctx, outputs):
+        raise OSError(28, "No space left on device")
+
+    mesh_stage(monkeypatch, compute=full)
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == ("bladerub: error: stage mesh failed: No space left on device; "
+                                                 "kept: 5 points of mesh.r1.partial.h5")
