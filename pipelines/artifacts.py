@@ -14,6 +14,7 @@ from __future__ import annotations
 
 import dataclasses
 import datetime
+import errno
 import hashlib
 import json
 import os
@@ -111,7 +112,22 @@ def commit(tmp: Path | str, path: Path | str) -> Path:
     with open(tmp, "rb") as fh:
         os.fsync(fh.fileno())
     os.replace(tmp, path)
+    _fsync_folder(Path(path).parent)  # the rename itself on disk: else a crash may undo it
     return Path(path)
+
+
+def _fsync_folder(folder: Path) -> None:
+    try:
+        fd = os.open(folder, os.O_RDONLY | os.O_DIRECTORY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError as exc:  # file systems that cannot sync a folder
+        if exc.errno not in (errno.EINVAL, errno.EBADF, errno.ENOTSUP, errno.EROFS):
+            raise
+    finally:
+        os.close(fd)
 
 
 #: Temporary names are ".NAME.tmpPID" beside NAME (pipelines.folder removes those a killed
@@ -208,8 +224,57 @@ def _content_bytes(ds: h5py.Dataset) -> np.ndarray:
     return np.ascontiguousarray(data).reshape(-1).view(np.uint8)
 
 
+#: Key of `checksums` that covers, beside the datasets, every attribute of every group and
+#: dataset (strings of a result are attributes, as are a CSR matrix's shape and the units)
+#: and the list of groups and datasets (one added or removed). Files of earlier versions
+#: lack it: their datasets alone are verified.
+LAYOUT = "/layout"
+
+
+def _attr_bytes(value) -> bytes:
+    if isinstance(value, str):
+        return b"s" + value.encode("utf-8", "surrogatepass")
+    if isinstance(value, bytes):
+        return b"b" + bytes(value)
+    if isinstance(value, h5py.Empty):
+        return b"e" + str(value.dtype).encode()
+    arr = np.asarray(value)
+    head = f"{arr.dtype.str}{arr.shape}".encode()
+    if arr.dtype.kind == "O":
+        parts = []
+        for item in arr.reshape(-1):
+            b = _attr_bytes(item)
+            parts += [len(b).to_bytes(8, "little"), b]
+        return b"o" + head + b"".join(parts)
+    return b"a" + head + np.ascontiguousarray(arr).tobytes()
+
+
+def _layout_checksum(h5: h5py.File) -> str:
+    """The hash of the names of every group and dataset and of every attribute (but the
+    root's `checksums`), in sorted order."""
+    objs = {"": h5}
+    h5.visititems(lambda name, obj: objs.__setitem__(name, obj))
+    h = hashlib.sha256(b"layout")
+
+    def put(b: bytes):
+        h.update(len(b).to_bytes(8, "little"))
+        h.update(b)
+
+    for name in sorted(objs):
+        obj = objs[name]
+        put((b"D" if isinstance(obj, h5py.Dataset) else b"G" if isinstance(obj, h5py.Group) else b"?")
+            + name.encode("utf-8", "surrogatepass"))
+        for key in sorted(obj.attrs.keys()):
+            if name == "" and key == CHECKSUMS:
+                continue
+            put(key.encode("utf-8", "surrogatepass"))
+            put(_attr_bytes(obj.attrs[key]))
+    return f"{_ALGORITHM}:{h.hexdigest()}"
+
+
 def dataset_checksums(h5: h5py.File, names=None) -> dict:
-    """{dataset path: checksum} of the datasets of an open file (all, or those named).
+    """{dataset path: checksum} of the datasets of an open file (all, or those named), and
+    with all (or when named) the LAYOUT entry: its attributes and list of groups and datasets.
 
     A checksum covers the dataset's dtype, shape and its bytes in C order. Contiguous
     datasets (the large ones: K, M, modes) are read in place from a memory map of the file,
@@ -217,7 +282,9 @@ def dataset_checksums(h5: h5py.File, names=None) -> dict:
     Flush a file open for writing first. Raises KeyError for a name that is not a dataset.
     """
     found = _datasets(h5)
-    names = sorted(found) if names is None else list(names)
+    names = sorted(found) + [LAYOUT] if names is None else list(names)
+    layout = {LAYOUT: _layout_checksum(h5)} if LAYOUT in names else {}
+    names = [n for n in names if n != LAYOUT]
     with open(h5.filename, "rb") as fh:
         size = os.fstat(fh.fileno()).st_size
         whole = mmap.mmap(fh.fileno(), 0, access=mmap.ACCESS_READ) if size else None
@@ -247,6 +314,7 @@ def dataset_checksums(h5: h5py.File, names=None) -> dict:
                     for f in fs:
                         h.update(f.result())
                     out[name] = f"{_ALGORITHM}:{h.hexdigest()}"
+            out.update(layout)
             return out
         finally:
             for v in views:
@@ -280,14 +348,17 @@ def verify(path: Path | str) -> str | None:
             if any(not str(v).startswith(f"{_ALGORITHM}:") for v in sums.values()):
                 return "no checksums this version can verify (written by another version)"
             found = _datasets(h5)
-            missing = sorted(set(sums) - set(found))
+            missing = sorted(set(sums) - set(found) - {LAYOUT})
             if missing:
                 more = f" (and {len(missing) - 1} more)" if len(missing) > 1 else ""
                 return f"damaged: dataset '{missing[0]}' is missing{more}"
             now = dataset_checksums(h5, sums)
     except (OSError, RuntimeError, ValueError, KeyError) as exc:
         return f"damaged: unreadable ({first_line(exc)})"
-    bad = [name for name in sorted(sums) if now[name] != sums[name]]
+    bad = [name for name in sorted(sums) if name != LAYOUT and now[name] != sums[name]]
+    if not bad and LAYOUT in sums and now[LAYOUT] != sums[LAYOUT]:
+        return ("damaged: an attribute, or the list of groups and datasets, changed on disk "
+                "(checksum mismatch)")
     if bad:
         more = f" (and {len(bad) - 1} more)" if len(bad) > 1 else ""
         return f"damaged: dataset '{bad[0]}' changed on disk (checksum mismatch){more}"

@@ -16,6 +16,7 @@ import errno
 import fcntl
 import json
 import os
+import re
 import socket
 import time
 from contextlib import contextmanager
@@ -102,6 +103,16 @@ def _holder_of(path: Path) -> str:
         os.close(fd)
 
 
+def _names(fd: int, path: Path) -> bool:
+    """Whether `path` still names the file open as fd."""
+    st = os.fstat(fd)
+    try:
+        cur = os.stat(path)
+    except FileNotFoundError:
+        return False
+    return (st.st_dev, st.st_ino) == (cur.st_dev, cur.st_ino)
+
+
 @contextmanager
 def hold(out: Path, command: str):
     """Hold the folder's lock for the duration of the block, or raise FolderBusy naming the
@@ -115,6 +126,9 @@ def hold(out: Path, command: str):
         fd = _open_lock(path)
         shared = os.fstat(fd).st_nlink > 1
         _take(fd, path, out, shared)
+        if shared and not _names(fd, path):
+            os.close(fd)  # replaced since it was opened (by another run of this folder): again
+            continue
         if shared:
             try:
                 with atomic_output(path) as tmp:
@@ -125,13 +139,8 @@ def hold(out: Path, command: str):
             finally:
                 os.close(fd)
             continue
-        st = os.fstat(fd)
-        try:
-            cur = os.stat(path)
-            if (st.st_dev, st.st_ino) == (cur.st_dev, cur.st_ino):
-                break
-        except FileNotFoundError:
-            pass
+        if _names(fd, path):
+            break
         os.close(fd)  # replaced or removed since it was opened (by the above in another run): again
     else:
         raise FolderError(f"cannot lock {path}: the lock file keeps being replaced")
@@ -145,15 +154,35 @@ def hold(out: Path, command: str):
         os.close(fd)  # releases the lock
 
 
+#: ".NAME.tmpPID" (pipelines.artifacts.temp_path), and nothing else: not a user's ".notes.tmp".
+_TEMP_NAME = re.compile(r"\..+" + re.escape(TEMP_MARK) + r"([0-9]+)\Z", re.S)
+
+
+def _alive(pid: int) -> bool:
+    """Whether another process `pid` runs (its temporary file may be in the writing: a
+    second run's probe of `prepare`, which does not hold the lock)."""
+    if pid == os.getpid() or pid <= 0:
+        return False
+    try:
+        os.kill(pid, 0)
+    except (ProcessLookupError, OverflowError):  # none, or no pid at all
+        return False
+    except PermissionError:  # another user's
+        return True
+    return True
+
+
 def remove_orphans(out: Path) -> list[tuple[str, int]]:
     """Remove the temporary files that runs killed while writing left in `out` (and figures/);
-    call it only while holding the lock. Returns [(name, bytes)] of those removed."""
+    call it only while holding the lock. A file whose process still runs is kept.
+    Returns [(name, bytes)] of those removed."""
     removed = []
     for folder in (Path(out), Path(out) / "figures"):
         if not folder.is_dir():
             continue
         for p in folder.iterdir():
-            if p.name.startswith(".") and TEMP_MARK in p.name and p.is_file() and not p.is_symlink():
+            m = _TEMP_NAME.match(p.name)
+            if m and p.is_file() and not p.is_symlink() and not _alive(int(m.group(1))):
                 size = p.stat().st_size
                 try:
                     p.unlink()
