@@ -406,9 +406,10 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     """Dynamical content along branches (paper Figs. 11 and 12) against Omega, one panel per
     branch, each drawn in its points' order (an isola is a loop in these planes too).
 
-    curves: {label: (omega (m,) rad/s, contributions (m, n), nu)}, nu the branch's
-    subharmonic order (its harmonic k oscillates at k Omega / nu; (omega, contributions)
-    means nu = 1). kind "modal": contributions are eq. (33)'s relative modal contributions
+    curves: {label: (omega (m,) rad/s, contributions (m, n), nu[, converged (m,) bool])}, nu the
+    branch's subharmonic order (its harmonic k oscillates at k Omega / nu; (omega, contributions)
+    means nu = 1); converged, given: the points not converged are not drawn (a gap in the line).
+    kind "modal": contributions are eq. (33)'s relative modal contributions
     (column j: mode j + 1); the first `n_modes` modes are drawn and the rest summed, as in
     Fig. 11, with the 0.5 line. kind "harmonic": column k is |c_k| of the LE radial
     displacement, m (eq. 34), drawn in mm for k in `harmonics` (the five largest where none of
@@ -418,8 +419,14 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     the most points are drawn when there are more; a branch without any finite
     contribution is left out.
     """
+    def masked(v):  # a point not converged (its 4th item, optional) is left out: the line breaks there
+        c = np.asarray(v[1], float)
+        if len(v) > 3 and v[3] is not None:
+            c = np.where(np.asarray(v[3], bool)[:, None], c, np.nan)
+        return (v[0], c, v[2] if len(v) > 2 else 1)
+
     # a branch with no finite contribution (none of its points converged) has nothing to draw
-    items = [(k, v) for k, v in curves.items() if np.isfinite(np.asarray(v[1], float)).any()]
+    items = [(k, v) for k, v in ((k, masked(v)) for k, v in curves.items()) if np.isfinite(v[1]).any()]
     dropped = max(0, len(items) - MAX_CONTENT_PANELS)
     if dropped:
         keep = sorted(sorted(range(len(items)), key=lambda i: -len(items[i][1][0]))[:MAX_CONTENT_PANELS])
@@ -430,6 +437,23 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     fig, axes = plt.subplots(nrows, ncols, figsize=size, constrained_layout=True, squeeze=False)
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     handles = {}
+    drawn, k_colour = {}, {}
+    if kind != "modal":
+        for label, entry in items:
+            c = np.asarray(entry[1], float)
+            ks = [k for k in harmonics if k < c.shape[1] and np.nanmax(c[:, k]) > 1e-3 * np.nanmax(c)]
+            ks = ks or sorted(int(k) for k in np.argsort(-np.nanmax(c, axis=0))[:5])
+            top = 1 + int(np.nanargmax(np.nanmax(c[:, 1:], axis=0))) if c.shape[1] > 1 else 0
+            drawn[label] = sorted(set(ks) | {top})  # the dominant harmonic, e.g. the 3rd of a 3 Omega = omega_1 isola
+        # one colour per harmonic over all panels, none shared: k < 10 keeps the colour cycle's k-th, a
+        # higher k (k = 12 once shared k = 2's) takes one of colours unused so far
+        every = sorted(set().union(*drawn.values())) if drawn else []
+        k_colour = {k: colours[k] for k in every if k < len(colours)}
+        high = [k for k in every if k >= len(colours)]
+        extra = [matplotlib.colors.to_hex(plt.cm.tab20(i)) for i in range(1, 20, 2)]
+        if len(high) > len(extra):
+            extra = [matplotlib.colors.to_hex(plt.cm.turbo(v)) for v in np.linspace(0.05, 0.95, len(high))]
+        k_colour.update(zip(high, extra))
     for ax, (label, entry) in zip(axes.ravel(), items):
         omega, c = np.asarray(entry[0], float), np.asarray(entry[1], float)
         nu = int(entry[2]) if len(entry) > 2 else 1
@@ -442,11 +466,8 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
             ax.axhline(0.5, color="0.5", lw=0.8, ls=":")
             ax.set_ylim(0.0, 1.0)
         else:
-            ks = [k for k in harmonics if k < c.shape[1] and np.nanmax(c[:, k]) > 1e-3 * np.nanmax(c)]
-            ks = ks or sorted(int(k) for k in np.argsort(-np.nanmax(c, axis=0))[:5])
-            top = 1 + int(np.nanargmax(np.nanmax(c[:, 1:], axis=0))) if c.shape[1] > 1 else 0
-            ks = sorted(set(ks) | {top})  # the branch's dominant harmonic, e.g. the 3rd of a 3 Omega = omega_1 isola
-            cols = [(k, f"k = {k}", colours[k % len(colours)]) for k in ks]
+            ks = drawn[label]
+            cols = [(k, f"k = {k}", k_colour[k]) for k in ks]
             lines = [1e3 * c[:, k] for k in ks]
         for (key, name, colour), y in zip(cols, lines):
             ax.plot(omega, y, color=colour, lw=1.0)

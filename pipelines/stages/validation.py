@@ -846,9 +846,9 @@ def draw_content(ctx: Context) -> None:
                 continue
             label = f"{m.upper()} isola {br.name}"
             if br.modal_contribution is not None:
-                modal[label] = (br.omega, br.modal_contribution, br.subharmonic)
+                modal[label] = (br.omega, br.modal_contribution, br.subharmonic, br.converged)
             if br.harmonic_contribution is not None:
-                harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic)
+                harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic, br.converged)
     freq = None
     if harmonic and (out / "rom.h5").is_file():
         rom = read_rom(out)
