@@ -78,10 +78,13 @@ def mode_coefficients(bifurcation: Bifurcation, n_harmonics: int, target_omega: 
                              f"(Im lam = {beta:.6g} 1/s, basis {bifurcation.mode_omega:.6g} rad/s)")
         if abs(m) <= n_harmonics:
             out[m + n_harmonics] += c[k + nh_a]
+    # the phase: the eigenvector's is arbitrary, and Re(exp(-i phi) f) is largest where
+    # phi = arg(int f^2) / 2 (int f(t)^2 dt ~ sum_m c_m c_-m): rotate f before taking Re
+    z = np.sum(out * out[::-1])
+    if z != 0.0:
+        out = out * np.exp(-0.5j * np.angle(z))
     full = 0.5 * (out + np.conj(out[::-1]))  # Re(.) = (f + conj f) / 2
-    y = real_coefficients(full)
-    z = np.sum(y * y)
-    y = (y * np.exp(-0.5j * np.angle(z))).real
+    y = real_coefficients(full).real
     nrm = np.linalg.norm(y)
     if nrm == 0.0:
         raise ValueError("the critical mode has no content in the target basis")
