@@ -499,9 +499,9 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
 _KIND_RANK = {"primary": 0, "bifurcated": 1}
 
 #: What a per-point extra holds at a point describe did not see (not converged), by numpy
-#: dtype kind: nan, False, -1 for a count (n_unstable -1: unknown, as in the NFRC files; a
+#: dtype kind: nan, False, -1 for a signed count (n_unstable -1: unknown, as in the NFRC files; a
 #: 0 there read "no multiplier out"), and text saying so.
-NOT_DESCRIBED = {"f": np.nan, "c": np.nan, "b": False, "i": -1, "u": -1, "O": "not converged", "U": "not converged"}
+NOT_DESCRIBED = {"f": np.nan, "c": np.nan, "b": False, "i": -1, "u": 0, "O": "not converged", "U": "not converged"}
 
 
 def search(factory, seeds, known, options: SearchOptions, *, comm=None, corrections: Corrections | None = None,
