@@ -306,6 +306,7 @@ def full_field_instants(rom, res, u, omega: float, n_instants: int):
 
     rom: RomModel with its recovery matrix (3 n_nodes, n). res: the HBM residual of that
     solution (its harmonics and linear-dof recovery). u: the point's unknowns; omega, rad/s.
+    The period is that of the basis, 2 pi nu / Omega (nu = [hbm] subharmonic: nu revolutions).
     Returns (t (N,), s; displacement (N, n_nodes, 3), m).
     """
     import numpy as np
@@ -317,7 +318,7 @@ def full_field_instants(rom, res, u, omega: float, n_instants: int):
     basis = FourierBasis(nh, per * n_instants)
     x = basis.to_time(res.expand_harmonics(u, omega))[::per]  # (N, n) ROM dof, m
     field = np.asarray(rom.recovery, dtype=np.float64) @ x.T  # (3 n_nodes, N)
-    return basis.tau[::per] / omega, field.T.reshape(n_instants, -1, 3)
+    return basis.tau[::per] / res.fundamental(omega), field.T.reshape(n_instants, -1, 3)
 
 
 def write_hbm_vtu(ctx: Context) -> None:
