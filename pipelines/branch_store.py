@@ -285,6 +285,19 @@ def _h5_dtype(v: np.ndarray):
     return h5py.string_dtype() if _is_text(v) else v.dtype
 
 
+def write_column(group, name: str, value, unit: str) -> None:
+    """A whole per-point dataset `name` of `group` with its unit; text as variable-length strings."""
+    v = np.asarray(value)
+    group.create_dataset(name, data=v.astype(object) if _is_text(v) else v, dtype=_h5_dtype(v)).attrs["unit"] = unit
+
+
+def read_column(ds, stop: int | None = None) -> np.ndarray:
+    """A per-point dataset's rows up to `stop` (all by default); text as an object array of str."""
+    if h5py.check_string_dtype(ds.dtype):
+        return np.array(ds.asstr()[:stop], dtype=object)
+    return ds[:stop] if ds.ndim else ds[()]
+
+
 def _datasets(h5: h5py.File):
     yield from (h5[name] for name in _FIELDS)
     yield from h5["extras"].values()
@@ -311,8 +324,7 @@ def load_branch(path: Path | str, *, allow_partial: bool = False) -> StoredBranc
             raise ValueError(f"{path} is not a complete branch file (interrupted run?); "
                              f"pass allow_partial=True to read its points")
         arrays = {name: h5[name][:m] for name in _FIELDS}
-        extras = {name: (np.array(ds.asstr()[:m], dtype=object) if h5py.check_string_dtype(ds.dtype) else ds[:m])
-                  for name, ds in h5["extras"].items()}
+        extras = {name: read_column(ds, m) for name, ds in h5["extras"].items()}
     branch = Branch(**arrays, status=attrs["status"], detail=attrs["detail"])
     return StoredBranch(branch, extras, attrs, complete)
 

@@ -122,10 +122,15 @@ def _suggest(word: str, choices) -> str:
     return f" (did you mean '{close[0]}'?)" if close else ""
 
 
+def _owners(key: str, besides: str = "") -> list[str]:
+    """The sections (but `besides`) that have a key `key`."""
+    return [sec for sec, cls in SECTIONS.items()
+            if sec != besides and key in {f.name for f in dataclasses.fields(cls) if f.init}]
+
+
 def _elsewhere(key: str, section: str) -> str:
     """" (a key of [ti])" when `key`, unknown in [section], is a key of other sections, else ""."""
-    owners = [f"[{sec}]" for sec, cls in SECTIONS.items()
-              if sec != section and key in {f.name for f in dataclasses.fields(cls) if f.init}]
+    owners = [f"[{sec}]" for sec in _owners(key, section)]
     return f" (a key of {' and '.join(owners)}, not of [{section}])" if owners else ""
 
 
@@ -316,8 +321,7 @@ def parse_scene(text: str, path: Path | str = Path("scene.toml"), overrides=()) 
         raise SceneError(f"top-level 'name' must be a string, got {name!r}")
     for key in data:
         if key not in SECTIONS and not isinstance(data[key], dict):  # a key above every [section]
-            owners = [sec for sec, cls in SECTIONS.items()
-                      if key in {f.name for f in dataclasses.fields(cls) if f.init}]
+            owners = _owners(key)
             hint = f" (a key of [{owners[0]}]: write it below that section's header)" if len(owners) == 1 else ""
             raise SceneError(f"unknown top-level key '{key}' in {path}{hint}; the only top-level key is 'name', "
                              f"the others belong in sections: {', '.join(SECTIONS)}")

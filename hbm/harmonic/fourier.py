@@ -142,8 +142,7 @@ class FourierBasis:
         """
         w = np.asarray(weights, dtype=float)
         nh, nt = self.n_harmonics, self.n_time
-        if w.ndim == 0 or w.shape[-1] != nt:
-            raise ValueError(f"weights must have {nt} samples along the last axis, got shape {w.shape}")
+        self._check_length(w, -1, nt, "weights (n_time samples)")
         if nt // 2 >= 2 * nh:
             W = sfft.rfft(w, axis=-1)[..., :2 * nh + 1] / nt
         else:  # orders k + l beyond N_t / 2 alias: take them from the full FFT

@@ -39,7 +39,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from pipelines import artifacts as art
-from pipelines.branch_store import read_table, write_tables
+from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
 from pipelines.stages.rom import read_rom
 
@@ -100,13 +100,6 @@ def _text(v) -> str:
     return v.decode() if isinstance(v, bytes) else str(v)
 
 
-def _column(ds) -> np.ndarray:
-    """A per-point dataset; text (stability_note) as an object array of str."""
-    import h5py
-
-    return np.array(ds.asstr()[()], dtype=object) if h5py.check_string_dtype(ds.dtype) else ds[()]
-
-
 def read_isolas(path) -> dict[str, list[IsolaBranch]]:
     """{method: [IsolaBranch, ...]} of an isolas.h5 (branches in index order)."""
     import h5py
@@ -130,7 +123,7 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     converged=b["converged"][()].astype(bool), le_amplitude=b["le_amplitude"][()],
                     harmonics=b["harmonics"][()], stable=b["stable"][()].astype(bool) if "stable" in b else None,
                     n_unstable=b["n_unstable"][()] if "n_unstable" in b else None,
-                    stability_note=_column(b["stability_note"]) if "stability_note" in b else None,
+                    stability_note=read_column(b["stability_note"]) if "stability_note" in b else None,
                     modal_contribution=b["modal_contribution"][()] if "modal_contribution" in b else None,
                     harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None,
                     bifurcations=({k: v for k, (v, _) in read_table(b["bifurcations"]).items()}
@@ -142,15 +135,11 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
 
 # -- writing ---------------------------------------------------------------------------------
 def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
-    import h5py
-
     data = {"omega": fb.omega, "x": fb.x, "converged": np.asarray(fb.converged, bool)}
     data.update({k: v for k, v in fb.extras.items() if k in _UNITS})
     data.update({k: v for k, v in (content or {}).items() if k in _UNITS})
     for name, v in data.items():
-        v = np.asarray(v)
-        text = {"dtype": h5py.string_dtype()} if v.dtype.kind in "OU" else {}  # stability_note
-        group.create_dataset(name, data=v.astype(object) if text else v, **text).attrs["unit"] = _UNITS[name]
+        write_column(group, name, v, _UNITS[name])
     write_tables(group, fb.extras.get("tables", {}))
     a = group.attrs
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
@@ -164,7 +153,7 @@ def _read_found(group):
 
     a = group.attrs
     # per-point datasets read back into the FoundBranch's extras (resume)
-    extras = {k: _column(group[k]) for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
+    extras = {k: read_column(group[k]) for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
     if "bifurcations" in group:
         extras["tables"] = {"bifurcations": read_table(group["bifurcations"])}
     return FoundBranch(omega=group["omega"][()], x=group["x"][()], converged=group["converged"][()].astype(bool),
