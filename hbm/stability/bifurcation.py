@@ -112,7 +112,9 @@ def upper_half(mu: np.ndarray) -> np.ndarray:
     """(m,) bool: one multiplier of each conjugate pair (Im >= 0) and every real one, also a
     near-real one with Im < 0 (within REAL_ARG_TOL of 0 or pi) whose conjugate is not listed
     (round-off at arg = -pi, or the truncation's move off the axis, see lone_real); a pair
-    within that band keeps one member, as it crosses the circle as one."""
+    within that band keeps one member, as it crosses the circle as one. For the pairing
+    only: the counts of unstable multipliers (FloquetSpectrum.n_unstable, real_parities, the
+    monitor's records) take both members of a pair."""
     mu = np.asarray(mu)
     a = np.angle(mu)
     out = a >= 0.0

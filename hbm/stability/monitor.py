@@ -57,9 +57,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from hbm.options import HbmOptions
-from hbm.stability.bifurcation import (BRANCH_POINT, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING, UNCLASSIFIED,
-                                      Bifurcation, classify, crossings, lone_real, pair_multipliers, parabola_vertex,
-                                      real_parities, upper_half)
+from hbm.stability.bifurcation import (BRANCH_POINT, CROSSING, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING,
+                                      UNCLASSIFIED, Bifurcation, classify, crossings, lone_real, pair_multipliers,
+                                      parabola_vertex, real_parities, upper_half)
 from hbm.stability.hill import harmonic_period
 from hbm.stability.spectrum import MAX_EIG, FloquetSpectrum, orbit_spectrum
 
@@ -526,16 +526,19 @@ class StabilityMonitor:
         multiplier -1.11 + 0.14i paired across the circle, the count 2 -> 1). If turning one
         Neimark-Sacker of the matching direction into that crossing makes the counts add
         up, it is turned (the one nearest that side of the real axis); if one more crossing
-        does, it is added half-way; kind_from "parity" either way. The same for +1."""
+        does, it is added half-way; kind_from "parity" either way. The same for +1. A pair
+        within REAL_ARG_TOL of the real axis, recorded once as a branch point or a period
+        doubling (bifurcation.upper_half), counts two and changes no parity (_members)."""
         got = self._parities(a, b)
         if got is None:
             return
         pa, pb, near = got
         for col, kind in ((1, PERIOD_DOUBLING), (2, BRANCH_POINT)):
             recs = self.bifurcations[first:]
-            if pa[col] == pb[col] or sum(r.kind == kind for r in recs) % 2:
+            members = [self._members(r, a, b) for r in recs]
+            if pa[col] == pb[col] or sum(r.kind == kind and n == 1 for r, n in zip(recs, members)) % 2:
                 continue
-            rest = (pb[0] - pa[0]) - sum((2 if r.kind == NEIMARK_SACKER else 1) * r.direction for r in recs)
+            rest = (pb[0] - pa[0]) - sum(n * r.direction for r, n in zip(recs, members))
             axis = np.pi if kind == PERIOD_DOUBLING else 0.0
             pairs = [k for k, r in enumerate(recs) if r.kind == NEIMARK_SACKER and r.direction == -rest
                      and (r.multiplier.real < 0) == (kind == PERIOD_DOUBLING)]
@@ -548,6 +551,19 @@ class StabilityMonitor:
                 self.bifurcations[k] = replace(r, kind=kind, kind_from=PARITY)
             elif abs(rest) == 1 and rep is not None:
                 self._append_unpaired(a, b, kind, int(rest), *rep, PARITY)
+
+    @staticmethod
+    def _members(r: Bifurcation, a: _Entry, b: _Entry) -> int:
+        """Multipliers that the record r between a and b stands for in the count of unstable
+        ones: 2 for a complex pair (a Neimark-Sacker, or a crossing whose multiplier's
+        conjugate is listed on its unstable side: a pair near the real axis, classified by its
+        argument), 1 for a real one (and for a crossing the parities turned into one)."""
+        if r.kind == NEIMARK_SACKER:
+            return 2
+        if r.kind_from != CROSSING:
+            return 1
+        mu = (b if r.direction > 0 else a).spectrum.multipliers
+        return 1 if lone_real(mu)[mu == r.multiplier].all() else 2
 
     def _unpaired(self, a: _Entry, b: _Entry, fold: bool, floor: float) -> None:
         """A count change between neighbours a and b with no multiplier paired across the
