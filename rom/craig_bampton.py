@@ -10,16 +10,9 @@ from __future__ import annotations
 import numpy as np
 
 from rom.friction_lock import friction_lock
-from rom.model import RomModel, modal_damping
+from rom.model import RomModel, check_frames, modal_damping
 from rom.options import RomOptions
 from rom.rotation import rotation_sign
-
-
-def _ritz_bound_frequencies(Kr: np.ndarray, Mr: np.ndarray) -> np.ndarray:
-    import scipy.linalg
-
-    w2 = scipy.linalg.eigh(Kr, Mr, eigvals_only=True)
-    return np.sqrt(np.clip(w2, 0.0, None))
 
 
 def build_craig_bampton(fem, mesh, options: RomOptions = RomOptions(), store_recovery: bool = True,
@@ -40,10 +33,7 @@ def build_craig_bampton(fem, mesh, options: RomOptions = RomOptions(), store_rec
     nb_nodes = np.asarray(mesh.boundary_node_index, dtype=np.int64)
     frames = np.asarray(mesh.boundary_frames, dtype=np.float64)
     nb = len(nb_nodes)
-    if frames.shape != (nb, 3, 3):
-        raise ValueError(f"boundary_frames must have shape ({nb}, 3, 3), got {frames.shape}")
-    if not np.allclose(frames @ frames.transpose(0, 2, 1), np.eye(3), atol=1e-8):
-        raise ValueError("boundary_frames must be orthonormal (rows e_r, e_theta, e_z)")
+    check_frames("boundary_frames", frames, nb)
     eta = options.n_fixed_modes
     K, M = fem.K, fem.M
     bd = boundary_dofs_of(fem.node_dofs, nb_nodes)
