@@ -43,6 +43,9 @@ def _command(args, *extra: str) -> str:
 
 
 def _cmd_run(args) -> int:
+    from contextlib import nullcontext
+
+    from pipelines.folder import removed_if_unused
     from pipelines.progress import Progress
     from pipelines.runner import run_scene
     from pipelines.stages import STAGES
@@ -56,8 +59,10 @@ def _cmd_run(args) -> int:
         progress.warn(text)
     extra = ([] if args.until == STAGES[-1] else ["--until", args.until]) + (["--yes"] if args.yes else [])
     try:
-        run_scene(scene, Path(args.out), until=args.until, force=args.force, progress=progress, yes=args.yes,
-                  command=_command(args, *extra))
+        # a run refused before computing leaves no folder behind (rank 0 makes it)
+        with removed_if_unused(Path(args.out)) if root else nullcontext():
+            run_scene(scene, Path(args.out), until=args.until, force=args.force, progress=progress, yes=args.yes,
+                      command=_command(args, *extra))
     finally:
         progress.summary()
     return 0

@@ -5,6 +5,9 @@ the lock file says who holds it (pid, command, start time), so a second run in t
 folder is refused with that line. The kernel drops the lock when its process ends, however
 it ends (kill -9 included), so a stale lock file never blocks anyone; a lock file that a
 copy made with hard links shares with another folder is replaced by the folder's own.
+A run that ends in an error puts the lock file back as it found it (none where there was
+none, the last run's record otherwise), and a folder `prepare` made for it that is still
+empty is removed (removed_if_unused): a run refused before computing changes nothing.
 Temporary files (".NAME.tmpPID", pipelines.artifacts.temp_path) found by the run that holds
 the lock were left by a run that died while writing: nothing else can be writing them, and
 they are removed.
@@ -52,6 +55,30 @@ def prepare(out: Path) -> Path:
     except OSError as exc:
         raise FolderError(f"cannot write in the output folder {out}: {_why(exc)}") from None
     return out
+
+
+def missing_folders(out: Path) -> list[Path]:
+    """`out` and those of its parents that do not exist (what `prepare` would create),
+    deepest first."""
+    out = Path(out)
+    return [p for p in (out, *out.parents) if not os.path.lexists(p)]
+
+
+@contextmanager
+def removed_if_unused(out: Path):
+    """Remove, when the block raises, the folders of `out` that were missing before it and
+    are still empty (a run refused before computing leaves no folder behind). A folder that
+    holds anything, another run's files included, stays."""
+    made = missing_folders(out)
+    try:
+        yield
+    except BaseException:
+        for p in made:  # deepest first: a parent empties only once its child is gone
+            try:
+                p.rmdir()
+            except OSError:  # not empty (something was written), or gone already
+                break
+        raise
 
 
 def _holder(fd: int, wait_s: float = 1.0) -> str:
@@ -120,8 +147,14 @@ def hold(out: Path, command: str):
 
     A folder copied with hard links (`cp -al`, the cheap way to branch a run whose FEM file
     is gigabytes) shares its lock file with the original: the lock is then taken on that
-    file, which keeps out a run in either folder, while it is replaced by a private one."""
+    file, which keeps out a run in either folder, while it is replaced by a private one.
+
+    When the block raises, the lock file is put back as it was found, while the lock is
+    still held (a run that opened it meanwhile finds it unlinked or rewritten and opens the
+    folder's lock file again): removed if this call made it, its former content otherwise.
+    A finished run's lock file stays, naming that run."""
     path = Path(out) / LOCK
+    made = not os.path.lexists(path)
     for _ in range(8):
         fd = _open_lock(path)
         shared = os.fstat(fd).st_nlink > 1
@@ -145,13 +178,31 @@ def hold(out: Path, command: str):
     else:
         raise FolderError(f"cannot lock {path}: the lock file keeps being replaced")
     try:
+        found = os.pread(fd, os.fstat(fd).st_size, 0)
         info = {"pid": os.getpid(), "host": socket.gethostname(), "command": command,
                 "started": datetime.datetime.now().astimezone().isoformat(timespec="seconds")}
         os.ftruncate(fd, 0)
         os.pwrite(fd, json.dumps(info).encode(), 0)
         yield
+    except BaseException:
+        _put_back(fd, path, None if made else found)
+        raise
     finally:
         os.close(fd)  # releases the lock
+
+
+def _put_back(fd: int, path: Path, content: bytes | None) -> None:
+    """Undo a failed run's lock file, held as fd: unlink it (content None) or write its
+    former content back. Best effort: the error that ended the run is the one to report."""
+    try:
+        if content is None:
+            if _names(fd, path):
+                path.unlink()
+        else:
+            os.ftruncate(fd, 0)
+            os.pwrite(fd, content, 0)
+    except OSError:
+        pass
 
 
 #: ".NAME.tmpPID" (pipelines.artifacts.temp_path), and nothing else: not a user's ".notes.tmp".
