@@ -68,9 +68,11 @@ def _write_value(group: h5py.Group, name: str, value, unit: str | None):
         sub = group.create_group(name)
         sub.attrs["sparse"] = "csr"
         sub.attrs["shape"] = np.asarray(csr.shape, dtype=np.int64)
-        sub.create_dataset("data", data=csr.data)
-        sub.create_dataset("indices", data=csr.indices)
-        sub.create_dataset("indptr", data=csr.indptr)
+        # each part carries a unit as every array does: the entries the matrix's, the indices counts
+        for part, part_unit in (("data", unit), ("indices", "1"), ("indptr", "1")):
+            ds = sub.create_dataset(part, data=getattr(csr, part))
+            if part_unit:
+                ds.attrs["unit"] = part_unit
         if unit:
             sub.attrs["unit"] = unit
         return
@@ -160,13 +162,15 @@ def atomic_output(path: Path | str):
 
 def open_in_place(path: Path | str, mode: str) -> h5py.File:
     """h5py.File(path, mode) for a file written in place (a partial file a run appends to or
-    starts over), never through a hard link into another folder's file (a folder copied with
-    `cp -al`): "w" removes the old file first (h5py would truncate it in place), "r+" and "a"
-    give a file with other links its own copy first."""
+    starts over), never through a link into another file (a folder copied with `cp -al`, a
+    hard link, or `cp -as`, a symbolic one): "w" removes the old file first (h5py would
+    truncate it in place), "r+" and "a" replace a symbolic link, or a file with other hard
+    links, by a copy of its content first (what it holds is resumed from, its target left
+    as it was); a broken symbolic link is removed (else "a" would create its target)."""
     path = Path(path)
-    if mode == "w":
+    if mode == "w" or (path.is_symlink() and not path.exists()):
         path.unlink(missing_ok=True)
-    elif path.is_file() and os.stat(path).st_nlink > 1:
+    elif path.is_file() and (path.is_symlink() or os.stat(path).st_nlink > 1):
         with atomic_output(path) as tmp:
             shutil.copyfile(path, tmp)
     return h5py.File(path, mode)
@@ -208,6 +212,12 @@ def _datasets(h5: h5py.File) -> dict:
     return found
 
 
+def _prefixed(parts) -> bytes:
+    """The byte strings `parts` joined, each after its length (8 bytes, little-endian): no
+    two different lists give the same bytes."""
+    return b"".join(len(b).to_bytes(8, "little") + b for b in parts)
+
+
 def _content_bytes(ds: h5py.Dataset) -> np.ndarray:
     """The bytes of a decoded dataset, (n,) uint8. Variable-length strings (object arrays)
     are hashed by their text, each item prefixed by its length: the bytes of an object
@@ -216,11 +226,9 @@ def _content_bytes(ds: h5py.Dataset) -> np.ndarray:
         return np.zeros(0, np.uint8)
     data = ds[()]
     if ds.dtype.kind == "O":
-        parts = []
-        for item in np.asarray(data, dtype=object).reshape(-1):
-            b = item if isinstance(item, bytes) else str(item).encode()
-            parts += [len(b).to_bytes(8, "little"), b]
-        return np.frombuffer(b"".join(parts), np.uint8)
+        items = np.asarray(data, dtype=object).reshape(-1)
+        return np.frombuffer(_prefixed(item if isinstance(item, bytes) else str(item).encode() for item in items),
+                             np.uint8)
     return np.ascontiguousarray(data).reshape(-1).view(np.uint8)
 
 
@@ -241,11 +249,7 @@ def _attr_bytes(value) -> bytes:
     arr = np.asarray(value)
     head = f"{arr.dtype.str}{arr.shape}".encode()
     if arr.dtype.kind == "O":
-        parts = []
-        for item in arr.reshape(-1):
-            b = _attr_bytes(item)
-            parts += [len(b).to_bytes(8, "little"), b]
-        return b"o" + head + b"".join(parts)
+        return b"o" + head + _prefixed(_attr_bytes(item) for item in arr.reshape(-1))
     return b"a" + head + np.ascontiguousarray(arr).tobytes()
 
 
@@ -257,8 +261,7 @@ def _layout_checksum(h5: h5py.File) -> str:
     h = hashlib.sha256(b"layout")
 
     def put(b: bytes):
-        h.update(len(b).to_bytes(8, "little"))
-        h.update(b)
+        h.update(_prefixed([b]))
 
     for name in sorted(objs):
         obj = objs[name]

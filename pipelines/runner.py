@@ -36,6 +36,7 @@ import time
 from dataclasses import dataclass
 from pathlib import Path
 
+from hbm.processes import WorkerDied
 from pipelines import artifacts as art
 from pipelines import folder
 from pipelines.child import ChildDied
@@ -425,8 +426,19 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
     def kept(detailed: bool = True) -> str:
         return _kept(out, steps, done, expected, since, detailed)
 
+    def resumable(detailed: bool = True) -> str:  # the stages resume from what their partial files keep
+        return f"kept: {kept(detailed)}; run `{command}` again to go on from there"
+
     def describe(detailed: bool = True) -> str:
-        return f"interrupted during {where}; kept: {kept(detailed)}; run `{command}` again to go on from there"
+        return f"interrupted during {where}; {resumable(detailed)}"
+
+    def computed() -> bool:
+        """Whether this run wrote an artifact or a partial file (the CLI's exit 2 says it did not)."""
+        from pipelines.branch_store import partial_files
+
+        files = [out / o.file for s in steps for o in s.outputs]
+        files += [f for p in files if p.suffix == ".h5" for f in partial_files(p)]
+        return any(f.is_file() and f.stat().st_mtime >= since for f in files)
 
     _describe = describe
     try:
@@ -461,6 +473,12 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         raise StageFailed(f"figure {exc.figure} failed: {art.first_line(exc.__cause__)}; kept: {kept()}") from exc
     except ChildDied as exc:  # a stage's own process that ended without a word: the stage and what was kept
         raise StageFailed(f"{where} failed: {exc}; kept: {kept()}") from exc
+    except WorkerDied as exc:  # a pool's worker killed (OOM): the speeds or branches its pool ended are on disk
+        raise StageFailed(f"{where} failed: {exc}; {resumable()}") from exc
+    except ValueError as exc:  # bad input found late (a step past the ROM's limit) or a numerical failure
+        if where == "planning" or not computed():
+            raise  # nothing computed: the CLI's exit 2
+        raise StageFailed(f"{where} failed: {art.first_line(exc)}; kept: {kept()}") from exc
     except SystemExit as exc:  # a child's sys.exit(), re-raised here (pipelines.child): never the run's own code
         code = exc.code if exc.code is None or isinstance(exc.code, int) else repr(exc.code)
         raise StageFailed(f"{where} failed: a process of it exited (code {0 if code is None else code}) "

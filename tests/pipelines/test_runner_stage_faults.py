@@ -97,3 +97,20 @@ def test_a_partial_file_of_other_inputs_is_not_said_kept(scene, tmp_path, monkey
     assert run(scene, tmp_path) == 1
     assert one_line(capsys.readouterr().err) == ("bladerub: error: stage mesh failed: No space left on device; "
                                                  "kept: 5 points of mesh.r1.partial.h5")
+
+
+def test_a_value_error_after_a_file_was_written_is_a_stage_failure_and_before_it_nothing_computed(
+        scene, tmp_path, monkeypatch, capsys):
+    # before: exit 2, "nothing was computed", also once the stage had written its file
+    def compute(ctx, outputs, write):
+        if write:
+            (tmp_path / "mesh.h5").write_bytes(b"")
+        raise ValueError("dR_dx has NaN or inf entries")
+
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: compute(ctx, outputs, False))
+    assert run(scene, tmp_path) == 2
+    assert one_line(capsys.readouterr().err) == "bladerub: error: dR_dx has NaN or inf entries"
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: compute(ctx, outputs, True))
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == ("bladerub: error: stage mesh failed: dR_dx has NaN or inf entries; "
+                                                 "kept: nothing new")

@@ -98,11 +98,13 @@ def test_a_killed_sweep_worker_is_one_line_and_the_speeds_done_are_kept(coarse_n
     r = subprocess.run([sys.executable, "-c", KILLED] + run, cwd=ROOT, capture_output=True, text=True,
                        env=shell_env(), timeout=600)
     assert r.returncode == 1, r.stderr
-    head = ("bladerub: error: a worker process of the time-integration sweep ended without an answer (killed, "
-            "perhaps for lack of memory); speeds being marched: ")
+    head = ("bladerub: error: stage ti failed: a worker process of the time-integration sweep ended without an "
+            "answer (killed, perhaps for lack of memory); speeds being marched: ")
     line = r.stderr.strip()
-    assert line.startswith(head) and line.endswith(" rad/s"), r.stderr
-    marched = line[len(head):-len(" rad/s")].split(", ")  # the killed one, and the other worker's if it ran one
+    assert line.startswith(head) and "\n" not in line, r.stderr
+    marched, _, rest = line[len(head):].partition(" rad/s; kept: ")
+    marched = marched.split(", ")  # the killed one, and the other worker's if it ran one
+    assert "speeds of ti.partial.h5" in rest and rest.endswith("again to go on from there"), r.stderr
     assert "2000" in marched and len(marched) <= 2, r.stderr
     assert not (tmp_path / "ti.h5").exists()
     kept = art.read_attrs(tmp_path / "ti.partial.h5")["n_speeds"]
