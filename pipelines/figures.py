@@ -15,17 +15,19 @@ import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 
+from hbm.options import TimeIntegrationOptions  # noqa: E402
 from hbm.ti.periodicity import PeriodClass  # noqa: E402
 from pipelines import artifacts as art  # noqa: E402
 
-#: Marker, colour and label (a template of n_l, the number of lobes) of each periodicity
-#: class of a time-integration point; hbm.ti.periodicity.PeriodClass codes.
+#: Marker, colour and label (a template of n, the number of lobes n_l, and max_order, the
+#: largest subharmonic order nu = Ω / ω the sweep's classifier tried, `[ti] max_order`) of each
+#: periodicity class of a time-integration point; hbm.ti.periodicity.PeriodClass codes.
 PERIODICITY = {
     PeriodClass.CASING: ("\u03c9 = {n}\u03a9", "o", "#111111"),
     PeriodClass.REVOLUTION: ("\u03c9 = \u03a9", "^", "#1f77b4"),
     PeriodClass.SUPERHARMONIC: ("\u03a9 < \u03c9 < {n}\u03a9", "v", "#d62728"),
     PeriodClass.SUBHARMONIC: ("subharmonic (\u03c9 < \u03a9)", "s", "#2ca02c"),
-    PeriodClass.NONE: ("no periodicity or \u03c9 < \u03a9/10", "D", "#9a9a9a"),
+    PeriodClass.NONE: ("no periodicity or \u03c9 < \u03a9/{max_order:g}", "D", "#9a9a9a"),
 }
 _LENGTH = {"m": 1.0, "mm": 1e3, "um": 1e6}
 FIGSIZE = (7.0, 4.5)  # inches
@@ -47,10 +49,12 @@ def _save(fig, out_png) -> Path:
     return out_png
 
 
-def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_lobes=2):
+def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_lobes=2,
+                     max_order=TimeIntegrationOptions.max_order):
     """Markers per periodicity class; `faded` greys out all but the casing-periodic ones
     (ω = n_l Ω, Fig. 6). Only the classes present get a legend entry, except ω = n_l Ω and
-    ω = Ω, always listed (the paper's legend)."""
+    ω = Ω, always listed (the paper's legend). max_order: the sweep's `[ti] max_order`,
+    named in the label of "no periodicity"."""
     omega, amplitude, classes = (np.asarray(a).ravel() for a in (omega, amplitude, classes))
     unknown = set(np.unique(classes).tolist()) - {int(c) for c in PERIODICITY}
     if unknown:
@@ -66,7 +70,7 @@ def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_l
         ax.scatter(omega[pick], amplitude[pick], s=size, marker=marker, color=colour,
                    edgecolors="none", zorder=3)
         handles.append(Line2D([], [], ls="none", marker=marker, color=colour,
-                              label=f"TI: {label.format(n=n_lobes)}"))
+                              label=f"TI: {label.format(n=n_lobes, max_order=max_order)}"))
     return handles
 
 
@@ -88,7 +92,7 @@ def _amplitude_axes(ax, omega_range, unit: str, title: str | None) -> None:
 
 def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0),
               unit: str = "mm", title: str | None = None, fade_other_classes: bool = True,
-              n_lobes: int = 2) -> Path:
+              n_lobes: int = 2, max_order: float = TimeIntegrationOptions.max_order) -> Path:
     """Nonlinear frequency response curves (paper Fig. 6): LE radial amplitude vs Ω.
 
     curves: {label: (omega (m,) rad/s, amplitude (m,) m, converged (m,) bool or None)}, one
@@ -98,6 +102,8 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     int, PeriodClass codes) drawn as markers shaped by class; as in the paper, all but the
     casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is False.
     unit: "m", "mm" or "um" for the amplitude axis. n_lobes: n_l, for the class labels.
+    max_order: the sweep's `[ti] max_order` (largest subharmonic order its classifier tried),
+    for the label of "no periodicity"; the default is TimeIntegrationOptions'.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
@@ -118,24 +124,25 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     if ti_points is not None:
         o, a, c = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=fade_other_classes,
-                                    n_lobes=n_lobes)
+                                    n_lobes=n_lobes, max_order=max_order)
     _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
     return _save(fig, out_png)
 
 
 def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 2000.0),
-                  unit: str = "mm", title: str | None = None, n_lobes: int = 2) -> Path:
+                  unit: str = "mm", title: str | None = None, n_lobes: int = 2,
+                  max_order: float = TimeIntegrationOptions.max_order) -> Path:
     """Time-integration sweep (paper Fig. 5): one marker per simulated Ω, shaped and
     coloured by periodicity class.
 
     omega: (p,) rad/s; amplitude: (p,) m (LE radial amplitude); classes: (p,) int
-    PeriodClass codes (ω = n_l Ω, ω = Ω, Ω < ω < n_l Ω, subharmonic, none or ω < Ω/10).
-    n_lobes: n_l, for the class labels.
+    PeriodClass codes (ω = n_l Ω, ω = Ω, Ω < ω < n_l Ω, subharmonic, none or ω < Ω / max_order).
+    n_lobes: n_l, for the class labels. max_order: as in plot_nfrc.
     """
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
     handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22,
-                               n_lobes=n_lobes)
+                               n_lobes=n_lobes, max_order=max_order)
     _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=[Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
                               label=h.get_label()[4:]) for h in handles],
@@ -245,7 +252,8 @@ def _stability_runs(stable, converged, n_unstable=None):
 
 
 def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0), unit: str = "mm",
-                      title: str | None = None, n_lobes: int = 2) -> Path:
+                      title: str | None = None, n_lobes: int = 2,
+                      max_order: float = TimeIntegrationOptions.max_order) -> Path:
     """The solution set (paper Fig. 8): every branch's LE amplitude against Omega, stable parts
     solid, unstable dashed, stability unknown dotted; the bifurcations given marked by kind; the TI
     sweep's points by periodicity class.
@@ -256,7 +264,7 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     marks: [(bifurcation kind, omega rad/s, amplitude m[, guessed])], guessed (default False):
     the kind is a guess (no multiplier paired across the circle and the parities of the real
     ones do not tell, Bifurcation.kind_from), drawn
-    grey. ti_points as in plot_nfrc.
+    grey. ti_points, max_order as in plot_nfrc.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
@@ -286,7 +294,8 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
         handles.append(Line2D([], [], ls="none", marker="o", color=GUESSED, mfc="none", label="kind guessed"))
     if ti_points is not None:
         o, a, c = ti_points
-        handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10)
+        handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10,
+                                    max_order=max_order)
     if not curves or not any(lines for lines, _ in curves.values()):
         ax.text(0.5, 0.5, "no branch computed yet", transform=ax.transAxes, ha="center", color="0.4")
     _amplitude_axes(ax, omega_range, unit, title)

@@ -267,11 +267,12 @@ def draw_nfrc(ctx: Context) -> None:
             ti = (g["omega"][()], g["amplitude"][()], g["period_class"][()])
     if curves or ti is not None:
         plot_nfrc(curves, out / "figures" / "nfrc.png", ti_points=ti,
-                  omega_range=(scene.hbm.omega_min, scene.hbm.omega_max), n_lobes=scene.casing.n_lobes)
+                  omega_range=(scene.hbm.omega_min, scene.hbm.omega_max), n_lobes=scene.casing.n_lobes,
+                  max_order=scene.ti.max_order)
 
 
 NFRC_FIGURE = Figure("nfrc", files=lambda scene: ("nfrc.png",),
-                     depends=("hbm.omega_min", "hbm.omega_max", "casing.n_lobes"),
+                     depends=("hbm.omega_min", "hbm.omega_max", "casing.n_lobes", "ti.max_order"),
                      inputs=_nfrc_inputs, draw=draw_nfrc)
 
 

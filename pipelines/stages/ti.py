@@ -215,11 +215,12 @@ def draw_sweep(ctx: Context) -> None:
 
     s = read_sweep(ctx.out)
     plot_ti_sweep(s.omega, s.amplitude, s.period_class, ctx.out / "figures" / "ti_sweep.png",
-                  omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max), n_lobes=ctx.scene.casing.n_lobes)
+                  omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max), n_lobes=ctx.scene.casing.n_lobes,
+                  max_order=ctx.scene.ti.max_order)
 
 
 SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),
-                      depends=("ti.omega_min", "ti.omega_max", "casing.n_lobes"),
+                      depends=("ti.omega_min", "ti.omega_max", "casing.n_lobes", "ti.max_order"),
                       inputs=lambda scene: (TI.file,), draw=draw_sweep)
 
 def _estimate(scene, out, outputs) -> Estimate:
