@@ -27,11 +27,8 @@ import h5py
 import numpy as np
 
 from hbm.continuation.branch import Branch, ContinuationPoint
+from hbm.continuation.missing import NO_VALUE
 from pipelines.artifacts import CHECKSUMS, commit, dataset_checksums, now, open_in_place
-
-#: what the rows of an extra hold for the points written before a run that records it (by
-#: numpy dtype kind; 0 for the others)
-NOT_RECORDED = {"f": np.nan, "c": np.nan, "b": False, "i": -1}
 
 _FIELDS = {  # name: (dtype, unit)
     "omega": (np.float64, "rad/s"),
@@ -196,15 +193,15 @@ class BranchStore:
         The set of extras is fixed by the first point: every later point gives the same
         names with the same shapes. A reopened store (a resume) also takes extras that its
         points lack (a run of an earlier version did not record them): their rows before
-        are filled with NOT_RECORDED's value for the dtype, and the dataset's attribute
-        `recorded_from` gives the first row that holds a value.
+        are filled with hbm.continuation.missing.NO_VALUE's value for the dtype (text: ""),
+        and the dataset's attribute `recorded_from` gives the first row that holds a value.
         """
         extras = {k: np.asarray(v) for k, v in (extras or {}).items()}
         if self._resumed and self._extras and set(extras) > self._extras:
             g = self._h5["extras"]
             for k in sorted(set(extras) - self._extras):
                 v = extras[k]
-                fill = {} if _is_text(v) else {"fillvalue": NOT_RECORDED.get(v.dtype.kind, 0)}  # text: ""
+                fill = {} if _is_text(v) else {"fillvalue": NO_VALUE.get(v.dtype.kind, 0)}  # text: ""
                 ds = g.create_dataset(k, shape=(self.n_points,) + v.shape, maxshape=(None,) + v.shape,
                                       dtype=_h5_dtype(v), chunks=True, **fill)
                 ds.attrs["unit"] = self._units.get(k, "1")

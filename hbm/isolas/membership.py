@@ -81,8 +81,7 @@ def nearest_segment(x: np.ndarray, omega: float, branch: KnownBranch, x_scale=1.
         return d, branch.x[0], float(branch.omega[0]), 0, 0.0
     seg_i = np.arange(m - 1)
     if within is not None:
-        lo, hi = np.minimum(W[:-1], W[1:]), np.maximum(W[:-1], W[1:])
-        seg_i = np.flatnonzero((lo - within <= q[-1]) & (q[-1] <= hi + within))
+        seg_i = seg_i[_near_in_omega(W[:-1], W[1:], q[-1], q[-1], within)]
         if not seg_i.size:
             return np.inf, x, omega, -1, 0.0
     A = np.column_stack([branch.x[seg_i] / x_scale, W[seg_i]])  # segment starts (s, n + 1)
@@ -96,6 +95,14 @@ def nearest_segment(x: np.ndarray, omega: float, branch: KnownBranch, x_scale=1.
     j = int(np.argmin(d2))
     near = A[j] + t[j] * seg[j]
     return float(np.sqrt(d2[j])), near[:-1] * x_scale, float(near[-1] * omega_scale), int(seg_i[j]), float(t[j])
+
+
+def _near_in_omega(wa: np.ndarray, wb: np.ndarray, w_lo: float, w_hi: float, within: float) -> np.ndarray:
+    """(s,) bool: which segments, from scaled omega wa (s,) to wb (s,), have an omega span
+    that comes within `within` of [w_lo, w_hi] (a point: w_lo = w_hi). A distance is never
+    below its omega part, so the segments left out are all farther than `within`."""
+    lo, hi = np.minimum(wa, wb), np.maximum(wa, wb)
+    return (lo - within <= w_hi) & (w_lo <= hi + within)
 
 
 def nearest_branch(x: np.ndarray, omega: float, branches, x_scale=1.0, omega_scale: float = 1.0):
@@ -130,9 +137,7 @@ def segment_polyline_distance(x0: np.ndarray, omega0: float, x1: np.ndarray, ome
     end = start if m == 1 else start + 1
     if within is not None:  # the omega spans first: only the segments kept are copied (the search's
         # meeting test calls this at every point against every branch)
-        lo, hi = np.minimum(W[start], W[end]), np.maximum(W[start], W[end])
-        plo, phi = min(P0[-1], P1[-1]), max(P0[-1], P1[-1])
-        keep = (lo - within <= phi) & (plo <= hi + within)
+        keep = _near_in_omega(W[start], W[end], min(P0[-1], P1[-1]), max(P0[-1], P1[-1]), within)
         start, end = start[keep], end[keep]
         if not len(start):
             return np.inf, x1, omega1

@@ -56,6 +56,7 @@ from threadpoolctl import threadpool_limits
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
+from hbm.continuation.missing import NO_VALUE
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import (KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance,
                                      segment_length, segment_polyline_distance)
@@ -499,9 +500,8 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
 _KIND_RANK = {"primary": 0, "bifurcated": 1}
 
 #: What a per-point extra holds at a point describe did not see (not converged), by numpy
-#: dtype kind: nan, False, -1 for a signed count (n_unstable -1: unknown, as in the NFRC files; a
-#: 0 there read "no multiplier out"), and text saying so.
-NOT_DESCRIBED = {"f": np.nan, "c": np.nan, "b": False, "i": -1, "u": 0, "O": "not converged", "U": "not converged"}
+#: dtype kind: NO_VALUE's, and text saying so.
+NOT_DESCRIBED = {**NO_VALUE, "O": "not converged", "U": "not converged"}
 
 
 def search(factory, seeds, known, options: SearchOptions, *, comm=None, corrections: Corrections | None = None,
@@ -637,7 +637,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                     shape = (len(omega),) + v.shape[1:]
                     fill = NOT_DESCRIBED.get(v.dtype.kind, np.nan)
                     arr = np.full(shape, fill, dtype=object if v.dtype.kind in "OU" else
-                                  v.dtype if v.dtype.kind in "biu" else float)
+                                  v.dtype if v.dtype.kind in "biuc" else float)
                     arr[ok] = v
                     full[name] = arr
                 extras = full
