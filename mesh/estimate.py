@@ -58,3 +58,21 @@ def estimate_nodes(sections: tuple[Section, ...], options: MeshOptions) -> float
     """Estimated node count of the tet10 mesh of these sections (see the module's docstring)."""
     v, a = mesh_integrals(sections, options)
     return _A * v + _B * a
+
+
+def imported_nodes(src) -> int:
+    """Nodes of the tet10 mesh mesh.imported makes of a file's solids (mesh.source.SourceMesh),
+    without splitting: the nodes the solid elements use, plus the mid node of each new edge
+    mesh.subdivide creates, one per distinct quadrilateral face (its diagonal, shared by the
+    two elements on the face) and one per hexahedron (its body diagonal, from its smallest
+    vertex to the opposite one). Exact for a mesh the import accepts."""
+    from mesh.elements import ELEMENTS, HEX20
+
+    if not src.blocks:
+        return 0
+    used = np.unique(np.concatenate([b.connectivity.ravel() for b in src.blocks]))
+    quads = [b.connectivity[:, list(f)] for b in src.blocks if b.type in ELEMENTS
+             for f in ELEMENTS[b.type].faces if len(f) == 4]
+    n_faces = len(np.unique(np.sort(np.concatenate(quads), axis=1), axis=0)) if quads else 0
+    n_hex = sum(len(b.connectivity) for b in src.blocks if b.type == HEX20.name)
+    return int(len(used) + n_faces + n_hex)

@@ -6,7 +6,7 @@ import dataclasses
 
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
-from pipelines.stages.mesh import MESH, node_count, nodes_text, read_mesh
+from pipelines.stages.mesh import MESH, coarser_mesh, node_count, nodes_text, read_mesh
 
 FEM = Output("fem.h5")
 
@@ -79,9 +79,7 @@ def _estimate(scene, out, outputs) -> Estimate | None:
     from pipelines.guard import count
 
     n, exact = node_count(scene, out)
-    if n is None:  # a mesh file not imported yet: its size is not known before
-        return None
-    advice = f"coarsen [mesh] element_size (now {scene.mesh.element_size:g} m) or lower [mesh] edge_layers"
+    advice = coarser_mesh(scene)
     if not scene.fem.out_of_core:
         advice += ", or set [fem] out_of_core = true" + (' and solver = "auto"' if scene.fem.solver == "cholmod" else "")
     memory = 0.2e9 + 23e3 * n if scene.fem.out_of_core else 0.4e9 + 8e3 * n + factor_bytes(n)

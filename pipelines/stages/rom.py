@@ -6,7 +6,7 @@ import numpy as np
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Estimate, Output, Stage
 from pipelines.stages.fem import fem_bytes, read_fem
-from pipelines.stages.mesh import node_count, nodes_text, read_mesh
+from pipelines.stages.mesh import coarser_mesh, node_count, nodes_text, read_mesh
 
 ROM = Output("rom.h5")
 
@@ -53,11 +53,9 @@ def _compute(ctx: Context, outputs) -> None:
 def _estimate(scene, out, outputs) -> Estimate | None:
     # reads fem.h5 whole (K, M, the modes); writes the float32 recovery matrix (dof x ROM dof)
     n, exact = node_count(scene, out)
-    if n is None:  # a mesh file not imported yet: its size is not known before
-        return None
     n_rom = 3 * scene.mesh.n_boundary + scene.rom.n_fixed_modes
     return Estimate(size=nodes_text(n, exact), memory=0.2e9 + 1.3 * fem_bytes(scene, n), seconds=2.0 + 5e-5 * n,
-                    disk=3 * n * n_rom * 4.0, advice="coarsen [mesh] element_size")
+                    disk=3 * n * n_rom * 4.0, advice=coarser_mesh(scene))
 
 
 # blade.rotation: the ROM carries the sense of rotation (and its friction-lock table)
