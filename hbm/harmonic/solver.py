@@ -83,15 +83,20 @@ class HbmSolver:
         return self._pre
 
     def factorize(self, J: HbmJacobian, preconditioner: ContactPreconditioner | None = None) -> "HbmFactorization":
-        """J at the current point; reuses the kept preconditioner unless it has aged
-        (or the given one, e.g. from another state, to test a stale preconditioner)."""
+        """J at the current point; reuses the kept preconditioner unless it has aged or was
+        built for a Jacobian of another shape (another N_h or ROM: one solver may serve
+        several residuals), or the given one (e.g. from another state, to test a stale
+        preconditioner; ValueError if its shape is not J's)."""
         if not isinstance(J, HbmJacobian):
             raise TypeError(f"HbmSolver solves HbmJacobian, got {type(J).__name__} "
                             f"(use hbm.linalg.dense.DirectSolver for dense or sparse matrices)")
         error = None
         if preconditioner is not None:
+            if preconditioner.source.shape != J.shape:
+                raise ValueError(f"preconditioner built for a {preconditioner.source.shape} Jacobian, "
+                                 f"J is {J.shape}")
             self._pre, self._stale = preconditioner, False
-        elif self._stale or self._pre is None:
+        elif self._stale or self._pre is None or self._pre.source.shape != J.shape:
             try:
                 self.precondition(J)
             except SingularMatrixError as exc:  # Z_r or the contact system singular: see solve()

@@ -12,6 +12,7 @@ from dataclasses import replace
 import numpy as np
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.branch import STATUS_OMEGA_MAX
 from hbm.continuation.newton import NewtonOptions, NewtonResult, newton_solve
 from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.linalg.protocol import LinearSolver
@@ -99,12 +100,14 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
        softer solutions;
     3. obstacle_homotopy from a round casing to the real one.
     Returns (u, note); u is the best available guess (continue_branch corrects it again
-    and records a failure with its reason if it is no solution).
+    and records a failure with its reason if it is no solution). When no strategy reaches
+    a solution, the note gives each one's reason for failing.
     """
     u_lin = res.linear_solution(omega)
     sol = damped_newton(res, u_lin, omega, opts.newton, solver)
     if sol.converged:
         return sol.x, "damped Newton from the contact-free solution"
+    failed = [f"damped Newton from the contact-free solution: {sol.reason}"]
     if res.method == "rl":
         dl = build_residual(res.rom, res.casing, res.contact, res.options, method="dlft", forcing=res.forcing,
                             alpha=res.alpha, friction=res.friction, distance=res._distance)
@@ -113,7 +116,13 @@ def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOp
             u, note = penalty_homotopy(res, sd.x, omega, opts, solver, res.contact.epsilon)
             if u is not None:
                 return u, f"DLFT solution then {note}"
-    return obstacle_homotopy(res, omega, opts, solver)
+            failed.append(f"DLFT solution then {note}")
+        else:
+            failed.append(f"DLFT solution: {sd.reason}")
+    u, note = obstacle_homotopy(res, omega, opts, solver)
+    if note.startswith(f"obstacle homotopy: {STATUS_OMEGA_MAX}"):
+        return u, note
+    return u, f"no start found: {'; '.join(failed + [note])}"
 
 
 def pad_harmonics(u: np.ndarray, n_r: int, n_harmonics: int) -> np.ndarray:
