@@ -208,8 +208,9 @@ class OrbitComparison:
     displacement, at the LE and TE, (2,), - (the scale of OrbitValidation.deviation: the
     static offset of r does not enter).
     force_error: max_t |lam_TI,Nh - lam_HBM| / max_t max(|lam_HBM|, |lam_TI,Nh|) at the LE and
-    TE, (2,), - (0 where neither is ever in contact); the normal force is one-sided (>= 0, 0
-    off contact), so its maximum is its peak-to-peak and the scale holds no offset.
+    TE, (2,), - (0 where neither is ever in contact, nan where a force is nan); the normal
+    force is one-sided (>= 0, 0 off contact), so its maximum is its peak-to-peak and the scale
+    holds no offset.
     multiplier: largest |mu| of this orbit by Hill's method with its own treatment's Jacobian,
     over its minimal period, -; n_unstable: its multipliers outside the unit circle. Both treatments
     are analysed at every point, so a stability verdict of each stands beside time integration's
@@ -480,5 +481,6 @@ def _compared(ti: OrbitValidation, source: str, disp: np.ndarray, hbm_f: np.ndar
     derr = np.abs(ti.displacement - disp).max(axis=0)[cols] / half_ptp(disp)[cols]
     scale = np.maximum(np.abs(hbm_f).max(axis=0), np.abs(ti_f).max(axis=0))[cols]
     diff = np.abs(ti_f - hbm_f).max(axis=0)[cols]
-    ferr = np.where(scale > 0, diff / np.where(scale > 0, scale, 1.0), 0.0)
+    # 0 only where neither force is ever in contact; a nan force (a march that blew up) stays nan
+    ferr = np.where(scale == 0, 0.0, diff / np.where(scale == 0, 1.0, scale))
     return OrbitComparison(source, True, disp, hbm_f, derr, ferr)

@@ -238,7 +238,8 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     c0 = time.process_time()
     path = ctx.out / nfrc_output(method).file
     stored = load_branch(path)
-    b, ex = stored.branch, stored.extras
+    # a file without points (the hbm stage found no start) holds no extras either
+    b, ex = stored.branch, {"le_amplitude": np.zeros(0), **stored.extras}
     res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     tag = method.upper()
     nfrc = Candidate(path.name, res, b.omega, b.x, ex["le_amplitude"], b.converged, ex.get("stable"),
@@ -550,7 +551,10 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
         brackets = computed_brackets()
         nfrc_from = nfrc.computed_words()
     sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets)]
-    monitor_left = brackets is None and nfrc is not None and nfrc.monitor is not None
+    # a doubling lies between two converged points: with fewer the scan's reason stands (and
+    # branch_stability would raise on a branch without any, e.g. an NFRC whose start failed)
+    monitor_left = (brackets is None and nfrc is not None and nfrc.monitor is not None
+                    and np.count_nonzero(np.asarray(b.converged, bool)) >= 2)
     if opts.pd_tries > 1:
         found = read_branch_set(ctx.out / ISOLAS, method)
         # the search's own doubled branches first (time integration from rest ended on them),
