@@ -78,7 +78,9 @@ class Progress:
         from rich.console import Console
 
         self.quiet = quiet
-        self.console = Console(highlight=False)
+        # A terminal only when standard output is one: rich alone would also believe FORCE_COLOR
+        # or TTY_COMPATIBLE (set by some CI systems) and draw the live line into a log file.
+        self.console = Console(highlight=False, force_terminal=None if _stdout_is_terminal() else False)
         self.live = (not quiet) and (self.console.is_terminal if live is None else live)
         self.records: list[StageRecord] = []
 
@@ -159,8 +161,17 @@ class _Pending:
     why = ""
 
 
+def _stdout_is_terminal() -> bool:
+    try:
+        return sys.stdout.isatty()
+    except (AttributeError, ValueError):  # replaced by an object without it, or closed
+        return False
+
+
 def _duration(seconds: float) -> str:
-    if seconds < 60:
+    """A wall time, s, as the summary shows it: "0.4 s", "1 min 05 s", "26 h 03 min" (hours
+    past a day too). Rounded to 0.1 s before the unit is chosen: 59.96 s is "1 min 00 s"."""
+    if round(seconds, 1) < 60:
         return f"{seconds:.1f} s"
     m, s = divmod(int(round(seconds)), 60)
     return f"{m} min {s:02d} s" if m < 60 else f"{m // 60} h {m % 60:02d} min"

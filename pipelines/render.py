@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from pipelines import artifacts as art
+from pipelines.vtu import require_finite
 
 _LIBRARIES = {  # window class -> shared libraries VTK dlopens for it
     "vtkOSOpenGLRenderWindow": ("libOSMesa.so.8", "libOSMesa.so.6", "libOSMesa.so"),
@@ -208,7 +209,8 @@ def render_mode_shapes(nodes, cells, modes, frequencies_hz, out_dir, *, n_modes:
     nodes: (n, 3) float, m. cells: (n_cells, 10) int, quadratic tets in gmsh ordering
     (any tet with corners first works; only boundary corner nodes are drawn).
     modes: (3n, k) float, column j is mode j with rows node-major [u0x, u0y, u0z, u1x, ...]
-    in the order of `nodes` (also accepted: (k, n, 3)); any normalisation.
+    in the order of `nodes` (also accepted: (k, n, 3)); any normalisation; the modes drawn
+    must be finite (ValueError naming the mode, before any picture is written).
     frequencies_hz: (k,) float, Hz. Draws the first min(n_modes, k) modes, each scaled so
     its largest displacement is `scale` times the largest bounding-box side of the mesh.
     window: (width, height) pixels of each PNG. Returns the paths out_dir/mode_01.png, ...
@@ -220,6 +222,8 @@ def render_mode_shapes(nodes, cells, modes, frequencies_hz, out_dir, *, n_modes:
     u_all = _as_node_displacements(modes, len(nodes))
     freqs = np.asarray(frequencies_hz, dtype=float).ravel()
     count = min(int(n_modes), u_all.shape[0], freqs.size)
+    for j in range(count):
+        require_finite(f"mode {j + 1} ({freqs[j]:.2f} Hz)", u_all[j])
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
 

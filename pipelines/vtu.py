@@ -20,6 +20,31 @@ from pipelines import artifacts as art
 GMSH_TO_VTK_TET10 = np.array([0, 1, 2, 3, 4, 5, 6, 7, 9, 8])
 
 
+def require_finite(what: str, values) -> None:
+    """Raise ValueError naming `what` when `values` ((n, ...) per node) holds NaN or inf:
+    ParaView and VTK draw such a field without complaint, as garbage or nothing."""
+    values = np.asarray(values)
+    bad = ~np.isfinite(values)
+    if bad.any():
+        first = int(np.argwhere(bad)[0][0])
+        raise ValueError(f"{what} holds {int(bad.sum())} non-finite value(s) (NaN or inf), the first at "
+                         f"node {first}: refused, a picture or ParaView file of it would show garbage")
+
+
+def _check_times(times: np.ndarray, count: int) -> None:
+    """A series' times, s: `count` of them, finite and strictly increasing (ParaView orders
+    and plays the steps by them)."""
+    if times.ndim != 1 or len(times) != count:
+        raise ValueError(f"times has shape {times.shape}; expected ({count},), one per snapshot")
+    if not np.all(np.isfinite(times)):
+        raise ValueError(f"times holds non-finite values: {times.tolist()}")
+    steps = np.diff(times)
+    if np.any(steps <= 0):
+        i = int(np.argmax(steps <= 0))
+        raise ValueError(f"times must increase strictly: times[{i}] = {times[i]!r} s, times[{i + 1}] = "
+                         f"{times[i + 1]!r} s")
+
+
 def write_vtu(path, nodes: np.ndarray, cells: np.ndarray, point_data: dict) -> Path:
     """Write the tet10 mesh with point fields to a VTU file, atomically.
 
@@ -37,6 +62,9 @@ def write_vtu(path, nodes: np.ndarray, cells: np.ndarray, point_data: dict) -> P
     if cells.ndim != 2 or cells.shape[1] != 10:
         raise ValueError(f"cells must be (n_cells, 10) tet10, got shape {cells.shape}")
     nodes = np.asarray(nodes, dtype=float)
+    require_finite("nodes", nodes)
+    for name, values in point_data.items():
+        require_finite(f"point field {name!r}", values)
     index = np.int32 if len(nodes) < 2**31 else np.int64
     mesh = meshio.Mesh(nodes, [("tetra10", cells[:, GMSH_TO_VTK_TET10].astype(index))],
                        point_data={k: np.asarray(v) for k, v in point_data.items()})
@@ -47,9 +75,12 @@ def write_vtu(path, nodes: np.ndarray, cells: np.ndarray, point_data: dict) -> P
 
 
 def write_pvd(path, entries, comment: str = "") -> Path:
-    """A ParaView collection: entries [(time in s, VTU file)], files relative to `path`'s
-    folder; comment: a line of text kept in the file (what the series shows)."""
+    """A ParaView collection: entries [(time in s, VTU file)], times finite and strictly
+    increasing, files relative to `path`'s folder; comment: a line of text kept in the file
+    (what the series shows)."""
     path = Path(path)
+    entries = list(entries)
+    _check_times(np.array([float(t) for t, _ in entries]), len(entries))
     lines = ['<?xml version="1.0"?>'] + ([f"<!-- {comment.replace('--', '- -')} -->"] if comment else []) + [
              '<VTKFile type="Collection" version="0.1" byte_order="LittleEndian">', "  <Collection>"]
     for t, f in entries:
@@ -81,18 +112,24 @@ def write_time_series(folder, stem: str, nodes, cells, times: np.ndarray, displa
                       comment: str = "") -> Path:
     """Displacement snapshots as folder/stem/stem_000.vtu ... and folder/stem.pvd.
 
-    times: (N,), s (in the PVD). displacement: (N, n, 3), m (point vectors "displacement",
-    float32 in the files). comment: kept in the PVD. Returns the PVD path.
+    times: (N,), s (in the PVD), strictly increasing. displacement: (N, n, 3), m (point vectors
+    "displacement", float32 in the files), finite. Both are checked before any file is
+    written (ValueError), so a refused series leaves none. comment: kept in the PVD. Returns
+    the PVD path.
     The snapshots are written by one thread per core: zlib, which takes most of a file's
     time, releases the GIL while it compresses.
     """
     import concurrent.futures
     import os
 
+    times = np.asarray(times, dtype=float)
+    displacement = np.asarray(displacement)
+    _check_times(times, len(displacement))
+    for i, snapshot in enumerate(displacement):
+        require_finite(f"displacement at instant {i} (t = {times[i]:.6g} s)", snapshot)
     folder = Path(folder)
     sub = folder / stem
     sub.mkdir(parents=True, exist_ok=True)
-    times = np.asarray(times, dtype=float)
 
     def write(i: int) -> Path:
         return write_vtu(sub / f"{stem}_{i:03d}.vtu", nodes, cells, {"displacement": displacement[i].astype(np.float32)})
