@@ -214,8 +214,10 @@ def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path, n
         gmsh.option.setNumber("Mesh.Algorithm3D", 1)  # Delaunay: deterministic
         gmsh.option.setNumber("Mesh.ElementOrder", 2)
         # Straight-sided tet10: mid-edge nodes at chord midpoints. Curving them onto the filling
-        # caps took minutes (point projections), and the chord sagitta h^2 / (8 R) is < 0.03 mm
-        # at the LE round (R ~ 0.2 mm) and a few um on the blade faces; affine cells also
+        # caps took minutes (point projections), and at the default sizes the chord sagitta
+        # h^2 / (8 R) is < 0.03 mm at the LE round (R ~ 0.2 mm) and a few um on the blade faces
+        # and caps (the caps curve about the axis, R = r); the coarse scenes' h = 8 mm leaves
+        # mid-edge nodes of the hub cap up to 0.1 mm below its streamsurface. Affine cells also
         # have positive Jacobians wherever their vertices do.
         gmsh.option.setNumber("Mesh.SecondOrderLinear", 1)
         try:
