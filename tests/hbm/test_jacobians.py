@@ -87,6 +87,6 @@ def test_non_symmetric_rom_matrix_is_named():
     rom = standin_rom()
     K = rom.K.copy()
     K[0, 30] *= 1.01
-    with pytest.raises(ValueError, match="matrix K is not symmetric"):
+    with pytest.raises(ValueError, match="K is not symmetric"):
         build_residual(dataclasses.replace(rom, K=K), CasingOptions(), ContactOptions(),
                        HbmOptions(n_harmonics=3, n_time=16))

@@ -266,12 +266,18 @@ def test_an_interrupted_nfrc_with_stability_keeps_its_bifurcations(coarse_run, t
     assert f"dlft: resuming from 40 points on disk and {len(part['kind'])} bifurcations" in capsys.readouterr().out
     done = read_tables(tmp_path / "cut" / "nfrc_dlft.h5")["bifurcations"]
     assert list(done["kind"]) == list(ref["kind"])
-    assert list(done["kind_from"]) == list(ref["kind_from"])
+    # before the cut the same points: the same records; after it the resampled points may pair
+    # a crossing's multiplier across the circle where the uninterrupted run's did not, or
+    # the reverse (1964 rad/s on a Zen 4 host: "guess" resumed, "crossing" uninterrupted)
+    kept = ref["index"] < 38
+    assert list(np.asarray(done["kind_from"])[kept]) == list(np.asarray(ref["kind_from"])[kept])
     # a crossing is interpolated between its two points, a record without a paired
     # multiplier placed half-way (Bifurcation.kind_from): there the resampling moves it by
     # up to half its bracket too
-    half = np.where(np.asarray(ref["kind_from"]).astype(str) == "crossing", 0.0,
-                    0.5 * np.abs(ref["omega_high"] - ref["omega_low"]))
+    paired = ((np.asarray(ref["kind_from"]).astype(str) == "crossing")
+              & (np.asarray(done["kind_from"]).astype(str) == "crossing"))
+    half = np.where(paired, 0.0, 0.5 * np.maximum(np.abs(ref["omega_high"] - ref["omega_low"]),
+                                                  np.abs(done["omega_high"] - done["omega_low"])))
     assert np.all(np.abs(done["omega"] - ref["omega"]) <= 0.5 + half), (done["omega"], ref["omega"], half)
     with h5py.File(tmp_path / "cut" / "nfrc_dlft.h5") as h5:
         cpu = h5["extras/stability_cpu_time"]
