@@ -111,7 +111,8 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
     """The Newton loop.
 
     y0: first iterate (n,). linearise(y) -> (||R(y)||, step): the residual norm at y and a
-    callable step() -> dy solving the linearised system (it may raise SingularMatrixError);
+    callable step() -> dy solving the linearised system (either may raise SingularMatrixError:
+    the point fails with that reason);
     or (||R(y)||, step, what): what names the non-finite quantity when the norm is not
     finite (default "residual", e.g. "dR_domega").
     scale: scalar or (n,), the size of y for options.tol_step. merit(y) -> ||R(y)||, used by
@@ -124,7 +125,10 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
     history = []
     k = options.stall_iterations
     for it in range(options.max_iter + 1):
-        out = linearise(y)
+        try:
+            out = linearise(y)
+        except SingularMatrixError as exc:  # the residual itself undefined there (a pole of a condensation)
+            return NewtonResult(y, False, rn, it, f"residual not defined{where}: {exc}")
         rn, step = out[0], out[1]
         if not math.isfinite(rn):
             what = out[2] if len(out) > 2 else "residual"
@@ -152,7 +156,10 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
             for halvings in range(options.max_halvings + 1):  # t = 1, 1/2, ..., 2^-max_halvings
                 if halvings:
                     t *= 0.5
-                rt = merit(y + t * dy)
+                try:
+                    rt = merit(y + t * dy)
+                except SingularMatrixError:  # undefined there: a shorter step
+                    rt = math.inf
                 if math.isfinite(rt) and rt < (1.0 - 1e-4 * t) * rn:
                     break
         y = y + t * dy

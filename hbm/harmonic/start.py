@@ -85,7 +85,8 @@ def obstacle_homotopy(res: HarmonicBalanceResidual, omega: float, opts: Continua
     hopt = replace(opts, omega_min=0.0, omega_max=1.0, omega_scale=0.2, ds=0.05, ds_max=0.5,
                    closed_loop_tol=None, direction=1, max_points=200)
     br = continue_branch(homotopy, res.linear_solution(omega), 0.0, hopt, solver=solver)
-    return br.x[-1], f"obstacle homotopy: {br.status} ({len(br)} points)"
+    # the branch's parameter is s, not a speed: its reasons' "omega=0.15" read "s=0.15"
+    return br.x[-1], f"obstacle homotopy: {br.status.replace('omega=', 's=')} ({len(br)} points)"
 
 
 def solve_start(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions,

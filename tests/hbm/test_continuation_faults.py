@@ -11,6 +11,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_MAX_POINTS, STATUS_OMEGA_MAX, STATUS_STEP_FLOOR, Branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.linalg.dense import DirectSolver
+from hbm.linalg.errors import SingularMatrixError
 
 from systems import Wave
 
@@ -22,13 +23,17 @@ def opts(lo, hi, **kw):
 
 
 class Parabola:
-    """x = w^2 (R = x - w^2); dR_dx (bad="J") or dR_domega (bad="w") is NaN for w > w_bad."""
+    """x = w^2 (R = x - w^2); dR_dx (bad="J") or dR_domega (bad="w") is NaN for w > w_bad, or
+    the residual is undefined there (bad="pole": SingularMatrixError, as the condensation
+    raises at a fixed-interface eigenfrequency)."""
 
     def __init__(self, bad: str, w_bad: float = 1.5):
         self.bad, self.w_bad = bad, w_bad
 
     def __call__(self, x, w):
         J, r_w = np.array([[1.0]]), np.array([-2.0 * w])
+        if w > self.w_bad and self.bad == "pole":
+            raise SingularMatrixError(f"condensation at omega={w:.9g} rad/s: harmonic 1 sits on a pole")
         if w > self.w_bad:
             if self.bad == "J":
                 J = np.array([[np.nan]])
@@ -38,13 +43,20 @@ class Parabola:
 
 
 # ---------------------------------------------------------------- bad inputs named
+def test_a_residual_undefined_at_the_iterate_is_a_failed_solve_with_its_reason():
+    # the exception used to escape Newton and end the whole NFRC
+    r = newton_solve(Parabola("pole", w_bad=0.0), np.array([1.2]), 1.0, NewtonOptions(tol_residual=TOL))
+    assert not r.converged and r.reason.startswith("residual not defined at omega=1: condensation at omega=1 rad/s"), r.reason
+
+
 def test_nan_jacobian_is_named_not_called_singular():
     r = newton_solve(Parabola("J", w_bad=0.0), np.array([1.2]), 1.0, NewtonOptions(tol_residual=TOL))
     assert not r.converged
     assert "non-finite Jacobian" in r.reason and "singular" not in r.reason
 
 
-@pytest.mark.parametrize("bad, name", [("J", "non-finite Jacobian"), ("w", "non-finite dR_domega")])
+@pytest.mark.parametrize("bad, name", [("J", "non-finite Jacobian"), ("w", "non-finite dR_domega"),
+                                       ("pole", "residual not defined")])
 def test_nan_derivative_along_the_branch_is_named(bad, name):
     b = continue_branch(Parabola(bad), np.array([1.0]), 1.0, opts(0.0, 5.0, ds=0.05, ds_max=0.1, ds_min=1e-4))
     assert b.status.startswith(STATUS_STEP_FLOOR) and name in b.status, b.status

@@ -118,6 +118,9 @@ def test_a_start_no_strategy_reaches_gives_each_reason():
     _, note = solve_start(res, ts.t.W, opts, DirectSolver())
     assert note.startswith("no start found: damped Newton from the contact-free solution: no convergence"), note
     assert "; DLFT solution: no convergence" in note and "; obstacle homotopy: " in note, note
+    # the homotopy's parameter is the obstacle scale s in [0, 1], not a speed
+    homotopy = note.split("; obstacle homotopy: ")[1]
+    assert "omega=" not in homotopy and "s=" in homotopy, note
 
 
 def test_one_structured_solver_serves_residuals_of_two_resolutions():
