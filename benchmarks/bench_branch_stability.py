@@ -214,20 +214,29 @@ def _parity_check(table: dict, omega: np.ndarray, spectra: dict) -> str:
     computed there)."""
     import math
 
-    from hbm.stability.bifurcation import real_parities
+    from hbm.stability.bifurcation import lone_real, real_parities
     from hbm.stability.monitor import WIDEN_FRACTION, StabilityOptions
 
     kinds = np.asarray(table["kind"][0], dtype=str)
     idx = np.asarray(table["index"][0], dtype=np.int64)
     direction = np.asarray(table["direction"][0], dtype=np.int64)
+    source = np.asarray(table["kind_from"][0], dtype=str)
+    mult = np.asarray(table["multiplier_real"][0], float) + 1j * np.asarray(table["multiplier_imag"][0], float)
     steps = {}
-    for k, i, d in zip(kinds, idx, direction):
-        steps.setdefault(int(i), []).append((str(k), int(d)))
+    for k, i, d, f, m in zip(kinds, idx, direction, source, mult):
+        steps.setdefault(int(i), []).append((str(k), int(d), str(f), complex(m)))
     bad = total = 0
-    for i, recs in steps.items():
+    for i, raw in steps.items():
         sa, sb = spectra.get(float(omega[i])), spectra.get(float(omega[i + 1]))
-        if any(k == "fold" for k, _ in recs) or sa is None or sb is None:
+        if any(r[0] == "fold" for r in raw) or sa is None or sb is None:
             continue
+        # the monitor's weights (StabilityMonitor._members): a crossing of a pair near the
+        # real axis is one record of two multipliers, and no real crossing
+        recs = []
+        for k, d, f, m in raw:
+            mu = (sb if d > 0 else sa).multipliers
+            pair = k == "Neimark-Sacker" or (f == "crossing" and not lone_real(mu)[mu == m].all())
+            recs.append((k if not pair or k == "Neimark-Sacker" else "pair", d, 2 if pair else 1))
         near = min(StabilityOptions().window,
                    WIDEN_FRACTION * math.log(max(min(sa.modulus_ceiling, sb.modulus_ceiling), 1.0)))
         pa = real_parities(sa.multipliers, sa.unstable, near)
@@ -235,9 +244,9 @@ def _parity_check(table: dict, omega: np.ndarray, spectra: dict) -> str:
         if pa is None or pb is None:
             continue
         total += 1
-        added = sum((2 if k == "Neimark-Sacker" else 1) * d for k, d in recs)
-        n_pd = sum(k == "period doubling" for k, _ in recs)
-        n_bp = sum(k == "branch point" for k, _ in recs)
+        added = sum(n * d for _, d, n in recs)
+        n_pd = sum(k == "period doubling" for k, _, _ in recs)
+        n_bp = sum(k == "branch point" for k, _, _ in recs)
         if added != pb[0] - pa[0] or n_pd % 2 != (pa[1] != pb[1]) or n_bp % 2 != (pa[2] != pb[2]):
             bad += 1
     return f"{bad} of {total} steps with records (no turn) do not add up to the count change or the parities"
