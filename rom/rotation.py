@@ -22,11 +22,14 @@ def rotation_sign(rotation: str | int, theta: np.ndarray) -> int:
     """s = +1 or -1 for a scene's [blade] rotation.
 
     rotation: "+", "-", "le-leads", or already a sign (+1, -1).
-    theta: angles of the contact nodes, LE (first) to TE (last), (n_b,), rad.
+    theta: angles of the contact nodes, LE (first) to TE (last), (n_b,), rad; relative to the
+        LE (BladeMesh.boundary_theta) or absolute (atan2's, in (-pi, pi]).
     "le-leads": the sense in which the leading edge leads, i.e. the blade turns towards the
     side where the LE is ahead of the TE: s = -sign(theta_TE - theta_LE) (rotor 67's table:
-    theta_TE - theta_LE = +0.33 rad, so s = -1). Raises ValueError when the contact nodes
-    span no angle (the sense cannot be derived; state "+" or "-").
+    theta_TE - theta_LE = +0.33 rad, so s = -1), the difference taken in (-pi, pi] (a blade
+    spans far less than half a turn; absolute angles jump by 2 pi where it crosses the -x
+    axis). Raises ValueError when the contact nodes span no angle (the sense cannot be
+    derived; state "+" or "-").
     """
     if isinstance(rotation, (int, np.integer)) and rotation in (1, -1):
         return int(rotation)
@@ -38,6 +41,8 @@ def rotation_sign(rotation: str | int, theta: np.ndarray) -> int:
         raise ValueError(f"unknown rotation {rotation!r}; known: '+', '-', 'le-leads'")
     theta = np.asarray(theta, dtype=float)
     span = float(theta[-1] - theta[0]) if len(theta) > 1 else 0.0
+    # wrap into (-pi, pi]: LE at +3.0 rad and TE at -3.1 rad are 2 pi - 6.1 = +0.18 rad apart, not -6.1
+    span = span - 2.0 * np.pi * np.ceil((span - np.pi) / (2.0 * np.pi))
     if not abs(span) > 1e-9:
         raise ValueError(f"rotation = 'le-leads' needs the contact nodes to span an angle (theta_TE - theta_LE "
                          f"= {span:.3g} rad): write rotation = '+' or '-' in [blade]")
