@@ -271,8 +271,10 @@ def draw_nfrc(ctx: Context) -> None:
                   max_order=scene.ti.max_order)
 
 
+# hbm.methods: the curves' order gives their colours (the set of files alone does not change
+# when the treatments are listed in another order)
 NFRC_FIGURE = Figure("nfrc", files=lambda scene: ("nfrc.png",),
-                     depends=("hbm.omega_min", "hbm.omega_max", "casing.n_lobes", "ti.max_order"),
+                     depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes", "ti.max_order"),
                      inputs=_nfrc_inputs, draw=draw_nfrc)
 
 
@@ -354,7 +356,9 @@ def write_hbm_vtu(ctx: Context) -> None:
             f"{len(t)} instants -> {path}")
 
 
-HBM_VTU = Figure("hbm_vtu", files=_instants_files, depends=("render.hbm_instants", "render.hbm_omega", "hbm.methods"),
+# name: the PVD's comment names the scene (as the mode pictures' titles do)
+HBM_VTU = Figure("hbm_vtu", files=_instants_files,
+                 depends=("render.hbm_instants", "render.hbm_omega", "hbm.methods", "name"),
                  inputs=lambda scene: tuple(nfrc_output(m).file for m in scene.hbm.methods[:1]) + ("mesh.h5", "rom.h5"),
                  draw=write_hbm_vtu)
 
