@@ -51,6 +51,10 @@ from pathlib import Path as _Path
 SHARED = _Path(__file__).resolve().parents[2] / "shared"
 #: The coarse rotor 67 ROM the rotor 67 tests share (tests/data/README.md says how it was built).
 COARSE_ROM = _Path(__file__).resolve().parent / "data" / "rotor67_coarse_rom.h5"
+#: rotor 67's NASA table, and the coarse scenes' mesh settings (8 mm, one element across the
+#: edges: ~24 000 nodes, a few seconds to mesh)
+R67_TABLE = SHARED / "data" / "rotor67" / "rotor67geometry.dat"
+COARSE_MESH = dict(element_size=0.008, edge_layers=1, size_growth=0.5)
 
 
 def coarse_rom() -> RomModel:

@@ -8,25 +8,15 @@ import pytest
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 
-from support import SHARED
+from support import COARSE_MESH, R67_TABLE, SHARED
 from mesh.blade import camber_points, mesh_blade
 from mesh.geometry import GeometryError, read_geometry
 from mesh.options import BladeOptions, MeshOptions
 
-R67 = SHARED / "data" / "rotor67" / "rotor67geometry.dat"
-COARSE = MeshOptions(element_size=0.008, edge_layers=1, size_growth=0.5)
+R67 = R67_TABLE
+COARSE = MeshOptions(**COARSE_MESH)  # the mesh and geometry fixtures: tests/mesh/conftest.py
 TET10_EDGES = ((0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1))  # gmsh order, as in BladeMesh
 TRI6_EDGES = ((0, 1), (1, 2), (2, 0))
-
-
-@pytest.fixture(scope="module")
-def mesh():
-    return mesh_blade(BladeOptions(), COARSE, R67)
-
-
-@pytest.fixture(scope="module")
-def geometry():
-    return read_geometry(R67, "rotor67", "ft")
 
 
 def _tet_volumes(x, cells):

@@ -10,30 +10,16 @@ import dataclasses
 import numpy as np
 import pytest
 
-from support import SHARED
 from mesh import tet10
-from mesh.blade import boundary_nodes, camber_points, mesh_blade
-from mesh.geometry import read_geometry
+from mesh.blade import boundary_nodes, camber_points
 from mesh.model import BladeMesh
-from mesh.options import BladeOptions, MeshOptions
 from mesh.ordering import rcm_order, renumber_nodes
 
-R67 = SHARED / "data" / "rotor67" / "rotor67geometry.dat"
-COARSE = MeshOptions(element_size=0.008, edge_layers=1, size_growth=0.5)
+# the coarse rotor 67 mesh and its table: the fixtures mesh and geometry (tests/mesh/conftest.py)
 # gmsh tet10 mid-edge nodes, as BladeMesh documents them (not read from mesh.tet10)
 EDGES = ((0, 1), (1, 2), (2, 0), (3, 0), (3, 2), (3, 1))
 VERTICES = np.array([[0.0, 0.0, 0.0], [1, 0, 0], [0, 1, 0], [0, 0, 1]])
 REFERENCE_NODES = np.vstack([VERTICES, [(VERTICES[a] + VERTICES[b]) / 2 for a, b in EDGES]])
-
-
-@pytest.fixture(scope="module")
-def mesh():
-    return mesh_blade(BladeOptions(), COARSE, R67)
-
-
-@pytest.fixture(scope="module")
-def geometry():
-    return read_geometry(R67, "rotor67", "ft")
 
 
 def _shape_functions(p):
