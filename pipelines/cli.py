@@ -1,4 +1,4 @@
-"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes]
+"""Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes] [--quiet]
 [--set SECTION.KEY=VALUE ...]`, `bladerub show SCENE.toml [--set ...]` (the resolved scene,
 every default written out), `bladerub render SCENE.toml --out DIR`.
 
