@@ -85,22 +85,25 @@ def boundary_modes(rom, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
 
 
 def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np.ndarray) -> list[Seed]:
-    """Eq. (31): x0(t) = A rho_tip Phi_j cos(k omega t) for every omega of the grid (rad/s),
-    mode j < n_modes, harmonic k of iso.harmonics within the residual's N_h (of the basis'
-    fundamental Omega / nu), amplitude A of iso.amplitudes (rho_tip: mean radius of the
-    contact nodes, m; Phi_j: boundary_modes). Origins read "modal j=2 k=4 A=0.0032" (j from 1)."""
+    """Eq. (31): x0(t) = A rho_tip Phi_j cos(k Omega t) for every Omega of the grid (rad/s),
+    mode j < n_modes, harmonic k of Omega of iso.harmonics, amplitude A of iso.amplitudes
+    (rho_tip: mean radius of the contact nodes, m; Phi_j: boundary_modes). In the basis of
+    Omega / nu, k Omega is the basis' harmonic k nu: the k with k nu above the residual's N_h
+    are left out. Origins read "modal j=2 k=4 A=0.0032" (j from 1, k of Omega)."""
     _, phi = boundary_modes(rom, iso.n_modes)
     rho_tip = float(np.mean(rom.rho))
     nh = res.basis.n_harmonics
+    nu = int(res.nu)
     out = []
     for w in omegas:
         for j, shape in enumerate(phi):
             for k in iso.harmonics:
-                if k > nh:
+                q = k * nu  # k Omega in the basis of Omega / nu
+                if q > nh:
                     continue
                 for a in iso.amplitudes:
                     xr = np.zeros((res.n_c, res.n_r))
-                    xr[2 * k - 1] = a * rho_tip * shape  # the cosine of harmonic k, eq. (5) order
+                    xr[2 * q - 1] = a * rho_tip * shape  # the cosine of harmonic q, eq. (5) order
                     out.append(Seed(float(w), res.to_unknowns(xr), f"modal j={j + 1} k={k} A={a:.2g}"))
     return out
 

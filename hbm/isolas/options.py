@@ -11,12 +11,14 @@ class IsolaOptions:
 
     n_modes: modal seeds use the first n_modes modes Phi_j of the ROM (K, M), eq. (31).
       Default 4: the paper's isolas respond on 1B, 2B, 1T and the 4th mode.
-    harmonics: the harmonics k of the seeds x0(t) = A Phi_j cos(k Omega t) (k <= N_h are
-      used). Default 1..10: the paper's engine orders (its isola 1 carries k = 4 and 10).
+    harmonics: the harmonics k of the seeds x0(t) = A Phi_j cos(k Omega t), multiples of
+      Omega whatever the basis (in the basis of Omega / nu, harmonic k nu; those with k nu <=
+      N_h are used). Default 1..10: the paper's engine orders (its isola 1 carries k = 4 and
+      10).
     amplitudes: the dimensionless amplitudes A. A is the largest radial tip displacement
       of the seed divided by the tip radius (the mean radius of the contact nodes): Phi_j is
       scaled to a unit largest radial displacement over the contact nodes, then by A rho_tip.
-      Default a log grid over [1e-3, 1e-2] (three points): on rotor 67 (rho_tip = 0.243 m)
+      Default a log grid over [1e-3, 1e-2] (three points): on rotor 67 (rho_tip = 0.241 m)
       that is 0.24 to 2.4 mm, the LE amplitudes seen along the primary NFRC (0.3 to 2.4 mm,
       Fig. 6), which is how the paper chose its range.
     n_omega: points of the seeds' Omega grid (evenly spaced over the range). Default 41 (the

@@ -540,7 +540,9 @@ def _estimate(scene, out, outputs) -> Estimate:
     iso, h = scene.isolas, scene.hbm
     n_c = 2 * h.n_harmonics + 1
     per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9
-    n_seeds = iso.n_modes * len([k for k in iso.harmonics if k <= h.n_harmonics]) * len(iso.amplitudes) * iso.n_omega
+    # harmonic k of Omega is harmonic k nu of the basis (hbm.isolas.harmonic.modal_seeds)
+    n_kept = len([k for k in iso.harmonics if k * h.subharmonic <= h.n_harmonics])
+    n_seeds = iso.n_modes * n_kept * len(iso.amplitudes) * iso.n_omega
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
     seconds = len(h.methods) * (n_seeds * 2 * per_point / cores + 5 * 2 * iso.max_points * per_point / 4)
     # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,
