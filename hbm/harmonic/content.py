@@ -23,8 +23,20 @@ import scipy.linalg as sla
 
 def rom_modes(K: np.ndarray, M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Eigenfrequencies (n,), rad/s, ascending, and mass-normalised mode shapes (n, n)
-    (column j: mode j, Phi^T M Phi = I) of K (n, n), N/m, and M (n, n), kg."""
-    lam, phi = sla.eigh(np.asarray(K, dtype=float), np.asarray(M, dtype=float))
+    (column j: mode j, Phi^T M Phi = I) of K (n, n), N/m, and M (n, n), kg.
+
+    A negative eigenvalue w^2 is round-off, and taken as 0, down to -n eps cond(M) max|w^2|
+    (the bound of rom.model.eigenfrequencies, repeated here: hbm reads a ROM file, possibly
+    from another FE code, and does not import rom/); below it, ValueError: K is indefinite,
+    and a frequency of 0 would hide it."""
+    M = np.asarray(M, dtype=float)
+    lam, phi = sla.eigh(np.asarray(K, dtype=float), M)
+    m = np.linalg.eigvalsh(M)
+    tol = len(lam) * np.finfo(float).eps * (m[-1] / m[0]) * float(np.abs(lam).max(initial=0.0))
+    if len(lam) and lam[0] < -tol:
+        raise ValueError(f"K is not positive semi-definite: (K, M) has the eigenvalue w^2 = {lam[0]:.6g} "
+                         f"rad^2/s^2, below the round-off bound -{tol:.3g} (n eps cond(M) max|w^2|): the ROM "
+                         f"is not a clamped, stable structure or K is corrupt")
     return np.sqrt(np.maximum(lam, 0.0)), phi
 
 

@@ -52,7 +52,8 @@ class HbmSolver:
       whenever it is a preconditioner only and not J's exact inverse).
     refine_tol: accepted relative residual of the bordered system's fall-back (block
       elimination, hbm.linalg.bordered).
-    stats: counters "preconditioners", "krylov", "last_krylov", "dense_fallback".
+    stats: counters "preconditioners", "krylov", "last_krylov", "dense_fallback",
+    "bordered_fallback" (bordered solves that fell back to the block elimination).
     """
 
     rtol: float = 3e-7
@@ -196,4 +197,5 @@ class HbmFactorization:
             dx, dw = d[:-1], float(d[-1])
             if bordered_residual(J, c, p, q, r, s, dx, dw) <= max(sv.refine_tol, 2.0 * tol) * max(rn, 1e-300):
                 return BorderedStep(dx, dw, False)
+        sv._count("bordered_fallback")  # the one-GMRES path failed (or missed its check): recorded
         return eliminate_bordered(self.solve, J, c, p, q, r, s, sv.refine_tol)

@@ -10,9 +10,9 @@ import uuid
 from dataclasses import dataclass, field, replace
 
 import numpy as np
-import scipy.linalg as sla
 
 from hbm.continuation.newton import NewtonOptions, newton_solve
+from hbm.harmonic.content import rom_modes
 from hbm.harmonic.nfrc import default_continuation, nfrc_extras
 from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.harmonic.solver import HbmSolver
@@ -75,13 +75,14 @@ def boundary_modes(rom, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
     n = min(n_modes, rom.K.shape[0])
     if n == 0:
         return np.zeros(0), np.zeros((0, 3 * rom.n_boundary))
-    lam, phi = sla.eigh(rom.K, rom.M, subset_by_index=[0, n - 1])
-    b = phi[: 3 * rom.n_boundary].T.copy()  # (n, 3 n_b)
+    # all modes (a ROM is small): rom_modes' check that K is semi-definite needs max |w^2|
+    w, phi = rom_modes(rom.K, rom.M)
+    b = phi[: 3 * rom.n_boundary, :n].T.copy()  # (n, 3 n_b)
     for j in range(n):
         r = b[j, 0::3]
         k = int(np.argmax(np.abs(r)))
         b[j] /= r[k] if r[k] != 0 else np.abs(b[j]).max()
-    return np.sqrt(np.maximum(lam, 0.0)), b
+    return w[:n], b
 
 
 def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np.ndarray) -> list[Seed]:
