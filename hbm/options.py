@@ -2,7 +2,45 @@
 from __future__ import annotations
 
 import math
+import numbers
 from dataclasses import dataclass
+
+
+def check_option(name: str, value, low=None, high=None, *, low_open: bool = False, high_open: bool = False,
+                 integer: bool = False, unit: str = "", note: str = "") -> None:
+    """Raise ValueError, naming the option, its value and the allowed range, unless `value` is a
+    finite real number (an integer when `integer`; a bool is neither) within [low, high] (an
+    end left open by low_open / high_open; None: unbounded there). unit and note (what the
+    bound means) follow the range in the message.
+
+    One check for every options dataclass of hbm: these are built from Python as well as from
+    scenes, and a NaN, an infinity or a fractional count is otherwise refused far from its
+    cause, or not at all (a NaN fails every comparison, so `if x < 0: raise` lets it through).
+    """
+    if low is not None and high is not None:
+        allowed = f"in {'(' if low_open else '['}{low:g}, {high:g}{')' if high_open else ']'}"
+    elif low is not None:
+        allowed = f"{'>' if low_open else '>='} {low:g}"
+    elif high is not None:
+        allowed = f"{'<' if high_open else '<='} {high:g}"
+    else:
+        allowed = ""
+    allowed = " ".join(part for part in (allowed, unit, f"({note})" if note else "") if part)
+    got = value if isinstance(value, numbers.Number) else repr(value)
+    if (isinstance(value, bool) or not isinstance(value, numbers.Integral if integer else numbers.Real)
+            or not math.isfinite(value)):
+        kind = "an integer" if integer else "a finite number"
+        raise ValueError(f"{name} must be {kind}{' ' + allowed if allowed else ''}, got {got}")
+    if not ((low is None or (value > low if low_open else value >= low))
+            and (high is None or (value < high if high_open else value <= high))):
+        raise ValueError(f"{name} must be {allowed}, got {got}")
+
+
+def check_flag(name: str, value) -> None:
+    """Raise ValueError unless `value` is true or false (a bool, numpy's included, or 0 / 1): a
+    string such as "false" is truthy, and would switch the option on without a word."""
+    if isinstance(value, str) or value not in (True, False):
+        raise ValueError(f"{name} must be true or false, got {value!r}")
 
 
 @dataclass(frozen=True)
@@ -19,12 +57,11 @@ class CasingOptions:
     penetration: float = 1.25e-4
 
     def __post_init__(self):
-        if self.n_lobes < 1:
-            raise ValueError(f"n_lobes must be >= 1, got {self.n_lobes}")
+        check_option("n_lobes", self.n_lobes, 1, integer=True)
         if not 0 < self.width < 2 * math.pi:
             raise ValueError(f"width must be in (0, 2 pi) rad, got {self.width}")
-        if self.clearance < 0:
-            raise ValueError(f"clearance must be >= 0 m, got {self.clearance}")
+        check_option("clearance", self.clearance, 0, unit="m")
+        check_option("penetration", self.penetration, unit="m")  # <= 0 is valid (no contact), the scene warns
 
 
 @dataclass(frozen=True)
@@ -44,12 +81,10 @@ class ContactOptions:
 
     def __post_init__(self):
         for k in ("epsilon", "kappa"):
-            if not getattr(self, k) > 0:
-                raise ValueError(f"{k} must be > 0 N/m, got {getattr(self, k)}")
-        if self.gamma < 0:
-            raise ValueError(f"gamma must be >= 0 N, got {self.gamma}")
-        if self.mu < 0:
-            raise ValueError(f"friction coefficient mu must be >= 0, got {self.mu}")
+            check_option(k, getattr(self, k), 0, low_open=True, unit="N/m")
+        check_option("gamma", self.gamma, 0, unit="N")
+        check_option("friction coefficient mu", self.mu, 0)
+        check_flag("lanczos", self.lanczos)
 
 
 @dataclass(frozen=True)
@@ -102,25 +137,23 @@ class HbmOptions:
                 raise ValueError(f"unknown HBM method '{m}'; known: dlft, rl")
         if len(set(self.methods)) != len(self.methods):
             raise ValueError(f"methods {list(self.methods)} names a method twice")
-        if self.n_harmonics < 1:
-            raise ValueError(f"n_harmonics must be >= 1, got {self.n_harmonics}")
+        check_option("n_harmonics", self.n_harmonics, 1, integer=True)
+        check_option("n_time", self.n_time, 4, integer=True)
         if self.n_time < 2 * self.n_harmonics + 2:
             raise ValueError(f"n_time = {self.n_time} cannot resolve {self.n_harmonics} harmonics "
                              f"(need n_time >= 2 n_harmonics + 2 = {2 * self.n_harmonics + 2})")
+        for k in ("omega_min", "omega_max"):
+            check_option(k, getattr(self, k), 0, low_open=True, unit="rad/s")
         if not 0 < self.omega_min < self.omega_max:
             raise ValueError(f"need 0 < omega_min < omega_max, got {self.omega_min}, {self.omega_max}")
         if self.start not in ("omega_min", "omega_max"):
             raise ValueError(f"start must be 'omega_min' or 'omega_max', got {self.start!r}")
-        if self.max_points < 2:
-            raise ValueError(f"max_points must be >= 2, got {self.max_points}")
-        if not self.ds_max > 0:
-            raise ValueError(f"ds_max must be > 0, got {self.ds_max}")
-        if not 0 < self.tolerance < 1:
-            raise ValueError(f"tolerance must be in (0, 1), got {self.tolerance}")
-        if self.stability_max_gap < 1:
-            raise ValueError(f"stability_max_gap must be >= 1 (1: every point analysed), got {self.stability_max_gap}")
-        if isinstance(self.subharmonic, bool) or int(self.subharmonic) != self.subharmonic or self.subharmonic < 1:
-            raise ValueError(f"subharmonic must be an integer >= 1, got {self.subharmonic!r}")
+        check_option("max_points", self.max_points, 2, integer=True)
+        check_option("ds_max", self.ds_max, 0, low_open=True)
+        check_option("tolerance", self.tolerance, 0, 1, low_open=True, high_open=True)
+        check_flag("stability", self.stability)
+        check_option("stability_max_gap", self.stability_max_gap, 1, integer=True, note="1: every point analysed")
+        check_option("subharmonic", self.subharmonic, 1, integer=True)
 
 
 @dataclass(frozen=True)
@@ -182,16 +215,10 @@ class ValidationOptions:
     dt_refinement: int = 4
 
     def __post_init__(self):
-        if self.n_periods < 3:
-            raise ValueError(f"n_periods must be >= 3, got {self.n_periods}")
-        for name, least in (("n_candidates", 1), ("n_scan", 2), ("pd_points", 2), ("pd_tries", 1),
-                            ("primary_tries", 1), ("isola_tries", 1)):
-            if getattr(self, name) < least:
-                raise ValueError(f"{name} must be >= {least}, got {getattr(self, name)}")
-        if self.harmonic_checks < 0:
-            raise ValueError(f"harmonic_checks must be >= 0, got {self.harmonic_checks}")
-        if self.dt_refinement < 1:
-            raise ValueError(f"dt_refinement must be >= 1 (1: no second march), got {self.dt_refinement}")
+        for name, least, note in (("n_periods", 3, ""), ("n_candidates", 1, ""), ("n_scan", 2, ""), ("pd_points", 2, ""),
+                                  ("pd_tries", 1, ""), ("primary_tries", 1, ""), ("isola_tries", 1, ""),
+                                  ("harmonic_checks", 0, "0: none"), ("dt_refinement", 1, "1: no second march")):
+            check_option(name, getattr(self, name), least, integer=True, note=note)
 
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange
@@ -252,26 +279,26 @@ class TimeIntegrationOptions:
     def __post_init__(self):
         if self.scheme not in TI_SCHEMES:
             raise ValueError(f"unknown time-integration scheme '{self.scheme}'; known: {', '.join(TI_SCHEMES)}")
-        if not self.dt > 0:
-            raise ValueError(f"dt must be > 0 s, got {self.dt}")
-        if not self.massless_cutoff > 0:
-            raise ValueError(f"massless_cutoff must be > 0 rad/s, got {self.massless_cutoff}")
+        check_option("dt", self.dt, 0, low_open=True, unit="s")
+        check_option("massless_cutoff", self.massless_cutoff, 0, low_open=True, unit="rad/s")
+        check_option("n_revolutions", self.n_revolutions, 2, integer=True)
+        check_option("n_keep", self.n_keep, 1, integer=True)
+        check_flag("stop_when_settled", self.stop_when_settled)
         if not 0 < self.n_keep < self.n_revolutions:
             raise ValueError(f"need 0 < n_keep < n_revolutions (the first revolution from rest is never "
                              f"steady), got n_keep = {self.n_keep}, n_revolutions = {self.n_revolutions}")
+        for k in ("omega_min", "omega_max"):
+            check_option(k, getattr(self, k), 0, low_open=True, unit="rad/s")
         if not 0 < self.omega_min <= self.omega_max:
             raise ValueError(f"need 0 < omega_min <= omega_max, got {self.omega_min}, {self.omega_max}")
-        if self.n_omega < 1:
-            raise ValueError(f"n_omega must be >= 1, got {self.n_omega}")
-        if self.samples_per_revolution < 1:
-            raise ValueError(f"samples_per_revolution must be >= 1, got {self.samples_per_revolution}")
+        check_option("n_omega", self.n_omega, 1, integer=True)
+        check_option("samples_per_revolution", self.samples_per_revolution, 1, integer=True)
         if not 0 < self.periodicity_rtol < 1:
             raise ValueError(f"periodicity_rtol must be in (0, 1), got {self.periodicity_rtol}")
         if not 0 < self.settle_rtol < self.periodicity_rtol:
             raise ValueError(f"settle_rtol must be in (0, periodicity_rtol = {self.periodicity_rtol}), "
                              f"got {self.settle_rtol}")
-        if not self.max_order >= 1:
-            raise ValueError(f"max_order must be >= 1, got {self.max_order}")
+        check_option("max_order", self.max_order, 1)
 
     @property
     def omegas(self):

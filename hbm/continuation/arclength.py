@@ -33,6 +33,7 @@ from hbm.continuation.newton import (NewtonOptions, NewtonResult, Residual, name
 from hbm.linalg.dense import DirectSolver
 from hbm.linalg.errors import SingularMatrixError
 from hbm.linalg.protocol import LinearSolver
+from hbm.options import check_flag, check_option
 
 
 @dataclass(frozen=True)
@@ -114,26 +115,38 @@ class ContinuationOptions:
     def __post_init__(self):
         if not self.omega_min < self.omega_max:
             raise ValueError(f"need omega_min < omega_max, got {self.omega_min}, {self.omega_max}")
+        for k in ("ds_min", "ds", "ds_max"):
+            check_option(k, getattr(self, k), 0, low_open=True)
         if not 0 < self.ds_min <= self.ds <= self.ds_max:
             raise ValueError(f"need 0 < ds_min <= ds <= ds_max, got {self.ds_min}, {self.ds}, {self.ds_max}")
         if self.direction not in (1, -1):
             raise ValueError(f"direction must be +1 or -1, got {self.direction}")
-        if self.max_points < 1:
-            raise ValueError(f"max_points must be >= 1, got {self.max_points}")
-        if not (np.all(np.asarray(self.x_scale) > 0) and self.omega_scale > 0):
-            raise ValueError("x_scale and omega_scale must be > 0")
-        if not (self.grow >= 1.0 and 0 < self.shrink < 1.0):
-            raise ValueError(f"need grow >= 1 and 0 < shrink < 1, got {self.grow}, {self.shrink}")
-        if self.iter_reject is not None and self.iter_reject < 1:
-            raise ValueError(f"iter_reject must be None or >= 1, got {self.iter_reject}")
+        check_option("max_points", self.max_points, 1, integer=True)
+        x_scale = np.asarray(self.x_scale)
+        if not (x_scale.dtype.kind in "iuf" and np.all(np.isfinite(x_scale)) and np.all(x_scale > 0)):
+            raise ValueError(f"x_scale must be finite and > 0 (scalar or (n,)), got {self.x_scale}")
+        check_option("omega_scale", self.omega_scale, 0, low_open=True, unit="rad/s")
+        check_option("iter_grow", self.iter_grow, 0, integer=True)
+        check_option("iter_shrink", self.iter_shrink, 0, integer=True)
+        check_option("grow", self.grow, 1)
+        check_option("shrink", self.shrink, 0, 1, low_open=True, high_open=True)
+        if self.iter_reject is not None:
+            check_option("iter_reject", self.iter_reject, 1, integer=True, note="or None")
+        check_flag("rejoin_check", self.rejoin_check)
+        check_option("rejoin_tol", self.rejoin_tol, 0, low_open=True)
+        if self.closed_loop_tol is not None:
+            check_option("closed_loop_tol", self.closed_loop_tol, 0, low_open=True, note="or None")
+        check_flag("land_on_bounds", self.land_on_bounds)
+        # a step is never below ds_min, so a ratio of 1 or less would never see a crawl
+        check_option("crawl_ratio", self.crawl_ratio, 1, low_open=True)
         if self.predictor not in ("secant", "quadratic"):
             raise ValueError(f"predictor must be 'secant' or 'quadratic', got {self.predictor!r}")
         if not 0 < self.max_turn_deg <= 180:
             raise ValueError(f"max_turn_deg must be in (0, 180], got {self.max_turn_deg}")
         if not 0 < self.turn_shrink_deg <= 180:
             raise ValueError(f"turn_shrink_deg must be in (0, 180], got {self.turn_shrink_deg}")
-        if self.crawl_points is not None and self.crawl_points < 1:
-            raise ValueError(f"crawl_points must be >= 1 or None, got {self.crawl_points}")
+        if self.crawl_points is not None:
+            check_option("crawl_points", self.crawl_points, 1, integer=True, note="or None")
 
     def next_step(self, ds: float, iterations: int, turn_deg: float = 0.0) -> float:
         """Step after a correction that converged in `iterations` with step `ds` and turned

@@ -22,6 +22,7 @@ import scipy.sparse as sp
 from hbm.linalg.dense import DirectSolver
 from hbm.linalg.errors import SingularMatrixError
 from hbm.linalg.protocol import LinearSolver
+from hbm.options import check_flag, check_option
 
 Residual = Callable[[np.ndarray, float], tuple]
 
@@ -78,18 +79,15 @@ class NewtonOptions:
     stall_factor: float = 0.1
 
     def __post_init__(self):
-        if not (self.tol_residual > 0 and math.isfinite(self.tol_residual)):
-            raise ValueError(f"tol_residual must be > 0, got {self.tol_residual}")
-        if self.tol_step is not None and not (self.tol_step > 0 and math.isfinite(self.tol_step)):
-            raise ValueError(f"tol_step must be > 0 or None, got {self.tol_step}")
-        if self.max_iter < 1:
-            raise ValueError(f"max_iter must be >= 1, got {self.max_iter}")
-        if self.max_halvings < 0:
-            raise ValueError(f"max_halvings must be >= 0, got {self.max_halvings}")
-        if self.stall_iterations is not None and self.stall_iterations < 1:
-            raise ValueError(f"stall_iterations must be >= 1 or None, got {self.stall_iterations}")
-        if not 0 < self.stall_factor <= 1:
-            raise ValueError(f"stall_factor must be in (0, 1], got {self.stall_factor}")
+        check_option("tol_residual", self.tol_residual, 0, low_open=True)
+        if self.tol_step is not None:
+            check_option("tol_step", self.tol_step, 0, low_open=True, note="or None")
+        check_option("max_iter", self.max_iter, 1, integer=True)
+        check_flag("line_search", self.line_search)
+        check_option("max_halvings", self.max_halvings, 0, integer=True)
+        if self.stall_iterations is not None:
+            check_option("stall_iterations", self.stall_iterations, 1, integer=True, note="or None")
+        check_option("stall_factor", self.stall_factor, 0, 1, low_open=True)
 
 
 class NewtonResult(NamedTuple):

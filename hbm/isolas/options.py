@@ -4,6 +4,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from hbm.options import check_flag, check_option
+
 
 @dataclass(frozen=True)
 class IsolaOptions:
@@ -65,28 +67,27 @@ class IsolaOptions:
     workers: int | None = None
 
     def __post_init__(self):
-        if self.n_modes < 0:
-            raise ValueError(f"n_modes must be >= 0, got {self.n_modes}")
-        if any(int(k) != k or k < 1 for k in self.harmonics):
+        check_option("n_modes", self.n_modes, 0, integer=True)
+        if any(isinstance(k, bool) or not (math.isfinite(k) and int(k) == k >= 1) for k in self.harmonics):
             raise ValueError(f"harmonics must be integers >= 1, got {list(self.harmonics)}")
         if any(not (a > 0 and math.isfinite(a)) for a in self.amplitudes):
             raise ValueError(f"amplitudes must be > 0, got {list(self.amplitudes)}")
-        if self.n_omega < 1:
-            raise ValueError(f"n_omega must be >= 1, got {self.n_omega}")
+        check_option("n_omega", self.n_omega, 1, integer=True)
         lo, hi = self.omega_min, self.omega_max
+        for k, v in (("omega_min", lo), ("omega_max", hi)):
+            if v is not None:
+                check_option(k, v, 0, low_open=True, unit="rad/s")
         if (lo is not None and lo <= 0) or (hi is not None and hi <= 0) or (lo is not None and hi is not None
                                                                             and not lo < hi):
             raise ValueError(f"need 0 < omega_min < omega_max, got {lo}, {hi}")
-        if not self.tolerance > 0:
-            raise ValueError(f"tolerance must be > 0, got {self.tolerance}")
-        if self.max_points < 2:
-            raise ValueError(f"max_points must be >= 2, got {self.max_points}")
-        if self.crawl_points < 1:
-            raise ValueError(f"crawl_points must be >= 1, got {self.crawl_points}")
-        if self.newton_iterations < 1:
-            raise ValueError(f"newton_iterations must be >= 1, got {self.newton_iterations}")
-        if self.workers is not None and self.workers < 1:
-            raise ValueError(f"workers must be >= 1 or unset, got {self.workers}")
+        check_option("tolerance", self.tolerance, 0, low_open=True)
+        check_option("max_points", self.max_points, 2, integer=True)
+        check_option("crawl_points", self.crawl_points, 1, integer=True)
+        check_option("newton_iterations", self.newton_iterations, 1, integer=True)
+        check_flag("ti_seeds", self.ti_seeds)
+        check_flag("ti_period_doubled", self.ti_period_doubled)
+        if self.workers is not None:
+            check_option("workers", self.workers, 1, integer=True, note="or unset")
 
     def omega_range(self, hbm) -> tuple[float, float]:
         """(omega_min, omega_max), rad/s: these options' range, the [hbm] one where unset."""

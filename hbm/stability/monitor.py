@@ -56,7 +56,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hbm.options import HbmOptions
+from hbm.options import HbmOptions, check_option
 from hbm.stability.bifurcation import (BRANCH_POINT, CROSSING, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING,
                                       UNCLASSIFIED, Bifurcation, classify, crossings, lone_real, pair_multipliers,
                                       parabola_vertex, real_parities, upper_half)
@@ -107,10 +107,13 @@ class StabilityOptions:
     turn_tol: float = 1e-7
 
     def __post_init__(self):
-        if self.max_gap < 1 or self.n_eig < 2 or self.n_leading < 1 or not 0 < self.reach_fraction <= 1 \
-                or not self.turn_tol >= 0:
-            raise ValueError("need max_gap >= 1, n_eig >= 2, n_leading >= 1, 0 < reach_fraction <= 1, turn_tol >= 0, "
-                             f"got {self}")
+        check_option("n_eig", self.n_eig, 2, integer=True)
+        check_option("max_gap", self.max_gap, 1, integer=True)
+        check_option("margin", self.margin, 0)
+        check_option("n_leading", self.n_leading, 1, integer=True)
+        check_option("window", self.window, 0, low_open=True)
+        check_option("reach_fraction", self.reach_fraction, 0, 1, low_open=True)
+        check_option("turn_tol", self.turn_tol, 0)
 
 
 @dataclass(eq=False)
