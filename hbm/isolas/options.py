@@ -72,6 +72,11 @@ class IsolaOptions:
             raise ValueError(f"harmonics must be integers >= 1, got {list(self.harmonics)}")
         if any(not (a > 0 and math.isfinite(a)) for a in self.amplitudes):
             raise ValueError(f"amplitudes must be > 0, got {list(self.amplitudes)}")
+        for name in ("harmonics", "amplitudes"):  # a repeated value seeds the same solutions twice
+            values = list(getattr(self, name))
+            twice = sorted({v for v in values if values.count(v) > 1})
+            if twice:
+                raise ValueError(f"{name} lists {', '.join(f'{v:g}' for v in twice)} more than once: {values}")
         check_option("n_omega", self.n_omega, 1, integer=True)
         lo, hi = self.omega_min, self.omega_max
         for k, v in (("omega_min", lo), ("omega_max", hi)):

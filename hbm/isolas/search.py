@@ -60,6 +60,7 @@ from hbm.continuation.missing import NO_VALUE
 from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import (KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance,
                                      segment_length, segment_polyline_distance)
+from hbm.options import check_option
 from hbm.processes import (gathered, limit_blas_threads, on_root, process_context, reported_deaths, run_flagged,
                            running, set_start_flags, start_flags)
 
@@ -96,6 +97,12 @@ class SearchOptions:
     newton: NewtonOptions
     workers: int | None = None
     refine_ratio: float = 0.5
+
+    def __post_init__(self):
+        check_option("tolerance", self.tolerance, 0, low_open=True)
+        check_option("refine_ratio", self.refine_ratio, 0, low_open=True)
+        if self.workers is not None:
+            check_option("workers", self.workers, 1, integer=True, note="or unset")
 
 
 @dataclass(frozen=True)

@@ -5,6 +5,7 @@ NaN, an infinity, a fractional count or a string flag otherwise failed far from 
 penetration, mu or gamma, a 2.5-lobe casing, an infinite step bound: a branch computed on
 a silently different model)."""
 import math
+import re
 
 import numpy as np
 import pytest
@@ -87,3 +88,34 @@ def test_bad_option_value_is_refused_with_its_name_value_and_range(cls, required
 def test_numpy_scalars_are_accepted_as_numbers_and_counts():
     HbmOptions(n_harmonics=np.int64(4), n_time=np.int64(16), omega_max=np.float64(1500.0), stability=np.True_)
     check_option("n", np.int32(3), 1, integer=True)
+
+
+@pytest.mark.parametrize("kw, msg", [
+    (dict(harmonics=(1, 2, 2, 3)), r"harmonics lists 2 more than once: \[1, 2, 2, 3\]"),
+    (dict(amplitudes=(1e-3, 1e-2, 1e-3)), r"amplitudes lists 0.001 more than once"),
+])
+def test_a_repeated_seed_value_is_refused(kw, msg):
+    # accepted before: the same seeds corrected twice, the duplicates found only afterwards
+    from hbm.isolas.options import IsolaOptions
+
+    with pytest.raises(ValueError, match=msg):
+        IsolaOptions(**kw)
+
+
+@pytest.mark.parametrize("field, value, msg", [
+    ("tolerance", float("nan"), "tolerance must be a finite number > 0, got nan"),
+    ("tolerance", 0.0, "tolerance must be > 0, got 0"),
+    ("refine_ratio", -0.5, "refine_ratio must be > 0, got -0.5"),
+    ("workers", 2.5, "workers must be an integer >= 1"),
+])
+def test_the_isola_search_options_are_checked(field, value, msg):
+    # unchecked before: with a NaN tolerance every "distance <= tolerance" test is false (no seed
+    # on a known branch, no duplicate)
+    from hbm.continuation.arclength import ContinuationOptions
+    from hbm.continuation.newton import NewtonOptions
+    from hbm.isolas.search import SearchOptions
+
+    kw = dict(tolerance=1e-2, continuation=ContinuationOptions(400.0, 2000.0), newton=NewtonOptions())
+    kw[field] = value
+    with pytest.raises(ValueError, match=re.escape(msg)):
+        SearchOptions(**kw)
