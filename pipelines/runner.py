@@ -471,8 +471,8 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         raise Interrupted(describe()) from None
     except _FigureFailed as exc:  # after the stages: not "nothing was computed" (a ValueError's exit 2)
         raise StageFailed(f"figure {exc.figure} failed: {art.first_line(exc.__cause__)}; kept: {kept()}") from exc
-    except ChildDied as exc:  # a stage's own process that ended without a word: the stage and what was kept
-        raise StageFailed(f"{where} failed: {exc}; kept: {kept()}") from exc
+    except ChildDied as exc:  # a stage's own process that ended without a word (killed): a rerun resumes
+        raise StageFailed(f"{where} failed: {exc}; {resumable()}") from exc
     except WorkerDied as exc:  # a pool's worker killed (OOM): the speeds or branches its pool ended are on disk
         raise StageFailed(f"{where} failed: {exc}; {resumable()}") from exc
     except ValueError as exc:  # bad input found late (a step past the ROM's limit) or a numerical failure
@@ -482,7 +482,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
     except SystemExit as exc:  # a child's sys.exit(), re-raised here (pipelines.child): never the run's own code
         code = exc.code if exc.code is None or isinstance(exc.code, int) else repr(exc.code)
         raise StageFailed(f"{where} failed: a process of it exited (code {0 if code is None else code}) "
-                          f"without an answer; kept: {kept()}") from None
+                          f"without an answer; {resumable()}") from None
     except OSError as exc:
         text = os.strerror(exc.errno) if exc.errno else art.first_line(exc)
         name = f" {exc.filename}" if getattr(exc, "filename", None) else ""

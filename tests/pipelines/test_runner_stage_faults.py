@@ -58,14 +58,17 @@ def test_a_stage_child_that_exits_without_a_word_is_one_line_naming_the_stage(ch
     # said kept), and for sys.exit(3) no line at all and the child's code as the run's (sys.exit(0): 0)
     mesh_stage(monkeypatch, compute=lambda ctx, outputs: call_in_child(*child))
     assert run(scene, tmp_path) == 1
-    assert one_line(capsys.readouterr().err) == f"bladerub: error: stage mesh failed: {said}; kept: nothing new"
+    # and, as for a killed pool worker, how to go on (the line said only what was kept)
+    assert one_line(capsys.readouterr().err) == (f"bladerub: error: stage mesh failed: {said}; kept: nothing new; "
+                                                 f"run `bladerub run {scene} --out {tmp_path} --until mesh` again to go on from there")
 
 
 def test_a_stage_raising_system_exit_0_is_not_a_run_done(scene, tmp_path, monkeypatch, capsys):
     mesh_stage(monkeypatch, compute=lambda ctx, outputs: sys.exit(0))
     assert run(scene, tmp_path) == 1
     assert one_line(capsys.readouterr().err) == ("bladerub: error: stage mesh failed: a process of it exited (code 0) "
-                                                 "without an answer; kept: nothing new")
+                                                 f"without an answer; kept: nothing new; run `bladerub run {scene} --out {tmp_path} --until mesh` "
+                                                 "again to go on from there")
 
 
 def test_a_figure_raising_a_value_error_fails_the_run_with_exit_1_naming_the_figure(scene, tmp_path, monkeypatch,
