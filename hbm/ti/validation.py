@@ -177,8 +177,12 @@ class OrbitValidation:
     def verdict(self) -> str:
         """In words: "stays", "stays, unsettled (drift 0.36)" when the last period does not
         repeat the one before (SETTLED_DRIFT), "leaves for an orbit of period 2 T" (repeat),
-        "leaves", or "leaves for permanent contact (TE)"
-        naming the locked nodes (LE, TE, or "node j" counted from the LE at 0)."""
+        "leaves", "leaves for permanent contact (TE)" naming the locked nodes (LE, TE, or
+        "node j" counted from the LE at 0), or "leaves: the march went to NaN or inf from
+        period k" (a numerical failure, not a dynamical verdict)."""
+        bad = ~np.isfinite(np.asarray(self.deviation, float)).all(axis=-1)
+        if bad.any():
+            return f"leaves: the march went to NaN or inf from period {int(np.argmax(bad)) + 1}"
         if self.stays:
             return "stays" if self.settled else f"stays, unsettled (drift {np.max(self.drift):.2f})"
         if self.repeat > 1 and self.outcome != "permanent contact":
