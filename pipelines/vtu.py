@@ -9,6 +9,7 @@ interpolates) every cell wrongly, so the cells are reordered here.
 """
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from xml.sax.saxutils import quoteattr
 
@@ -108,6 +109,22 @@ def write_mode_shapes(path, nodes, cells, modes: np.ndarray, frequencies_hz: np.
     return write_vtu(path, nodes, cells, data)
 
 
+def remove_numbered(folder, prefix: str, width: int, suffix: str, first: int) -> list[Path]:
+    """Remove folder's files f"{prefix}{i:0{width}d}{suffix}" for every i >= first: those an
+    earlier, longer series of the same name left (ParaView's file dialog groups numbered files
+    into one series, old frames among the new). Only names that exact pattern writes go; a
+    user's own file beside them stays. Returns the paths removed."""
+    folder = Path(folder)
+    numbered = re.compile(re.escape(prefix) + r"(\d+)" + re.escape(suffix))
+    removed = []
+    for p in sorted(folder.iterdir()) if folder.is_dir() else ():
+        m = numbered.fullmatch(p.name)
+        if m and int(m[1]) >= first and p.name == f"{prefix}{int(m[1]):0{width}d}{suffix}" and not p.is_dir():
+            p.unlink(missing_ok=True)
+            removed.append(p)
+    return removed
+
+
 def write_time_series(folder, stem: str, nodes, cells, times: np.ndarray, displacement: np.ndarray,
                       comment: str = "") -> Path:
     """Displacement snapshots as folder/stem/stem_000.vtu ... and folder/stem.pvd.
@@ -138,4 +155,6 @@ def write_time_series(folder, stem: str, nodes, cells, times: np.ndarray, displa
     with concurrent.futures.ThreadPoolExecutor(workers) as pool:
         # map: when a write fails (a full disk), the snapshots not started yet are cancelled
         files = list(pool.map(write, range(len(times))))
-    return write_pvd(folder / f"{stem}.pvd", [(t, f.relative_to(folder)) for t, f in zip(times, files)], comment)
+    pvd = write_pvd(folder / f"{stem}.pvd", [(t, f.relative_to(folder)) for t, f in zip(times, files)], comment)
+    remove_numbered(sub, f"{stem}_", 3, ".vtu", len(times))
+    return pvd

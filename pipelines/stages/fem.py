@@ -106,8 +106,12 @@ def mode_files(scene) -> tuple[str, ...]:
 
 def render_modes(ctx: Context, n_modes: int | None = None) -> list:
     """Render the first mode shapes of fem.h5 off-screen (in a child process, see
-    pipelines.render.render_artifacts)."""
+    pipelines.render.render_artifacts). Drawn for the scene (n_modes None), the pictures of
+    modes beyond render.n_modes that an earlier, larger count left are removed once the new
+    ones are written, so that figures/ holds what the manifest lists; a count asked for
+    (`bladerub render --modes`) leaves the scene's other pictures alone."""
     from pipelines.render import render_artifacts
+    from pipelines.vtu import remove_numbered
 
     scene = ctx.scene
     n = scene.render.n_modes if n_modes is None else n_modes
@@ -118,6 +122,8 @@ def render_modes(ctx: Context, n_modes: int | None = None) -> list:
         paths = render_artifacts(ctx.out / MESH.file, ctx.out / FEM.file, ctx.out / "figures", n_modes=n,
                                  scale=scene.render.scale, window=tuple(scene.render.window),
                                  title_prefix=f"{scene.name}: ")
+    if n_modes is None:
+        remove_numbered(ctx.out / "figures", "mode_", 2, ".png", n + 1)  # mode_files: 1-based
     ctx.log(f"  rendered {len(paths)} mode shapes -> {ctx.out / 'figures'}")
     return paths
 
