@@ -3,19 +3,22 @@ of an earlier, nearby one (hbm.harmonic.preconditioner), kept across Newton iter
 continuation points while it works.
 
 Nothing is approximated: each solve meets its tolerance on the true J (or falls back, in
-turn, to this J's own preconditioner and to the dense LU). The tolerances are those of an
+turn, to this J's own preconditioner and to the dense LU); a direct answer (the exact
+preconditioner, the dense LU) that misses it, J being (nearly) singular, is refused with a
+SingularMatrixError, as GMRES's is. The tolerances are those of an
 inexact Newton method: the corrector's step needs only the digits Newton's test can see.
 """
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 import scipy.linalg as sla
 
 from hbm.harmonic.jacobian import HbmJacobian
 from hbm.harmonic.preconditioner import ContactPreconditioner
-from hbm.linalg.bordered import bordered_residual, eliminate_bordered, finite
+from hbm.linalg.bordered import bordered_residual, eliminate_bordered, finite, refined_solution
 from hbm.linalg.dense import lu_factor
 from hbm.linalg.errors import SingularMatrixError
 from hbm.linalg.gmres import gmres
@@ -133,13 +136,17 @@ class HbmFactorization:
         pre, J = self.solver._pre, self.J
         return pre.source is J and not pre.single and (not J.friction or not len(J.nodes))
 
-    def _solve_one(self, b: np.ndarray) -> np.ndarray:
+    def _solve_one(self, b: np.ndarray, checked: bool = True) -> np.ndarray:
+        """J^-1 b for b (n,). The direct answers (the exact preconditioner, the dense LU) are
+        held to GMRES's rule, at one product with J, refined once where they miss
+        (hbm.linalg.bordered.refined_solution); unless not `checked`: the block elimination
+        checks its answer on the bordered system."""
         s, J = self.solver, self.J
-        x = s._pre(b)
-        if self._exact:
-            return x
         tol = s._inexact_rtol(s.plain_forcing, float(np.linalg.norm(b)), 1e-2) if s.plain_forcing > 0 else s.rtol
-        x, ok = s._gmres(J.__matmul__, s._pre, b, x, tol)
+        if self._exact:  # J singular: no zero pivot, but x ~ 1e16 and ||J x - b|| ~ ||b||
+            return refined_solution(J, s._pre, b, tol, "structured solve by the exact preconditioner") if checked \
+                else s._pre(b)
+        x, ok = s._gmres(J.__matmul__, s._pre, b, s._pre(b), tol)
         if ok:
             return x
         if s._pre.source is not J:  # the reused preconditioner is too far off: build this J's
@@ -150,14 +157,15 @@ class HbmFactorization:
         s._count("dense_fallback")  # GMRES stalled even with J's own preconditioner
         if self._dense_lu is None:
             self._dense_lu = lu_factor(J.toarray())
-        return sla.lu_solve(self._dense_lu, b, check_finite=False)
+        dense = partial(sla.lu_solve, self._dense_lu, check_finite=False)
+        return refined_solution(J, dense, b, tol, "structured solve by the dense fall-back LU") if checked else dense(b)
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    def solve(self, b: np.ndarray, checked: bool = True) -> np.ndarray:
         if self._error is not None:
             raise self._error
         b = np.asarray(b, dtype=float)
         cols = b.reshape(b.shape[0], -1)
-        out = np.column_stack([self._solve_one(cols[:, c]) for c in range(cols.shape[1])])
+        out = np.column_stack([self._solve_one(cols[:, c], checked) for c in range(cols.shape[1])])
         if not finite(out):
             raise SingularMatrixError("structured solve: non-finite result")
         return out.reshape(b.shape)
@@ -198,4 +206,4 @@ class HbmFactorization:
             if bordered_residual(J, c, p, q, r, s, dx, dw) <= max(sv.refine_tol, 2.0 * tol) * max(rn, 1e-300):
                 return BorderedStep(dx, dw, False)
         sv._count("bordered_fallback")  # the one-GMRES path failed (or missed its check): recorded
-        return eliminate_bordered(self.solve, J, c, p, q, r, s, sv.refine_tol)
+        return eliminate_bordered(lambda v: self.solve(v, checked=False), J, c, p, q, r, s, sv.refine_tol)

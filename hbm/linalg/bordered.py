@@ -5,7 +5,9 @@ and dx = -a - b dw, so only J is factorised. Block elimination fails at an exact
 (J singular) and loses digits near one, so its answer is checked on the bordered system,
 refined once with the same factors, and replaced by a solve of the full bordered matrix
 when the relative error still exceeds refine_tol: Newton needs only a few exact digits in
-its step, but those it needs.
+its step, but those it needs. The full solve is checked too (a nearly singular bordered
+matrix, e.g. J with a two-dimensional null space, gives an LU answer with an O(1) residual
+and no error): refused past refine_tol, with a SingularMatrixError that Newton records.
 """
 from __future__ import annotations
 
@@ -22,6 +24,38 @@ def finite(*arrays) -> bool:
     return all(np.all(np.isfinite(a)) for a in arrays)
 
 
+def _relative_misses(J, x, b, tol):
+    """(whether some column of b (n,) or (n, k) misses ||b - J x|| <= tol ||b||, b - J x,
+    the worst relative residual); NaN misses."""
+    r = b - J @ x
+    res = np.linalg.norm(np.reshape(r, (len(b), -1)), axis=0)
+    bn = np.linalg.norm(np.reshape(b, (len(b), -1)), axis=0)
+    return not np.all(res <= tol * bn), r, float(np.max(res / np.maximum(bn, np.finfo(float).tiny)))
+
+
+def check_solution(J, x: np.ndarray, b: np.ndarray, tol: float, what: str) -> np.ndarray:
+    """x, if it meets GMRES's true-residual rule (hbm.linalg.gmres): ||b - J x|| <= tol ||b||,
+    column by column for b (n, k); else SingularMatrixError naming the residual. A direct
+    solve of a nearly singular J (LU, the exact preconditioner) returns ~1e16-sized x with a
+    residual of O(||b||) and no error otherwise. Costs one product with J."""
+    miss, _, worst = _relative_misses(J, x, b, tol)
+    if miss:
+        raise SingularMatrixError(f"{what}: relative residual {worst:.2e} > {tol:.1e} "
+                                  f"(singular or too ill-conditioned)")
+    return x
+
+
+def refined_solution(J, solve, b: np.ndarray, tol: float, what: str) -> np.ndarray:
+    """solve(b) held to check_solution's rule at one product with J; where it misses (an
+    ill-conditioned J, digits short of a tight tol), refined once with the same solve, as
+    the block elimination is, and checked again (a second product), else refused."""
+    x = solve(b)
+    miss, r, _ = _relative_misses(J, x, b, tol)
+    if not miss:
+        return x
+    return check_solution(J, x + solve(r), b, tol, what)
+
+
 def bordered_residual(J, c, p, q, r, s, dx, dw) -> float:
     """||[[J, c], [p^T, q]] [dx; dw] + [r; s]||_2 (J needs `@`)."""
     eR = J @ dx + c * dw + r
@@ -29,8 +63,9 @@ def bordered_residual(J, c, p, q, r, s, dx, dw) -> float:
     return float(np.sqrt(eR @ eR + eP * eP))
 
 
-def solve_full_bordered(J, c, p, q, r, s) -> BorderedStep:
-    """The bordered matrix factorised as a whole: dense LU, or SuperLU for scipy sparse J.
+def solve_full_bordered(J, c, p, q, r, s, refine_tol: float = 1e-6) -> BorderedStep:
+    """The bordered matrix factorised as a whole: dense LU, or SuperLU for scipy sparse J;
+    the answer checked on the bordered system (one product) against refine_tol.
 
     J: (n, n) ndarray, scipy sparse, or anything with __array__ (made dense).
     """
@@ -49,6 +84,7 @@ def solve_full_bordered(J, c, p, q, r, s) -> BorderedStep:
             raise SingularMatrixError(f"bordered matrix: {exc}") from exc
     if not finite(d):
         raise SingularMatrixError("bordered matrix: non-finite solution")
+    check_solution(A, d, rhs, refine_tol, "bordered matrix")  # the last resort: refused, not hidden
     return BorderedStep(d[:-1], float(d[-1]), True)
 
 
@@ -81,4 +117,4 @@ def eliminate_bordered(solve, J, c, p, q, r, s, refine_tol: float = 1e-6) -> Bor
             dx, dw = dx + cx, dw + cw
     except SingularMatrixError:
         pass
-    return solve_full_bordered(J, np.asarray(c, float), p, q, r, s)
+    return solve_full_bordered(J, np.asarray(c, float), p, q, r, s, refine_tol)

@@ -14,7 +14,7 @@ import scipy.linalg as sla
 import scipy.sparse as sp
 import scipy.sparse.linalg as spla
 
-from hbm.linalg.bordered import eliminate_bordered, finite
+from hbm.linalg.bordered import eliminate_bordered, finite, refined_solution
 from hbm.linalg.errors import SingularMatrixError
 from hbm.linalg.protocol import BorderedStep
 
@@ -34,7 +34,11 @@ class DirectFactorization:
     """J factorised once; solve(b) and the checked block elimination of the bordered system.
 
     A singular J is not an error here but in solve(): the bordered system of a fold (J
-    singular, the bordered matrix not) is then solved as a whole.
+    singular, the bordered matrix not) is then solved as a whole. solve() checks its answer
+    (||J x - b|| <= refine_tol ||b||, one product with J; refined once where it misses): an LU
+    of a nearly singular J gives no zero pivot but x ~ 1e16 with a residual of O(||b||). The
+    block elimination uses the unchecked solve: it checks (and refines) its answer on the
+    bordered system instead.
     """
 
     def __init__(self, J, refine_tol: float):
@@ -55,7 +59,7 @@ class DirectFactorization:
         except SingularMatrixError as exc:
             self._error = exc
 
-    def solve(self, b: np.ndarray) -> np.ndarray:
+    def _solve_unchecked(self, b: np.ndarray) -> np.ndarray:
         if self._error is not None:
             raise self._error
         x = self._solve(np.asarray(b, dtype=float))
@@ -63,16 +67,21 @@ class DirectFactorization:
             raise SingularMatrixError("direct solve: non-finite result")
         return x
 
+    def solve(self, b: np.ndarray) -> np.ndarray:
+        b = np.asarray(b, dtype=float)
+        return refined_solution(self.J, self._solve_unchecked, b, self.refine_tol, "direct solve")
+
     def solve_bordered(self, c, p, q, r, s) -> BorderedStep:
-        return eliminate_bordered(self.solve, self.J, c, p, q, r, s, self.refine_tol)
+        return eliminate_bordered(self._solve_unchecked, self.J, c, p, q, r, s, self.refine_tol)
 
 
 @dataclass
 class DirectSolver:
     """LinearSolver by LU (dense) or SuperLU (scipy sparse), one factorisation per call.
 
-    refine_tol: relative residual of the bordered system below which a block elimination
-    is accepted (see hbm.linalg.bordered). n_factorizations: factorisations done.
+    refine_tol: relative residual below which a solve is accepted: ||J x - b|| / ||b|| of a
+    plain solve, that of the bordered system for the block elimination and the full bordered
+    solve (see hbm.linalg.bordered). n_factorizations: factorisations done.
     """
 
     refine_tol: float = 1e-6
