@@ -138,6 +138,14 @@ HEX20 = ReferenceElement(
 
 ELEMENTS = {e.name: e for e in (WEDGE15, HEX20)}
 
+
+def quad_faces(blocks) -> list[np.ndarray]:
+    """The quadrilateral faces of the wedge15 / hex20 blocks (objects with .type, a meshio
+    cell type, and .connectivity (k, n)): one (k, 4) array of corner indices per face of each
+    block's element, ordered around the face; blocks of other types give none."""
+    return [b.connectivity[:, list(f)] for b in blocks if b.type in ELEMENTS
+            for f in ELEMENTS[b.type].faces if len(f) == 4]
+
 _COEFFICIENTS = {}
 for _e in (WEDGE15, HEX20):
     assert _e.exponents.shape == (_e.n_nodes, 3), _e.name

@@ -66,13 +66,12 @@ def imported_nodes(src) -> int:
     mesh.subdivide creates, one per distinct quadrilateral face (its diagonal, shared by the
     two elements on the face) and one per hexahedron (its body diagonal, from its smallest
     vertex to the opposite one). Exact for a mesh the import accepts."""
-    from mesh.elements import ELEMENTS, HEX20
+    from mesh.elements import HEX20, quad_faces
 
     if not src.blocks:
         return 0
     used = np.unique(np.concatenate([b.connectivity.ravel() for b in src.blocks]))
-    quads = [b.connectivity[:, list(f)] for b in src.blocks if b.type in ELEMENTS
-             for f in ELEMENTS[b.type].faces if len(f) == 4]
+    quads = quad_faces(src.blocks)
     n_faces = len(np.unique(np.sort(np.concatenate(quads), axis=1), axis=0)) if quads else 0
     n_hex = sum(len(b.connectivity) for b in src.blocks if b.type == HEX20.name)
     return int(len(used) + n_faces + n_hex)

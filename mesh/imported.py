@@ -39,7 +39,7 @@ from scipy.sparse.csgraph import connected_components
 
 from mesh import tet10
 from mesh.blade import contact_geometry, nearest_nodes, points_along
-from mesh.elements import ELEMENTS
+from mesh.elements import ELEMENTS, quad_faces
 from mesh.model import BladeMesh
 from mesh.options import KNOWN_UNITS, BladeOptions, MeshOptions
 from mesh.ordering import renumber_nodes
@@ -173,8 +173,7 @@ def _check_elements(src: SourceMesh, path: Path) -> None:
 def _check_junctions(src: SourceMesh, path: Path) -> None:
     """Tetrahedra glued onto a quadrilateral face would need pyramids: refuse them."""
     tets = [b.connectivity[:, :4] for b in src.blocks if b.type == "tetra10"]
-    quads = [b.connectivity[:, list(f)] for b in src.blocks if b.type in ELEMENTS
-             for f in ELEMENTS[b.type].faces if len(f) == 4]
+    quads = quad_faces(src.blocks)
     if not tets or not quads:
         return
     t = np.concatenate(tets)
