@@ -146,11 +146,9 @@ def test_a_resume_takes_extras_its_earlier_points_lack(tmp_path):
     store.close()
 
 
-def test_a_partial_file_shared_by_hard_links_is_never_written_through(tmp_path):
-    """A folder copied with `cp -al` shares its partial files with the original: resuming in
-    the copy, or starting over there, leaves the original's points as they were."""
-    import os
-
+def two_run_folders(tmp_path):
+    """(a, b, pts): folders a and b, a holding the partial file of an NFRC interrupted after 3
+    of the 6 points pts (what a copy of a, b, links to)."""
     a, b = tmp_path / "a", tmp_path / "b"
     a.mkdir()
     b.mkdir()
@@ -158,6 +156,15 @@ def test_a_partial_file_shared_by_hard_links_is_never_written_through(tmp_path):
     with BranchStore.create(a / "nfrc.h5", 5, attrs=ATTRS) as store:
         for p in pts[:3]:
             store.append(p, extras_of(p))
+    return a, b, pts
+
+
+def test_a_partial_file_shared_by_hard_links_is_never_written_through(tmp_path):
+    """A folder copied with `cp -al` shares its partial files with the original: resuming in
+    the copy, or starting over there, leaves the original's points as they were."""
+    import os
+
+    a, b, pts = two_run_folders(tmp_path)
     os.link(partial_path(a / "nfrc.h5"), partial_path(b / "nfrc.h5"))
     original = partial_path(a / "nfrc.h5").read_bytes()
 

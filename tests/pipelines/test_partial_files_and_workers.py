@@ -14,20 +14,14 @@ import numpy as np
 from hbm.processes import reported_deaths
 from pipelines import artifacts as art
 from pipelines.branch_store import BranchStore, load_branch, partial_path
-from test_branch_store import ATTRS, extras_of, make_points
+from test_branch_store import extras_of, two_run_folders
 from test_runner_stage_faults import mesh_stage, one_line, scene  # noqa: F401 - scene: a fixture
 
 
 def test_a_partial_file_that_is_a_symbolic_link_is_resumed_from_a_copy_and_its_target_left_as_it_was(tmp_path):
     # before: the resume in b appended its points to a's file through the link (`cp -as`, or
     # a link made by hand to another run's partial file)
-    a, b = tmp_path / "a", tmp_path / "b"
-    a.mkdir()
-    b.mkdir()
-    pts = make_points(m=6)
-    with BranchStore.create(a / "nfrc.h5", 5, attrs=ATTRS) as store:
-        for p in pts[:3]:
-            store.append(p, extras_of(p))
+    a, b, pts = two_run_folders(tmp_path)
     target = partial_path(a / "nfrc.h5")
     partial_path(b / "nfrc.h5").symlink_to(target)
     original = target.read_bytes()
