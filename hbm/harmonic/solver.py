@@ -70,6 +70,7 @@ class HbmSolver:
     stats: dict = field(default_factory=dict)
     _pre: ContactPreconditioner | None = field(default=None, repr=False)
     _stale: bool = field(default=True, repr=False)
+    _anorm: float = field(default=0.0, repr=False)  # ||J|| of the kept preconditioner's J (estimate)
 
     @property
     def n_factorizations(self) -> int:
@@ -83,6 +84,7 @@ class HbmSolver:
         """Build (and keep, for the next factorize calls) J's own preconditioner."""
         self._pre = ContactPreconditioner(J, self.single)
         self._stale = False
+        self._anorm = norm_estimate(J)
         self._count("preconditioners")
         return self._pre
 
@@ -99,7 +101,7 @@ class HbmSolver:
             if preconditioner.source.shape != J.shape:
                 raise ValueError(f"preconditioner built for a {preconditioner.source.shape} Jacobian, "
                                  f"J is {J.shape}")
-            self._pre, self._stale = preconditioner, False
+            self._pre, self._stale, self._anorm = preconditioner, False, norm_estimate(preconditioner.source)
         elif self._stale or self._pre is None or self._pre.source.shape != J.shape:
             try:
                 self.precondition(J)
@@ -113,12 +115,20 @@ class HbmSolver:
         return min(cap, max(self.rtol, forcing * norm, self.atol / max(norm, 1e-300)))
 
     def _gmres(self, matvec, prec, b, x0, rtol):
-        x, it, ok = gmres(matvec, prec, b, x0, rtol, self.max_krylov)
+        x, it, ok = gmres(matvec, prec, b, x0, rtol, self.max_krylov, self._anorm)
         self._count("krylov", it)
         self.stats["last_krylov"] = it
         if it > self.refactor_after:
             self._stale = True
         return x, ok
+
+
+def norm_estimate(J) -> float:
+    """||J v|| / ||v|| for a fixed random v: within a small factor of ||J||_2 for the harmonic
+    blocks (a random v weighs every harmonic alike), at one product. GMRES bounds the
+    round-off of its products with it (hbm.linalg.gmres)."""
+    v = np.random.default_rng(0).standard_normal(J.shape[1])
+    return float(np.linalg.norm(J @ v) / np.linalg.norm(v))
 
 
 class HbmFactorization:

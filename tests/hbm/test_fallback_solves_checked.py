@@ -124,7 +124,7 @@ def test_hbm_exact_preconditioner_answer_is_checked():
 
 def test_hbm_dense_fallback_answer_is_checked(monkeypatch):
     # GMRES stalls (its own check refused it, or max_krylov): the dense LU is the last resort
-    monkeypatch.setattr(hbm_solver, "gmres", lambda matvec, prec, b, x0, rtol, max_iter: (x0, max_iter, False))
+    monkeypatch.setattr(hbm_solver, "gmres", lambda matvec, prec, b, x0, rtol, max_iter, anorm=0.0: (x0, max_iter, False))
     J_old, _, _ = _undamped(0.999)
     J, A, b = _undamped(1.0)
     solver = HbmSolver()
