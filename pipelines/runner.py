@@ -545,6 +545,22 @@ def _figure_current(entry, h: str, folder_: Path, files) -> bool:
     return all((folder_ / f).is_file() and sums.get(f) == file_hash(folder_ / f) for f in files)
 
 
+def _remove_recorded(folder_: Path, entry: dict, keep) -> None:
+    """Remove the files a manifest entry recorded (names the figure declared when it was
+    drawn) that are not in `keep`, and the subfolders this leaves empty. A name that is not a
+    plain relative path inside the folder (a hand-edited manifest) is left alone."""
+    recorded = entry.get("files", {})
+    for name in set(recorded if isinstance(recorded, dict) else ()) - set(keep):
+        rel = Path(str(name))
+        if rel.is_absolute() or ".." in rel.parts or not (folder_ / rel).is_file():
+            continue
+        (folder_ / rel).unlink()
+        for parent in (folder_ / rel).parents:
+            if parent == folder_ or any(parent.iterdir()):
+                break
+            parent.rmdir()
+
+
 def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
     """Draw the figures of `stages` that are missing, damaged or outdated; returns their names."""
     folder_ = out / "figures"
@@ -558,6 +574,12 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
     for stage in stages:
         for fig in stage.figures:
             files = fig.files(scene)
+            if not files and isinstance(manifest.get(fig.name), dict):
+                # none declared now (render.n_modes = 0, hbm_instants = 0): the last drawing's
+                # files would read as this scene's
+                _remove_recorded(folder_, manifest.pop(fig.name), ())
+                with art.atomic_output(path) as tmp:
+                    tmp.write_text(json.dumps(manifest, indent=1, sort_keys=True))
             if not files or not any((out / name).is_file() for name in fig.inputs(scene)):
                 continue
             comp = figure_components(scene, out, fig)
@@ -578,6 +600,8 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
                     fig.draw(Context(scene, out, progress))
                 except ValueError as exc:
                     raise _FigureFailed(fig.name) from exc
+            if isinstance(entry, dict):  # e.g. another stem (the first of hbm.methods changed)
+                _remove_recorded(folder_, entry, files)
             manifest[fig.name] = {"inputs": h, "components": comp,
                                   "files": {f: file_hash(folder_ / f) for f in files if (folder_ / f).is_file()}}
             folder_.mkdir(parents=True, exist_ok=True)

@@ -63,3 +63,56 @@ def test_fewer_mode_pictures_leave_only_the_scene_modes_and_the_manifest_lists_t
     assert _listing(figures) == set(mode_files(scene)) | mine | {MANIFEST}
     assert set(json.loads((figures / MANIFEST).read_text())["modes"]["files"]) == {"mode_01.png"}
     assert all((figures / name).read_text() == "mine" for name in mine)
+
+
+def test_no_files_declared_any_more_removes_the_last_drawing(tmp_path):
+    """render.n_modes = 0 declares no mode picture: those of the last drawing went on reading
+    as this scene's (the figure was skipped, its files and manifest entry kept)."""
+    nodes, cells = plate_tet10(4, 2, 1)
+    with h5py.File(tmp_path / "mesh.h5", "w") as h5:
+        h5["nodes"], h5["cells"] = nodes, cells
+    with h5py.File(tmp_path / "fem.h5", "w") as h5:
+        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    (figures / "mode_shapes.png").write_text("mine")
+    stage = SimpleNamespace(figures=(MODES,))
+    scene = load_scene(SCENE, ["render.n_modes=2", "render.window=[64, 48]"])
+    assert update_figures(scene, tmp_path, (stage,), Progress(quiet=True)) == ["modes"]
+    assert {"mode_01.png", "mode_02.png"} <= _listing(figures)
+    scene = load_scene(SCENE, ["render.n_modes=0", "render.window=[64, 48]"])
+    assert update_figures(scene, tmp_path, (stage,), Progress(quiet=True)) == []
+    assert _listing(figures) == {"mode_shapes.png", MANIFEST}
+    assert "modes" not in json.loads((figures / MANIFEST).read_text())
+
+
+def test_a_series_under_another_stem_removes_the_old_one(tmp_path):
+    """The ParaView series is named after the first of hbm.methods: with ["dlft", "rl"] after
+    ["rl", "dlft"], hbm_rl.pvd and its snapshots stayed beside hbm_dlft's; with hbm_instants = 0
+    both stayed. Only files the manifest recorded go, and the folder they leave empty."""
+    from pipelines.stages.base import Figure
+
+    (tmp_path / "nfrc.h5").write_text("input")
+
+    def draw(ctx):
+        for name in _instants_files(ctx.scene):
+            (ctx.out / "figures" / name).parent.mkdir(parents=True, exist_ok=True)
+            (ctx.out / "figures" / name).write_text(name)
+
+    fig = Figure("series", files=_instants_files, depends=("render.hbm_instants", "hbm.methods"),
+                 inputs=lambda s: ("nfrc.h5",), draw=draw)
+    stage = SimpleNamespace(figures=(fig,))
+    figures = tmp_path / "figures"
+    (figures / "hbm_rl").mkdir(parents=True)
+    (figures / "hbm_rl" / "notes.txt").write_text("mine")
+    scene = load_scene(SCENE, ["render.hbm_instants=3", 'hbm.methods=["rl", "dlft"]'])
+    assert update_figures(scene, tmp_path, (stage,), Progress(quiet=True)) == ["series"]
+    old = set(_instants_files(scene))
+    assert old <= _listing(figures) and "hbm_rl.pvd" in old
+    scene = load_scene(SCENE, ["render.hbm_instants=2", 'hbm.methods=["dlft", "rl"]'])
+    assert update_figures(scene, tmp_path, (stage,), Progress(quiet=True)) == ["series"]
+    assert _listing(figures) == set(_instants_files(scene)) | {"hbm_rl/notes.txt", MANIFEST}
+    scene = load_scene(SCENE, ["render.hbm_instants=0", 'hbm.methods=["dlft", "rl"]'])
+    update_figures(scene, tmp_path, (stage,), Progress(quiet=True))
+    assert _listing(figures) == {"hbm_rl/notes.txt", MANIFEST}
+    assert not (figures / "hbm_dlft").exists()
