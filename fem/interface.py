@@ -42,14 +42,27 @@ def boundary_dofs_of(node_dofs: np.ndarray, nodes: np.ndarray) -> np.ndarray:
     nodes = np.asarray(nodes, dtype=np.int64)
     if nodes.ndim != 1 or len(nodes) == 0:
         raise ValueError(f"boundary nodes must be a non-empty 1-D index array, got shape {nodes.shape}")
-    if nodes.min() < 0 or nodes.max() >= len(node_dofs):
-        raise ValueError(f"boundary node index outside 0..{len(node_dofs) - 1}")
-    if len(np.unique(nodes)) != len(nodes):
-        raise ValueError("boundary nodes must be distinct")
+    outside = nodes[(nodes < 0) | (nodes >= len(node_dofs))]
+    if outside.size:
+        raise ValueError(f"boundary nodes {outside.tolist()} are outside the mesh's nodes 0..{len(node_dofs) - 1}")
+    seen, count = np.unique(nodes, return_counts=True)
+    if (count > 1).any():
+        raise ValueError(f"boundary nodes must be distinct: nodes {seen[count > 1].tolist()} appear more than once")
     d = node_dofs[nodes]
     if (d < 0).any():
         raise ValueError(f"boundary nodes {nodes[(d < 0).any(axis=1)].tolist()} lie on the clamped root")
     return d.ravel()
+
+
+def check_fixed_mode_count(n_fixed_modes: int, n_free: int, n_boundary_dofs: int,
+                           key: str = "n_fixed_modes") -> None:
+    """Raise ValueError naming `key` unless 0 <= n_fixed_modes <= n_free - n_boundary_dofs,
+    the interior dof count: the fixed-interface problem has no more eigenpairs."""
+    n_interior = n_free - n_boundary_dofs
+    if not 0 <= n_fixed_modes <= n_interior:
+        raise ValueError(f"{key} = {n_fixed_modes}, but the fixed-interface problem has only {n_interior} modes: "
+                         f"allowed 0..{n_interior}, the interior dof count ({n_free} free dof less "
+                         f"{n_boundary_dofs} boundary dof)")
 
 
 def compute_interface_basis(K: sp.spmatrix, M: sp.spmatrix, boundary_dofs: np.ndarray, n_fixed_modes: int,
@@ -70,6 +83,8 @@ def compute_interface_basis(K: sp.spmatrix, M: sp.spmatrix, boundary_dofs: np.nd
     n = K.shape[0]
     layout = Local(n) if layout is None else layout
     bd = np.asarray(boundary_dofs, dtype=np.int64)
+    check_fixed_mode_count(n_fixed_modes, n, len(bd),
+                           "n_fixed_modes (the fem stage's max of [fem] n_fixed_interface_modes, [rom] n_fixed_modes)")
     mine, bd_loc = layout.local_rows(bd)  # this rank's boundary rows and their columns
     E = np.zeros((layout.n_local, len(bd)))
     E[bd_loc, mine] = 1.0

@@ -57,12 +57,24 @@ def _grow(H: np.ndarray, cols: np.ndarray) -> np.ndarray:
     return out
 
 
+def _space_dimension(n: int, fixed: np.ndarray | None, layout) -> int:
+    """Dimension of the eigenproblem's space: n less the distinct `fixed` rows of all ranks."""
+    if fixed is None:
+        return n
+    held = np.zeros((layout.n_local, 1))
+    held[np.asarray(fixed, dtype=np.int64)] = 1.0
+    return n - int(round(float(layout.dot(held, held)[0, 0])))
+
+
 def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
                        apply_inverse: Callable[[np.ndarray], np.ndarray], *,
                        fixed: np.ndarray | None = None, block_size: int | None = None,
                        max_basis: int | None = None, tol: float = 1e-10, max_steps: int = 40, seed: int = 0,
                        start: np.ndarray | None = None, layout=None, residuals: bool = True) -> EigenResult:
     """Lowest `n_modes` eigenpairs of K x = lam M x (K, M: (n, n) SPD sparse).
+
+    n_modes: 1 up to the problem's dof, n less the `fixed` ones (ValueError beyond: the
+        space holds no more eigenpairs).
 
     apply_inverse(B): (n, k) -> K^{-1} B, or the constrained inverse when `fixed` is given.
     fixed: dof indices held at zero (the problem is then the one on the other dof); the
@@ -87,9 +99,11 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
     from fem.distributed import Local
 
     n = K.shape[0]
-    if not 1 <= n_modes < n:
-        raise ValueError(f"n_modes must be in 1..{n - 1}, got {n_modes}")
     layout = Local(n) if layout is None else layout
+    n_space = _space_dimension(n, fixed, layout)
+    if not 1 <= n_modes <= n_space:
+        raise ValueError(f"n_modes must be in 1..{n_space}, got {n_modes}: the problem has {n_space} dof "
+                         f"({n} rows, {n - n_space} of them fixed)")
     n_loc = layout.n_local
     b = block_size or max(n_modes + 2, 6)
     rng = np.random.default_rng(seed)
@@ -107,6 +121,10 @@ def solve_eigenproblem(K: sp.spmatrix, M: sp.spmatrix, n_modes: int,
             W = W - V @ layout.dot(V, W)
         s, U = np.linalg.eigh(layout.dot(W, W))
         keep = s > 1e-12 * s.max()
+        # The space has n_space dimensions: once the basis holds them all, what is left of W
+        # is round-off, which the relative test above keeps (it is relative to W's own largest
+        # direction) and which would make Gm singular. s is ascending: keep the largest.
+        keep[:max(len(s) - max(n_space - V.shape[1], 0), 0)] = False
         return W @ (U[:, keep] / np.sqrt(s[keep]))
 
     X0 = layout.take(rng.standard_normal((n, b)))

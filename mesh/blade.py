@@ -296,12 +296,16 @@ def nearest_nodes(nodes: np.ndarray, candidates: np.ndarray, targets: np.ndarray
     A target midway between nodes (as on a regular mesh, to round-off) takes, of those, the
     one of smallest axial coordinate z, then radius, then angle from the candidates' mean
     angle: never the lower node index, so that the same blade numbered differently, or
-    turned about the axis, gets the same nodes."""
+    turned about the axis, gets the same nodes.
+    Raises ValueError when there is no candidate or `targets` is not (n, 3)."""
     candidates = np.asarray(candidates, dtype=np.int64)
+    targets = np.asarray(targets, dtype=np.float64)
+    if targets.ndim != 2 or targets.shape[1] != 3:
+        raise ValueError(f"targets must be (n, 3) points, m, got shape {targets.shape}")
+    if candidates.size == 0:
+        raise ValueError(f"no candidate nodes to snap the {len(targets)} target points to (empty candidate set)")
     x = nodes[candidates]
     d = np.linalg.norm(x[None, :, :] - targets[:, None, :], axis=2)
-    if not x.size:
-        return candidates[np.argmin(d, axis=1)]
     tol = 1e-9 * float(np.abs(x).max())
     r = np.hypot(x[:, 0], x[:, 1])
     phi = np.arctan2(x[:, 1], x[:, 0])

@@ -98,8 +98,14 @@ def friction_lock(K: np.ndarray, n_boundary: int, rotation: int) -> FrictionLock
     rotation: s = +1 or -1 (rom.rotation.rotation_sign).
     """
     rotation = check_sign(rotation)
-    nb = int(n_boundary)
     K = np.asarray(K, dtype=float)
+    if K.ndim != 2 or K.shape[0] != K.shape[1]:
+        raise ValueError(f"K must be a square (n, n) ROM stiffness, got shape {K.shape}")
+    if isinstance(n_boundary, (bool, np.bool_)) or not isinstance(n_boundary, (int, np.integer)) \
+            or not 1 <= n_boundary <= K.shape[0] // 3:
+        raise ValueError(f"n_boundary must be an integer count of contact nodes in 1..n / 3 = {K.shape[0] // 3} "
+                         f"(their 3 n_b dof come first in K), got {n_boundary!r}")
+    nb = int(n_boundary)
     # static compliance of the boundary dof: the inverse of the Schur complement on them
     G = np.linalg.inv(0.5 * (K + K.T))[:3 * nb, :3 * nb]
     grr = np.ascontiguousarray(G[0::3, 0::3])

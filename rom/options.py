@@ -8,7 +8,8 @@ import numpy as np
 
 @dataclass(frozen=True)
 class RomOptions:
-    """n_fixed_modes: fixed-interface modes kept (eta).
+    """n_fixed_modes: fixed-interface modes kept (eta); at most the interior dof count of
+        the FEM model (rom.craig_bampton checks it, knowing the model).
     damping_low: modal damping ratio of the ROM's first `n_low_modes` modes (1B, 2B, 1T).
     damping_high: modal damping ratio of all other ROM modes.
     """
@@ -29,5 +30,6 @@ class RomOptions:
             raise ValueError(f"n_low_modes must be >= 0 (a count of modes), got {self.n_low_modes}")
         for k in ("damping_low", "damping_high"):
             v = getattr(self, k)
-            if not 0 <= v < 1:
-                raise ValueError(f"{k} must be a damping ratio in [0, 1), got {v}")
+            if isinstance(v, (bool, np.bool_)) or not isinstance(v, (int, float, np.integer, np.floating)) \
+                    or not 0 <= v < 1:
+                raise ValueError(f"{k} must be a damping ratio, a number in [0, 1), got {v!r}")
