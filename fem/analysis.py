@@ -70,7 +70,7 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
 
     from fem.assembly import DistributedSystem
     from fem.cholesky import CholeskyFactor
-    from fem.interface import boundary_dofs_of, compute_interface_basis
+    from fem.interface import boundary_dofs_of, check_fixed_mode_count, compute_interface_basis
     from fem.memory import return_freed_memory
     from fem.modes import compute_modes
     from fem.symmetric import SymmetricMatrix
@@ -80,6 +80,15 @@ def solve_system(system, options: FemOptions, boundary_node_index: np.ndarray | 
     K, M = system.K, system.M
     want_basis = boundary_node_index is not None and len(boundary_node_index) > 0
     bd = boundary_dofs_of(system.node_dofs, boundary_node_index) if want_basis else np.zeros(0, np.int64)
+    # before the factorisation (minutes on a blade), not after the modes
+    n_free = int(K.shape[0])
+    if not 1 <= options.n_modes <= n_free:
+        raise ValueError(f"[fem] n_modes = {options.n_modes}, but the clamped model has only {n_free} dof: "
+                         f"allowed 1..{n_free}")
+    if want_basis:
+        check_fixed_mode_count(options.n_fixed_interface_modes, n_free, len(bd),
+                               "n_fixed_modes (the fem stage's max of [fem] n_fixed_interface_modes, "
+                               "[rom] n_fixed_modes)")
     scratch = tempfile.TemporaryDirectory(prefix="bladerub-mumps-") if options.out_of_core else None
     waiting = None
     M_solve = M

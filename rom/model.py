@@ -178,11 +178,17 @@ def eigenfrequencies(K: np.ndarray, M: np.ndarray, vectors: bool = False):
 
 
 def check_frames(name: str, frames, nb: int) -> np.ndarray:
-    """frames as an (n_b, 3, 3) array of orthonormal frames (rows e_r, e_theta, e_z, to
-    1e-8); raises ValueError naming `name`."""
+    """frames as an (n_b, 3, 3) array of right-handed orthonormal frames (rows e_r, e_theta,
+    e_z, to 1e-8; e_r x e_theta = e_z); raises ValueError naming `name`. A left-handed frame
+    (e_theta or e_z flipped) is orthonormal too, and would turn the friction force and the
+    friction-lock table the wrong way without a word."""
     frames = _check_array(name, frames, (nb, 3, 3), f"n_b = {nb} boundary nodes, rows e_r, e_theta, e_z")
     if not np.allclose(frames @ frames.transpose(0, 2, 1), np.eye(3), atol=1e-8):
         raise ValueError(f"{name} must be orthonormal (rows e_r, e_theta, e_z)")
+    left = np.flatnonzero(np.linalg.det(frames) < 0.0)
+    if left.size:
+        raise ValueError(f"{name} must be right-handed (e_r x e_theta = e_z); the frames of boundary nodes "
+                         f"{left.tolist()} are left-handed")
     return frames
 
 

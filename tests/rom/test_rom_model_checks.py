@@ -28,6 +28,12 @@ def _asymmetric(field, relative):
     return a
 
 
+def _flipped_e_theta(nodes):
+    f = np.array(ROM.frames)
+    f[nodes, 1] *= -1.0
+    return f
+
+
 def _lock(**changes):
     return dataclasses.replace(ROM.friction_lock, **changes)
 
@@ -53,6 +59,9 @@ BAD = {
     "xyz 2-d points": (dict(xyz=ROM.xyz[:, :2]), r"xyz must have shape \(9, 3\).*got \(9, 2\)"),
     "frames scaled": (dict(frames=2.0 * ROM.frames), r"frames must be orthonormal"),
     "frames short": (dict(frames=ROM.frames[:8]), r"frames must have shape \(9, 3, 3\)"),
+    # orthonormal, but e_theta flipped at nodes 2 and 6 (det -1): friction would act backwards there
+    "frames left-handed": (dict(frames=_flipped_e_theta([2, 6])),
+                           r"frames must be right-handed .* boundary nodes \[2, 6\] are left-handed"),
     "node_index float": (dict(node_index=ROM.node_index.astype(float)), r"node_index must hold integer"),
     "node_index negative": (dict(node_index=np.arange(-1, NB)[:NB]),
                             r"node_index must be >= 0, got -1 at index \(0,\)"),
