@@ -57,7 +57,18 @@ pairs), so the transient is seen over many periods, not one. On the default roto
 every speed stopped early has its class and LE amplitude (to 3e-4) of 200 revolutions
 (benchmarks/bench_ti.py --full-sweep --compare-full). A quasi-periodic or chaotic response
 does not repeat to 1e-2 over a window (no period), nor, when its non-periodic part is weaker,
-to 2 settle_rtol (rule 5), so it never stops early: it runs the n_revolutions cap.
+to 2 settle_rtol (rule 5), so it never stops early: it runs the n_revolutions cap, with two
+exceptions that no window can tell from a settled orbit. A persistent part of amplitude a
+(relative to the range) whose phase slips by only eps cycles a revolution against the orbit (a
+slow beat) changes by 2 a sin(pi eps L) over a lag of L revolutions, as a transient at the
+assumed decay would: it stops the march once that times rho^L / (1 - rho^L) is below the
+tolerance at one lag and its change within the window is below twice the tolerance (a = 5e-3,
+eps = 2e-3, tau = 60 revolutions, settle_rtol = 1e-3: stopped at 149 revolutions through
+L = 128, class right, amplitude 2.9e-3 of the range from the one at 200 revolutions; over the
+beat it moves by 2 a). A part that grows (an orbit that loses stability, e.g. a period
+doubling growing from 1e-7 of the range) is invisible until it is large: the march stops on
+the orbit it is leaving. A march with a value that is not finite anywhere in its history has
+blown up: no period, never settled.
 """
 from __future__ import annotations
 
@@ -113,14 +124,18 @@ def settle_test(subsections: np.ndarray, extremes: np.ndarray, forces: np.ndarra
     n_lobes: n_l. n_keep: revolutions in the window. omega: Omega, rad/s.
     decay_time: tau, s (ModalSystem.slowest_decay_time). rtol, max_order: the classifier's.
     settle_rtol: tolerance on the bound, relative to each signal's range, -.
+    A value that is not finite in any of the three arrays (history included) gives no period
+    (NONE, mismatch nan) and no stop, whatever the Poincare sections say.
     """
+    nan = float("nan")
+    if not all(np.isfinite(a).all() for a in (subsections, extremes, forces)):  # a march that blew up
+        return Settling(False, Periodicity(PeriodClass.NONE, 0, nan, nan), nan, nan, math.inf)
     sub = SUBSECTIONS
     n_win = n_keep * n_lobes * sub  # sub-section intervals in the window
     win_ext = extremes[-(n_keep + 1):]
     scale = win_ext[:, 0].max(axis=0) - win_ext[:, 1].min(axis=0)
     sections = subsections[-(n_win + 1)::sub]
     per = classify_period(sections, n_lobes=n_lobes, rtol=rtol, max_order=max_order, scale=scale)
-    nan = float("nan")
     if per.code == PeriodClass.NONE or not math.isfinite(decay_time):
         return Settling(False, per, nan, nan, math.inf)
     t_c = 2.0 * math.pi / (n_lobes * omega)
