@@ -29,6 +29,7 @@ all ranks, the others on rank 0 while the rest wait (pipelines.parallel).
 """
 from __future__ import annotations
 
+import dataclasses
 import hashlib
 import json
 import os
@@ -62,17 +63,37 @@ def _digest(components: dict) -> str:
     return hashlib.sha256(json.dumps(components, sort_keys=True).encode()).hexdigest()
 
 
+#: Scene keys that choose how a result is computed, not what it is: the hashes read them at
+#: their defaults, so that changing one leaves the artifacts current and a scene that never
+#: sets them keeps its hashes. [fem] solver, ordering, out_of_core: every choice gives the
+#: default's frequencies and mode shapes to 1.1e-10 relative (coarse rotor 67 mesh, its ROM's
+#: matrices to 5e-13 and frequencies to 3e-11; a 595-node box deck), round-off: tightening
+#: [fem] tol from 1e-10 to 1e-12 moves the mode shapes over 100 times more.
+HOW_NOT_WHAT = {"fem": ("solver", "ordering", "out_of_core")}
+
+
+def hashed_scene(scene):
+    """The scene as the hashes read it: the keys of HOW_NOT_WHAT at their defaults."""
+    def defaulted(section: str, keys) -> object:
+        options = getattr(scene, section)
+        default = type(options)()
+        return dataclasses.replace(options, **{k: getattr(default, k) for k in keys})
+
+    return dataclasses.replace(scene, **{s: defaulted(s, keys) for s, keys in HOW_NOT_WHAT.items()})
+
+
 def expected_inputs(scene, names) -> dict:
     """{output file: (inputs {component: hash}, inputs hash)} for the outputs of the named
     stages (and those upstream of them): scene keys, input files by content, the upstream
     outputs' expected inputs hashes, and the output's key."""
     last = max(STAGES.index(n) for n in names)
+    hashed = hashed_scene(scene)
     memo: dict = {}
     for name in STAGES[: last + 1]:
         stage = REGISTRY[name]
         files = {f"file {label}": file_hash(path) for label, path in stage.files(scene).items()}
         for o in stage.outputs(scene):
-            comp = {f"scene {k}": scene.key_hash(k) for k in stage.depends + o.depends}
+            comp = {f"scene {k}": hashed.key_hash(k) for k in stage.depends + o.depends}
             comp.update(files)
             for up in stage.upstream:
                 for uo in REGISTRY[up].outputs(scene):
@@ -151,6 +172,7 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
     """None when `path` is current for these inputs and intact, else the reason to compute it.
     verify: check every dataset against its checksum (else the inputs hash only). scene: the
     run's scene, to name the changed scene keys with their values (else the components)."""
+    scene = hashed_scene(scene) if scene is not None else None
     if path.is_symlink() and not path.exists():
         return "broken link"
     if not path.exists():
@@ -176,6 +198,7 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
         if scene is not None and k.startswith("scene "):
             if not parsed:  # once, at the first changed scene key
                 recorded, parsed = _recorded_scene(attrs.get("scene", ""), scene), True
+                recorded = hashed_scene(recorded) if recorded is not None else None
             key = k.split(" ", 1)[1]
             if k not in inputs or k not in old:
                 # the stage read this key then and not now, or the other way round (another kind
@@ -505,7 +528,7 @@ def figure_components(scene, out: Path, fig: Figure) -> dict:
     """What a figure is drawn from: its scene keys, and each input artifact's inputs and the
     instant it was written (an artifact computed again from the same inputs, after --force or
     a deleted file, is a new result whose figures must be redrawn)."""
-    comp = {f"scene {k}": scene.key_hash(k) for k in fig.depends}
+    comp = {f"scene {k}": hashed_scene(scene).key_hash(k) for k in fig.depends}
     for name in fig.inputs(scene):
         attrs = art.read_attrs(out / name)
         comp[f"input {name}"] = f"{attrs.get('inputs_hash', 'absent')} {attrs.get('created', '')}"

@@ -151,7 +151,9 @@ MODES_VTU = Figure("modes_vtu", files=lambda s: ("modes.vtu",) if s.render.n_mod
                    depends=("render.n_modes",), inputs=lambda s: (MESH.file, FEM.file), draw=write_modes_vtu)
 
 # the count of fixed-interface modes computed, not the two keys it comes from: [rom]
-# n_fixed_modes raised up to [fem] n_fixed_interface_modes leaves fem.h5 current
+# n_fixed_modes raised up to [fem] n_fixed_interface_modes leaves fem.h5 current; [fem] solver,
+# ordering and out_of_core change fem.h5 at round-off only: hashed at their defaults
+# (pipelines.runner.HOW_NOT_WHAT)
 STAGE = Stage("fem", depends=("material~name", "fem~n_fixed_interface_modes", "fixed_interface_modes"), upstream=("mesh",),
               outputs=lambda scene: (FEM,), compute=_compute, figures=(MODES, MODES_VTU), estimate=_estimate,
               distributed=True)

@@ -41,6 +41,7 @@ import numpy as np
 from pipelines import artifacts as art
 from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
+from pipelines.stages.hbm import nfrc_output
 from pipelines.stages.rom import read_rom
 
 ISOLAS = Output("isolas.h5")
@@ -554,5 +555,14 @@ def _estimate(scene, out, outputs) -> Estimate:
                     advice=workers)
 
 
-STAGE = Stage("isolas", depends=("isolas~workers", "hbm", "casing", "contact"), upstream=("rom", "hbm", "ti"),
-              outputs=lambda scene: (ISOLAS,), compute=_compute, estimate=_estimate, distributed=True)
+def _outputs(scene) -> tuple[Output, ...]:
+    """isolas.h5, one file for the treatments searched: RL's own [contact] keys (those of its
+    NFRC, pipelines.stages.hbm.nfrc_output) count only where RL is among them; a DLFT search
+    never reads them."""
+    rl = nfrc_output("rl").depends
+    contact = "contact" if "rl" in scene.hbm.methods else "~".join(["contact", *(k.split(".", 1)[1] for k in rl)])
+    return (Output(ISOLAS.file, depends=(contact,)),)
+
+
+STAGE = Stage("isolas", depends=("isolas~workers", "hbm", "casing"), upstream=("rom", "hbm", "ti"),
+              outputs=_outputs, compute=_compute, estimate=_estimate, distributed=True)

@@ -12,7 +12,9 @@ import functools
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Estimate, Output, Stage
 
-MESH = Output("mesh.h5")
+#: what a geometry table is meshed with (mesh.blade.mesh_blade): the table's layout and
+#: streamsurfaces, and every [mesh] key
+MESH = Output("mesh.h5", depends=("blade.format", "blade.hub_section", "blade.tip_section", "mesh"))
 
 
 def read_mesh(out):
@@ -22,8 +24,12 @@ def read_mesh(out):
     return art.read_artifact(out / MESH.file, BladeMesh)
 
 
-# what an imported mesh depends on beyond the table keys (a table scene's hash is unchanged)
-IMPORTED = Output(MESH.file, depends=("blade.axis", "blade.root", "blade.contact_nodes"))
+def _imported(scene) -> Output:
+    """What a mesh file is imported with (mesh.imported.import_blade): its axis, root and
+    contact nodes, and [mesh] n_boundary only where the contact nodes are not listed; not the
+    table's keys, nor [mesh] element_size, edge_layers or size_growth, which it never reads."""
+    n_boundary = ("mesh.n_boundary",) if scene.blade.contact_nodes is None else ()
+    return Output(MESH.file, depends=("blade.axis", "blade.root", "blade.contact_nodes") + n_boundary)
 
 
 def _compute(ctx: Context, outputs) -> None:
@@ -134,6 +140,7 @@ def _source(scene) -> dict:
     return {("mesh" if i == 0 else f"mesh include {i}"): f for i, f in enumerate(source_files(path))}
 
 
-STAGE = Stage("mesh", depends=("blade.format", "blade.units", "blade.hub_section", "blade.tip_section", "mesh"),
-              upstream=(), outputs=lambda scene: (IMPORTED if scene.blade.mesh is not None else MESH,),
+# blade.units: the table's or the mesh file's length unit; the rest per source (MESH, _imported)
+STAGE = Stage("mesh", depends=("blade.units",),
+              upstream=(), outputs=lambda scene: (_imported(scene) if scene.blade.mesh is not None else MESH,),
               compute=_compute, files=_source, estimate=_estimate)

@@ -111,7 +111,8 @@ def test_out_of_core_factor_larger_than_tmpdir_is_refused(coarse_run, tmp_path, 
         return usage(1e12, 1e12 - 0.5 * need, 0.5 * need) if str(path) == tmp else real(path)
 
     monkeypatch.setattr(guard.shutil, "disk_usage", disk_usage)
-    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "fem"]) == 2
+    # forced: out_of_core leaves the current fem.h5 current (runner.HOW_NOT_WHAT)
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "fem", "--force"]) == 2
     line = error_line(capsys)
     assert f"writes ~{guard.gb(need)} of temporary files (the out-of-core Cholesky factor) under {tmp}" in line
     assert "point TMPDIR to a larger disk, or set [fem] out_of_core = false" in line
