@@ -1,10 +1,11 @@
 """Time meshing of rotor 67 at the default (~200k nodes) and coarse (~24k nodes) settings.
 
 Each setting runs in its own process so that peak memory (ru_maxrss) is per setting.
-Usage: .venv/bin/python benchmarks/bench_mesh.py [path/to/rotor67geometry.dat]
+Usage: .venv/bin/python benchmarks/bench_mesh.py [path/to/rotor67geometry.dat] [--settings default,coarse]
 """
 from __future__ import annotations
 
+import argparse
 import json
 import subprocess
 import sys
@@ -34,10 +35,13 @@ print(json.dumps(dict(element_size=opts.element_size, edge_layers=opts.edge_laye
 """
 
 
-def main(table: Path = DEFAULT_TABLE):
-    for name, kw in SETTINGS.items():
+def main(table: Path = DEFAULT_TABLE, settings=tuple(SETTINGS)):
+    for name in settings:
+        kw = SETTINGS[name]
         code = CHILD.format(root=str(ROOT), kw=json.dumps(kw), table=str(table))
-        out = subprocess.run([sys.executable, "-c", code], check=True, capture_output=True, text=True)
+        out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+        if out.returncode:  # say why: the child's output is captured
+            raise SystemExit(f"{name}: meshing failed (exit {out.returncode}):\n{out.stderr.strip()}")
         r = json.loads(out.stdout.strip().splitlines()[-1])
         print(f"{name:8s} element_size={r['element_size']:.5f} m edge_layers={r['edge_layers']} "
               f"size_growth={r['size_growth']}: {r['nodes']} nodes, {r['cells']} tet10, "
@@ -46,5 +50,18 @@ def main(table: Path = DEFAULT_TABLE):
               f"peak RSS {r['peak_rss_mb']:.0f} MB")
 
 
+def _settings(text: str) -> tuple[str, ...]:
+    names = tuple(n for n in text.split(",") if n)
+    unknown = [n for n in names if n not in SETTINGS]
+    if unknown or not names:
+        raise argparse.ArgumentTypeError(f"unknown setting(s) {unknown}; known: {', '.join(SETTINGS)}")
+    return names
+
+
 if __name__ == "__main__":
-    main(Path(sys.argv[1]) if len(sys.argv) > 1 else DEFAULT_TABLE)
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("table", nargs="?", type=Path, default=DEFAULT_TABLE, help="rotor 67 geometry table")
+    ap.add_argument("--settings", type=_settings, default=tuple(SETTINGS),
+                    help="comma-separated among " + ", ".join(SETTINGS) + " (default: all)")
+    a = ap.parse_args()
+    main(a.table, a.settings)
