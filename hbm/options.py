@@ -300,6 +300,14 @@ class TimeIntegrationOptions:
                              f"got {self.settle_rtol}")
         check_option("max_order", self.max_order, 1)
 
+    def classified_order(self, n_lobes: int) -> float:
+        """The largest order nu = Omega / omega the sweep can call periodic, -: max_order, or less
+        where the kept window (n_keep revolutions: n_keep n_l + 1 Poincare sections) cannot show a
+        period twice (hbm.ti.periodicity.classify_period tries p <= n_keep n_l / 2 casing periods).
+        What "no periodicity" means on a figure: no period up to this order."""
+        p = min(math.floor(self.max_order * n_lobes + 1e-9), self.n_keep * n_lobes // 2)
+        return p / n_lobes
+
     @property
     def omegas(self):
         """The sweep grid, (n_omega,), rad/s: the one definition (an interrupted sweep's speeds

@@ -20,8 +20,9 @@ from hbm.ti.periodicity import PeriodClass  # noqa: E402
 from pipelines import artifacts as art  # noqa: E402
 
 #: Marker, colour and label (a template of n, the number of lobes n_l, and max_order, the
-#: largest subharmonic order nu = Ω / ω the sweep's classifier tried, `[ti] max_order`) of each
-#: periodicity class of a time-integration point; hbm.ti.periodicity.PeriodClass codes.
+#: largest subharmonic order nu = Ω / ω the sweep's classifier tried:
+#: TimeIntegrationOptions.classified_order) of each periodicity class of a time-integration
+#: point; hbm.ti.periodicity.PeriodClass codes.
 PERIODICITY = {
     PeriodClass.CASING: ("\u03c9 = {n}\u03a9", "o", "#111111"),
     PeriodClass.REVOLUTION: ("\u03c9 = \u03a9", "^", "#1f77b4"),
@@ -53,7 +54,8 @@ def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_l
                      max_order=TimeIntegrationOptions.max_order):
     """Markers per periodicity class; `faded` greys out all but the casing-periodic ones
     (ω = n_l Ω, Fig. 6). Only the classes present get a legend entry, except ω = n_l Ω and
-    ω = Ω, always listed (the paper's legend). max_order: the sweep's `[ti] max_order`,
+    ω = Ω, always listed (the paper's legend). max_order: the largest order the sweep's
+    classifier tried (`[ti] max_order`, or less: TimeIntegrationOptions.classified_order),
     named in the label of "no periodicity"."""
     omega, amplitude, classes = (np.asarray(a).ravel() for a in (omega, amplitude, classes))
     unknown = set(np.unique(classes).tolist()) - {int(c) for c in PERIODICITY}
@@ -102,8 +104,8 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     int, PeriodClass codes) drawn as markers shaped by class; as in the paper, all but the
     casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is False.
     unit: "m", "mm" or "um" for the amplitude axis. n_lobes: n_l, for the class labels.
-    max_order: the sweep's `[ti] max_order` (largest subharmonic order its classifier tried),
-    for the label of "no periodicity"; the default is TimeIntegrationOptions'.
+    max_order: the largest subharmonic order the sweep's classifier tried
+    (TimeIntegrationOptions.classified_order), for the label of "no periodicity"; the default is TimeIntegrationOptions'.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)

@@ -268,13 +268,13 @@ def draw_nfrc(ctx: Context) -> None:
     if curves or ti is not None:
         plot_nfrc(curves, out / "figures" / "nfrc.png", ti_points=ti,
                   omega_range=(scene.hbm.omega_min, scene.hbm.omega_max), n_lobes=scene.casing.n_lobes,
-                  max_order=scene.ti.max_order)
+                  max_order=scene.ti.classified_order(scene.casing.n_lobes))
 
 
 # hbm.methods: the curves' order gives their colours (the set of files alone does not change
 # when the treatments are listed in another order)
 NFRC_FIGURE = Figure("nfrc", files=lambda scene: ("nfrc.png",),
-                     depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes", "ti.max_order"),
+                     depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes", "ti.max_order", "ti.n_keep"),
                      inputs=_nfrc_inputs, draw=draw_nfrc)
 
 

@@ -194,7 +194,7 @@ def _write(ctx: Context, result, partial: SweepPartial) -> None:
     n_l = scene.casing.n_lobes
     counts = np.bincount(result.period_class.astype(int), minlength=len(PeriodClass))
     ctx.log(f"  {len(result.omega)} speeds; classes: "
-            + ", ".join(f"{c.label(n_l, scene.ti.max_order)} {counts[c]}" for c in PeriodClass if counts[c])
+            + ", ".join(f"{c.label(n_l, scene.ti.classified_order(n_l))} {counts[c]}" for c in PeriodClass if counts[c])
             + f"; median {np.median(result.cpu_time):.1f} s per speed")
 
 
@@ -216,11 +216,11 @@ def draw_sweep(ctx: Context) -> None:
     s = read_sweep(ctx.out)
     plot_ti_sweep(s.omega, s.amplitude, s.period_class, ctx.out / "figures" / "ti_sweep.png",
                   omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max), n_lobes=ctx.scene.casing.n_lobes,
-                  max_order=ctx.scene.ti.max_order)
+                  max_order=ctx.scene.ti.classified_order(ctx.scene.casing.n_lobes))
 
 
 SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),
-                      depends=("ti.omega_min", "ti.omega_max", "casing.n_lobes", "ti.max_order"),
+                      depends=("ti.omega_min", "ti.omega_max", "casing.n_lobes", "ti.max_order", "ti.n_keep"),
                       inputs=lambda scene: (TI.file,), draw=draw_sweep)
 
 def _estimate(scene, out, outputs) -> Estimate:

@@ -821,10 +821,11 @@ def draw_solution_set(ctx: Context) -> None:
     rng = (scene.hbm.omega_min, scene.hbm.omega_max)
     for m in scene.hbm.methods:
         plot_solution_set({m.upper(): curves[m.upper()]}, out / "figures" / f"solution_set_{m}.png", ti_points=ti,
-                          omega_range=rng, n_lobes=scene.casing.n_lobes, max_order=scene.ti.max_order,
+                          omega_range=rng, n_lobes=scene.casing.n_lobes, max_order=scene.ti.classified_order(scene.casing.n_lobes),
                           title=f"{m.upper()}-HBM solution set")
     plot_solution_set(curves, out / "figures" / "solution_set.png", ti_points=ti, omega_range=rng,
-                      n_lobes=scene.casing.n_lobes, max_order=scene.ti.max_order, title="solution set, both treatments")
+                      n_lobes=scene.casing.n_lobes, max_order=scene.ti.classified_order(scene.casing.n_lobes),
+                      title="solution set, both treatments")
 
 
 def _set_files(scene) -> tuple[str, ...]:
@@ -866,7 +867,7 @@ SIGNALS = Figure("validation", files=_signal_files, depends=("hbm.methods",),
                  inputs=lambda s: (VALIDATION.file,), draw=draw_time_signals)
 SOLUTION_SET = Figure("solution_set", files=_set_files,
                       depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes",
-                               "ti.max_order"),
+                               "ti.max_order", "ti.n_keep"),
                       inputs=_set_inputs, draw=draw_solution_set)
 CONTENT = Figure("isola_content", files=lambda s: ("isola_modal_content.png", "isola_harmonic_content.png"),
                  depends=("hbm.methods",), inputs=lambda s: (ISOLAS, "rom.h5"), draw=draw_content)
