@@ -53,6 +53,16 @@ _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "ha
           "leading_multipliers": "1", "period_ratio": "1", "stability_note": "-"}
 
 
+#: What the content columns hold (hbm.harmonic.content), written beside them: a reader of
+#: isolas.h5 alone cannot tell whose modes, nor the frequency of a harmonic column
+_CONTENT_MEANING = {
+    "modal_contribution": "eq. (33): max over the period of |Phi_j^T M x| over their sum, for the n modes of "
+                          "rom.h5's K, M at rest (Ritz approximations of the full model's, through the Craig-Bampton "
+                          "basis), ascending frequency: modes/frequencies",
+    "harmonic_contribution": "eq. (34): |c_k| of the LE radial displacement; column k is harmonic k of the branch's "
+                             "basis, frequency k Omega / nu, nu the branch's attribute subharmonic",
+}
+
 
 @dataclass(frozen=True, eq=False)
 class IsolaBranch:
@@ -141,7 +151,12 @@ def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
     data.update({k: v for k, v in (content or {}).items() if k in _UNITS})
     for name, v in data.items():
         write_column(group, name, v, _UNITS[name])
+    for name, text in _CONTENT_MEANING.items():
+        if name in group:
+            group[name].attrs["description"] = text
     write_tables(group, fb.extras.get("tables", {}))
+    if content is not None and "mode_frequencies" in content:
+        write_tables(group, {"modes": {"frequencies": (content["mode_frequencies"], "rad/s")}})
     a = group.attrs
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
     a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
