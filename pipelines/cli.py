@@ -1,6 +1,6 @@
 """Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes] [--quiet]
 [--set SECTION.KEY=VALUE ...]`, `bladerub show SCENE.toml [--set ...]` (the resolved scene,
-every default written out), `bladerub render SCENE.toml --out DIR`.
+every default written out), `bladerub render SCENE.toml --out DIR [--modes N] [--set ...]`.
 
 Every failure is one line on standard error, and the exit code says which kind:
 0 done; 2 nothing was computed (a bad scene, table or artifact, an unusable or busy output
@@ -31,7 +31,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from pipelines.artifacts import ArtifactError  # noqa: E402
-from pipelines.errors import RunError  # noqa: E402
+from pipelines.errors import Refused, RunError  # noqa: E402
 from pipelines.scene import SceneError, load_scene, resolved_toml, scene_warnings  # noqa: E402
 
 
@@ -40,6 +40,23 @@ def _command(args, *extra: str) -> str:
     sets = [w for item in getattr(args, "set", []) for w in ("--set", item)]
     words = ["bladerub", args.command, str(args.scene), "--out", str(args.out), *sets, *extra]
     return " ".join(shlex.quote(w) for w in words)
+
+
+def _repeated_sets(items) -> list[str]:
+    """A warning for each key set more than once with --set (the last one is used), once the
+    scene took them all (so each item is well formed)."""
+    given: dict = {}
+    for item in items:
+        lhs = item.split("=", 1)[0].strip()
+        section, _, key = lhs.rpartition(".")  # a renamed key was refused by load_scene
+        given.setdefault((section, key), []).append(item)
+    return [f"{f'[{sec}] {key}' if sec else key} is set {len(items)} times on the command line "
+            f"({', '.join('--set ' + i for i in items)}): the last, --set {items[-1]}, is used"
+            for (sec, key), items in given.items() if len(items) > 1]
+
+
+def _warn(text: str) -> None:
+    print(f"bladerub: warning: {text}", file=sys.stderr, flush=True)
 
 
 def _cmd_run(args) -> int:
@@ -55,7 +72,7 @@ def _cmd_run(args) -> int:
     scene = load_scene(args.scene, args.set)
     root = is_root(world())
     progress = Progress(quiet=args.quiet or not root)
-    for text in scene_warnings(scene) if root else ():  # under mpirun, once (rank 0 talks)
+    for text in [*_repeated_sets(args.set), *scene_warnings(scene)] if root else ():  # under mpirun, once
         progress.warn(text)
     extra = ([] if args.until == STAGES[-1] else ["--until", args.until]) + (["--yes"] if args.yes else [])
     try:
@@ -70,6 +87,8 @@ def _cmd_run(args) -> int:
 
 def _cmd_show(args) -> int:
     scene = load_scene(args.scene, args.set)
+    for text in _repeated_sets(args.set):
+        _warn(text)
     header = f"# {scene.path} resolved" + "".join(f" --set {o}" for o in args.set)
     print(resolved_toml(scene, header), end="")
     return 0
@@ -82,6 +101,13 @@ def _cmd_render(args) -> int:
     from pipelines.parallel import is_root, world
 
     scene = load_scene(args.scene, args.set)
+    if args.modes is not None and args.modes > scene.fem.n_modes:
+        raise Refused(f"--modes {args.modes}: fem.h5 holds the first [fem] n_modes = {scene.fem.n_modes} modes; "
+                      f"ask for at most {scene.fem.n_modes} (or raise [fem] n_modes: the fem stage then "
+                      "computes more)")
+    if is_root(world()):
+        for text in _repeated_sets(args.set):
+            _warn(text)
     paths = render_modes(scene, Path(args.out), n_modes=args.modes, progress=Progress(quiet=True),
                          command=_command(args))
     if is_root(world()):
@@ -164,6 +190,27 @@ class _CtrlC:
         os.close(self._w)  # the watcher reads end-of-file and returns
 
 
+def _given(what: str):
+    """argparse type of a path argument: an empty one ("" from an unset shell variable) is
+    refused, where Path("") would silently be the current folder."""
+    def path(text: str) -> Path:
+        if not text:
+            raise argparse.ArgumentTypeError(f"empty: give {what}")
+        return Path(text)
+    return path
+
+
+def _modes(text: str) -> int:
+    """argparse type of `render --modes`: a count of modes to draw, at least 1."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{text!r} is not a whole number") from None
+    if n < 1:
+        raise argparse.ArgumentTypeError(f"{n}: give at least 1 (the number of modes to draw)")
+    return n
+
+
 def main(argv: list[str] | None = None) -> int:
     global _FORK_HOOK
     from pipelines.stages import STAGES
@@ -172,8 +219,11 @@ def main(argv: list[str] | None = None) -> int:
                                      formatter_class=argparse.RawDescriptionHelpFormatter)
     sub = parser.add_subparsers(dest="command", required=True)
     run = sub.add_parser("run", help="run a scene's stages in order, skipping those already up to date")
-    run.add_argument("scene", type=Path, help="scene file (TOML)")
-    run.add_argument("--out", type=Path, required=True, help="output folder for artifacts and figures")
+    scene_file = _given("a scene file (TOML)")
+    out_folder = _given("a folder (it is created if missing)")
+    run.add_argument("scene", type=scene_file, help="scene file (TOML)")
+    run.add_argument("--out", type=out_folder, required=True, metavar="DIR",
+                     help="output folder for artifacts and figures (created if missing)")
     run.add_argument("--until", default=STAGES[-1], choices=STAGES, help="last stage to run (default: all)")
     run.add_argument("--force", action="store_true", help="recompute stages even if up to date")
     run.add_argument("--yes", action="store_true",
@@ -181,12 +231,14 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--quiet", action="store_true", help="print errors and warnings only (no live line, no summary)")
     run.set_defaults(func=_cmd_run)
     ren = sub.add_parser("render", help="render mode shapes off-screen to PNG (needs a current fem.h5 in --out)")
-    ren.add_argument("scene", type=Path)
-    ren.add_argument("--out", type=Path, required=True)
-    ren.add_argument("--modes", type=int, default=None, help="number of modes (default: the scene's)")
+    ren.add_argument("scene", type=scene_file, help="scene file (TOML)")
+    ren.add_argument("--out", type=_given("a folder holding a current fem.h5"), required=True, metavar="DIR",
+                     help="output folder of `bladerub run SCENE --out DIR --until fem`")
+    ren.add_argument("--modes", type=_modes, default=None, metavar="N",
+                     help="number of modes to draw, 1 to [fem] n_modes (default: [render] n_modes)")
     ren.set_defaults(func=_cmd_render)
     show = sub.add_parser("show", help="print the resolved scene (every key, defaults and --set included) as TOML")
-    show.add_argument("scene", type=Path, help="scene file (TOML)")
+    show.add_argument("scene", type=scene_file, help="scene file (TOML)")
     show.set_defaults(func=_cmd_show)
     for p in (run, show, ren):
         p.add_argument("--set", action="append", default=[], metavar="SECTION.KEY=VALUE",

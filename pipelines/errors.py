@@ -24,8 +24,9 @@ class FolderBusy(FolderError):
 
 
 class Refused(RunError):
-    """A run refused before computing: too large for this machine (size guard) or a stage
-    asked for before the one it needs."""
+    """A run refused before computing: too large for this machine (size guard), a stage
+    asked for before the one it needs, or an argument it cannot honour (`render --modes`
+    beyond the modes fem.h5 holds)."""
 
     exit_code = 2
 

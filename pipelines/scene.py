@@ -223,8 +223,9 @@ def parse_override(item: str) -> tuple[str, str, object]:
 
     The value is read as a TOML value (110e9, 0.1, true, "dlft", ["dlft", "rl"]); text that
     is not one (omega_min, le-leads, +) is taken as a string, so strings need no quotes on a
-    command line. A list key also takes one item or items separated by commas, without the
-    brackets (hbm.methods=dlft, isolas.harmonics=1,2,3). Raises SceneError naming the item.
+    command line. A list key also takes one item or items separated by commas, with or without
+    brackets (hbm.methods=dlft, hbm.methods=[dlft,rl], isolas.harmonics=1,2,3). Raises
+    SceneError naming the item.
     """
     if "=" not in item:
         raise SceneError(f"--set {item!r}: expected SECTION.KEY=VALUE, e.g. material.E=110e9")
@@ -254,7 +255,12 @@ def parse_override(item: str) -> tuple[str, str, object]:
     if not isinstance(value, str) and _is_string_key(section, key):
         value = raw  # name=2024, material.name=nan: text, as the key expects
     if not isinstance(value, list) and _is_list_key(section, key):
-        value = [_item(part.strip()) for part in raw.split(",")] if isinstance(value, str) else [value]
+        if isinstance(value, str):
+            # [dlft,rl] without quotes is no TOML list: the brackets as the user meant them
+            items = raw[1:-1] if raw.startswith("[") and raw.endswith("]") else raw
+            value = [_item(part.strip()) for part in items.split(",")]
+        else:
+            value = [value]
     return section, key, value
 
 
@@ -393,9 +399,15 @@ def scene_warnings(scene: Scene) -> list[str]:
 def load_scene(path: Path | str, overrides=()) -> Scene:
     """Read and parse a scene file, with "section.key=value" overrides (see parse_override)."""
     path = Path(path)
+    if path.is_dir():
+        raise SceneError(f"the scene {path} is a folder, not a scene file: give a TOML file "
+                         f"(e.g. {path / 'scene.toml'})")
     if not path.is_file():
         raise SceneError(f"scene file not found: {path}")
-    raw = path.read_bytes()
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:  # permissions, an I/O error: a bad scene, nothing computed
+        raise SceneError(f"cannot read the scene file {path}: {exc.strerror or exc}") from None
     try:
         text = raw.decode("utf-8")  # TOML is UTF-8 whatever the locale
     except UnicodeDecodeError as exc:
