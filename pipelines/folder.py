@@ -44,6 +44,9 @@ def prepare(out: Path) -> Path:
     out = Path(out)
     if out.exists() and not out.is_dir():
         raise FolderError(f"--out {out} is a file, not a folder: give a folder (it is created if missing)")
+    if out.is_symlink() and not out.exists():  # mkdir would say "File exists"
+        raise FolderError(f"--out {out} is a link to {os.readlink(out)}, which does not exist: create that folder, "
+                          "or give another")
     try:
         out.mkdir(parents=True, exist_ok=True)
     except OSError as exc:

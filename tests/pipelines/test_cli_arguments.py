@@ -168,3 +168,14 @@ def test_a_list_in_brackets_without_quotes_is_that_list(item, expected):
     from pipelines.scene import parse_override
 
     assert parse_override(item)[2] == expected
+
+
+def test_out_as_a_dangling_link_is_named_as_such(tmp_path, capsys):
+    """mkdir on a link to nothing said 'File exists', of a path that does not exist."""
+    scene = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    link = tmp_path / "run"
+    link.symlink_to(tmp_path / "elsewhere" / "run")
+    assert main(["run", str(scene), "--out", str(link), "--until", "mesh"]) == 2
+    err = capsys.readouterr().err
+    assert f"--out {link} is a link to {tmp_path / 'elsewhere' / 'run'}, which does not exist" in err, err
+    assert link.is_symlink() and not (tmp_path / "elsewhere").exists()
