@@ -15,7 +15,7 @@ import scipy.sparse as sp
 from rom.craig_bampton import build_craig_bampton
 from rom.friction_lock import friction_lock
 from rom.options import RomOptions
-from test_craig_bampton_reference import _truss
+from test_craig_bampton_reference import _truss, bare_fem
 
 
 @pytest.fixture(scope="module")
@@ -25,10 +25,7 @@ def model():
     mesh = SimpleNamespace(boundary_node_index=b, boundary_frames=np.tile(np.eye(3), (len(b), 1, 1)),
                            boundary_xyz=x[b], boundary_rho=0.2 + x[b, 0], boundary_theta=np.zeros(len(b)))
     n = K.shape[0]
-    fem = SimpleNamespace(K=sp.csr_matrix(K), M=sp.csr_matrix(M), node_dofs=node_dofs,
-                          frequencies=np.sqrt(sl.eigh(K, M, eigvals_only=True)[:8]),
-                          boundary_dofs=np.zeros(0, np.int64), constraint_modes=np.zeros((n, 0)),
-                          fixed_interface_modes=np.zeros((n, 0)), fixed_interface_frequencies=np.zeros(0))
+    fem = bare_fem(K, M, node_dofs)
     bd = node_dofs[b].ravel()
     ii = np.setdiff1d(np.arange(n), bd)
     w_fi = np.sqrt(sl.eigh(K[np.ix_(ii, ii)], M[np.ix_(ii, ii)], eigvals_only=True))

@@ -54,6 +54,16 @@ def _truss(nx=6, ny=3, nz=2, h=0.01, ea=1e6, rho_l=0.05, seed=0):
     return x, K[np.ix_(keep, keep)], M[np.ix_(keep, keep)], node_dofs
 
 
+def bare_fem(K, M, node_dofs) -> SimpleNamespace:
+    """A FEM result of the dense truss without an interface basis (build_craig_bampton
+    computes its own): K, M as CSR, its first 8 frequencies, rad/s."""
+    n = K.shape[0]
+    return SimpleNamespace(K=sp.csr_matrix(K), M=sp.csr_matrix(M), node_dofs=node_dofs,
+                           frequencies=np.sqrt(sl.eigh(K, M, eigvals_only=True)[:8]),
+                           boundary_dofs=np.zeros(0, np.int64), constraint_modes=np.zeros((n, 0)),
+                           fixed_interface_modes=np.zeros((n, 0)), fixed_interface_frequencies=np.zeros(0))
+
+
 @pytest.fixture(scope="module")
 def model():
     x, K, M, node_dofs = _truss()
@@ -70,10 +80,7 @@ def model():
     mesh = SimpleNamespace(boundary_node_index=b, boundary_frames=frames, boundary_xyz=x[b],
                            boundary_rho=np.hypot(xy[:, 0], xy[:, 1]), boundary_theta=phi - phi[0])
     n = K.shape[0]
-    fem = SimpleNamespace(K=sp.csr_matrix(K), M=sp.csr_matrix(M), node_dofs=node_dofs,
-                          frequencies=np.sqrt(sl.eigh(K, M, eigvals_only=True)[:8]),
-                          boundary_dofs=np.zeros(0, np.int64), constraint_modes=np.zeros((n, 0)),
-                          fixed_interface_modes=np.zeros((n, 0)), fixed_interface_frequencies=np.zeros(0))
+    fem = bare_fem(K, M, node_dofs)
     # the textbook reduction, dense
     bd = node_dofs[b].ravel()
     ii = np.setdiff1d(np.arange(n), bd)
