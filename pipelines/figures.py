@@ -6,6 +6,7 @@ function writes one PNG of exactly ``figsize * dpi`` pixels and returns its path
 from __future__ import annotations
 
 import textwrap
+from fractions import Fraction
 from pathlib import Path
 
 import matplotlib
@@ -258,7 +259,12 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
                       max_order: float = TimeIntegrationOptions.max_order) -> Path:
     """The solution set (paper Fig. 8): every branch's LE amplitude against Omega, stable parts
     solid, unstable dashed, stability unknown dotted; the bifurcations given marked by kind; the TI
-    sweep's points by periodicity class.
+    sweep's points by periodicity class. Each branch is drawn in its points' order; a point not
+    converged, or with a NaN Omega or amplitude, is not drawn and breaks the line. The segment
+    between two points of different stability (where it changes) takes the style of the first
+    of the two in the branch's order (_stability_runs: each run reaches one point into the
+    next, so that the curve stays connected): the change lies somewhere on that segment, and
+    the bifurcation located there, given in marks, is drawn on it.
 
     curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude
     (m,) m, converged (m,) bool, stable (m,) bool or None[, n_unstable (m,) int or None])],
@@ -412,22 +418,34 @@ def plot_contact_event(point, out_png, *, title: str | None = None) -> Path:
 MAX_CONTENT_PANELS = 8
 
 
+def _times_omega(k) -> str:
+    """k Omega written out: "4Ω", "Ω", "3Ω/2", "Ω/2"."""
+    k = Fraction(k)
+    num = "" if k.numerator == 1 else f"{k.numerator}"
+    return f"{num}\u03a9" + ("" if k.denominator == 1 else f"/{k.denominator}")
+
+
 def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4, 6, 8, 10), n_modes: int = 4,
                  mode_frequencies=None) -> Path:
     """Dynamical content along branches (paper Figs. 11 and 12) against Omega, one panel per
     branch, each drawn in its points' order (an isola is a loop in these planes too).
 
     curves: {label: (omega (m,) rad/s, contributions (m, n), nu[, converged (m,) bool])}, nu the
-    branch's subharmonic order (its harmonic k oscillates at k Omega / nu; (omega, contributions)
+    branch's subharmonic order (its harmonic i oscillates at i Omega / nu; (omega, contributions)
     means nu = 1); converged, given: the points not converged are not drawn (a gap in the line).
     kind "modal": contributions are eq. (33)'s relative modal contributions
-    (column j: mode j + 1); the first `n_modes` modes are drawn and the rest summed, as in
-    Fig. 11, with the 0.5 line. kind "harmonic": column k is |c_k| of the LE radial
-    displacement, m (eq. 34), drawn in mm for k in `harmonics` (the five largest where none of
-    them carries content) and the branch's largest harmonic; given mode_frequencies ((n,)
-    rad/s), every crossing k Omega / nu = omega_j of a drawn k with one of the first n_modes
-    modes inside the panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS branches with
-    the most points are drawn when there are more; a branch without any finite
+    (column j: mode j + 1, the modes in ascending frequency); the first `n_modes` modes are
+    drawn and the rest summed, as in Fig. 11, with the 0.5 line; given mode_frequencies, each
+    mode's label carries its frequency. kind "harmonic": column i is |c_i| of the LE radial
+    displacement, m (eq. 34), harmonic i of the branch's basis Omega / nu. Every harmonic is
+    drawn, labelled and coloured by its frequency k Omega, k = i / nu (Fig. 12's k: the paper's
+    branches have nu = 1), so that one k has one colour in every panel, whatever the panel's nu:
+    `harmonics` are such k (the paper's 2, 4, ..., 10: columns 2 nu, 4 nu, ..., 10 nu), drawn
+    where they carry content (the five largest columns where none does), with the branch's
+    largest harmonic besides (k = 3/2 on a nu = 2 branch: "k = 3/2"). Given mode_frequencies
+    ((n,) rad/s), every crossing k Omega = omega_j of a drawn k with one of the first n_modes
+    modes inside the panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS
+    branches with the most points are drawn when there are more; a branch without any finite
     contribution is left out.
     """
     def masked(v):  # a point not converged (its 4th item, optional) is left out: the line breaks there
@@ -452,15 +470,22 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     if kind != "modal":
         for label, entry in items:
             c = np.asarray(entry[1], float)
-            ks = [k for k in harmonics if k < c.shape[1] and np.nanmax(c[:, k]) > 1e-3 * np.nanmax(c)]
+            nu = int(entry[2])
+            # harmonics are multiples k of Omega: column nu k of a branch of basis Omega / nu (k = 2 is
+            # column 4 on a nu = 2 branch, where column 2 is Omega itself)
+            cols_k = [Fraction(h).limit_denominator(1000) * nu for h in harmonics]
+            ks = [int(i) for i in cols_k if i.denominator == 1 and 0 <= i < c.shape[1]
+                  and np.nanmax(c[:, int(i)]) > 1e-3 * np.nanmax(c)]
             ks = ks or sorted(int(k) for k in np.argsort(-np.nanmax(c, axis=0))[:5])
             top = 1 + int(np.nanargmax(np.nanmax(c[:, 1:], axis=0))) if c.shape[1] > 1 else 0
-            drawn[label] = sorted(set(ks) | {top})  # the dominant harmonic, e.g. the 3rd of a 3 Omega = omega_1 isola
-        # one colour per harmonic over all panels, none shared: k < 10 keeps the colour cycle's k-th, a
-        # higher k (k = 12 once shared k = 2's) takes one of colours unused so far
-        every = sorted(set().union(*drawn.values())) if drawn else []
-        k_colour = {k: colours[k] for k in every if k < len(colours)}
-        high = [k for k in every if k >= len(colours)]
+            # the dominant harmonic, e.g. the 3rd of a 3 Omega = omega_1 isola; kept as (column, k Omega)
+            drawn[label] = [(i, Fraction(i, nu)) for i in sorted(set(ks) | {top})]
+        # one colour per frequency k Omega over all panels, none shared (the same k the same colour on
+        # branches of Omega and of Omega / 2): an integer k < 10 keeps the colour cycle's k-th, a higher
+        # or fractional k (k = 12 once shared k = 2's) takes one of colours unused so far
+        every = sorted({k for ks in drawn.values() for _, k in ks})
+        k_colour = {k: colours[int(k)] for k in every if k.denominator == 1 and k < len(colours)}
+        high = [k for k in every if k not in k_colour]
         extra = [matplotlib.colors.to_hex(plt.cm.tab20(i)) for i in range(1, 20, 2)]
         if len(high) > len(extra):
             extra = [matplotlib.colors.to_hex(plt.cm.turbo(v)) for v in np.linspace(0.05, 0.95, len(high))]
@@ -469,7 +494,9 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
         omega, c = np.asarray(entry[0], float), np.asarray(entry[1], float)
         nu = int(entry[2]) if len(entry) > 2 else 1
         if kind == "modal":
-            cols = [(j, f"mode {j + 1}", colours[j % len(colours)]) for j in range(min(n_modes, c.shape[1]))]
+            freq = None if mode_frequencies is None else np.asarray(mode_frequencies, float)
+            cols = [(j, f"mode {j + 1}" + (f" ({freq[j]:.0f} rad/s)" if freq is not None and j < len(freq) else ""),
+                     colours[j % len(colours)]) for j in range(min(n_modes, c.shape[1]))]
             lines = [c[:, j] for j, _, _ in cols]
             if c.shape[1] > n_modes:
                 cols.append((n_modes, f"modes {n_modes + 1} to {c.shape[1]}", "0.45"))
@@ -477,9 +504,8 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
             ax.axhline(0.5, color="0.5", lw=0.8, ls=":")
             ax.set_ylim(0.0, 1.0)
         else:
-            ks = drawn[label]
-            cols = [(k, f"k = {k}", k_colour[k]) for k in ks]
-            lines = [1e3 * c[:, k] for k in ks]
+            cols = [(k, f"k = {k}", k_colour[k]) for _, k in drawn[label]]  # k: the frequency k Omega
+            lines = [1e3 * c[:, i] for i, _ in drawn[label]]
         for (key, name, colour), y in zip(cols, lines):
             ax.plot(omega, y, color=colour, lw=1.0)
             handles.setdefault(key, Line2D([], [], color=colour, lw=1.2, label=name))
@@ -489,13 +515,13 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
         if kind == "harmonic" and mode_frequencies is not None:
             for k, _, colour in cols:
                 for j, wj in enumerate(np.asarray(mode_frequencies, float)[:n_modes]):
-                    at = nu * wj / k if k else np.inf
+                    at = float(wj / k) if k else np.inf  # k Omega = omega_j
                     if lo - pad <= at <= hi + pad:
                         ax.axvline(at, color=colour, lw=0.8, ls="--")
-                        ax.annotate(f"{k}\u03a9/{nu} = \u03c9{j + 1}" if nu > 1 else f"{k}\u03a9 = \u03c9{j + 1}",
-                                    (at, 1.0), xycoords=("data", "axes fraction"), fontsize=6, rotation=90,
+                        ax.annotate(f"{_times_omega(k)} = \u03c9{j + 1}", (at, 1.0),
+                                    xycoords=("data", "axes fraction"), fontsize=6, rotation=90,
                                     ha="right", va="top", color=colour)
-        ax.set_title(f"{label}, \u03a9 {lo:.0f}-{hi:.0f} rad/s" + (f" (harmonics of \u03a9/{nu})" if nu > 1 else ""),
+        ax.set_title(f"{label}, \u03a9 {lo:.0f}-{hi:.0f} rad/s" + (f" (basis \u03a9/{nu})" if nu > 1 else ""),
                      fontsize=8)
         ax.grid(True, lw=0.4, alpha=0.5)
         ax.tick_params(labelsize=7)
@@ -509,7 +535,9 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
         _note(axes[0, 0], f"no {kind} contributions in the solution set")
     else:
         entries = [h for _, h in sorted(handles.items())]  # by mode or harmonic, whichever panel drew it first
-        fig.legend(handles=entries, loc="outside lower center", ncol=min(len(entries), 6), fontsize=7)
+        # the harmonics' legend says what k is: the frequency k Omega, on any branch's basis
+        fig.legend(handles=entries, loc="outside lower center", ncol=min(len(entries), 6), fontsize=7,
+                   title=None if kind == "modal" else "harmonic of frequency k\u03a9", title_fontsize=7)
     if dropped:
         fig.suptitle(f"{len(items)} branches with the most points drawn of {len(items) + dropped}; all are in "
                      "isolas.h5", fontsize=8)

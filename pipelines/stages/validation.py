@@ -855,11 +855,11 @@ def draw_content(ctx: Context) -> None:
             if br.harmonic_contribution is not None:
                 harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic, br.converged)
     freq = None
-    if harmonic and (out / "rom.h5").is_file():
+    if (harmonic or modal) and (out / "rom.h5").is_file():
         rom = read_rom(out)
         freq = rom_modes(rom.K, rom.M)[0]
     # drawn (with a note) even without content: a figure that is never drawn would be redrawn by every run
-    plot_content(modal, out / "figures" / "isola_modal_content.png", kind="modal")
+    plot_content(modal, out / "figures" / "isola_modal_content.png", kind="modal", mode_frequencies=freq)
     plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic", mode_frequencies=freq)
 
 
