@@ -6,7 +6,8 @@ Two phases:
    omega (hbm.continuation.newton, backtracking, a capped number of iterations: most seeds
    fail or land on the primary branch, and should cost little). A converged solution that
    lies on a known branch (hbm.isolas.membership: polyline distance below the tolerance, or
-   Newton from the polyline's nearest point landing on it) is dropped at once; converged
+   Newton from the branch's curve near the polyline's nearest point landing on it: lies_on)
+   is dropped at once; converged
    solutions at the same omega closer than the tolerance are one. A solution and its images
    (the residual's symmetries, `images`: on the blade, the orbit shifted by a lobe of the
    casing) are one: each test also runs on the images. Seeds are independent: they are
@@ -16,7 +17,13 @@ Two phases:
    far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
    test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
    half branch also ends when it (or its image) meets a known or found branch: when the
-   chord from its previous point passes within the tolerance of that branch's polyline. Where two
+   chord from its previous point passes within the tolerance of that branch's polyline (a
+   branch that only touches another, tangentially, closer than the tolerance meets it, and
+   merges into it: the tolerance is the resolution of "the same solution"; one that stays
+   farther does not). A half that crosses a branch ends there: a branch crossing another
+   twice is continued between the crossings only, and a later seed beyond them gives
+   another branch, or, when its half runs into the first one's last step past a crossing,
+   merges into it and its points are dropped. Where two
    cores are usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
    two processes, and the second is dropped when the first closes the loop: the wall time
    of an open branch halves, that of a closed one does not change. The halves are merged
@@ -26,11 +33,20 @@ Two phases:
        made bifurcated too), merges into a known branch other than the primary (search's
        `primaries`), or passes through a located bifurcation point of one;
      isola: a closed loop, or both ends inside the omega range;
-     detached: otherwise (an end on the range's bound, never meeting the primary).
+     detached: otherwise (an end on the range's bound, never meeting the primary). A half
+       that "closes" while the other reached the range's bound has come back near its
+       start without closing (a loop through the seed cannot leave the range): such a
+       branch is not closed (_classify).
    A half that merges into a branch found earlier makes the new one part of it: its seeds
    go to that branch, its points are dropped, and the branch takes the connection the new
-   one brings (primary before bifurcated before its own kind). Seeds lying on a branch
-   found later are attributed to it and never continued. Either way the branch is passed
+   one brings (primary before bifurcated before detached before isola: an open isola that
+   a branch reaching the range's bound runs into is detached). When its two halves merge
+   into two different branches found earlier, those are pieces of one branch: both take
+   the kind of the whole, and each one's status names the other ("one branch with branch
+   k"); the seed goes to the first met, and both keep their index and points (a branch
+   saved by on_branch is never withdrawn). Seeds lying on a branch
+   found later are attributed to it and never continued (a seed within the tolerance of
+   two branches, as at a crossing, to the first found). Either way the branch is passed
    to on_branch again, so that an interrupted run has them on disk. The caller's
    `describe` (per-point data, e.g. the stability, and per-branch tables) runs on the
    merged branch, in two chunks when it is long, at once on the two processes when there
@@ -335,22 +351,65 @@ def lies_on_any(residual, x, omega: float, branches, options: SearchOptions, sol
 
 def lies_on(residual, x, omega: float, branches, options: SearchOptions, solver=None) -> int:
     """Index of the first branch (KnownBranch list) the solution (x, omega) lies on, -1 when
-    none: polyline distance (scaled: x / x_scale, omega / omega_scale) <= tolerance, or,
-    closer than refine_ratio times the nearest chord (the polyline cuts the curve's bends),
-    Newton at omega from the polyline's nearest point lands within tolerance / 100 of x."""
+    none: polyline distance (scaled: x / x_scale, omega / omega_scale) <= tolerance (every
+    branch is tried so first), or, closer than refine_ratio times the nearest chord (the
+    polyline cuts the curve's bends), Newton at omega lands within tolerance / 100 of x
+    from the branch's curve there: the parabola through the three vertices around the
+    nearest segment, at the nearest point's place along it (_curve_guess; from the chord's
+    nearest point when Newton does not converge from there). Not from the
+    chord's nearest point: another branch lying between the chord and the curve, closer
+    than the chord's sagitta but farther than the tolerance from both (e.g. a concentric
+    isola), is nearer to it than the branch's own curve, and Newton from there landed on
+    it: its seeds were taken for the branch's, and it was never continued."""
     co = options.continuation
+    # most solutions lie on a branch: the cheap test (only segments near omega) first, on all
     for k, b in enumerate(branches):
-        # most solutions lie on a branch: the cheap test (only segments near omega) first
         if polyline_distance(x, omega, b, co.x_scale, co.omega_scale, within=options.tolerance)[0] <= options.tolerance:
             return k
+    for k, b in enumerate(branches):
+        if len(b.omega) < 2:
+            continue
         d, xn, wn, near = nearest_on_polyline(x, omega, b, co.x_scale, co.omega_scale)
-        if not math.isfinite(d) or len(b.omega) < 2:
+        if not math.isfinite(d):
             continue
         if d <= options.refine_ratio * segment_length(b, near, co.x_scale, co.omega_scale):
-            sol = newton_solve(residual, xn, omega, options.newton, solver=solver)
+            sol = newton_solve(residual, _curve_guess(b, x, omega, co.x_scale, co.omega_scale), omega,
+                               options.newton, solver=solver)
+            if not sol.converged:  # no curve point from there (e.g. a corner the parabola cuts): the chord's
+                sol = newton_solve(residual, xn, omega, options.newton, solver=solver)
             if sol.converged and np.linalg.norm((sol.x - x) / co.x_scale) <= 0.01 * options.tolerance:
                 return k
     return -1
+
+
+def _curve_guess(b: KnownBranch, x, omega: float, x_scale, omega_scale: float) -> np.ndarray:
+    """The branch's curve at omega near the polyline's point nearest to (x, omega), x part:
+    the parabola (in the scaled chord length) through the three vertices around the nearest
+    segment, where its omega is omega (nearest to the nearest point's place; that place
+    where it never is, as at a fold); the chord's point for a two-point branch."""
+    _, xn, _, s, t = nearest_segment(x, omega, b, x_scale, omega_scale)
+    m = len(b.omega)
+    if m < 3:
+        return xn
+    lo = min(max(s - 1 if t < 0.5 else s, 0), m - 3)  # vertices lo .. lo + 2, segment s among them
+    sx = np.broadcast_to(np.asarray(x_scale, dtype=float), b.x.shape[1:])
+    Y = np.column_stack([b.x[lo:lo + 3] / sx, b.omega[lo:lo + 3] / omega_scale])
+    L = np.linalg.norm(np.diff(Y, axis=0), axis=1)
+    p = np.array([0.0, L[0], L[0] + L[1]])
+    if not (L > 0).all():
+        return xn
+    u = p[s - lo] + t * L[s - lo]
+    # the Lagrange basis as polynomials in u: Y(u) = sum_i Y_i l_i(u); Newton runs at omega,
+    # so the place along the parabola is where its omega is omega (the root nearest to u;
+    # none near a fold in omega: the nearest point's place)
+    basis = [np.poly1d(np.poly(np.delete(p, i))) / np.prod(p[i] - np.delete(p, i)) for i in range(3)]
+    wq = sum(bi * Y[i, -1] for i, bi in enumerate(basis)) - omega / omega_scale
+    r = np.atleast_1d(wq.r) if wq.order > 0 else np.array([])
+    r = r[np.isfinite(r) & (np.abs(np.imag(r)) <= 1e-12 * max(1.0, p[2]))].real
+    r = r[(r >= p[0] - L[0]) & (r <= p[2] + L[1])]  # on the three vertices' stretch (and a chord beyond)
+    if r.size:
+        u = float(r[np.argmin(np.abs(r - u))])
+    return sum(bi(u) * Y[i] for i, bi in enumerate(basis))[:-1] * sx
 
 
 # -- phase 2: branches -------------------------------------------------------------------------
@@ -482,10 +541,18 @@ def _at_bound(status: str) -> bool:
     return status.startswith(STATUS_OMEGA_MIN) or status.startswith(STATUS_OMEGA_MAX)
 
 
-def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, primaries: int):
+def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, primaries: int, residual=None):
     """(kind, closed) of a merged branch from its halves [(Branch, joined)]; the known
-    branches of index < primaries are the primary NFRC(s)."""
-    closed = any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves)
+    branches of index < primaries are the primary NFRC(s).
+
+    A loop through the seed cannot leave the omega range: when one half reached the range's
+    bound, the other half's "closed loop" (eq. (26)-(27): back within d_min of the start,
+    relative to |x|, e.g. one turn of a coil later) is no closed loop; the branch is then
+    not closed, and detached unless it meets another branch. A branch through a located
+    bifurcation point, or through one of its images (residual's `images`: the image of a
+    bifurcation is one of the image branch, which is the same branch), is bifurcated."""
+    closed = any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves) \
+        and not any(_at_bound(br.status) for br, _ in halves)
     joined = [j for _, j in halves if j is not None]
     if any(-1 - primaries < j[1] < 0 and j[2] for j in joined):  # merges into the primary
         return "primary", closed
@@ -495,16 +562,25 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
         b = KnownBranch.of(omega, x, "new")
         co = options.continuation
         for w, xb in zip(bifurcation_points.omega, bifurcation_points.x):
-            if polyline_distance(xb, w, b, co.x_scale, co.omega_scale, within=options.tolerance)[0] <= options.tolerance:
-                return "bifurcated", closed
+            for xq in [xb, *(images(residual, xb) if residual is not None else [])]:
+                if polyline_distance(xq, w, b, co.x_scale, co.omega_scale,
+                                     within=options.tolerance)[0] <= options.tolerance:
+                    return "bifurcated", closed
     if closed or not any(_at_bound(br.status) for br, _ in halves):
         return "isola", closed
     return "detached", closed
 
 
 #: Which kind a branch that another one joins takes: the connection to the primary first,
-#: then a crossing; an isola or detached branch keeps its own.
-_KIND_RANK = {"primary": 0, "bifurcated": 1}
+#: then a crossing, then an end on the range's bound (detached); isola only when neither
+#: part brings any of these (an open isola that a branch reaching the bound runs into is
+#: detached: its ends are no longer both inside the range).
+_KIND_RANK = {"primary": 0, "bifurcated": 1, "detached": 2, "isola": 3}
+
+
+def _joined_kind(kinds) -> str:
+    """The kind of a branch made of parts of these kinds (_KIND_RANK: the strongest connection)."""
+    return min(kinds, key=lambda c: _KIND_RANK.get(c, len(_KIND_RANK)))
 
 #: What a per-point extra holds at a point describe did not see (not converged), by numpy
 #: dtype kind: NO_VALUE's, and text saying so.
@@ -609,7 +685,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             n_pts += computed
             merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
             omega, x, conv = _merge(first, second)
-            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries)
+            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries, residual)
             for k in sorted({j[1] for _, j in halves if j is not None and j[1] >= 0 and not j[2]}):
                 # a crossing is a branch point of both branches: the one crossed is bifurcated
                 # too, whichever of the two was found first
@@ -620,17 +696,26 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                     if on_branch is not None:
                         on_branch(k, found[k])
             if merged_into:  # part of a branch found before: its seeds go there, and its other
-                k = merged_into[0]  # end's connection (to the primary, a crossing) too
-                old = found[k]
-                new_kind = kind if _KIND_RANK.get(kind, 2) < _KIND_RANK.get(old.kind, 2) else old.kind
-                joined_status = f"; joined by the branch from seed {i}: {kind}" if new_kind != old.kind else ""
+                k = merged_into[0]  # end's connection (to the primary, a crossing, the range's bound) too
+                targets = list(dict.fromkeys(merged_into))  # its halves may link two branches found before
+                new_kind = _joined_kind([found[t].kind for t in targets] + [kind])
+                for t in targets:
+                    old = found[t]
+                    joined_status = f"; joined by the branch from seed {i}: {kind}" \
+                        if t == k and new_kind != old.kind else ""
+                    joined_status += "".join(f"; one branch with branch {u} (linked by the branch from seed {i})"
+                                             for u in targets if u != t)
+                    found[t] = replace(old, kind=new_kind, status=old.status + joined_status)
                 owner[i] = k
-                found[k] = replace(old, seeds=old.seeds + (i,), kind=new_kind, status=old.status + joined_status,
-                                   n_points_computed=old.n_points_computed + computed)
+                found[k] = replace(found[k], seeds=found[k].seeds + (i,),
+                                   n_points_computed=found[k].n_points_computed + computed)
                 if on_branch is not None:
-                    on_branch(k, found[k])
+                    for t in targets:
+                        on_branch(t, found[t])
                 continue
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
+            if not closed and any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves):
+                status += "; not a closed loop: the other half left the omega range"
             ok = np.asarray(conv, bool)
             doing[0] = f"branch being described: from seed {i} at {w0:g} rad/s"
             extras, cpu_desc = _described(describe, omega[ok], x[ok], pool) if describe is not None and ok.any() \
