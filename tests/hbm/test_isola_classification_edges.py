@@ -11,6 +11,7 @@ from hbm.continuation.arclength import ContinuationOptions
 from hbm.continuation.newton import NewtonOptions
 from hbm.isolas.search import SearchOptions, Seed, search
 from hbm.linalg.dense import DirectSolver
+from support import unit_search_options
 
 LINE = 0.3
 
@@ -30,11 +31,7 @@ def line():
 
 
 def _options():
-    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.05, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
-                             omega_scale=1.0, max_points=5, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    return SearchOptions(tolerance=1e-2, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    return unit_search_options(max_points=5, ds_max=0.05)
 
 
 def _seed(w, name):

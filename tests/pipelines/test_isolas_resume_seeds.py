@@ -6,11 +6,10 @@ past the corrections (IndexError). Residual: R(x, w) = x (x - 1), the lines x = 
 import numpy as np
 import pytest
 
-from hbm.continuation.arclength import ContinuationOptions
-from hbm.continuation.newton import NewtonOptions
-from hbm.isolas.search import SearchOptions, Seed, search
+from hbm.isolas.search import Seed, search
 from hbm.linalg.dense import DirectSolver
 from pipelines.stages.isolas import _Partial
+from support import unit_search_options
 
 
 class Lines:
@@ -26,11 +25,7 @@ def lines():
 
 
 def _options():
-    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.05, ds_min=1e-6, ds_max=0.1, x_scale=1.0,
-                             omega_scale=1.0, max_points=200, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    return SearchOptions(tolerance=1e-2, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    return unit_search_options(max_points=200, ds_max=0.1)
 
 
 def _interrupted(partial, seeds):

@@ -5,12 +5,11 @@ from types import SimpleNamespace
 
 import numpy as np
 
-from hbm.continuation.arclength import ContinuationOptions
-from hbm.continuation.newton import NewtonOptions
 from hbm.isolas.membership import KnownBranch
-from hbm.isolas.search import ON_KNOWN, SearchOptions, Seed, search
+from hbm.isolas.search import ON_KNOWN, Seed, search
 from hbm.linalg.dense import DirectSolver
 from pipelines.stages.isolas import _merged
+from support import unit_search_options
 
 R1, R2 = 0.007, 0.015
 TOL = 1e-2
@@ -30,11 +29,7 @@ def three_lines():
 
 
 def test_a_duplicate_seed_lying_on_a_first_search_branch_is_that_branchs():
-    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.05, ds_min=1e-6, ds_max=0.2, x_scale=1.0,
-                             omega_scale=1.0, max_points=100, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-14, max_iter=12))
-    opts = SearchOptions(tolerance=TOL, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-14, max_iter=40, line_search=True))
+    opts = unit_search_options(max_points=100, ds_max=0.2, newton_tol=1e-14, seed_iterations=40, tolerance=TOL)
     first = search(three_lines, [Seed(0.3, np.array([-0.002]), "to 0")], [], opts)
     (line0,) = first.branches  # x = 0 over the range
     np.testing.assert_allclose(line0.x[:, 0], 0.0, atol=1e-9)
