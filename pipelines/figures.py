@@ -106,7 +106,8 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is False.
     unit: "m", "mm" or "um" for the amplitude axis. n_lobes: n_l, for the class labels.
     max_order: the largest subharmonic order the sweep's classifier tried
-    (TimeIntegrationOptions.classified_order), for the label of "no periodicity"; the default is TimeIntegrationOptions'.
+    (TimeIntegrationOptions.classified_order), for the label of "no periodicity"; the default
+    is TimeIntegrationOptions'.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
