@@ -66,7 +66,8 @@ def test_an_unreadable_scene_is_a_bad_scene_exit_2(command, tmp_path, capsys, mo
     assert not out.exists()
 
 
-@pytest.mark.skipif(os.geteuid() == 0, reason="root reads a file whatever its permission bits")
+@pytest.mark.skipif(os.geteuid() == 0, reason="root reads a file whatever its permission bits; the test above "
+                    "denies the read itself and runs as root too")
 def test_a_scene_without_read_permission_is_exit_2(tmp_path, capsys):
     scene = tmp_path / "s.toml"
     scene.write_text("[contact]\nmu = 0.1\n")
