@@ -13,7 +13,8 @@ def check_sign(rotation) -> int:
     """s as an int, +1 or -1; raises ValueError naming the value otherwise (the ROM's own
     check: rom does not import the nonlinear side, whose hbm.contact.friction.rotation_sense
     makes the same one)."""
-    if rotation not in (1, -1):
+    # a bool is an int to Python: True would pass as +1, a sense nobody wrote
+    if isinstance(rotation, (bool, np.bool_)) or rotation not in (1, -1):
         raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {rotation!r}")
     return int(rotation)
 
@@ -31,6 +32,8 @@ def rotation_sign(rotation: str | int, theta: np.ndarray) -> int:
     axis). Raises ValueError when the contact nodes span no angle (the sense cannot be
     derived; state "+" or "-").
     """
+    if isinstance(rotation, (bool, np.bool_)):
+        raise ValueError(f"rotation must be '+', '-', 'le-leads', +1 or -1, got the bool {rotation!r}")
     if isinstance(rotation, (int, np.integer)) and rotation in (1, -1):
         return int(rotation)
     if rotation == "+":

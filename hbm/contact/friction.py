@@ -31,7 +31,8 @@ def rotation_sense(rotation) -> int:
     """The sense of rotation s as an int, +1 or -1 (right-hand rule about z); raises
     ValueError naming the value otherwise. The one check every nonlinear stage makes of a
     ROM's or a system's `rotation`."""
-    if rotation not in (1, -1):
+    # a bool is an int to Python: True would pass as +1, a sense nobody wrote
+    if isinstance(rotation, (bool, np.bool_)) or rotation not in (1, -1):
         raise ValueError(f"rotation must be +1 or -1 (right-hand rule about z), got {rotation!r}")
     return int(rotation)
 
