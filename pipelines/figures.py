@@ -15,6 +15,7 @@ matplotlib.use("Agg")  # no display anywhere in the pipeline
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 
 from hbm.options import TimeIntegrationOptions  # noqa: E402
 from hbm.ti.periodicity import PeriodClass  # noqa: E402
@@ -300,7 +301,9 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     handles += [Line2D([], [], ls="none", marker=BIFURCATION_MARKERS.get(m, "x"), color="k", mfc="none", label=m)
                 for m in BIFURCATION_MARKERS if m in seen_marks]
     if seen_guess:
-        handles.append(Line2D([], [], ls="none", marker="o", color=GUESSED, mfc="none", label="kind guessed"))
+        # a grey patch, not a marker: a guessed mark keeps its kind's marker, so a grey circle
+        # here would read as "fold"
+        handles.append(Patch(facecolor=GUESSED, edgecolor=GUESSED, label="kind guessed (its marker in grey)"))
     if ti_points is not None:
         o, a, c = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10,

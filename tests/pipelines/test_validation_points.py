@@ -234,3 +234,26 @@ def test_period_doublings_to_try_end_stable_stretches_longest_first():
     # b's stretch of 4 (both its ends), then a's of 2; the fold, the Neimark-Sacker and the
     # doubling inside b's stretch (3 -> 4, both stable) are not candidates
     assert got == [("001", 1), ("001", 5), ("000", 0), ("000", 2)]
+
+
+def test_the_guessed_legend_entry_is_no_kind_marker(tmp_path, monkeypatch):
+    """A guessed mark keeps its kind's marker in grey, so the legend's "kind guessed" entry
+    must not be a marker of its own: a grey circle would read as a guessed fold."""
+    import matplotlib.axes
+
+    from pipelines.figures import BIFURCATION_MARKERS, plot_solution_set
+
+    seen = {}
+    real = matplotlib.axes.Axes.legend
+
+    def capture(self, *args, handles=None, **kw):
+        seen.update({h.get_label(): h for h in handles or []})
+        return real(self, *args, handles=handles, **kw)
+
+    monkeypatch.setattr(matplotlib.axes.Axes, "legend", capture)
+    line = ("primary", np.linspace(400, 2000, 50), np.full(50, 1e-3), np.ones(50, bool), np.ones(50, bool))
+    plot_solution_set({"DLFT": ([line], [("period doubling", 1200.0, 2e-3, True)])}, tmp_path / "g.png")
+    guessed = [h for label, h in seen.items() if "guessed" in label]
+    assert len(guessed) == 1
+    marker = getattr(guessed[0], "get_marker", lambda: None)()
+    assert marker not in BIFURCATION_MARKERS.values()
