@@ -92,8 +92,10 @@ class HbmOptions:
     """Harmonic balance and its continuation (scene section [hbm]).
 
     methods: contact treatments to run, among "dlft", "rl".
-    n_harmonics: N_h. n_time: N_t, samples per period in the AFT (>= 2 N_h + 2: the real
-      FFT's Nyquist bin has no sine part, so every retained harmonic must lie below it).
+    n_harmonics: N_h. n_time: N_t, samples per period in the AFT (>= 2 N_h + 2: for an even
+      N_t every retained harmonic then lies below the Nyquist bin, which has no sine part; an
+      odd N_t = 2 N_h + 1 would be exact for the AFT too, but the stability and content code
+      is only exercised on even N_t, so the one bound stays).
     omega_min, omega_max: rotation speed range Omega, rad/s (omega = Omega).
     start: where the branch starts, "omega_max" (the default: at 2000 rad/s the contact-free
       solution is a good start for both treatments on rotor 67, while at 400 rad/s RL's stiff

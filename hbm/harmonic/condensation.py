@@ -61,6 +61,25 @@ class HarmonicForcing:
     harmonic: int = 1
     sin_amplitude: np.ndarray | None = None
 
+    def __post_init__(self):
+        k = self.harmonic
+        # an integral float (2.0) is that harmonic, as in FourierBasis; 1.5 or True is none
+        if isinstance(k, (bool, np.bool_)) or not isinstance(k, (int, np.integer, float, np.floating)) \
+                or not float(k).is_integer() or k < 0:
+            raise ValueError(f"forcing harmonic must be an integer >= 0, got {k!r}")
+        object.__setattr__(self, "harmonic", int(k))
+
+    def complex_amplitude(self, n: int) -> np.ndarray:
+        """a - i b, (n,) complex, N: the amplitude of f(t) = Re[(a - i b) exp(i k omega t)];
+        ValueError naming the amplitude that is not one force per dof of the n-dof ROM."""
+        for name in ("cos_amplitude", "sin_amplitude"):
+            a = getattr(self, name)
+            if a is not None and np.shape(a) != (n,):
+                raise ValueError(f"forcing {name} must have shape ({n},), one force per ROM dof (N), "
+                                 f"got {np.shape(a)}")
+        fs = 0.0 if self.sin_amplitude is None else np.asarray(self.sin_amplitude, dtype=float)
+        return np.asarray(self.cos_amplitude, dtype=float) - 1j * fs
+
 
 @dataclass(frozen=True)
 class CondensedOperator:
@@ -131,8 +150,7 @@ class CondensedModel:
         if forcing is not None:
             if not 0 <= forcing.harmonic <= basis.n_harmonics:
                 raise ValueError(f"forcing harmonic {forcing.harmonic} outside 0..{basis.n_harmonics}")
-            fs = 0.0 if forcing.sin_amplitude is None else np.asarray(forcing.sin_amplitude)
-            fc = np.asarray(forcing.cos_amplitude) - 1j * fs  # complex amplitude a - i b
+            fc = forcing.complex_amplitude(n)
         self._fc = fc
         self._cache: CondensedOperator | None = None
         self._split = None

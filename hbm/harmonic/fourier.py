@@ -138,7 +138,8 @@ class FourierBasis:
 
         weights: (..., N_t). Returns (..., 2 N_h + 1, 2 N_h + 1): the Jacobian of the
         coefficients of f(t) = w(t) x(t) with respect to those of x. Built from
-        W_m = sum_i w_i exp(-i m tau_i), m = 0 .. 2 N_h, with product-to-sum identities.
+        W_m = (1 / N_t) sum_i w_i exp(-i m tau_i), m = 0 .. 2 N_h, with product-to-sum identities
+        (exact for any N_t >= 2 N_h + 1: orders k + l >= N_t / 2 alias as the sampled product does).
         """
         w = np.asarray(weights, dtype=float)
         nh, nt = self.n_harmonics, self.n_time
