@@ -92,6 +92,10 @@ class HarmonicBalanceResidual:
         self.n_r = 3 * self.n_b
         self.forcing = forcing
         if forcing is not None and self.nu != 1:  # harmonic k of Omega is harmonic k nu of the basis
+            if forcing.harmonic * self.nu > self.basis.n_harmonics:  # named as the user wrote it
+                raise ValueError(f"forcing harmonic {forcing.harmonic} of Omega is harmonic "
+                                 f"{forcing.harmonic * self.nu} of the basis Omega/{self.nu}, outside "
+                                 f"0..{self.basis.n_harmonics}")
             forcing = replace(forcing, harmonic=forcing.harmonic * self.nu)
         self.model = CondensedModel(rom.K, rom.M, rom.C, rom.nonlinear_dofs, self.basis, forcing)
         self.rho = np.asarray(rom.rho, dtype=float)

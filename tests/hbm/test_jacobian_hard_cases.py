@@ -222,3 +222,14 @@ def test_forcing_harmonic_and_amplitudes_are_checked_by_name(rom):
     assert HarmonicForcing(f, 2.0).harmonic == 2 and type(HarmonicForcing(f, np.int64(2)).harmonic) is int
     assert np.abs(u[1] - u[0]).max() == 0.0 and np.abs(u[2] - u[0]).max() == 0.0
     assert np.abs(u[0]).max() > 0.0
+
+
+def test_a_forcing_beyond_a_subharmonic_basis_is_named_as_written(rom):
+    """In the basis Omega/2 the forcing's harmonic 2 of Omega is the basis' harmonic 4: with
+    N_h = 3 the error names the harmonic the caller wrote, and the basis' one."""
+    opts = HbmOptions(n_harmonics=3, n_time=16, subharmonic=2)
+    with pytest.raises(ValueError, match=r"forcing harmonic 2 of Omega is harmonic 4 of the basis Omega/2"):
+        build_residual(rom, CasingOptions(), ContactOptions(), opts,
+                       forcing=HarmonicForcing(np.ones(rom.n_dof), 2))
+    build_residual(rom, CasingOptions(), ContactOptions(), dataclasses.replace(opts, n_harmonics=4),
+                   forcing=HarmonicForcing(np.ones(rom.n_dof), 2))
