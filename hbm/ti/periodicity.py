@@ -62,6 +62,14 @@ class Periodicity:
 #: up to N: 2 accepts it whenever c >= N / 2.
 MULTIPLE_MARGIN = 2.0
 
+#: Without a scale, a channel's range is raised to this fraction of its largest |value|: the
+#: sections of a response with the casing's period (p = 1) all hold one value, so their own
+#: range is round-off (1.7e-18 m on 41 sections of 1e-4 (0.3 + cos 2 Omega t) m, 1e-14 of
+#: their size), which, taken as the range, reads as a mismatch of order 1 (0.39) and the class
+#: NONE. 1e-9 puts such round-off 1e-5 of the floor, far within rtol, while a change of the
+#: sections by 1e-9 rtol of their size (1e-11 at rtol = 1e-2) still counts.
+ROUNDOFF_FLOOR = 1e-9
+
 
 def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, max_order: float = 10.0,
                     scale: np.ndarray | None = None) -> Periodicity:
@@ -69,7 +77,9 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
 
     sections: samples y_k at t_k = t_0 + k T_c, (n_sec,) or (n_sec, n_channels), any unit;
     each channel is scaled by `scale` (n_channels,), same unit: the signal's range over the
-    whole window, which the sections alone may not see; default: the range of the sections.
+    whole window, which the sections alone may not see (hbm.ti.settle passes it); default: the
+    range of the sections, raised to ROUNDOFF_FLOOR times the channel's largest |y| (so that a
+    response of the casing's period, whose sections differ by round-off only, is p = 1).
     Channels of zero scale are ignored.
     n_lobes: n_l, casing periods per revolution. rtol: accepted mismatch relative to the
     range, -. max_order: largest nu = Omega / omega still called subharmonic, -.
@@ -93,8 +103,10 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
     beats the failed divisors by that margin: a part of amplitude 1 % of the range at sqrt(2)
     Omega on a p = 2 orbit is p = 10 (5 sqrt(2) = 7.07 cycles). NONE also covers a window too
     short to see a period twice: nu > (n_sec - 1) / (2 n_l), below max_order when n_sec
-    < 2 max_order n_l + 1. Each channel is held to rtol of its own scale: a channel that barely
-    moves (round-off) breaks the period of all; pass a common scale to avoid it.
+    < 2 max_order n_l + 1. Each channel is held to rtol of its own scale: without `scale`, a
+    channel whose sections barely move (above the round-off floor) breaks the period of all,
+    and one whose sections sit at 0 (a zero crossing at every section) is judged on its
+    round-off; pass the signal's range (or a common scale) to avoid both.
     Raises ValueError for n_lobes < 1, an rtol that is negative or not finite, a max_order
     that is not finite or below 1 / n_lobes (p = 1 could not be tried) and a negative scale.
     """
@@ -105,8 +117,10 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
     n_sec = y.shape[0]
     if n_sec < 3:
         raise ValueError(f"need at least 3 Poincare sections, got {n_sec}")
-    rng = y.max(axis=0) - y.min(axis=0) if scale is None else np.broadcast_to(np.asarray(scale, float), y.shape[1:])
-    if not (np.isfinite(y).all() and np.isfinite(rng).all()):  # a march that blew up repeats nothing
+    if not np.isfinite(y).all():  # a march that blew up repeats nothing
+        return Periodicity(code=PeriodClass.NONE, period=0, order=float("nan"), mismatch=float("nan"))
+    rng = _own_range(y) if scale is None else np.broadcast_to(np.asarray(scale, float), y.shape[1:])
+    if not np.isfinite(rng).all():
         return Periodicity(code=PeriodClass.NONE, period=0, order=float("nan"), mismatch=float("nan"))
     keep = rng > 0.0
     if not keep.any():
@@ -119,6 +133,12 @@ def classify_period(sections: np.ndarray, n_lobes: int = 2, rtol: float = 1e-2, 
         if mis[p] <= rtol and mis[p] <= _failed_divisors(mis, p) / MULTIPLE_MARGIN:
             return Periodicity(code=_code(p, n_lobes), period=p, order=p / n_lobes, mismatch=float(mis[p]))
     return Periodicity(code=PeriodClass.NONE, period=0, order=float("nan"), mismatch=float(mis[1:].min()))
+
+
+def _own_range(y: np.ndarray) -> np.ndarray:
+    """Range of each channel of the sections y, (n_sec, n_ch) -> (n_ch,), y's unit, raised to
+    ROUNDOFF_FLOOR times the channel's largest |y| (0 for a channel that is 0 throughout)."""
+    return np.maximum(y.max(axis=0) - y.min(axis=0), ROUNDOFF_FLOOR * np.abs(y).max(axis=0))
 
 
 def _failed_divisors(mis: np.ndarray, p: int) -> float:

@@ -314,8 +314,8 @@ def _decays_to_period_one(w: np.ndarray, scale: np.ndarray, tol: float) -> bool:
 def grid_size(n_harmonics: int, minimum: int = 1024) -> int:
     """Samples per period of the validation grid: a power of 2, at least `minimum` and
     enough for n_harmonics. 1024 by default: the time integration's forces are block means
-    over n_per / n_time steps, which attenuate harmonic k by sinc(pi k / n_time), 0.4 % at
-    k = 40."""
+    over n_per / n_time steps, which attenuate harmonic k by sin(x) / x, x = pi k / n_time:
+    0.25 % at k = 40."""
     n = int(minimum)
     while n < 2 * n_harmonics + 2:
         n *= 2
