@@ -6,17 +6,20 @@ replaces the first's id table), (c) empties a node set that names another set ("
 gives an empty set), and (d) does not read *BOUNDARY at all, which is how a deck says
 where the blade is clamped (all four checked on meshio 5.0.0). What is read:
 
-- *NODE (optionally NSET=): "id, x, y, z" lines; several blocks append.
+- *NODE (optionally NSET=): "id, x, y, z" lines; several blocks append. Reals may carry a
+  Fortran exponent ("1.5D-3"), which CalculiX reads (checked: the same frequencies).
 - *ELEMENT, TYPE=..., (ELSET=): solid elements C3D4, C3D6, C3D8, C3D10, C3D15, C3D20 and
   their variants (C3D8R, C3D10M, C3D20R, ...), data lines continued until the node count is
-  complete; other C3Dn types are kept as unknown solids (refused later, by name); elements
-  of lower dimension (shells, membranes, beams, surfaces) are counted and skipped.
+  complete; other C3Dn types are kept as unknown solids (refused later, by name and line);
+  elements of lower dimension (shells, membranes, beams, surfaces) are counted and skipped.
   An *ELEMENT block without data lines (exporters write one per type or section) is dropped.
 - *NSET, NSET=... (GENERATE, ELSET=) and *ELSET, ELSET=... (GENERATE): ids or set names;
   GENERATE lines are "first, last[, increment]" (increment 1 when left out, as CalculiX
   reads "20, 24"), and a GENERATE range keeps only the ids the deck defines (CalculiX runs
   a deck whose range crosses gaps in the numbering). Other ids a set names that no *NODE
   defines refuse the deck only where the set is used: in *BOUNDARY or as the root.
+  *NSET, ELSET= (Abaqus; CalculiX ignores it) takes the nodes of the set's elements, the
+  skipped ones too (a root face marked by S8R or SFM3D8 elements), as element sets may.
 - *BOUNDARY (TYPE=DISPLACEMENT, the default): "node or set, first dof[, last dof[, value]]"
   or "node or set, ENCASTRE | PINNED | XSYMM | ...": which translations (dof 1-3) are fixed.
   Fields are read by position: a blank last dof is the first ("ROOT, 1,, 0"). A non-zero
@@ -173,12 +176,30 @@ def _refuse_unread(keyword: str, params: dict, where: str) -> None:
                               "that holds the keyword line and its data")
 
 
+_D_TO_E = str.maketrans("dD", "eE")
+
+
+def _fortran_exponents(text: str) -> str:
+    """Reals with a Fortran exponent letter ("1.5D-3", "2.d0") spelled with an E: CalculiX
+    and Abaqus read them (Fortran formatted input), numpy and float() do not."""
+    return text.translate(_D_TO_E) if "d" in text or "D" in text else text
+
+
+def _float(token: str) -> float:
+    """A real of a data line, Fortran exponents included (ValueError if it is none)."""
+    return float(_fortran_exponents(token))
+
+
 def _numbers(lines: list[str], dtype, where: str) -> np.ndarray:
     """All comma-separated numbers of a data block, fast (a C parse of the joined lines);
-    a token that is not a number is named from a line-by-line parse."""
+    a token that is not a number is named from a line-by-line parse. Reals may carry a
+    Fortran exponent (1.0D-3)."""
     text = ",".join(line.rstrip().rstrip(",") for line in lines)
     if not text:
         return np.zeros(0, dtype=dtype)
+    is_int = np.dtype(dtype).kind == "i"
+    if not is_int:
+        text = _fortran_exponents(text)
     with warnings.catch_warnings():
         warnings.simplefilter("error")  # numpy warns, then stops, at the first non-number
         try:
@@ -187,7 +208,7 @@ def _numbers(lines: list[str], dtype, where: str) -> np.ndarray:
                 return out
         except (DeprecationWarning, ValueError):
             pass
-    convert = int if np.dtype(dtype).kind == "i" else float
+    convert = int if is_int else _float
     for line in lines:
         for t in line.split(","):
             if t.strip():
@@ -196,6 +217,28 @@ def _numbers(lines: list[str], dtype, where: str) -> np.ndarray:
                 except ValueError:
                     raise MeshImportError(f"{where}: '{t.strip()}' is not a number ({line.strip()})") from None
     raise MeshImportError(f"{where}: cannot read the data lines as numbers")
+
+
+def _skipped_ids(lines: list[str], where: str) -> list[int]:
+    """Element ids of a skipped (non-solid) *ELEMENT block: the first number of each line.
+    One element a line: no shell, membrane, beam or surface element has the 16 entries
+    after which a line is continued, and a trailing "," (some exporters end every line
+    with one) does not continue it here."""
+    try:
+        return [int(line.split(",", 1)[0]) for line in lines]
+    except ValueError:
+        raise MeshImportError(f"{where}: element lines need an integer id first") from None
+
+
+def _skipped_nodes(skipped: list, wanted: set) -> list[int]:
+    """Node ids of the skipped elements whose id is in `wanted`. skipped: (data lines, where)
+    of each skipped *ELEMENT block, parsed only when an *NSET, ELSET= asks (it is rare)."""
+    out = []
+    for lines, where in skipped:
+        for eid, line in zip(_skipped_ids(lines, where), lines):
+            if eid in wanted:
+                out.extend(int(t) for t in line.split(",")[1:] if t.strip())
+    return out
 
 
 def _tokens(lines: list[str]) -> list[str]:
@@ -253,7 +296,7 @@ def _boundary_line(line: str, where: str) -> tuple[str, tuple[int, ...]]:
     try:
         first = int(t[1])
         last = int(t[2]) if len(t) > 2 and t[2] else first
-        value = float(t[3]) if len(t) > 3 and t[3] else 0.0
+        value = _float(t[3]) if len(t) > 3 and t[3] else 0.0
     except ValueError:
         raise MeshImportError(f"{where}: cannot read *BOUNDARY line '{line}'") from None
     if value != 0.0:
@@ -267,7 +310,7 @@ def read_deck(path: Path) -> SourceMesh:
     path = Path(path)
     node_chunks, node_set_ids, elem_set_ids = [], {}, {}  # set name -> (listed ids, GENERATE'd ids)
     elements = []  # (type, ids (k,), node ids (k, n), where)
-    ignored = {}
+    ignored, skipped = {}, []  # skipped: (data lines, where) of non-solid elements, for sets
     boundary = []  # (node id or set name, dofs, where)
     for keyword, params, data, where in _blocks(path):
         if keyword in ("PART", "INSTANCE", "ASSEMBLY"):
@@ -296,8 +339,11 @@ def read_deck(path: Path) -> SourceMesh:
                     elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))
                 continue
             m = _SOLID.match(etype)
-            if m is None:
+            if m is None:  # skipped, but a set may name its elements (a root skin of S8R...)
                 ignored[etype] = ignored.get(etype, 0) + len(data)
+                skipped.append((data, where))
+                if "ELSET" in params:
+                    elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))[0].extend(_skipped_ids(data, where))
                 continue
             n = int(m.group(1))
             vals = _numbers(data, np.int64, where)
@@ -318,7 +364,9 @@ def read_deck(path: Path) -> SourceMesh:
                     raise MeshImportError(f"{where}: *NSET, ELSET={es}: unknown element set")
                 wanted = np.concatenate([np.asarray(v, dtype=np.int64) for v in elem_set_ids[es]])
                 ids = [e[2][np.isin(e[1], wanted)].ravel() for e in elements]
-                node_set_ids.setdefault(name, ([], []))[0].extend(np.concatenate(ids) if ids else [])
+                entry = node_set_ids.setdefault(name, ([], []))
+                entry[0].extend(np.concatenate(ids) if ids else [])
+                entry[0].extend(_skipped_nodes(skipped, set(wanted.tolist())))
             listed, generated = _set_members(data, params, node_set_ids, "node set", where)
             entry = node_set_ids.setdefault(name, ([], []))
             entry[0].extend(listed)
@@ -360,13 +408,13 @@ def read_deck(path: Path) -> SourceMesh:
 
     blocks = []
     for etype, ids, conn, where in elements:
-        blocks.append(SolidBlock(etype, index(conn, f"*ELEMENT, TYPE {etype} ({where})"), ids))
+        blocks.append(SolidBlock(etype, index(conn, f"*ELEMENT, TYPE {etype} ({where})"), ids, where))
     # blocks of one type are merged: one block per type, in order of first appearance
     merged = {}
     for b in blocks:
         merged.setdefault(b.type, []).append(b)
-    blocks = tuple(SolidBlock(t, np.concatenate([b.connectivity for b in bs]), np.concatenate([b.ids for b in bs]))
-                   for t, bs in merged.items())
+    blocks = tuple(SolidBlock(t, np.concatenate([b.connectivity for b in bs]), np.concatenate([b.ids for b in bs]),
+                              bs[0].where) for t, bs in merged.items())
     node_sets, unknown_ids = _resolve_node_sets(node_set_ids, node_ids, index)
     fixed = np.zeros((len(nodes), 3), dtype=bool)
     for target, dofs, where in boundary:

@@ -143,10 +143,13 @@ def import_blade(blade: BladeOptions, options: MeshOptions, path: Path, node_ord
 
 
 def _check_elements(src: SourceMesh, path: Path) -> None:
-    """Only quadratic solids; the message counts every block of a type (meshio files may hold several)."""
-    types = {}
+    """Only quadratic solids; the message counts every block of a type (meshio files may hold
+    several) and names the deck line of an unknown type's first block."""
+    types, where = {}, {}
     for b in src.blocks:
         types[b.type] = types.get(b.type, 0) + len(b.ids)
+        if b.where:
+            where.setdefault(b.type, f", at {b.where}")
     if not types:
         other = ", ".join(f"{t} x {n}" for t, n in src.ignored.items()) or "none"
         raise MeshImportError(f"{path}: no solid elements (other elements: {other})")
@@ -156,7 +159,7 @@ def _check_elements(src: SourceMesh, path: Path) -> None:
     if unknown:
         raise MeshImportError(
             f"{path}: unsupported element type{'s' if len(unknown) > 1 else ''} "
-            + ", ".join(f"'{t}' ({types[t]} elements)" for t in unknown)
+            + ", ".join(f"'{t}' ({types[t]} elements{where.get(t, '')})" for t in unknown)
             + "; bladerub reads 10-node tetrahedra, 15-node wedges and 20-node hexahedra")
     if linear and quadratic:
         raise MeshImportError(

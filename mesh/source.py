@@ -27,11 +27,14 @@ class SolidBlock:
     type: meshio cell type ("tetra10", "wedge15", ...) or, for a solid type bladerub does not
         know, the file's own name of it. connectivity: (k, n) 0-based node indices in
         VTK/Abaqus node order. ids: (k,) element ids as numbered in the file.
+    where: the file and line of the first *ELEMENT block of the type ("blade.inp:57"), so a
+        refusal can point at it; "" where the format has no such line (meshio files).
     """
 
     type: str
     connectivity: np.ndarray
     ids: np.ndarray
+    where: str = ""
 
 
 @dataclass(frozen=True)
