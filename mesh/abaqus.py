@@ -20,6 +20,8 @@ where the blade is clamped (all four checked on meshio 5.0.0). What is read:
   defines refuse the deck only where the set is used: in *BOUNDARY or as the root.
   *NSET, ELSET= (Abaqus; CalculiX ignores it) takes the nodes of the set's elements, the
   skipped ones too (a root face marked by S8R or SFM3D8 elements), as element sets may.
+  A name in double quotes (NSET="Root Face", as Abaqus writes names with spaces) is the name
+  without them, wherever it appears.
 - *BOUNDARY (TYPE=DISPLACEMENT, the default): "node or set, first dof[, last dof[, value]]"
   or "node or set, ENCASTRE | PINNED | XSYMM | ...": which translations (dof 1-3) are fixed.
   Fields are read by position: a blank last dof is the first ("ROOT, 1,, 0"). A non-zero
@@ -125,13 +127,20 @@ def included_files(path: Path, seen: tuple[Path, ...] = ()) -> list[Path]:
     return out
 
 
+def _unquoted(name: str) -> str:
+    """A name without the double quotes Abaqus needs around one with spaces ("Root Face")."""
+    name = name.strip()
+    return name[1:-1].strip() if len(name) >= 2 and name[0] == name[-1] == '"' else name
+
+
 def _params(line: str) -> dict:
-    """Keyword line parameters: {'TYPE': 'C3D15', 'GENERATE': ''}; keys in upper case."""
+    """Keyword line parameters: {'TYPE': 'C3D15', 'GENERATE': ''}; keys in upper case,
+    values without their quotes (NSET="Root Face" is the set Root Face)."""
     out = {}
     for word in line.split(",")[1:]:
         k, _, v = word.partition("=")
         if k.strip():
-            out[k.strip().upper()] = v.strip()
+            out[k.strip().upper()] = _unquoted(v)
     return out
 
 
@@ -274,7 +283,7 @@ def _set_members(lines: list[str], params: dict, sets: dict, kind: str, where: s
     if "GENERATE" in params:
         return [], _generate(lines, where)
     listed, generated = [], []
-    for t in _tokens(lines):
+    for t in map(_unquoted, _tokens(lines)):
         if re.fullmatch(r"[+-]?\d+", t):
             listed.append(int(t))
         elif t.upper() in sets:
@@ -288,7 +297,7 @@ def _set_members(lines: list[str], params: dict, sets: dict, kind: str, where: s
 def _boundary_line(line: str, where: str) -> tuple[str, tuple[int, ...]]:
     """(node or set, fixed translations) of a *BOUNDARY data line, its fields read by
     position: "ROOT, 1,, 0" has a blank last dof (= the first), not the value in its place."""
-    t = [x.strip() for x in line.split(",")]
+    t = [_unquoted(x) for x in line.split(",")]
     if len(t) < 2 or not t[0] or not t[1]:
         raise MeshImportError(f"{where}: *BOUNDARY line '{line}' names no dof")
     if t[1].upper() in _SHORTHAND:

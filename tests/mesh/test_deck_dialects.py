@@ -75,3 +75,19 @@ def test_sets_may_name_skipped_elements(tmp_path):
     assert src.node_sets["ALLN"].size == 7 * 8 + 6 * 4 + 1  # the column's nodes and 999
     assert src.ignored == {"S8R": 1, "T3D2": 1}
     assert _root_ids(_import(deck)) == list(range(1, 9))  # 999 is no node of the solid
+
+
+def test_quoted_set_names_are_the_names(tmp_path):
+    # Abaqus quotes a name with a space: NSET="Root Face" is the set Root Face, in the
+    # keyword, in another set's data line and in *BOUNDARY; `root = "nset:Root Face"` finds it,
+    # and both decks clamp the same nodes (1-8, as written here)
+    nodes, elements = _column()
+    ids = PLAIN_ROOT[1]
+    deck = tmp_path / "quoted.inp"
+    deck.write_text("\n".join(nodes + ["*ELEMENT, TYPE=C3D20, ELSET=EALL"] + elements
+                              + ['*NSET, NSET="Root Face"', ids, '*NSET, NSET="Clamped nodes"', '"Root Face"',
+                                 "*BOUNDARY", '"Clamped nodes", 1, 3']) + "\n")
+    src = read_deck(deck)
+    assert sorted(src.node_ids[src.node_sets["ROOT FACE"]].tolist()) == list(range(1, 9))
+    assert _root_ids(_import(deck, root="nset:Root Face")) == list(range(1, 9))
+    assert _root_ids(_import(deck, root="boundary")) == list(range(1, 9))
