@@ -70,6 +70,7 @@ class SpeedResponse:
     transient_bound: float = field(metadata={"unit": "1"})
     cpu_time: float = field(metadata={"unit": "s"})
     boundary: np.ndarray | None = field(default=None, metadata={"unit": "m"})
+    active_set_failures: int | None = field(default=0, metadata={"unit": "1"})
 
 
 @dataclass(frozen=True)
@@ -106,6 +107,10 @@ class SweepResult:
         (n_omega, BOUNDARY_REVOLUTIONS samples_per_revolution, 3 n_b), m: the state an HBM
         solution can be started from (hbm.isolas); None in files written before it was kept
         (and one revolution only in files written before two were).
+    active_set_failures: steps whose contact solve hit its iteration cap and kept a clipped
+        iterate (hbm.ti.march.March), (n_omega,): 0 where the contact was solved exactly at
+        every step, -1 where unknown (a speed resumed from a file written before it was
+        counted); None in files written before it.
     """
 
     omega: np.ndarray = field(metadata={"unit": "rad/s"})
@@ -126,6 +131,7 @@ class SweepResult:
     transient_bound: np.ndarray = field(metadata={"unit": "1"})
     cpu_time: np.ndarray = field(metadata={"unit": "s"})
     boundary: np.ndarray | None = field(default=None, metadata={"unit": "m"})
+    active_set_failures: np.ndarray | None = field(default=None, metadata={"unit": "1"})
 
 
 def steps_per_revolution(omega: float, dt: float, multiple: int) -> int:
@@ -205,7 +211,7 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
         normal_force=m.normal_force[samples][:, [0, -1]],
         sections=sections, contact_fraction=m.contact_steps / (revs * n_rev), max_penetration=m.max_penetration,
         revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start,
-        boundary=np.array(m.displacement[last]))
+        boundary=np.array(m.displacement[last]), active_set_failures=int(m.active_set_failures))
 
 
 def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,
@@ -397,5 +403,6 @@ class SweepRun:
 
 
 def _stack(rows: list[SpeedResponse]) -> SweepResult:
-    names = [f.name for f in SweepResult.__dataclass_fields__.values()]
-    return SweepResult(**{k: np.array([getattr(r, k) for r in rows]) for k in names})
+    names = [f.name for f in SweepResult.__dataclass_fields__.values() if f.name != "active_set_failures"]
+    failures = np.array([-1 if r.active_set_failures is None else r.active_set_failures for r in rows], dtype=int)
+    return SweepResult(**{k: np.array([getattr(r, k) for r in rows]) for k in names}, active_set_failures=failures)

@@ -196,6 +196,25 @@ def _write(ctx: Context, result, partial: SweepPartial) -> None:
     ctx.log(f"  {len(result.omega)} speeds; classes: "
             + ", ".join(f"{c.label(n_l, scene.ti.classified_order(n_l))} {counts[c]}" for c in PeriodClass if counts[c])
             + f"; median {np.median(result.cpu_time):.1f} s per speed")
+    line = capped_contact_warning(result)
+    if line:
+        ctx.log("  WARNING: " + line)
+
+
+def capped_contact_warning(result) -> str:
+    """One line naming the speeds where the contact solve hit its iteration cap at some step
+    (SweepResult.active_set_failures > 0: that step kept a clipped iterate, so its contact
+    forces, and the response after it, are approximate); "" when there is none."""
+    failures = result.active_set_failures
+    if failures is None:
+        return ""
+    bad = np.flatnonzero(np.asarray(failures) > 0)
+    if not bad.size:
+        return ""
+    shown = ", ".join(f"{result.omega[i]:.0f} ({int(failures[i])} steps)" for i in bad[:5])
+    return (f"the contact solve hit its iteration cap at {bad.size} speed(s), rad/s: {shown}"
+            f"{' ...' if bad.size > 5 else ''}; those steps kept an approximate contact force "
+            "(ti.h5: sweep/active_set_failures)")
 
 
 @dataclass(frozen=True)

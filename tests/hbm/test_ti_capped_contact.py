@@ -1,0 +1,52 @@
+"""A step whose contact solve cannot converge is counted, kept in ti.h5 and named in the
+run's log, never hidden.
+
+One contact node whose mass couples its radial and tangential dof (M_rtheta = 0.9 kg
+against M_rr = M_thetatheta = 1 kg): an explicit step's radial compliance with sliding
+friction is B_rr + s mu B_rtheta, B = M^-1 (B_rr = 1 / 0.19, B_rtheta = -0.9 / 0.19), which
+changes sign at mu = B_rr / |B_rtheta| = 1 / 0.9 = 1.11 for s = +1 (the sliding direction is
+the casing's, s e_theta). Below it the node's multiplier is the positive solution of a
+1 x 1 problem; above it a positive force pulls the node further into the casing, no
+multiplier >= 0 removes the penetration, and the active set cycles until its cap. The
+counts: none at mu = 0 and 0.9, some at mu = 1.4 (above the analytic limit), and the sweep's
+warning names that speed.
+"""
+import numpy as np
+import pytest
+
+from hbm.options import CasingOptions, TimeIntegrationOptions
+from hbm.ti.march import modal_system
+from hbm.ti.sweep import SpeedResponse, _stack, simulate
+from pipelines.stages.ti import capped_contact_warning
+from rom.model import modal_damping
+
+OMEGA = 50.0  # rad/s
+
+
+def _speed(mu: float) -> SpeedResponse:
+    M = np.array([[1.0, 0.9, 0.0], [0.9, 1.0, 0.0], [0.0, 0.0, 1.0]])  # kg, (r, theta, z)
+    K = 1e6 * np.eye(3)  # N/m: periods ~ 1e-3 s against a revolution of 0.126 s
+    C, _ = modal_damping(K, M, np.full(3, 0.05))
+    system = modal_system(K, M, C, np.array([0.25]), np.array([0.0]), rotation=1)
+    options = TimeIntegrationOptions(dt=1e-6, n_revolutions=4, n_keep=1, samples_per_revolution=16,
+                                     stop_when_settled=False)
+    return simulate(system, CasingOptions(), mu, OMEGA, options)
+
+
+@pytest.mark.parametrize("mu", [0.0, 0.9])
+def test_below_the_sign_change_every_contact_step_is_solved(mu):
+    r = _speed(mu)
+    assert r.contact_fraction > 0.01 and r.active_set_failures == 0
+
+
+def test_above_it_the_capped_steps_are_counted_and_named():
+    r = _speed(1.4)
+    assert r.contact_fraction > 0.01 and r.active_set_failures > 0
+    line = capped_contact_warning(_stack([_speed(0.0), r]))
+    assert f"at 1 speed(s), rad/s: {OMEGA:.0f} ({r.active_set_failures} steps)" in line
+
+
+def test_a_speed_resumed_from_an_older_file_is_unknown_not_clean():
+    r = _speed(0.0)
+    old = SpeedResponse(**{**r.__dict__, "active_set_failures": None})
+    assert _stack([r, old]).active_set_failures.tolist() == [0, -1]
