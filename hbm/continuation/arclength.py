@@ -69,7 +69,11 @@ class ContinuationOptions:
     closed_loop_tol: d_min of eq. (27); None disables the test. The test is armed only
       once some point x_j has been farther than d_min from the start in the same metric,
       ||x_j - x_0|| / ||x_j|| > d_min: "back within d_min" presupposes having left, and
-      a fold next to the start (whose sheets cross omega_0 within d_min) is no loop.
+      a fold next to the start (whose sheets cross omega_0 within d_min) is no loop. The
+      crossing step must also head the way the first step left the start (scaled
+      directions less than 90 deg apart): a return through the start comes in along the
+      branch's start tangent, while a crossing at another angle (a figure-eight drawn along
+      another unknown, another stretch passing by the start) is a near-miss, not a loop.
     land_on_bounds: replace the point that overshoots omega_min/omega_max by a Newton
       solution at the bound (kept as it is if that solve fails).
     predictor: "secant" (eq. 23: along the chord of the last two points) or "quadratic"
@@ -391,12 +395,17 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         return d_min is not None and np.linalg.norm(x - ref_x) > d_min * np.linalg.norm(x)
 
     def closes(last, x_new, w_new):  # eq. (26)-(27): the step from last to (x_new, w_new) crosses omega_0 within d_min
+        # and heads the way the first step left the start
         if not ((armed or far(x_new)) and last.index >= 1
                 and ((last.omega < ref_w <= w_new) or (last.omega > ref_w >= w_new))):
             return None
         x_int = last.x + (ref_w - last.omega) / (w_new - last.omega) * (x_new - last.x)
         d_int = float(np.linalg.norm(x_int - ref_x) / max(np.linalg.norm(x_int), 1e-300))
-        return d_int if d_int < d_min else None
+        if not d_int < d_min:
+            return None
+        first = np.append(*sc.unit(points[1].x - ref_x, points[1].omega - ref_w))
+        now = np.append(*sc.unit(x_new - last.x, w_new - last.omega))
+        return d_int if float(first @ now) > 0.0 else None
 
     armed = any(far(p.x) for p in points)
     crawl = 0  # successive points taken at a step below crawl_ratio ds_min (a resumed run's last ones)
