@@ -134,6 +134,9 @@ class OrbitValidation:
     last_harmonics: every dof's harmonics over the last period, in the orbit's basis and time
     origin, (2 N_h + 1, n), m, eq. (5) order; empty unless asked for (record_all).
     reached: where the march went in the HBM's unknowns (reached_orbit), None unless asked.
+    active_set_failures: steps whose contact solve hit its iteration cap and kept a clipped
+    iterate (March.active_set_failures): their contact forces are approximate, and the verdict
+    says so.
     """
 
     omega: float = field(metadata={"unit": "rad/s"})
@@ -157,6 +160,7 @@ class OrbitValidation:
     repeat: int = field(default=0, metadata={"unit": "1"})
     last_harmonics: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "m"})
     reached: ReachedOrbit | None = None
+    active_set_failures: int = field(default=0, metadata={"unit": "1"})
 
     @property
     def locked_nodes(self) -> np.ndarray:
@@ -175,6 +179,14 @@ class OrbitValidation:
         return bool(np.max(self.drift) <= SETTLED_DRIFT)
 
     def verdict(self) -> str:
+        """The outcome in words (_verdict), followed by the count of steps whose contact solve
+        hit its iteration cap, when there are any: a numerical failure, not a dynamical one."""
+        text = self._verdict()
+        if self.active_set_failures > 0:
+            text += f" (the contact solve hit its iteration cap at {self.active_set_failures} steps)"
+        return text
+
+    def _verdict(self) -> str:
         """In words: "stays", "stays, unsettled (drift 0.36)" when the last period does not
         repeat the one before (SETTLED_DRIFT), "leaves for an orbit of period 2 T" (repeat),
         "leaves", "leaves for permanent contact (TE)" naming the locked nodes (LE, TE, or
@@ -400,7 +412,8 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
                            t0=float(t0), nodes=nodes, tau=grid.tau, distance=d_all[:, nodes], displacement=disp,
                            force=grid.to_time(grid.to_freq(force)), force_peak=f[-1].max(axis=0), deviation=dev,
                            drift=drift, growth=growth, stays=stays, max_penetration=float(m.max_penetration),
-                           contact_fraction=in_contact, outcome=outcome, repeat=repeat, last_harmonics=last)
+                           contact_fraction=in_contact, outcome=outcome, repeat=repeat, last_harmonics=last,
+                           active_set_failures=int(m.active_set_failures))
 
 
 def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> ReachedOrbit:

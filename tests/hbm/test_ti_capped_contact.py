@@ -50,3 +50,18 @@ def test_a_speed_resumed_from_an_older_file_is_unknown_not_clean():
     r = _speed(0.0)
     old = SpeedResponse(**{**r.__dict__, "active_set_failures": None})
     assert _stack([r, old]).active_set_failures.tolist() == [0, -1]
+
+
+@pytest.mark.parametrize("mu, capped", [(0.0, False), (1.4, True)])
+def test_a_validation_march_says_when_its_contact_was_capped(mu, capped):
+    """The validation's march from an orbit (here rest, which the casing's lobes indent)
+    counts the capped steps and its verdict names them, as a numerical failure."""
+    from hbm.ti.validation import march_from_hbm
+
+    M = np.array([[1.0, 0.9, 0.0], [0.9, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    K = 1e6 * np.eye(3)
+    C, _ = modal_damping(K, M, np.full(3, 0.05))
+    system = modal_system(K, M, C, np.array([0.25]), np.array([0.0]), rotation=1)
+    ti = march_from_hbm(system, CasingOptions(), mu, np.zeros((3, 3)), OMEGA, n_periods=3, dt=1e-6, n_time=64)
+    assert (ti.active_set_failures > 0) is capped
+    assert ("iteration cap" in ti.verdict()) is capped
