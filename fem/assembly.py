@@ -79,28 +79,74 @@ def _check_mesh(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray) -
     _check_clamp_holds(nodes, cells, root_facets)
 
 
-def _check_clamp_holds(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray) -> None:
-    """Every connected piece of the mesh must have clamped nodes that are not all on one
-    line: otherwise a rigid-body motion (the rotation about that line, or the whole piece)
-    is left free, K is singular, and the factorisation may pass on round-off pivots and
-    give a zero-frequency "mode" (seen: 1e-3 Hz, residual 1, with a two-node root)."""
+def _rigid_pieces(cells: np.ndarray) -> tuple[int, np.ndarray]:
+    """(count, piece of each cell (n_cells,)): the cells joined through shared faces. Two
+    tetrahedra that share a face (three corners, never collinear) move as one body; cells
+    that share only an edge or a node may still turn about it (a hinge, a ball joint)."""
     from scipy.sparse import coo_matrix
     from scipy.sparse.csgraph import connected_components
 
+    corners = np.sort(cells[:, :4], axis=1)
+    faces = corners[:, [[0, 1, 2], [0, 1, 3], [0, 2, 3], [1, 2, 3]]].reshape(-1, 3)  # sorted triples
+    owner = np.repeat(np.arange(len(cells)), 4)
+    order = np.lexsort(faces.T[::-1])
+    faces, owner = faces[order], owner[order]
+    shared = np.all(faces[1:] == faces[:-1], axis=1)
+    a, b = owner[:-1][shared], owner[1:][shared]
+    graph = coo_matrix((np.ones(len(a), dtype=np.int8), (a, b)), shape=(len(cells), len(cells)))
+    return connected_components(graph, directed=False)
+
+
+def _spans_a_plane(x: np.ndarray, size: float) -> bool:
+    """True if the points (k, 3), m, are not all on one line (to 1e-9 of the mesh size, m):
+    pinned there, a body keeps no rigid-body motion."""
+    if len(x) < 3:
+        return False
+    return bool(np.linalg.svd(x - x.mean(axis=0), compute_uv=False)[1] > 1e-9 * size)
+
+
+def _check_clamp_holds(nodes: np.ndarray, cells: np.ndarray, root_facets: np.ndarray) -> None:
+    """Every rigid piece of the mesh (cells joined through faces, _rigid_pieces) must be held:
+    by clamped nodes not all on one line, or by nodes not all on one line that it shares
+    with pieces already held. Otherwise a rigid-body motion (the rotation about that line,
+    or the whole piece) is left free, K is singular, and the factorisation may pass on
+    round-off pivots: a zero-frequency "mode" (seen: 1e-3 Hz, residual 1, with a two-node
+    root; a piece hung on the rest by one line of nodes gave 2e-3 Hz with CHOLMOD and no
+    convergence in 40 block steps with MUMPS)."""
+    from scipy.sparse import csr_matrix
+
+    n_pieces, piece = _rigid_pieces(cells)
     n = len(nodes)
-    edges = coo_matrix((np.ones(9 * len(cells), dtype=np.int8),
-                        (np.repeat(cells[:, 0], 9), cells[:, 1:].ravel())), shape=(n, n))
-    n_parts, part = connected_components(edges, directed=False)
-    clamped = np.unique(root_facets)
     size = np.ptp(nodes, axis=0).max()
-    for p in range(n_parts):
-        x = nodes[clamped[part[clamped] == p]]
-        extent = np.linalg.svd(x - x.mean(axis=0), compute_uv=False) if len(x) > 1 else np.zeros(1)
-        if len(x) < 3 or extent[1] <= 1e-9 * size:
-            where = "the mesh" if n_parts == 1 else f"piece {p + 1} of {n_parts} (not connected to the others)"
-            raise ValueError(f"the root clamp leaves {where} free to move as a rigid body: its "
-                             f"{len(x)} clamped nodes lie on one line or none are clamped "
-                             "(singular stiffness); the root facets must cover a face")
+    # piece-node incidence (n_pieces, n): the nodes of each piece, and the pieces of each node
+    keys = np.unique(np.repeat(piece.astype(np.int64), cells.shape[1]) * n + cells.ravel())
+    incidence = csr_matrix((np.ones(len(keys), dtype=np.int8), (keys // n, keys % n)), shape=(n_pieces, n))
+    pieces_of = incidence.T.tocsr()
+    held = np.zeros(n, dtype=bool)
+    held[root_facets.ravel()] = True
+    loose = np.ones(n_pieces, dtype=bool)
+    # a worklist: a piece is looked at again only when a neighbour (sharing a node) got held
+    todo = list(range(n_pieces))
+    while todo:
+        p = todo.pop()
+        if not loose[p]:
+            continue
+        mine = incidence.indices[incidence.indptr[p]:incidence.indptr[p + 1]]
+        if _spans_a_plane(nodes[mine[held[mine]]], size):
+            loose[p] = False
+            held[mine] = True
+            touched = np.unique(pieces_of[mine].indices)
+            todo.extend(touched[loose[touched]].tolist())
+    if loose.any():
+        p = int(np.flatnonzero(loose)[0])
+        mine = incidence.indices[incidence.indptr[p]:incidence.indptr[p + 1]]
+        where = "the mesh" if n_pieces == 1 else (
+            f"{int(loose.sum())} of its {n_pieces} pieces (cells joined through faces; the first has "
+            f"{int((piece == p).sum())} cells and {len(mine)} nodes)")
+        pinned = int(held[mine].sum())
+        raise ValueError(f"the root clamp leaves {where} free to move as a rigid body: it is held at {pinned} "
+                         "nodes, all on one line or none (singular stiffness); the root facets must cover a face, "
+                         "and a piece joined to the rest only along an edge or at a node turns about it")
 
 
 def _to_scipy(A) -> sp.csr_matrix:
