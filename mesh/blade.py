@@ -96,7 +96,11 @@ def reference_volume(sections: tuple[Section, ...]) -> float:
     """Blade volume from the table alone, m^3.
 
     Section area = integral of tangential thickness over the meridional arc length, then
-    integrated (trapezoids) over the mean radius of the sections. Independent of the solid.
+    integrated (trapezoids) over the mean radius of the sections. Independent of the solid,
+    but not exact: it spans the sections radially, not normal to the sloping streamsurfaces,
+    and overestimates the table's blade (int int t dr dz over the meridional plane) by 2.2 %
+    on rotor 67 (4.790e-5 against 4.687e-5 m^3, which the default mesh matches to 0.01 %)
+    and 0.9 % on rotor 37.
     """
     area = np.array([s.area() for s in sections])
     r_mean = np.array([s.r.mean() for s in sections])

@@ -142,6 +142,23 @@ def _check_stations(z: np.ndarray, r: np.ndarray, path: Path, where: str, j0: in
                             f"{z[bad[0] + 1]:.6g} m; the blade's stations must advance from LE to TE)")
 
 
+def _check_span_order(sections: list[Section], path: Path, j0: int) -> None:
+    """Each surface must lie above the one below it at every station J of the blade: a
+    repeated or out-of-order surface folds the lofted solid (gmsh then fails after tens of
+    seconds with overlapping facets, or does not return at all). The sections have equal
+    point counts, J matching J across surfaces (the tables' grid); j0: the table's point
+    number J of the LE."""
+    for lower, upper in zip(sections, sections[1:]):
+        step = upper.r - lower.r
+        if np.all(step > 0):
+            continue
+        j = int(np.argmax(~(step > 0)))
+        what = "repeats the radius of" if step[j] == 0 else "lies below"
+        raise GeometryError(f"{path}: surface {upper.number} {what} surface {lower.number} at point "
+                            f"J={j0 + j}: radius {upper.r[j]:.6g} m against {lower.r[j]:.6g} m; "
+                            "the surfaces must go outward from hub to casing (a duplicated or misnumbered surface?)")
+
+
 # --- rotor 67 -------------------------------------------------------------------------
 
 _BLOCKS = ("axial", "rtheta", "thickness", "radius")
@@ -261,6 +278,7 @@ def _read_rotor67(lines: list[str], path: Path, scale: float) -> BladeGeometry:
         _check_stations(arrays[k, "axial"][blade], r, path, f"surface {k}, block 'Axial Distance'", jle)
         sections.append(Section(number=k, z=arrays[k, "axial"][blade], r=r,
                                 rtheta_upper=arrays[k, "rtheta"][blade], thickness=t))
+    _check_span_order(sections, path, jle)
     mz = np.stack([arrays[k, "axial"] for k in expected])
     mr = np.stack([arrays[k, "radius"] for k in expected])
     return BladeGeometry(sections=tuple(sections), n_blades=nb, meridional_z=mz, meridional_r=mr, source=path)
@@ -327,6 +345,7 @@ def _read_rotor37(lines: list[str], path: Path, scale: float) -> BladeGeometry:
         sections.append(Section(number=k, z=z, r=r, rtheta_upper=r * t1, thickness=np.maximum(t, 0.0)))
     if len(set(sizes.values())) != 1:
         raise GeometryError(f"{path}: surfaces have different point counts {sizes} (truncated section?)")
+    _check_span_order(sections, path, 1)
     mz = np.stack([s.z for s in sections])
     mr = np.stack([s.r for s in sections])
     return BladeGeometry(sections=tuple(sections), n_blades=36, meridional_z=mz, meridional_r=mr, source=path)
