@@ -118,6 +118,9 @@ class HbmJacobian:
         return g  # (n_c, n_t)
 
     def __matmul__(self, v: np.ndarray) -> np.ndarray:
+        v = np.asarray(v)
+        if np.iscomplexobj(v):  # J is real: its real and imaginary parts separately (eigenvectors)
+            return (self @ v.real) + 1j * (self @ v.imag)
         v = np.asarray(v, dtype=float)
         if v.ndim != 1:
             return np.column_stack([self @ c for c in v.reshape(v.shape[0], -1).T]).reshape(v.shape)

@@ -104,6 +104,8 @@ def test_jacobians_match_finite_differences_on_hard_cases(rom, method, mu, nh, n
     assert np.abs(dw - dwfd).max() <= 1e-5 * np.abs(dwfd).max()
     V = np.random.default_rng(4).standard_normal((res.size, 3))
     assert np.abs(Js @ V - J @ V).max() <= 1e-12 * np.abs(J @ V).max()  # the FFT product
+    Vc = V[:, :2] + 1j * V[:, 1:]  # complex vectors (eigenvectors): the imaginary part kept
+    assert np.abs(Js @ Vc - J @ Vc).max() <= 1e-12 * np.abs(J @ Vc).max()
 
 
 @pytest.mark.parametrize("method,lanczos,nu,rotation", [("dlft", True, 1, 1), ("dlft", True, 3, -1),
