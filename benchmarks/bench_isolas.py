@@ -105,11 +105,10 @@ def main():
                    describe=BranchDescriber(problem),
                    on_progress=on_progress, on_branch=on_branch)
         done[method] = r
-        kinds = {}
-        for b in r.branches:
-            kinds[b.kind] = kinds.get(b.kind, 0) + 1
+        kinds = r.kind_counts()  # linked pieces of one branch counted once
         print(f"{method.upper()}: {len(seeds)} seeds, {r.n_converged} converged, {r.n_distinct} distinct, "
-              f"{int((r.seed_branch == -2).sum())} on the primary; {r.n_continued} continued; branches: "
+              f"{int((r.seed_branch == -2).sum())} on the primary; {r.n_continued} continued; branches "
+              f"({len(r.branches)} records): "
               + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none")
               + f"; CPU {r.cpu_time:.0f} s (seeds {r.corrections.cpu_time:.0f} s), wall {r.wall_time:.0f} s "
                 f"(seeds {t_seeds.get('wall', float('nan')):.0f} s)")

@@ -15,36 +15,53 @@ Two phases:
    ranks (each takes its share, then allgather).
 2. branches: each remaining solution, in seed order, unless it lies on a branch found so
    far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
-   test of eq. (26)-(27): a loop closed in the first direction is not followed back). A
+   test of eq. (26)-(27): a loop closed in the first direction is not followed back, once
+   it is checked to have come back onto its start, travelling the way it left: eq. (27)
+   measures the return relative to |x|, which one turn of a coil later can pass; such a
+   half is no loop, and the other half is continued (_back_at_start)). A
    half branch also ends when it (or its image) meets a known or found branch: when the
    chord from its previous point passes within the tolerance of that branch's polyline (a
    branch that only touches another, tangentially, closer than the tolerance meets it, and
    merges into it: the tolerance is the resolution of "the same solution"; one that stays
-   farther does not). A half that crosses a branch ends there: a branch crossing another
-   twice is continued between the crossings only, and a later seed beyond them gives
-   another branch, or, when its half runs into the first one's last step past a crossing,
-   merges into it and its points are dropped. Where two
+   farther does not). A half that crosses a branch ends there, on its first point past it:
+   a branch crossing another twice is continued between the crossings only, and a later
+   seed beyond them gives another branch. That last step past a crossing is left out of
+   the polyline later halves and seeds are measured against (_meeting_polyline): a half
+   coming from beyond the crossing crosses the branch there too, rather than running into
+   the step, merging and having its points, the piece beyond the crossing, dropped. Where two
    cores are usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
    two processes, and the second is dropped when the first closes the loop: the wall time
    of an open branch halves, that of a closed one does not change. The halves are merged
    into one branch and classified:
      primary: it merges into (runs along) the primary NFRC;
      bifurcated: it crosses another branch (a branch point; a found branch it crosses is
-       made bifurcated too), merges into a known branch other than the primary (search's
-       `primaries`), or passes through a located bifurcation point of one;
+       made bifurcated too, with the pieces it is one branch with), merges into a known
+       branch other than the primary (search's `primaries`), or passes through a located
+       bifurcation point of one;
      isola: a closed loop, or both ends inside the omega range;
      detached: otherwise (an end on the range's bound, never meeting the primary). A half
        that "closes" while the other reached the range's bound has come back near its
        start without closing (a loop through the seed cannot leave the range): such a
-       branch is not closed (_classify).
+       branch is not closed (_classify), nor is one whose "closed loop" did not come back
+       onto its start.
+   closed: the branch is one closed loop: its points were followed round back onto the
+   start, and no other branch runs into it. Closed branches are isolas or bifurcated
+   (through a located bifurcation point, or crossed by another branch: a crossing leaves
+   both branches whole), never primary or detached.
    A half that merges into a branch found earlier makes the new one part of it: its seeds
    go to that branch, its points are dropped, and the branch takes the connection the new
    one brings (primary before bifurcated before detached before isola: an open isola that
-   a branch reaching the range's bound runs into is detached). When its two halves merge
-   into two different branches found earlier, those are pieces of one branch: both take
-   the kind of the whole, and each one's status names the other ("one branch with branch
-   k"); the seed goes to the first met, and both keep their index and points (a branch
-   saved by on_branch is never withdrawn). Seeds lying on a branch
+   a branch reaching the range's bound runs into is detached). A closed loop that a branch
+   runs into is no longer closed (the set is the loop and what runs into it; the status
+   says so), unless every half of that branch ran into the loop (a stretch of it that the
+   membership test missed): it is then the same set whichever of the two was found first
+   (the loop merging into the branch found before it ends on that branch, not closed).
+   When its two halves merge into two different branches found earlier, those are pieces
+   of one branch: all the pieces take the kind of the whole (the pieces each was linked to
+   before included), and each target's status names the other ("one branch with branch
+   k", which `connected` reads back); the seed goes to the first met, and both keep their
+   index and points (a branch saved by on_branch is never withdrawn). One branch may thus
+   be several records: IsolaSearch.groups and kind_counts count it once. Seeds lying on a branch
    found later are attributed to it and never continued (a seed within the tolerance of
    two branches, as at a crossing, to the first found). Either way the branch is passed
    to on_branch again, so that an interrupted run has them on disk. The caller's
@@ -62,6 +79,7 @@ import copy
 import math
 import os
 import pickle
+import re
 import time
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
@@ -146,11 +164,13 @@ class FoundBranch:
     """A branch of the search, m points.
 
     omega (m,) rad/s; x (m, n); converged (m,) bool (the halves' failed last points are
-    kept, marked). kind: "primary" | "bifurcated" | "isola" | "detached". closed: a closed
-    loop. status: how each half ended ("+: ...; -: ..."). start: the seed it was continued
-    from. seeds: the seeds attributed to it (start included). extras: per-point arrays of
-    the caller's `describe` (e.g. le_amplitude (m,)). n_points_computed: continuation points
-    computed for it. cpu_time, s.
+    kept, marked). kind: "primary" | "bifurcated" | "isola" | "detached", that of the whole
+    set it is one branch with (module doc). closed: one closed loop, which nothing else
+    runs into (only an isola or a bifurcated branch is closed). status: how each half ended
+    ("+: ...; -: ...", then what later branches did to it). start: the seed it was
+    continued from. seeds: the seeds attributed to it (start included). extras: per-point
+    arrays of the caller's `describe` (e.g. le_amplitude (m,)). n_points_computed:
+    continuation points computed for it. cpu_time, s.
     """
 
     omega: np.ndarray
@@ -191,6 +211,22 @@ class IsolaSearch:
         """Converged seeds that are no duplicate at their omega (on a known branch or not)."""
         c = self.corrections
         return int((c.converged & (c.same_as < 0)).sum())
+
+    @property
+    def groups(self) -> tuple[tuple[int, ...], ...]:
+        """The branches' indices grouped into the sets that are one branch: pieces that later
+        branches linked (their statuses say "one branch with branch k") are one group
+        (connected)."""
+        return tuple(connected(self.branches))
+
+    def kind_counts(self) -> dict[str, int]:
+        """{kind: how many branches of that kind}, the pieces of one branch (groups) counted
+        once: len(branches) counts records, of which two linked pieces are two."""
+        out: dict = {}
+        for g in self.groups:
+            kind = _joined_kind([self.branches[k].kind for k in g])
+            out[kind] = out.get(kind, 0) + 1
+        return out
 
 
 class _Joined(Exception):
@@ -425,21 +461,86 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         # the chord from the previous point: a branch crossed between two points passes farther
         # than tol from it at both when the step is longer than tol
         prev = points[-2] if len(points) >= 2 and points[-2].converged else p
-        prev_images = [prev.x, *images(residual, prev.x)]
-        for q, xq in enumerate([p.x, *images(residual, p.x)]):
-            for label, idx, b in others:
-                d, xn, wn = segment_polyline_distance(prev_images[q], prev.omega, xq, p.omega, b, opts.x_scale,
-                                                      opts.omega_scale, within=tol)
-                if d <= tol:  # q > 0: this branch's image meets b, i.e. this branch meets b's image
-                    tail = points[-2:] if q == 0 else [SimpleNamespace(x=images(residual, t.x)[q - 1], omega=t.omega)
-                                                        for t in points[-2:]]
-                    raise _Joined(label + (", an image of it" if q else ""), idx, _parallel(tail, b, xn, wn, opts))
+        met = _meeting(residual, prev, p, others, opts, tol)
+        if met is not None:
+            raise _Joined(*met)
 
     try:
         br = continue_branch(residual, x0, w0, replace(opts, direction=direction), on_point=on_point, solver=solver)
         return br, None
     except _Joined as j:
         return Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
+
+
+def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float):
+    """(label, index, merging) of the first branch of `others` [(label, index, KnownBranch)]
+    that the chord from prev to p (anything with x, omega), or its image, passes within tol
+    of; merging: the chord runs along it (_parallel) rather than across it. None: none."""
+    prev_images = [prev.x, *images(residual, prev.x)]
+    for q, xq in enumerate([p.x, *images(residual, p.x)]):
+        for label, idx, b in others:
+            d, xn, wn = segment_polyline_distance(prev_images[q], prev.omega, xq, p.omega, b, opts.x_scale,
+                                                  opts.omega_scale, within=tol)
+            if d <= tol:  # q > 0: this branch's image meets b, i.e. this branch meets b's image
+                tail = [prev, p] if q == 0 else [SimpleNamespace(x=images(residual, t.x)[q - 1], omega=t.omega)
+                                                 for t in (prev, p)]
+                return label + (", an image of it" if q else ""), idx, _parallel(tail, b, xn, wn, opts)
+    return None
+
+
+def _meeting_polyline(fb: "FoundBranch", label: str, earlier, residual, opts: ContinuationOptions,
+                      tol: float) -> KnownBranch:
+    """The polyline of the found branch fb that later halves and seeds are measured against:
+    its converged points, less an end that lies one step past a branch it crossed.
+
+    A half that crosses a branch ends on its first point past it (_half); that last step
+    overlaps the crossed branch's far side, where the curve goes on as another piece. A
+    later seed's half coming from there ran into that step and merged into fb, its points
+    dropped: the piece beyond the crossing was lost, and the seed was attributed to a branch
+    whose points do not reach it. Without the step it crosses the branch as fb did, and is
+    a (bifurcated) branch of its own. Which end crossed is found again from the points
+    (_meeting on each end's last chord against `earlier`, the branches fb's halves were
+    measured against: the known ones and the ones found before it), so a resumed search,
+    whose branches come from disk, trims alike."""
+    ok = np.asarray(fb.converged, bool)
+    keep = ok.copy()
+    idx = np.flatnonzero(ok)
+    if len(idx) >= 3:  # an end of a two-point branch is its start
+        for end, inner in ((0, idx[1]), (len(ok) - 1, idx[-2])):
+            if not ok[end]:  # a half that failed did not meet anything
+                continue
+            prev, p = (SimpleNamespace(x=fb.x[j], omega=float(fb.omega[j])) for j in (inner, end))
+            met = _meeting(residual, prev, p, earlier, opts, tol)
+            if met is not None and not met[2]:
+                keep[end] = False
+    return KnownBranch.of(fb.omega, fb.x, label, keep)
+
+
+#: points at the end of a closed half among which its start must lie (_back_at_start)
+_TAIL = 5
+
+
+def _back_at_start(residual, half: Branch, options: "SearchOptions", solver) -> bool:
+    """Whether a half that ended as a closed loop (eq. (26)-(27)) came back onto its start,
+    travelling the way it left: the start lies on the polyline of its last _TAIL points
+    (lies_on: within the tolerance, or Newton at the start's omega from their curve lands
+    on it; the closing step, which crosses the start's omega, is among them, and a loop
+    that closed on its own path just past the start a step later), and the last chord runs
+    along the first one (positive scalar product in the scaled metric). Eq. (27) measures
+    the return relative to |x|: a coil whose next turn passes near the start (many
+    tolerances off it when |x| is large) passes it, and the branch goes on."""
+    ok = np.asarray(half.converged, bool)
+    w, x = half.omega[ok], half.x[ok]
+    if len(w) < 3:
+        return False
+    co = options.continuation
+    lo = max(1, len(w) - _TAIL)  # never the start itself
+    tail = KnownBranch.of(w[lo:], x[lo:], "its end")
+    if lies_on(residual, x[0], float(w[0]), [tail], options, solver) < 0:
+        return False
+    a = np.append((x[-1] - x[-2]) / co.x_scale, (w[-1] - w[-2]) / co.omega_scale)
+    b = np.append((x[1] - x[0]) / co.x_scale, (w[1] - w[0]) / co.omega_scale)
+    return float(a @ b) > 0.0
 
 
 def _run_half(factory, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float):
@@ -537,21 +638,32 @@ def _reindexed(tables: dict, positions: np.ndarray) -> dict:
     return out
 
 
+def _closes(residual, half: Branch, options: SearchOptions, solver) -> bool:
+    """Whether the half ended as a closed loop that came back onto its start (_back_at_start,
+    with a fresh copy of the solver: the answer must not depend on what it solved before)."""
+    return half.status.startswith(STATUS_CLOSED_LOOP) and \
+        _back_at_start(residual, half, options, copy.deepcopy(solver))
+
+
 def _at_bound(status: str) -> bool:
     return status.startswith(STATUS_OMEGA_MIN) or status.startswith(STATUS_OMEGA_MAX)
 
 
-def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, primaries: int, residual=None):
+def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, primaries: int, residual=None,
+              back=None):
     """(kind, closed) of a merged branch from its halves [(Branch, joined)]; the known
-    branches of index < primaries are the primary NFRC(s).
+    branches of index < primaries are the primary NFRC(s). back: per half, whether its
+    "closed loop" came back onto its start (_back_at_start; None: every one did).
 
-    A loop through the seed cannot leave the omega range: when one half reached the range's
-    bound, the other half's "closed loop" (eq. (26)-(27): back within d_min of the start,
-    relative to |x|, e.g. one turn of a coil later) is no closed loop; the branch is then
-    not closed, and detached unless it meets another branch. A branch through a located
+    A "closed loop" of eq. (26)-(27) is back within d_min of the start relative to |x|,
+    which one turn of a coil later can be: it closes the branch only when it came back onto
+    the start (back), and when no half reached the range's bound (a loop through the seed
+    cannot leave the range). Otherwise the branch is not closed, and detached unless it
+    meets another branch or both its ends lie inside the range. A branch through a located
     bifurcation point, or through one of its images (residual's `images`: the image of a
     bifurcation is one of the image branch, which is the same branch), is bifurcated."""
-    closed = any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves) \
+    back = [True] * len(halves) if back is None else back
+    closed = any(br.status.startswith(STATUS_CLOSED_LOOP) and ok for (br, _), ok in zip(halves, back)) \
         and not any(_at_bound(br.status) for br, _ in halves)
     joined = [j for _, j in halves if j is not None]
     if any(-1 - primaries < j[1] < 0 and j[2] for j in joined):  # merges into the primary
@@ -576,6 +688,40 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
 #: part brings any of these (an open isola that a branch reaching the bound runs into is
 #: detached: its ends are no longer both inside the range).
 _KIND_RANK = {"primary": 0, "bifurcated": 1, "detached": 2, "isola": 3}
+
+
+#: How a branch's status names another branch it is one with (two pieces that a later
+#: branch links, module doc); `connected` reads it back, so that a resumed search, whose
+#: branches come from disk, knows the pieces too.
+_LINKED = "one branch with branch {other} (linked by the branch from seed {seed})"
+_LINKED_RE = re.compile(r"one branch with branch (\d+) \(linked by the branch from seed \d+\)")
+
+
+def connected(branches) -> list[tuple[int, ...]]:
+    """The branches (FoundBranch list, as a search returns them) grouped into the sets
+    that are one branch: each alone, or the pieces that later branches linked (their
+    statuses name each other, _LINKED), transitively; each group sorted, the groups in the
+    order of their first branch."""
+    parent = list(range(len(branches)))
+
+    def root(a):
+        while parent[a] != a:
+            a = parent[a] = parent[parent[a]]
+        return a
+
+    for k, b in enumerate(branches):
+        for u in _LINKED_RE.findall(b.status):
+            if int(u) < len(branches):
+                parent[max(root(k), root(int(u)))] = min(root(k), root(int(u)))
+    groups: dict = {}
+    for k in range(len(branches)):
+        groups.setdefault(root(k), []).append(k)
+    return [tuple(g) for g in sorted(groups.values())]
+
+
+def _group(branches, members) -> list[int]:
+    """The indices of the branches that are one branch with any of `members` (connected)."""
+    return sorted({k for g in connected(branches) if set(g) & set(members) for k in g})
 
 
 def _joined_kind(kinds) -> str:
@@ -643,13 +789,21 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
         cand = corrections.candidates()
         n_cont, n_pts = 0, 0
         co = options.continuation
+        known_others = [(f"known branch {j} ({b.label})", -1 - j, b) for j, b in enumerate(known)]
+        polys = []  # found[k]'s meeting polyline (_meeting_polyline), made once: its points never change
+
+        def add_polyline(k):
+            polys.append(_meeting_polyline(found[k], f"branch {k}", known_others + [
+                (f"branch {j}", j, p) for j, p in enumerate(polys)], residual, co, options.tolerance))
+
+        for k in range(len(found)):
+            add_polyline(k)
         for c_i, i in enumerate(cand):
             progress("branches", c_i, len(cand))
             i = int(i)
             if i in owner:
                 continue
             x0, w0 = corrections.x[i], float(seeds[i].omega)
-            polys = [KnownBranch.of(b.omega, b.x, f"branch {k}", b.converged) for k, b in enumerate(found)]
             # a fresh solver, as for the seeds: the answer must not depend on the candidates
             # before (a resumed search has not solved them)
             k = lies_on_any(residual, x0, w0, polys, options, copy.deepcopy(solver))
@@ -660,8 +814,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                     on_branch(k, found[k])
                 continue
             t0 = time.process_time()
-            others = ([(f"known branch {j} ({b.label})", -1 - j, b) for j, b in enumerate(known)]
-                      + [(f"branch {j}", j, p) for j, p in enumerate(polys)])
+            others = known_others + [(f"branch {j}", j, p) for j, p in enumerate(polys)]
             args = (factory, x0, w0, +1, co, others, options.tolerance)
             doing[0] = f"branch being continued: from seed {i} at {w0:g} rad/s"
             if pool is not None:  # both halves at once; the second is dropped if the first closes
@@ -673,11 +826,15 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 first, j1, cpu_half = _run_half(*args)
                 second = None
             halves = [(first, j1)]
-            if not first.status.startswith(STATUS_CLOSED_LOOP) and first.converged[0]:
+            # a "closed loop" that did not come back onto the start (a coil's next turn) is
+            # no loop: the branch goes on the other way
+            back = [_closes(residual, first, options, solver)]
+            if not back[0] and first.converged[0]:
                 if second is None:
                     second, j2, c2 = _run_half(*args[:3], -1, *args[4:])
                     cpu_half += c2
                 halves.append((second, j2))
+                back.append(_closes(residual, second, options, solver))
             else:
                 second = None
             n_cont += 1
@@ -685,37 +842,58 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             n_pts += computed
             merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
             omega, x, conv = _merge(first, second)
-            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries, residual)
+            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries, residual, back)
             for k in sorted({j[1] for _, j in halves if j is not None and j[1] >= 0 and not j[2]}):
                 # a crossing is a branch point of both branches: the one crossed is bifurcated
-                # too, whichever of the two was found first
-                old = found[k]
-                if _KIND_RANK["bifurcated"] < _KIND_RANK.get(old.kind, 2):
-                    found[k] = replace(old, kind="bifurcated",
-                                       status=f"{old.status}; crossed by the branch from seed {i}")
-                    if on_branch is not None:
-                        on_branch(k, found[k])
+                # too, whichever of the two was found first, and so are the pieces it is one
+                # branch with
+                for t in _group(found, [k]):
+                    old = found[t]
+                    if _KIND_RANK["bifurcated"] < _KIND_RANK.get(old.kind, 2):
+                        through = f" (through branch {k})" if t != k else ""
+                        found[t] = replace(old, kind="bifurcated",
+                                           status=f"{old.status}; crossed by the branch from seed {i}{through}")
+                        if on_branch is not None:
+                            on_branch(t, found[t])
             if merged_into:  # part of a branch found before: its seeds go there, and its other
                 k = merged_into[0]  # end's connection (to the primary, a crossing, the range's bound) too
                 targets = list(dict.fromkeys(merged_into))  # its halves may link two branches found before
-                new_kind = _joined_kind([found[t].kind for t in targets] + [kind])
-                for t in targets:
+                # the whole: the targets and the pieces each is already one branch with
+                whole = _group(found, targets)
+                new_kind = _joined_kind([found[t].kind for t in whole] + [kind])
+                # a closed loop stays one only when this branch is a stretch of it (every half ran
+                # into it): else the set it belongs to now reaches beyond the loop
+                stretch = len(whole) == 1 and all(j is not None and j[2] and j[1] == k for _, j in halves)
+                changed = []
+                for t in whole:
                     old = found[t]
-                    joined_status = f"; joined by the branch from seed {i}: {kind}" \
-                        if t == k and new_kind != old.kind else ""
-                    joined_status += "".join(f"; one branch with branch {u} (linked by the branch from seed {i})"
-                                             for u in targets if u != t)
-                    found[t] = replace(old, kind=new_kind, status=old.status + joined_status)
+                    note = ""
+                    if new_kind != old.kind and t == k:
+                        note = f"; joined by the branch from seed {i}: {kind}"
+                    elif new_kind != old.kind and t not in targets:  # a piece linked to a target before
+                        note = f"; {new_kind}: the branch it is one with was joined by the branch from seed {i}"
+                    if t in targets:
+                        note += "".join("; " + _LINKED.format(other=u, seed=i) for u in targets if u != t)
+                    if old.closed and not stretch:
+                        note += f"; not a closed loop as a whole: the branch from seed {i} runs into it"
+                    closed_t = old.closed and stretch
+                    if new_kind != old.kind or closed_t != old.closed or note:
+                        found[t] = replace(old, kind=new_kind, closed=closed_t, status=old.status + note)
+                        changed.append(t)
                 owner[i] = k
                 found[k] = replace(found[k], seeds=found[k].seeds + (i,),
                                    n_points_computed=found[k].n_points_computed + computed)
                 if on_branch is not None:
-                    for t in targets:
+                    for t in sorted(set(changed) | {k}):
                         on_branch(t, found[t])
                 continue
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
-            if not closed and any(br.status.startswith(STATUS_CLOSED_LOOP) for br, _ in halves):
-                status += "; not a closed loop: the other half left the omega range"
+            for d, (br, _), onto in zip((1, -1), halves, back):
+                if br.status.startswith(STATUS_CLOSED_LOOP) and not closed:
+                    why = ([] if onto else ["it came back near its start, not onto it"]) + \
+                          (["the other half left the omega range"] if any(_at_bound(b.status) for b, _ in halves)
+                           else [])
+                    status += f"; not a closed loop ({'+' if d > 0 else '-'}): {' and '.join(why)}"
             ok = np.asarray(conv, bool)
             doing[0] = f"branch being described: from seed {i} at {w0:g} rad/s"
             extras, cpu_desc = _described(describe, omega[ok], x[ok], pool) if describe is not None and ok.any() \
@@ -739,6 +917,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                              seeds=(i,), extras=extras, n_points_computed=computed,
                              cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0) + cpu_desc)
             found.append(fb)
+            add_polyline(len(found) - 1)
             owner[i] = len(found) - 1
             if on_branch is not None:
                 on_branch(len(found) - 1, fb)

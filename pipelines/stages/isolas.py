@@ -332,16 +332,21 @@ def _born_at_doublings(result, res, pd_res, known, options, ctx=None):
     from hbm.isolas.harmonic import doubling_origin
 
     solver = HbmSolver(atol=0.1 * res.options.tolerance)
-    out = []
+    out = list(result.branches)
     for i, fb in enumerate(result.branches):
         hit = doubling_origin(res, pd_res, solver, fb, known, options) if fb.kind != "bifurcated" else None
         if hit is not None:
             k, w = hit
-            fb = replace(fb, kind="bifurcated",
-                         status=f"{fb.status}; born at a period doubling of {known[k].label} near {w:.1f} rad/s")
+            out[i] = replace(fb, kind="bifurcated",
+                             status=f"{fb.status}; born at a period doubling of {known[k].label} near {w:.1f} rad/s")
             if ctx is not None:
                 ctx.log(f"    doubled branch {i:03d}: a period doubling of {known[k].label} near {w:.1f} rad/s: bifurcated")
-        out.append(fb)
+    for group in result.groups:  # the pieces of one branch (hbm.isolas.search) share its kind
+        if any(out[i].kind == "bifurcated" for i in group):
+            for i in group:
+                if out[i].kind != "bifurcated":
+                    out[i] = replace(out[i], kind="bifurcated",
+                                     status=f"{out[i].status}; bifurcated: one branch with a branch born at a period doubling")
     return replace(result, branches=tuple(out))
 
 
@@ -490,12 +495,12 @@ def _compute(ctx: Context, outputs) -> None:
         wall = time.perf_counter() - t0
         cpu = result.cpu_time + sum(b.cpu_time for b in done)
         if root:
-            kinds = {}
-            for b in result.branches:
-                kinds[b.kind] = kinds.get(b.kind, 0) + 1
+            kinds = result.kind_counts()  # linked pieces of one branch (several records) counted once
+            records = "" if len(result.groups) == len(result.branches) else f" in {len(result.branches)} records"
             ctx.log(f"  {label}: {len(seeds)} seeds, {result.n_converged} converged ({result.n_distinct} distinct), "
-                    f"{len(result.branches)} branches (" + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items()))
-                                                           or "none") + f"), CPU {cpu:.0f} s, wall {wall:.0f} s")
+                    f"{len(result.groups)} branches{records} ("
+                    + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none")
+                    + f"), CPU {cpu:.0f} s, wall {wall:.0f} s")
             for k, b in enumerate(result.branches):
                 ok = b.converged
                 h = b.extras.get("harmonics")

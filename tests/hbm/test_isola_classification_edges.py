@@ -86,11 +86,15 @@ CX, RX, RW, WC, BW = 1e4, 50.0, 0.5, 1.5, 0.3
 class Coil:
     """The curve (x1, x2, Omega) = (CX + RX cos t, t, WC + RW sin t + BW max(t, 0)^2), t = x2:
     for t < 0 a coil whose turns come back to Omega = WC at x1 = CX + RX and x2 shifted by
-    2 pi each (never closed); for t > 0 it rises out of the range [0, 3]. Picklable."""
+    2 pi each (never closed); for t > 0 it rises out of the range [0, 3]. ahead: the other
+    way round (min(t, 0): the coil for t > 0, the + half's side). Picklable."""
+
+    def __init__(self, ahead: bool = False):
+        self.ahead = ahead
 
     def __call__(self, x, w, jacobian=True):
         t = x[1]
-        tp = max(t, 0.0)
+        tp = min(t, 0.0) if self.ahead else max(t, 0.0)
         R = np.array([x[0] - CX - RX * np.cos(t), w - WC - RW * np.sin(t) - BW * tp * tp])
         if not jacobian:
             return R

@@ -1,0 +1,38 @@
+"""The period-doubled search's classification of branches born at a period doubling
+(pipelines.stages.isolas._born_at_doublings) reaches every record of a branch: two pieces
+that a later branch linked (their statuses say "one branch with branch k") are one branch,
+and when one is found to pass through a period doubling, both are bifurcated."""
+from types import SimpleNamespace
+
+import numpy as np
+
+import hbm.isolas.harmonic as harmonic
+from hbm.isolas.search import FoundBranch, IsolaSearch
+from pipelines.stages import isolas as stage
+
+
+def _branch(status, w0):
+    w = np.linspace(w0, w0 + 10.0, 4)
+    return FoundBranch(omega=w, x=np.zeros((4, 3)), converged=np.ones(4, bool), kind="isola", closed=False,
+                       status=status, start=0, seeds=(0,))
+
+
+def _result(branches):
+    return IsolaSearch(seeds=(), corrections=None, branches=tuple(branches), seed_branch=np.zeros(0, int),
+                       n_continued=len(branches), n_points_computed=0, cpu_time=0.0, wall_time=0.0)
+
+
+def test_a_piece_linked_to_a_branch_born_at_a_doubling_is_bifurcated_too(monkeypatch):
+    a = _branch("+: point cap; -: point cap; one branch with branch 1 (linked by the branch from seed 5)", 100.0)
+    b = _branch("+: point cap; -: point cap; one branch with branch 0 (linked by the branch from seed 5)", 200.0)
+    c = _branch("+: point cap; -: point cap", 300.0)
+    # only the second piece passes through a period doubling of known branch 0, at 205 rad/s
+    monkeypatch.setattr(harmonic, "doubling_origin",
+                        lambda res, pd_res, solver, fb, known, options: (0, 205.0) if fb.omega[0] == 200.0 else None)
+    res = SimpleNamespace(options=SimpleNamespace(tolerance=1e-2))
+    known = [SimpleNamespace(label="the primary NFRC")]
+    out = stage._born_at_doublings(_result([a, b, c]), res, None, known, None)
+    assert [f.kind for f in out.branches] == ["bifurcated", "bifurcated", "isola"]
+    assert "born at a period doubling of the primary NFRC near 205.0 rad/s" in out.branches[1].status
+    assert "one branch with a branch born at a period doubling" in out.branches[0].status
+    assert out.kind_counts() == {"bifurcated": 1, "isola": 1}
