@@ -37,6 +37,10 @@ INPUT= on *NODE, *ELEMENT, *NSET, *ELSET and *BOUNDARY (data lines in another fi
 CalculiX does not read there either: write them in the deck or *INCLUDE them); a keyword
 line continued on the next one (ending in "," before a line of parameters), which
 CalculiX rejects as well. A keyword line merely ending in "," is read, as CalculiX does.
+Refused too, naming both lines: a node id or a solid element id defined twice (two meshes
+written with overlapping numbering; CalculiX refuses the element, and keeps the last
+coordinates of the node without a word). Skipped elements' ids are not checked: their data
+lines are not parsed (one element a line is assumed only where a set names them).
 """
 from __future__ import annotations
 
@@ -321,7 +325,11 @@ def read_deck(path: Path) -> SourceMesh:
     elements = []  # (type, ids (k,), node ids (k, n), where)
     ignored, skipped = {}, []  # skipped: (data lines, where) of non-solid elements, for sets
     boundary = []  # (node id or set name, dofs, where)
+    node_blocks, element_blocks = [], []  # (ordinal of the *NODE / *ELEMENT block, numbers per record)
+    ordinal = {"NODE": -1, "ELEMENT": -1}
     for keyword, params, data, where in _blocks(path):
+        if keyword in ordinal:
+            ordinal[keyword] += 1
         if keyword in ("PART", "INSTANCE", "ASSEMBLY"):
             raise MeshImportError(
                 f"{where}: *{keyword}: decks with parts and assemblies are not supported; write a flat "
@@ -337,6 +345,7 @@ def read_deck(path: Path) -> SourceMesh:
             arr = vals.reshape(-1, 4)
             if arr.size:
                 node_chunks.append(arr)
+                node_blocks.append((ordinal["NODE"], 4))
                 if "NSET" in params:
                     node_set_ids.setdefault(params["NSET"].upper(), ([], []))[0].extend(arr[:, 0].astype(np.int64))
         elif keyword == "ELEMENT":
@@ -361,6 +370,7 @@ def read_deck(path: Path) -> SourceMesh:
                                       f"whole elements of {n} nodes plus an id")
             vals = vals.reshape(-1, n + 1)
             elements.append((SOLID_TYPES.get(n, etype), vals[:, 0], vals[:, 1:], where))
+            element_blocks.append((ordinal["ELEMENT"], n + 1))
             if "ELSET" in params:
                 elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))[0].extend(vals[:, 0])
         elif keyword == "NSET":
@@ -401,9 +411,16 @@ def read_deck(path: Path) -> SourceMesh:
     if not np.array_equal(nodes[:, 0], node_ids):
         raise MeshImportError(f"{path}: node ids must be integers")
     order = np.argsort(node_ids, kind="stable")
-    dup = node_ids[order][1:] == node_ids[order][:-1]
-    if dup.any():
-        raise MeshImportError(f"{path}: node id {int(node_ids[order][1:][dup][0])} is defined twice")
+    if (node_ids[order][1:] == node_ids[order][:-1]).any():
+        later, first = _first_repeat(node_ids)
+        same = np.array_equal(nodes[later, 1:], nodes[first, 1:])
+        at = [_record_line(path, "NODE", node_blocks, [len(c) for c in node_chunks], k) for k in (later, first)]
+        raise MeshImportError(
+            f"{at[0]}: node id {int(node_ids[later])} is defined twice, first at {at[1]}"
+            f"{' (same coordinates)' if same else ', with other coordinates'}: two meshes written with "
+            "overlapping numbering? Renumber one so that every *NODE id is defined once")
+    if elements:
+        _refuse_repeated_elements(path, elements, element_blocks)
 
     def index(ids, what):
         ids = np.asarray(ids, dtype=np.int64)
@@ -442,6 +459,54 @@ def read_deck(path: Path) -> SourceMesh:
     return SourceMesh(points=np.ascontiguousarray(nodes[:, 1:]), node_ids=node_ids, blocks=blocks,
                       node_sets=node_sets, fixed=fixed, ignored=ignored,
                       files=(path, *included_files(path)), unknown_ids=unknown_ids)
+
+
+def _refuse_repeated_elements(path: Path, elements: list, element_blocks: list) -> None:
+    """Refuse a solid element id defined twice: the deck is broken (two meshes written with
+    overlapping numbering), and CalculiX refuses it ("*ERROR reading *ELEMENT"). Both lines
+    are named; they are looked up only then, by reading the deck again."""
+    ids = np.concatenate([e[1] for e in elements])
+    if np.unique(ids).size == ids.size:
+        return
+    later, first = _first_repeat(ids)
+    at = [_record_line(path, "ELEMENT", element_blocks, [len(e[1]) for e in elements], k) for k in (later, first)]
+    raise MeshImportError(f"{at[0]}: element id {int(ids[later])} is defined twice, first at {at[1]}: two meshes "
+                          "written with overlapping numbering? Renumber one so that every *ELEMENT id is defined once")
+
+
+def _first_repeat(ids: np.ndarray) -> tuple[int, int]:
+    """(position of the first id, in file order, that an earlier one repeats; position of
+    that earlier one). ids must hold a repeat."""
+    uniq, first = np.unique(ids, return_index=True)
+    defined = np.zeros(ids.size, dtype=bool)
+    defined[first] = True
+    later = int(np.flatnonzero(~defined)[0])
+    return later, int(first[np.searchsorted(uniq, ids[later])])
+
+
+def _record_line(path: Path, keyword: str, blocks: list, sizes: list, k: int) -> str:
+    """"file:line" where record k of the deck's *NODE or *ELEMENT records (in file order,
+    over the blocks read) begins. blocks: (ordinal of the block among the deck's blocks of
+    that keyword, numbers per record) for each block read; sizes: their records. The deck is
+    read again: lines are not kept while reading (a large deck has millions)."""
+    starts = np.cumsum([0] + list(sizes))
+    b = int(np.searchsorted(starts, k, side="right")) - 1
+    wanted, width = blocks[b]
+    skip = (k - int(starts[b])) * width  # numbers before the record in its block
+    seen, inside, count = -1, False, 0
+    for f, no, s in _keyword_lines(path):
+        if s.startswith("*"):
+            if inside:
+                break
+            if s[1:].split(",")[0].strip().upper() == keyword:
+                seen += 1
+                inside = seen == wanted
+            continue
+        if inside:
+            count += len([t for t in s.split(",") if t.strip()])
+            if count > skip:
+                return f"{f.name}:{no}"
+    return path.name  # the deck changed since it was read: its name, at least
 
 
 def _resolve_node_sets(node_set_ids: dict, node_ids: np.ndarray, index) -> tuple[dict, dict]:

@@ -85,6 +85,14 @@ class Scene:
         its own: fem.h5 changes with this count, not with either key alone."""
         return max(self.fem.n_fixed_interface_modes, self.rom.n_fixed_modes)
 
+    @property
+    def n_contact_nodes(self) -> int:
+        """Contact nodes the blade will have: those [blade] contact_nodes lists for a mesh
+        file, else [mesh] n_boundary (snapped onto the tip face). The stages' cost estimates
+        read this, not n_boundary, which a listed set overrides (mesh.imported.import_blade)."""
+        listed = self.blade.contact_nodes
+        return len(listed) if listed is not None else self.mesh.n_boundary
+
     def section_hash(self, *names: str) -> str:
         """Hash of the named sections' values (defaults included): what a stage depends on."""
         payload = {n: _jsonable(dataclasses.asdict(getattr(self, n))) for n in names}

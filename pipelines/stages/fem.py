@@ -62,7 +62,7 @@ def fem_bytes(scene, nodes: float) -> float:
     """Size of fem.h5 for a mesh of `nodes` nodes, bytes: K and M in CSR (~66 entries per row
     for tet10, 8-byte values and 4-byte indices) and the full-model, constraint and
     fixed-interface modes (8 bytes per dof each). 144 MB for the coarse mesh (24 104 nodes)."""
-    per_dof = 2 * 66 * 12 + 8 * (scene.fem.n_modes + 3 * scene.mesh.n_boundary
+    per_dof = 2 * 66 * 12 + 8 * (scene.fem.n_modes + 3 * scene.n_contact_nodes
                                  + scene.fixed_interface_modes)
     return 3 * nodes * per_dof
 

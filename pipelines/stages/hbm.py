@@ -381,10 +381,10 @@ def _estimate(scene, out, outputs) -> Estimate:
     fitted with, so a point costs the larger of the two."""
     h = scene.hbm
     n_c = 2 * h.n_harmonics + 1
-    n_r = 3 * scene.mesh.n_boundary
+    n_r = 3 * scene.n_contact_nodes
     n_u = n_c * n_r
     aft = AFT_BYTES * h.n_time * n_r
-    per_point = max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9,
+    per_point = max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9,
                     3 * AFT_SECONDS * h.n_time * n_r)
     points = min(h.max_points, 1500)
     at_once = _workers(len(outputs))
@@ -398,7 +398,7 @@ def _estimate(scene, out, outputs) -> Estimate:
         advice = f"lower [hbm] n_time (now {h.n_time}; the reference is 1024)"
     return Estimate(size=size, memory=(0.2e9 + dense + aft) * at_once,
                     seconds=-(-len(outputs) // at_once) * points * per_point,
-                    disk=len(outputs) * h.max_points * (n_u + n_c * 3 * scene.mesh.n_boundary + 16) * 8.0,
+                    disk=len(outputs) * h.max_points * (n_u + n_c * 3 * scene.n_contact_nodes + 16) * 8.0,
                     advice=advice)
 
 

@@ -560,7 +560,7 @@ def _estimate(scene, out, outputs) -> Estimate:
 
     iso, h = scene.isolas, scene.hbm
     n_c = 2 * h.n_harmonics + 1
-    per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.mesh.n_boundary / 9
+    per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9
     # harmonic k of Omega is harmonic k nu of the basis (hbm.isolas.harmonic.modal_seeds)
     n_kept = len([k for k in iso.harmonics if k * h.subharmonic <= h.n_harmonics])
     n_seeds = iso.n_modes * n_kept * len(iso.amplitudes) * iso.n_omega
@@ -571,7 +571,7 @@ def _estimate(scene, out, outputs) -> Estimate:
     workers = (f"lower [isolas] workers (now {iso.workers}; ~0.3 GB each)" if iso.workers is not None
                else f"set [isolas] workers below {cores} (unset: one per core; ~0.3 GB each)")
     return Estimate(size=f"{n_seeds} seeds per treatment", memory=0.3e9 * cores, seconds=seconds,
-                    disk=len(h.methods) * 10 * iso.max_points * n_c * 3 * scene.mesh.n_boundary * 8.0 * 2,
+                    disk=len(h.methods) * 10 * iso.max_points * n_c * 3 * scene.n_contact_nodes * 8.0 * 2,
                     advice=workers)
 
 

@@ -53,7 +53,7 @@ def _compute(ctx: Context, outputs) -> None:
 def _estimate(scene, out, outputs) -> Estimate | None:
     # reads fem.h5 whole (K, M, the modes); writes the float32 recovery matrix (dof x ROM dof)
     n, exact = node_count(scene, out)
-    n_rom = 3 * scene.mesh.n_boundary + scene.rom.n_fixed_modes
+    n_rom = 3 * scene.n_contact_nodes + scene.rom.n_fixed_modes
     return Estimate(size=nodes_text(n, exact), memory=0.2e9 + 1.3 * fem_bytes(scene, n), seconds=2.0 + 5e-5 * n,
                     disk=3 * n * n_rom * 4.0, advice=coarser_mesh(scene))
 

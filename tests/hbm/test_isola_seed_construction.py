@@ -75,7 +75,7 @@ def test_the_stage_estimate_counts_the_modal_seeds(nu, n_harmonics, count):
     # 4 modes x (harmonics k of Omega with k nu <= N_h) x 3 amplitudes x 41 speeds
     scene = SimpleNamespace(isolas=IsolaOptions(workers=1),
                             hbm=HbmOptions(subharmonic=nu, n_harmonics=n_harmonics, n_time=4 * n_harmonics),
-                            mesh=SimpleNamespace(n_boundary=9))
+                            mesh=SimpleNamespace(n_boundary=9), n_contact_nodes=9)
     assert _estimate(scene, None, None).size == f"{count} seeds per treatment"
 
 
