@@ -187,6 +187,9 @@ def _set_size_field(gmsh, sizing: EdgeSizing, edges: list[int]):
 def mesh_blade(blade: BladeOptions, options: MeshOptions, geometry_path: Path, node_order: str = "rcm") -> BladeMesh:
     """Read the table, build the blade solid from hub_section to tip_section, mesh it in tet10.
 
+    The table is read in [blade] units, or in the unit it states when units is None
+    (mesh.geometry.read_geometry refuses a units that contradicts the table's statement).
+
     Returns a `BladeMesh` (nodes in m, 0-based int64 gmsh-ordered connectivity, root/tip tri6,
     `options.n_boundary` tip contact nodes LE -> TE with their radius, angle and frames).
     node_order: mesh.ordering.NODE_ORDERS ("meshed": gmsh's tag order).

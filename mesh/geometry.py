@@ -13,6 +13,11 @@ Two NASA layouts are read:
 
 Both end up as `BladeGeometry`: one `Section` per streamsurface with the blade part only
 (LE to TE), in metres, and the full meridional lines (hub/casing) where the table has them.
+
+Length unit: each table says its unit in the text before the data (rotor 67: "THE
+DIMENSIONS ARE IN FEET.", rotor 37: "Z and R are in centimeters"); see `stated_unit`. The
+reader takes that unit, refuses a caller's unit that contradicts it, and asks for one when
+the table states none.
 """
 from __future__ import annotations
 
@@ -81,6 +86,20 @@ class Section:
 
 
 @dataclass(frozen=True)
+class StatedUnit:
+    """A table's own statement of its length unit.
+
+    unit: the KNOWN_UNITS key. word: the word the table uses ("FEET", "centimeters").
+    line: 1-based line number of the statement. text: that line, stripped.
+    """
+
+    unit: str
+    word: str
+    line: int
+    text: str
+
+
+@dataclass(frozen=True)
 class BladeGeometry:
     """Blade sections of one table, SI units.
 
@@ -89,6 +108,9 @@ class BladeGeometry:
     meridional_z, meridional_r: (n_surfaces, m) full streamsurface lines (including the
         up/downstream extensions where the table has them), m; rows match `sections`.
     source: the table file.
+    units: the length unit the table's numbers were read in (a KNOWN_UNITS key).
+    stated: where the table states its unit, or None when it states none (then `units` is
+        the caller's).
     """
 
     sections: tuple[Section, ...]
@@ -96,6 +118,8 @@ class BladeGeometry:
     meridional_z: np.ndarray
     meridional_r: np.ndarray
     source: Path
+    units: str
+    stated: StatedUnit | None
 
     def section(self, number: int) -> Section:
         """The section of the 1-based streamsurface `number`."""
@@ -113,20 +137,85 @@ class BladeGeometry:
         return np.interp(z, zz[order], rr[order])
 
 
-def read_geometry(path: Path | str, format: str = "rotor67", units: str = "ft") -> BladeGeometry:
-    """Read a NASA blade table. Raises GeometryError naming the problem and where it is."""
+def read_geometry(path: Path | str, format: str = "rotor67", units: str | None = None) -> BladeGeometry:
+    """Read a NASA blade table. Raises GeometryError naming the problem and where it is.
+
+    units: the table's length unit, one of KNOWN_UNITS. None (the default) takes the unit
+    the table states before its data: both NASA tables state theirs, so a guessed default
+    could only be right for one of them (rotor 37 read in feet is 30 times too large). A
+    unit that contradicts the table's statement, or None for a table that states none, is
+    refused.
+    """
     path = Path(path)
     if format not in KNOWN_FORMATS:
         raise GeometryError(f"unknown geometry format '{format}'; known: {', '.join(KNOWN_FORMATS)}")
-    if units not in KNOWN_UNITS:
+    if units is not None and units not in KNOWN_UNITS:
         raise GeometryError(f"unknown length unit '{units}' for {path}; known: {', '.join(KNOWN_UNITS)}")
     if not path.is_file():
         raise GeometryError(f"geometry table not found: {path}")
-    scale = KNOWN_UNITS[units]
     lines = path.read_text(errors="replace").splitlines()
     if format == "rotor67":
-        return _read_rotor67(lines, path, scale)
-    return _read_rotor37(lines, path, scale)
+        return _read_rotor67(lines, path, units)
+    return _read_rotor37(lines, path, units)
+
+
+# --- the table's length unit ----------------------------------------------------------
+
+_UNIT_WORDS = {
+    "ft": ("feet", "foot", "ft"),
+    "in": ("inches", "inch", "in"),
+    "cm": ("centimeters", "centimetres", "centimeter", "centimetre", "cm"),
+    "mm": ("millimeters", "millimetres", "millimeter", "millimetre", "mm"),
+    "m": ("meters", "metres", "meter", "metre", "m"),
+}
+_UNIT_OF_WORD = {w: unit for unit, words in _UNIT_WORDS.items() for w in words}
+_UNIT_WORD = "|".join(sorted(_UNIT_OF_WORD, key=len, reverse=True))
+#: a sentence whose subject is the table's lengths: "THE DIMENSIONS ARE IN FEET.", "Z and R
+#: are in centimeters", "all coordinates given in mm". A bare quantity ("about 0.024
+#: inches", rotor 67's tip clearance) is not a statement of the table's unit.
+_UNIT_SENTENCE = re.compile(
+    r"\b(?:dimensions|coordinates|lengths|distances|[a-z](?:\s*,\s*[a-z])*\s+and\s+[a-z])\s+"
+    r"(?:(?:are|is)\s+)?(?:(?:given|expressed|measured|listed)\s+)?in\s+"
+    rf"(?P<word>{_UNIT_WORD})\b", re.IGNORECASE)
+#: a title giving the unit alone in parentheses: "Rotor 37 blade geometry (centimeters)"
+_UNIT_TITLE = re.compile(rf"\(\s*(?P<word>{_UNIT_WORD})\s*\)", re.IGNORECASE)
+
+
+def stated_unit(lines: list[str], path: Path) -> StatedUnit | None:
+    """The length unit the table's text before the data (`lines`, from line 1) states, or
+    None. Two statements of different units are refused: the table contradicts itself."""
+    found = []
+    for lineno, line in enumerate(lines, start=1):
+        for pattern in (_UNIT_SENTENCE, _UNIT_TITLE):
+            for m in pattern.finditer(line):
+                word = m.group("word")
+                found.append(StatedUnit(_UNIT_OF_WORD[word.lower()], word, lineno, line.strip()))
+    if not found:
+        return None
+    first = found[0]
+    other = next((s for s in found if s.unit != first.unit), None)
+    if other is not None:
+        raise GeometryError(f"{path}: the table states two length units: {first.word} on line {first.line} "
+                            f"('{first.text}') and {other.word} on line {other.line} ('{other.text}'); "
+                            "correct the table")
+    return first
+
+
+def table_unit(lines: list[str], path: Path, units: str | None) -> tuple[str, StatedUnit | None]:
+    """(unit the table is read in, the table's statement) from the text before the data
+    (`lines`) and the caller's `units` (None: the table's)."""
+    stated = stated_unit(lines, path)
+    if units is None:
+        if stated is None:
+            raise GeometryError(f"{path}: the table does not state its length unit (no line such as "
+                                "'THE DIMENSIONS ARE IN FEET' before the data); set [blade] units to one of "
+                                f"{', '.join(KNOWN_UNITS)}")
+        return stated.unit, stated
+    if stated is not None and stated.unit != units:
+        raise GeometryError(f"{path}:{stated.line}: the table states its lengths in {stated.word} "
+                            f"('{stated.text}', that is units = \"{stated.unit}\"), but [blade] units = "
+                            f"\"{units}\"; leave units out or set it to \"{stated.unit}\"")
+    return units, stated
 
 
 def _check_stations(z: np.ndarray, r: np.ndarray, path: Path, where: str, j0: int) -> None:
@@ -190,11 +279,13 @@ def _numbers(line: str) -> list[float] | None:
         return None
 
 
-def _read_rotor67(lines: list[str], path: Path, scale: float) -> BladeGeometry:
+def _read_rotor67(lines: list[str], path: Path, units: str | None) -> BladeGeometry:
     # Header: the last "JM NS NB JLE JTE" title before the first surface, values on the next line.
     first_surface = next((i for i, l in enumerate(lines) if _SURFACE.match(l)), None)
     if first_surface is None:
         raise GeometryError(f"{path}: no 'Surface number' block found (not a rotor 67 table?)")
+    units, stated = table_unit(lines[:first_surface], path, units)
+    scale = KNOWN_UNITS[units]
     header = [i for i, l in enumerate(lines[:first_surface]) if _HEADER.match(l)]
     if not header or header[-1] + 1 >= first_surface:
         raise GeometryError(f"{path}: header line 'JM NS NB JLE JTE' with its values not found")
@@ -281,7 +372,8 @@ def _read_rotor67(lines: list[str], path: Path, scale: float) -> BladeGeometry:
     _check_span_order(sections, path, jle)
     mz = np.stack([arrays[k, "axial"] for k in expected])
     mr = np.stack([arrays[k, "radius"] for k in expected])
-    return BladeGeometry(sections=tuple(sections), n_blades=nb, meridional_z=mz, meridional_r=mr, source=path)
+    return BladeGeometry(sections=tuple(sections), n_blades=nb, meridional_z=mz, meridional_r=mr, source=path,
+                         units=units, stated=stated)
 
 
 # --- rotor 37 -------------------------------------------------------------------------
@@ -289,7 +381,12 @@ def _read_rotor67(lines: list[str], path: Path, scale: float) -> BladeGeometry:
 _R37_SURFACE = re.compile(r"^\s*SURFACE\s+NUMBER\s+(\d+)", re.IGNORECASE)
 
 
-def _read_rotor37(lines: list[str], path: Path, scale: float) -> BladeGeometry:
+def _read_rotor37(lines: list[str], path: Path, units: str | None) -> BladeGeometry:
+    first_surface = next((i for i, l in enumerate(lines) if _R37_SURFACE.match(l)), None)
+    if first_surface is None:
+        raise GeometryError(f"{path}: no 'SURFACE NUMBER' block found (not a rotor 37 table?)")
+    units, stated = table_unit(lines[:first_surface], path, units)
+    scale = KNOWN_UNITS[units]
     surfaces: dict[int, list[list[float]]] = {}
     rows = None
     number = None
@@ -314,8 +411,6 @@ def _read_rotor37(lines: list[str], path: Path, scale: float) -> BladeGeometry:
             raise GeometryError(f"{path}:{lineno}: surface {number}: expected 5 columns J Z R THETA1 THETA2, "
                                 f"found {len(nums)}")
         rows.append(nums)
-    if not surfaces:
-        raise GeometryError(f"{path}: no 'SURFACE NUMBER' block found (not a rotor 37 table?)")
     numbers = sorted(surfaces)
     missing = [k for k in range(1, numbers[-1] + 1) if k not in surfaces]
     if missing:
@@ -348,4 +443,5 @@ def _read_rotor37(lines: list[str], path: Path, scale: float) -> BladeGeometry:
     _check_span_order(sections, path, 1)
     mz = np.stack([s.z for s in sections])
     mr = np.stack([s.r for s in sections])
-    return BladeGeometry(sections=tuple(sections), n_blades=36, meridional_z=mz, meridional_r=mr, source=path)
+    return BladeGeometry(sections=tuple(sections), n_blades=36, meridional_z=mz, meridional_r=mr, source=path,
+                         units=units, stated=stated)

@@ -11,7 +11,6 @@ ROTATIONS = ("+", "-", "le-leads")
 
 
 DEFAULT_GEOMETRY = "../../shared/data/rotor67/rotor67geometry.dat"
-DEFAULT_TABLE_UNITS = "ft"  # rotor 67's table
 KNOWN_AXES = ("x", "y", "z")
 
 
@@ -22,8 +21,11 @@ class BladeOptions:
     geometry: path of the NASA table, relative to the scene file (default: rotor 67's, when
         no mesh is given).
     format: table layout, one of KNOWN_FORMATS.
-    units: length unit of the table or of the mesh file, one of KNOWN_UNITS. Tables default
-        to "ft" (rotor 67); a mesh file must say its unit (a deck carries none).
+    units: length unit of the table or of the mesh file, one of KNOWN_UNITS. None for a
+        table: the unit the table states in its text (rotor 67 "feet", rotor 37
+        "centimeters"; mesh.geometry.stated_unit), since a fixed default fits one table
+        only; a unit given must agree with that statement, and is needed for a table that
+        states none. A mesh file must say its unit (a deck carries none).
     hub_section, tip_section: 1-based streamsurfaces of the table that bound the solid.
     mesh: path of a quadratic solid mesh (tet10, wedge15, hex20; .inp, .msh, .med, .bdf,
         .vtu, .xdmf...), relative to the scene file; excludes geometry. Read by
@@ -64,8 +66,6 @@ class BladeOptions:
         if self.mesh is None:
             if self.geometry is None:
                 object.__setattr__(self, "geometry", DEFAULT_GEOMETRY)
-            if self.units is None:
-                object.__setattr__(self, "units", DEFAULT_TABLE_UNITS)
             for key, value, default in (("axis", self.axis, "z"), ("root", self.root, "boundary"),
                                         ("contact_nodes", self.contact_nodes, None)):
                 if value != default:
@@ -89,7 +89,7 @@ class BladeOptions:
                     raise ValueError(f"contact_nodes lists a node twice: {ids}")
         if self.format not in KNOWN_FORMATS:
             raise ValueError(f"unknown geometry format '{self.format}'; known: {', '.join(KNOWN_FORMATS)}")
-        if self.units not in KNOWN_UNITS:
+        if self.units is not None and self.units not in KNOWN_UNITS:
             raise ValueError(f"unknown length unit '{self.units}'; known: {', '.join(KNOWN_UNITS)}")
         if self.rotation not in ROTATIONS:
             raise ValueError(f"unknown rotation '{self.rotation}'; known: {', '.join(repr(r) for r in ROTATIONS)} "

@@ -103,13 +103,14 @@ def check_run(scene, out: Path, steps, progress, yes: bool = False, disk: float 
     return disk
 
 
-def blade_warnings(scene, nodes: np.ndarray) -> list[str]:
+def blade_warnings(scene, nodes: np.ndarray, unit: str | None = None) -> list[str]:
     """Warnings when the meshed blade (nodes (n, 3), m, z the rotation axis) is implausible
-    for a turbomachine blade in the scene's length unit ([blade] units)."""
+    for a turbomachine blade read in `unit` (a KNOWN_UNITS key; None: [blade] units; a
+    table read without it is in the unit the table states)."""
     r = np.hypot(nodes[:, 0], nodes[:, 1])
     tip, span = float(r.max()), float(r.max() - r.min())
     omega = max(scene.hbm.omega_max, scene.ti.omega_max)
-    unit = scene.blade.units
+    unit = scene.blade.units if unit is None else unit
     problems = []
     if tip * omega > MAX_TIP_SPEED:
         problems.append(f"at {omega:g} rad/s its tip would move at {tip * omega:.0f} m/s, beyond any "
@@ -128,5 +129,6 @@ def blade_warnings(scene, nodes: np.ndarray) -> list[str]:
             and tip * k / scale * omega <= MAX_TIP_SPEED]
     hint = (" Read in " + " or ".join(f"{u} it would have a tip radius of {tip * KNOWN_UNITS[u] / scale:.3g} m"
                                      for u in fits) + "." if fits else "")
-    return [f"the blade read in {unit} ([blade] units = \"{unit}\") has a tip radius of {tip:.3g} m and a span of "
+    said = f"[blade] units = \"{unit}\"" if scene.blade.units is not None else "the unit the table states"
+    return [f"the blade read in {unit} ({said}) has a tip radius of {tip:.3g} m and a span of "
             f"{span:.3g} m: " + "; ".join(problems) + f". Is the table in another unit?{hint}"]

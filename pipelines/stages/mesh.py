@@ -44,7 +44,15 @@ def _compute(ctx: Context, outputs) -> None:
             update(f"importing {scene.blade.mesh}, split into tet10")
             result = call_in_child(import_blade, scene.blade, scene.mesh, scene.resolve(scene.blade.mesh))
             reference = "file's elements"
+            unit = scene.blade.units
         else:
+            from mesh.geometry import read_geometry
+
+            # the unit the table was read in: the scene's, or the one the table states
+            table = read_geometry(scene.resolve(scene.blade.geometry), scene.blade.format, scene.blade.units)
+            unit = table.units
+            ctx.log(f"  table read in {unit}" + (f" (line {table.stated.line}: '{table.stated.text}')"
+                                                 if table.stated is not None else " ([blade] units)"))
             update("gmsh: solid, surface and volume mesh")
             result = call_in_child(mesh_blade, scene.blade, scene.mesh, scene.resolve(scene.blade.geometry))
             reference = "section integral"
@@ -52,7 +60,7 @@ def _compute(ctx: Context, outputs) -> None:
     art.write_artifact(ctx.out / MESH.file, result, **ctx.provenance(output, "mesh"))
     ctx.log(f"  {result.n_nodes} nodes, {len(result.cells)} tet10 cells, volume {result.volume:.4e} m^3 "
             f"({reference} {result.reference_volume:.4e} m^3)")
-    for text in blade_warnings(scene, result.nodes):
+    for text in blade_warnings(scene, result.nodes, unit):
         ctx.progress.warn(text)
 
 

@@ -33,8 +33,11 @@ def test_rotor67_values_against_the_printed_table(r67):
     assert all(s.thickness[0] == 0 and s.thickness[-1] == 0 for s in r67.sections)
 
 
-def test_units_scale_linearly(r67):
-    inches = read_geometry(R67, "rotor67", "in")
+def test_units_scale_linearly(r67, tmp_path):
+    """The table without its statement of the unit (which refuses any other), read in inches."""
+    table = tmp_path / "r67.dat"
+    table.write_text("\n".join(line for line in R67.read_text().splitlines() if "ARE IN FEET" not in line))
+    inches = read_geometry(table, "rotor67", "in")
     np.testing.assert_allclose(inches.section(13).r * FT / 0.0254, r67.section(13).r, rtol=1e-12)
 
 

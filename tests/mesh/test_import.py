@@ -324,7 +324,7 @@ def test_scene_defaults():
     from pipelines.scene import parse_scene
 
     table = parse_scene("")
-    assert table.blade.geometry.endswith("rotor67geometry.dat") and table.blade.units == "ft"
+    assert table.blade.geometry.endswith("rotor67geometry.dat") and table.blade.units is None  # the unit the table states
     assert table.blade.mesh is None and table.blade.source == table.blade.geometry
     own = parse_scene('[blade]\nmesh = "b.inp"\nunits = "mm"\ncontact_nodes = [12, 40]\n')
     assert own.blade.geometry is None and own.blade.source == "b.inp"

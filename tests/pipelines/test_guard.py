@@ -23,6 +23,7 @@ from pipelines.progress import Progress
 from pipelines.runner import plan
 from pipelines.scene import load_scene, parse_scene
 from pipelines.stages.fem import fem_bytes
+from support import R67_TABLE
 
 
 @pytest.fixture
@@ -120,8 +121,10 @@ def test_out_of_core_factor_larger_than_tmpdir_is_refused(coarse_run, tmp_path, 
 
 
 def test_feet_table_read_as_metres_is_warned(coarse_run, tmp_path, monkeypatch, capsys):
-    """The mesh stage warns once, naming the value, the unit it assumed and the unit that fits
-    (gmsh replaced by the shared mesh scaled as a metres reading of the feet table would be)."""
+    """A table that states its unit ("THE DIMENSIONS ARE IN FEET.") read in another is refused
+    before anything is computed. One that states none, read in the wrong unit: the mesh
+    stage warns once, naming the value, the unit it assumed and the unit that fits (gmsh
+    replaced by the shared mesh scaled as a metres reading of the feet table would be)."""
     with h5py.File(coarse_run[1] / "mesh.h5") as h5:
         nodes = h5["nodes"][()]
     metres = parse_scene("[blade]\nunits = \"m\"\n")
@@ -137,6 +140,16 @@ def test_feet_table_read_as_metres_is_warned(coarse_run, tmp_path, monkeypatch, 
                         lambda func, *a, **k: dataclasses.replace(mesh, nodes=mesh.nodes / 0.3048))
     scene = tmp_path / "scene.toml"
     scene.write_text(coarse_scene_text().replace('units = "ft"', 'units = "m"'))
+    assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--until", "mesh", "--yes"]) == 2
+    err = capsys.readouterr().err
+    assert "rotor67geometry.dat:50: the table states its lengths in FEET" in err and 'units = "m"' in err
+    assert not (tmp_path / "out" / "mesh.h5").exists()
+
+    # the same table without its statement of the unit
+    table = tmp_path / "rotor67_no_unit.dat"
+    table.write_text("\n".join(line for line in R67_TABLE.read_text().splitlines() if "ARE IN FEET" not in line))
+    text = coarse_scene_text().replace('units = "ft"', 'units = "m"')
+    scene.write_text(text.replace(str(R67_TABLE), str(table)))
     assert main(["run", str(scene), "--out", str(tmp_path / "out"), "--until", "mesh", "--yes"]) == 0
     err = capsys.readouterr().err
     assert err.count("bladerub: warning: the blade read in m") == 1 and "Read in ft" in err
