@@ -108,8 +108,21 @@ def friction_lock(K: np.ndarray, n_boundary: int, rotation: int) -> FrictionLock
     nb = int(n_boundary)
     # static compliance of the boundary dof: the inverse of the Schur complement on them
     G = np.linalg.inv(0.5 * (K + K.T))[:3 * nb, :3 * nb]
-    grr = np.ascontiguousarray(G[0::3, 0::3])
-    grt = np.ascontiguousarray(G[0::3, 1::3])
+    return lock_table(G[0::3, 0::3], G[0::3, 1::3], rotation)
+
+
+def lock_table(grr: np.ndarray, grt: np.ndarray, rotation: int) -> FrictionLock:
+    """The lock table of any radial compliance with friction, A(mu) = G_rr + s mu G_rtheta:
+    the static one (friction_lock), or an explicit time step's (hbm.ti.march.step_compliance:
+    the impulse-to-displacement map of one step, whose contact problem has a unique solution
+    only while its A(mu) is a P-matrix).
+
+    grr, grt: (n_b, n_b), m/N (G_rr symmetric positive definite). rotation: s = +1 or -1.
+    """
+    rotation = check_sign(rotation)
+    grr = np.ascontiguousarray(grr, dtype=float)
+    grt = np.ascontiguousarray(grt, dtype=float)
+    nb = grr.shape[0]
     sgrt = rotation * np.diag(grt)
     with np.errstate(divide="ignore"):
         mu_node = np.where(sgrt < 0.0, -np.diag(grr) / sgrt, np.inf)

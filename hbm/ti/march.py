@@ -204,6 +204,29 @@ def _static_blocks(system: ModalSystem):
             np.ascontiguousarray(rb[:, 2::3]))
 
 
+def _step_factors(system: ModalSystem, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(a, s), (n_m,) each: a = xi w dt of each mode's centred damping, and s = dt^2 / (1 + a),
+    s^2/kg: the modal displacement one step of a unit modal impulse-force makes."""
+    a = 0.5 * np.diag(system.damping) * dt
+    return a, dt * dt / (1.0 + a)
+
+
+def step_compliance(system: ModalSystem, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """(A_rr, A_rtheta), (n_b, n_b) each, m/N: the radial displacement of the contact nodes at
+    the next step per unit radial and tangential force of the Carpenter scheme's multipliers,
+    Phi_r S Phi_r^T and Phi_r S Phi_theta^T (~ dt^2 times the inverse mass's blocks). With
+    sliding friction the step's contact problem is r = r_hat - (A_rr + s mu A_rtheta) lam:
+    its solution is unique only while that matrix is a P-matrix (rom.friction_lock.lock_table),
+    past which the active set can cycle to its cap. Massless boundary: the step's compliance
+    adds the static residual flexibility (not covered here: ValueError)."""
+    if system.is_massless:
+        raise ValueError("step_compliance is the Carpenter scheme's; a massless boundary adds its static flexibility")
+    _, s = _step_factors(system, dt)
+    pr, pt, _ = _boundary_blocks(system)
+    prs = pr * s
+    return prs @ pr.T, prs @ pt.T
+
+
 def critical_time_step(system: ModalSystem, mu: float = 0.0) -> float:
     """Largest stable central-difference time step, s.
 
@@ -355,8 +378,7 @@ class Marcher:
         v0 = np.asarray(v0, dtype=float).reshape(n)
         w = system.omega
         cd = np.diag(system.damping).copy()
-        a = 0.5 * cd * dt  # xi w dt
-        s = dt * dt / (1.0 + a)
+        a, s = _step_factors(system, dt)
         c1 = (2.0 - (w * dt) ** 2) / (1.0 + a)
         c2 = (1.0 - a) / (1.0 + a)
         coff = np.ascontiguousarray(system.damping - np.diag(cd))

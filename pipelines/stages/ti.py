@@ -26,6 +26,20 @@ def massless_warning(scheme: str, mu: float, lock) -> str | None:
             "physics; scheme = carpenter keeps the boundary's mass")
 
 
+def step_lock_warning(scheme: str, mu: float, lock) -> str | None:
+    """The warning for a Carpenter sweep whose friction is past its time step's own lock
+    (lock: rom.friction_lock.lock_table of hbm.ti.march.step_compliance), else None. There
+    the step's contact problem has no unique solution where the nodes it couples slide
+    together: its active set can cycle to the cap (ti.h5's active_set_failures counts those
+    steps) and the march can blow up. Set by the inverse mass's radial-tangential coupling,
+    not by dt; far above the static mu_set on rotor 67 (README)."""
+    if scheme != "carpenter" or lock is None or mu < lock.mu_set:
+        return None
+    return (f"friction mu = {mu:g} >= {lock.mu_set:.3g}, where the time step's contact problem (radial "
+            "compliance with the friction columns) stops being a P-matrix: steps in contact may have no "
+            "unique multipliers (see active_set_failures in ti.h5)")
+
+
 class SweepPartial:
     """ti.partial.h5: each speed of the sweep as it ends, so that an interrupted sweep goes
     on from the speeds it finished (the NFRCs' and the isola search's partial files do the
@@ -180,9 +194,20 @@ def _start(ctx: Context, outputs, cores: int) -> Background:
 
 def _warn(ctx: Context, rom) -> None:
     warn_friction_lock(ctx, rom)
-    line = massless_warning(ctx.scene.ti.scheme, ctx.scene.contact.mu, rom.friction_lock)
+    scene = ctx.scene
+    line = massless_warning(scene.ti.scheme, scene.contact.mu, rom.friction_lock)
     if line:
         ctx.log("  WARNING: " + line)
+    if scene.ti.scheme == "carpenter":
+        from hbm.ti.march import rom_modal_system, step_compliance
+        from rom.friction_lock import lock_table
+
+        lock = lock_table(*step_compliance(rom_modal_system(rom), scene.ti.dt), rom.rotation)
+        ctx.log(f"  contact step (dt = {scene.ti.dt:g} s): unique multipliers up to mu = {lock.mu_set:.3g} "
+                f"(mu = {scene.contact.mu:g})")
+        line = step_lock_warning(scene.ti.scheme, scene.contact.mu, lock)
+        if line:
+            ctx.log("  WARNING: " + line)
 
 
 def _write(ctx: Context, result, partial: SweepPartial) -> None:

@@ -65,3 +65,48 @@ def test_a_validation_march_says_when_its_contact_was_capped(mu, capped):
     ti = march_from_hbm(system, CasingOptions(), mu, np.zeros((3, 3)), OMEGA, n_periods=3, dt=1e-6, n_time=64)
     assert (ti.active_set_failures > 0) is capped
     assert ("iteration cap" in ti.verdict()) is capped
+
+
+def _toy_system():
+    M = np.array([[1.0, 0.9, 0.0], [0.9, 1.0, 0.0], [0.0, 0.0, 1.0]])
+    K = 1e6 * np.eye(3)
+    C, _ = modal_damping(K, M, np.full(3, 0.05))
+    return modal_system(K, M, C, np.array([0.25]), np.array([0.0]), rotation=1)
+
+
+def test_the_step_lock_is_where_the_capped_steps_begin():
+    """The Carpenter step's own lock (rom.friction_lock.lock_table of
+    hbm.ti.march.step_compliance) is the analytic 1 / 0.9 of the module doc, between the
+    clean mu = 0.9 and the capped mu = 1.4 above; the ti stage warns at 1.4 only."""
+    from hbm.ti.march import step_compliance
+    from pipelines.stages.ti import step_lock_warning
+    from rom.friction_lock import lock_table
+
+    dt = 1e-6
+    a_rr, a_rt = step_compliance(_toy_system(), dt)
+    B = np.linalg.inv(np.array([[1.0, 0.9], [0.9, 1.0]]))  # r, theta block of M^-1, 1/kg
+    np.testing.assert_allclose([a_rr[0, 0], a_rt[0, 0]], dt ** 2 * B[0], rtol=1e-3)  # damping: a = xi w dt <= 1.6e-4
+    lock = lock_table(a_rr, a_rt, 1)
+    assert lock.mu_set == pytest.approx(1 / 0.9, rel=1e-3)
+    assert step_lock_warning("carpenter", 0.9, lock) is None
+    assert "friction mu = 1.4 >= 1.11" in step_lock_warning("carpenter", 1.4, lock)
+    assert step_lock_warning("massless", 1.4, lock) is None
+
+
+def test_on_rotor_67_the_step_lock_is_the_inverse_mass_bound_far_above_the_static_one():
+    """Coarse rotor 67 ROM, dt = 1e-7 s: the step's lock from the modal update equals the
+    P-matrix bound of the inverse mass's radial-tangential blocks taken from M directly
+    (dt^2 M^-1: the step's damping factors are 1 + O(1e-3)), and lies far above the static
+    mu_set of the stiffness (0.123): at the scene's mu = 0.15 the step's contact problem is
+    well posed while the static contact set can wedge."""
+    from hbm.ti.march import rom_modal_system, step_compliance
+    from rom.friction_lock import lock_table
+    from support import coarse_rom
+
+    rom = coarse_rom()
+    nb = len(rom.rho)
+    step = lock_table(*step_compliance(rom_modal_system(rom), 1e-7), rom.rotation)
+    Minv = np.linalg.inv(rom.M)[:3 * nb, :3 * nb]
+    direct = lock_table(Minv[0::3, 0::3], Minv[0::3, 1::3], rom.rotation)
+    assert step.mu_set == pytest.approx(direct.mu_set, rel=1e-3)
+    assert 2.0 < step.mu_set < 2.5 and rom.friction_lock.mu_set < 0.15 < step.mu_set
