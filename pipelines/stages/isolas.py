@@ -78,7 +78,9 @@ class IsolaBranch:
     (hbm.harmonic.content, eqs. 32-34), or None in files without it. bifurcations: the
     branch's table {column: array} (hbm.stability.bifurcation.bifurcation_arrays; index
     counts this branch's points), or None without stability. seed_omega (k,) rad/s: Omega of
-    each of its seeds (a sweep point's speed for the seeds from time integration).
+    each of its seeds (a sweep point's speed for the seeds from time integration). linked
+    (j,) int: the indices of the other records of the same branch (pieces a later branch
+    linked, hbm.isolas.search.connected; empty when it is whole), or None in files without it.
     """
 
     method: str
@@ -100,6 +102,7 @@ class IsolaBranch:
     harmonic_contribution: np.ndarray | None = None
     bifurcations: dict | None = None
     seed_omega: np.ndarray | None = None
+    linked: np.ndarray | None = None
 
     @property
     def name(self) -> str:
@@ -139,13 +142,16 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     harmonic_contribution=b["harmonic_contribution"][()] if "harmonic_contribution" in b else None,
                     bifurcations=({k: v for k, (v, _) in read_table(b["bifurcations"]).items()}
                                   if "bifurcations" in b else None),
-                    seed_omega=seed_omega[seeds[(seeds >= 0) & (seeds < len(seed_omega))]]))
+                    seed_omega=seed_omega[seeds[(seeds >= 0) & (seeds < len(seed_omega))]],
+                    linked=np.asarray(a["linked"], dtype=np.int64).reshape(-1) if "linked" in a else None))
             out[method] = rows
     return out
 
 
 # -- writing ---------------------------------------------------------------------------------
-def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
+def _write_branch(group, fb, nu: int, content: dict | None = None, linked=None) -> None:
+    """linked: the file indices of the other records of fb's branch (_linked), or None (a
+    partial file's record: its statuses name them)."""
     data = {"omega": fb.omega, "x": fb.x, "converged": np.asarray(fb.converged, bool)}
     data.update({k: v for k, v in fb.extras.items() if k in _UNITS})
     data.update({k: v for k, v in (content or {}).items() if k in _UNITS})
@@ -161,6 +167,8 @@ def _write_branch(group, fb, nu: int, content: dict | None = None) -> None:
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
     a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
     a["start"], a["n_points_computed"], a["cpu_time"] = int(fb.start), int(fb.n_points_computed), float(fb.cpu_time)
+    if linked is not None:
+        a["linked"] = np.asarray(linked, dtype=np.int64)
 
 
 def _read_found(group):
@@ -322,6 +330,20 @@ def _merged(parts):
     return seeds, np.concatenate(converged), np.concatenate(seed_branch), branches
 
 
+def _linked(parts) -> list[tuple[int, ...]]:
+    """Per branch in _merged's numbering, the indices of the other records of its branch: a
+    search's statuses name linked pieces in that search's own numbering
+    (hbm.isolas.search.connected), which _merged shifts for the later parts."""
+    out: list = []
+    for r, _ in parts:
+        rows = [()] * len(r.branches)
+        for g in r.groups:
+            for k in g:
+                rows[k] = tuple(len(out) + j for j in g if j != k)
+        out += rows
+    return out
+
+
 def _born_at_doublings(result, res, pd_res, known, options, ctx=None):
     """The doubled search's result with each branch that passes through an orbit of a known
     branch of res's basis (hbm.isolas.harmonic.doubling_origin: the continuation's own join
@@ -377,6 +399,7 @@ def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
                 h5.attrs[k] = v
             for method, (parts, status, cpu, wall) in results.items():
                 seeds, converged, seed_branch, branches = _merged(parts)
+                linked = _linked(parts)
                 g = h5.create_group(method)
                 g.attrs.update({"n_seeds": len(seeds), "n_converged": int(converged.sum()),
                                 "n_distinct": sum(r.n_distinct for r, _ in parts), "n_branches": len(branches),
@@ -391,7 +414,8 @@ def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
                 s.create_dataset("branch", data=seed_branch).attrs["unit"] = "1"
                 b = g.create_group("branches")
                 for k, (fb, nu) in enumerate(branches):
-                    _write_branch(b.create_group(f"{k:03d}"), fb, nu, content.get(method, [None] * (k + 1))[k])
+                    _write_branch(b.create_group(f"{k:03d}"), fb, nu, content.get(method, [None] * (k + 1))[k],
+                                  linked[k])
         art.add_checksums(tmp)
 
 

@@ -13,8 +13,9 @@ from pipelines.stages import isolas as stage
 
 def _branch(status, w0):
     w = np.linspace(w0, w0 + 10.0, 4)
+    extras = {"le_amplitude": np.full(4, 1e-3), "harmonics": np.zeros((4, 3, 3))}
     return FoundBranch(omega=w, x=np.zeros((4, 3)), converged=np.ones(4, bool), kind="isola", closed=False,
-                       status=status, start=0, seeds=(0,))
+                       status=status, start=0, seeds=(0,), extras=extras)
 
 
 def _result(branches):
@@ -36,3 +37,26 @@ def test_a_piece_linked_to_a_branch_born_at_a_doubling_is_bifurcated_too(monkeyp
     assert "born at a period doubling of the primary NFRC near 205.0 rad/s" in out.branches[1].status
     assert "one branch with a branch born at a period doubling" in out.branches[0].status
     assert out.kind_counts() == {"bifurcated": 1, "isola": 1}
+
+
+def test_the_file_names_the_other_records_of_a_branch_in_its_own_numbering(tmp_path):
+    """Statuses name linked pieces in their search's numbering, which the file shifts for
+    the doubled search's branches (after the first search's three): `linked` holds the file's
+    indices, read back by read_isolas."""
+    import h5py
+
+    first = _result([_branch("one branch with branch 1 (linked by the branch from seed 5)", 100.0),
+                     _branch("one branch with branch 0 (linked by the branch from seed 5)", 200.0),
+                     _branch("+: point cap", 300.0)])
+    second = _result([_branch("+: point cap", 400.0),
+                      _branch("one branch with branch 2 (linked by the branch from seed 1)", 500.0),
+                      _branch("one branch with branch 1 (linked by the branch from seed 1)", 600.0)])
+    linked = stage._linked([(first, None), (second, None)])
+    assert linked == [(1,), (0,), (), (), (5,), (4,)]
+    path = tmp_path / "isolas.h5"
+    with h5py.File(path, "w") as h5:
+        g = h5.create_group("dlft/branches")
+        for k, fb in enumerate(first.branches + second.branches):
+            stage._write_branch(g.create_group(f"{k:03d}"), fb, 1, linked=linked[k])
+    rows = stage.read_isolas(path)["dlft"]
+    assert [r.linked.tolist() for r in rows] == [[1], [0], [], [], [5], [4]]
