@@ -106,6 +106,16 @@ def coil():
     return Coil(), DirectSolver()
 
 
+def coil_options(workers: int) -> SearchOptions:
+    """The coil's search: steps of ~0.05 in t, x scaled by 10 (|x| ~ 1e4: eq. (27)'s relative
+    closed-loop test passes one turn later)."""
+    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.05, ds_min=1e-6, ds_max=0.1, x_scale=10.0,
+                             omega_scale=1.0, max_points=400, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-10, max_iter=12))
+    return SearchOptions(tolerance=1e-2, continuation=co, workers=workers,
+                         newton=NewtonOptions(tol_residual=1e-10, max_iter=30, line_search=True))
+
+
 def test_a_half_back_near_its_start_while_the_other_left_the_range_is_no_closed_loop():
     """Eq. (27) measures the return relative to |x| (~1e4 here): one turn later the - half
     comes back within d_min = 1e-3 of its start (x2 off by 2 pi, 63 tolerances in the search's
@@ -113,12 +123,8 @@ def test_a_half_back_near_its_start_while_the_other_left_the_range_is_no_closed_
     "isola" and closed; it is open and reaches the bound: detached."""
     import pytest
 
-    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.05, ds_min=1e-6, ds_max=0.1, x_scale=10.0,
-                             omega_scale=1.0, max_points=400, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-10, max_iter=12))
     for workers in (1, 2):
-        opts = SearchOptions(tolerance=1e-2, continuation=co, workers=workers,
-                             newton=NewtonOptions(tol_residual=1e-10, max_iter=30, line_search=True))
+        opts = coil_options(workers)
         res = search(coil, [Seed(WC, np.array([CX + RX, 0.0]), "t = 0")], [], opts)
         (b,) = res.branches
         t = b.x[:, 1]

@@ -15,7 +15,7 @@ from hbm.continuation.newton import NewtonOptions
 from hbm.isolas.membership import KnownBranch, polyline_distance
 from hbm.isolas.search import SearchOptions, Seed, search
 from hbm.linalg.dense import DirectSolver
-from test_isola_classification_edges import BW, CX, RW, RX, WC, Coil, _seed, line
+from test_isola_classification_edges import BW, CX, RW, RX, WC, Coil, _seed, coil_options, line
 from test_isola_classification_edges import _options as line_options
 from test_isolas_meetings import _options as cross_options
 from test_isolas_meetings import cross
@@ -52,12 +52,7 @@ def test_a_first_half_back_near_its_start_one_coil_turn_later_is_no_closed_loop(
     as a "closed loop". A loop closed in the first direction was not followed back: the
     branch was "isola" and closed, the - half, which leaves the range, never continued. It
     is open, and reaches the bound: detached."""
-    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.05, ds_min=1e-6, ds_max=0.1, x_scale=10.0,
-                             omega_scale=1.0, max_points=400, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-10, max_iter=12))
-    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=workers,
-                         newton=NewtonOptions(tol_residual=1e-10, max_iter=30, line_search=True))
-    res = search(coil_ahead, [Seed(WC, np.array([CX + RX, 0.0]), "t = 0")], [], opts)
+    res = search(coil_ahead, [Seed(WC, np.array([CX + RX, 0.0]), "t = 0")], [], coil_options(workers))
     (b,) = res.branches
     t = b.x[:, 1]
     np.testing.assert_allclose(b.x[:, 0], CX + RX * np.cos(t), atol=1e-6)  # on the curve
