@@ -1,5 +1,5 @@
 """Bifurcation records and multiplier pairing (hbm.stability.bifurcation) on hand-built
-cases (mutation audit s11)."""
+cases."""
 import math
 
 import numpy as np

@@ -1,5 +1,5 @@
 """Poincare-section periodicity (hbm.ti.periodicity.classify_period) on sequences whose
-mismatches are computed by hand (mutation audit s11).
+mismatches are computed by hand.
 
 With sections y_k and scale 1: mis_p = max_k |y_{k+p} - y_k|.
 """

@@ -1,4 +1,4 @@
-"""The settle test (hbm.ti.settle) against closed-form transients (mutation audit s11).
+"""The settle test (hbm.ti.settle) against closed-form transients.
 
 Histories are recorded as the sweep records them (sub-sections at SUBSECTIONS per casing
 period from the end of the first revolution, per-revolution radial extremes, force block

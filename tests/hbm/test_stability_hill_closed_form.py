@@ -1,4 +1,4 @@
-"""Hill's operator (hbm.stability.hill) against closed forms (mutation audit s11).
+"""Hill's operator (hbm.stability.hill) against closed forms.
 
 With contact weights constant in time, every AFT product is a scalar (T_c = w_c I), and
 H(lam) P has a closed form per harmonic: with p(t) = sum_k c_k exp(i k omega t) and

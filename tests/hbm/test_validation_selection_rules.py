@@ -1,5 +1,5 @@
-"""Choice of validation points (hbm.stability.selection) with hand-derived expectations
-(mutation audit s11). The Floquet analyses are replaced by spectra whose largest multiplier
+"""Choice of validation points (hbm.stability.selection) with hand-derived expectations.
+The Floquet analyses are replaced by spectra whose largest multiplier
 is given per point, so that each rule of choose_point / stable_stretch / _candidates is
 checked on its own against the outcome computed by hand."""
 import math
