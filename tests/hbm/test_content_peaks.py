@@ -4,6 +4,7 @@ sampled grid may rank them the wrong way round, and only refining every candidat
 true maximum. Reference: g evaluated directly (cos / sin sums) on a dense grid, each of its
 local maxima of |g| refined by scipy's bounded scalar minimisation."""
 import numpy as np
+import pytest
 from scipy.optimize import minimize_scalar
 
 from hbm.harmonic.content import peak_magnitudes
@@ -71,3 +72,14 @@ def test_pure_harmonic_peaking_half_way_between_samples():
                 c[2 * k - 1], c[2 * k] = np.cos(k * t0), np.sin(k * t0)
                 cols.append(c)
         np.testing.assert_allclose(peak_magnitudes(np.stack(cols, axis=1)), 1.0, rtol=1e-13)
+
+
+@pytest.mark.parametrize("t0", [0.0, 0.37, 1.0])
+def test_a_peak_of_the_other_sign_between_samples_is_found(t0):
+    """Harmonic 16 of N_h = 16 plus a small negative mean: 16 (N_h + 1) / 16 = 17 samples a
+    period of the harmonic, so its positive peaks can all fall on samples and its negative
+    ones half-way between; the maximum of |g| is a negative peak, 1.002 exactly."""
+    nh = k = 16
+    c = np.zeros((2 * nh + 1, 1))
+    c[0], c[2 * k - 1], c[2 * k] = -0.002, np.cos(k * t0), np.sin(k * t0)
+    assert peak_magnitudes(c)[0] == pytest.approx(1.002, rel=1e-12)
