@@ -16,7 +16,6 @@ tests leave open, each against a hand computation or a dense reference written h
 - one scalar damping ratio for every mode (a diagonal 2-dof pencil, C by hand).
 """
 import dataclasses
-import itertools
 import re
 from types import SimpleNamespace
 
@@ -29,36 +28,13 @@ from rom.friction_lock import lock_table
 from rom.options import RomOptions
 from rom.rotation import rotation_sign
 from support import coarse_rom
-
-
-def _truss(nx=4, ny=3, nz=2, h=0.01, ea=1e6, rho_l=0.05, seed=3):
-    """A clamped 3-D truss (x = 0 clamped): nodes (n, 3), K (N/m), M (kg) on the free dof, node_dofs."""
-    rng = np.random.default_rng(seed)
-    x = h * np.array([(i, j, k) for k in range(nz) for j in range(ny) for i in range(nx)], dtype=float)
-    n = len(x)
-    K, M = np.zeros((3 * n, 3 * n)), np.zeros((3 * n, 3 * n))
-    for a, b in itertools.combinations(range(n), 2):
-        d = x[b] - x[a]
-        length = np.linalg.norm(d)
-        if length > 1.8 * h:
-            continue
-        e = d / length
-        ke = ea / length * (1.0 + 0.5 * rng.random()) * np.outer(e, e)
-        me = rho_l * length / 6.0 * np.eye(3)
-        for p, q, sk, sm in ((a, a, 1, 2), (b, b, 1, 2), (a, b, -1, 1), (b, a, -1, 1)):
-            K[3 * p:3 * p + 3, 3 * q:3 * q + 3] += sk * ke
-            M[3 * p:3 * p + 3, 3 * q:3 * q + 3] += sm * me
-    clamped = x[:, 0] == 0.0
-    node_dofs = np.full((n, 3), -1, dtype=np.int64)
-    node_dofs[~clamped] = np.arange(3 * int((~clamped).sum())).reshape(-1, 3)
-    keep = np.repeat(~clamped, 3)
-    return x, K[np.ix_(keep, keep)], M[np.ix_(keep, keep)], node_dofs
+from test_craig_bampton_reference import _truss
 
 
 def _model(tilts=(-1.0, 1.0, -1.0)):
     """The truss with 3 contact nodes (cylindrical frames about an axis 0.2 m away, tilted
     about e_r by `tilts`), as fem and mesh namespaces, and the dense boundary compliance G."""
-    x, K, M, node_dofs = _truss()
+    x, K, M, node_dofs = _truss(nx=4, seed=3)
     b = np.flatnonzero((x[:, 0] == x[:, 0].max()) & (x[:, 2] == 0.0))  # 3 tip nodes along y
     xy = x[b, :2] + [0.2, 0.0]
     phi = np.arctan2(xy[:, 1], xy[:, 0])
