@@ -16,7 +16,6 @@ tests leave open, each against a hand computation or a dense reference written h
 - one scalar damping ratio for every mode (a diagonal 2-dof pencil, C by hand).
 """
 import dataclasses
-import re
 from types import SimpleNamespace
 
 import numpy as np
