@@ -108,11 +108,11 @@ def peak_magnitudes(coeffs: np.ndarray) -> np.ndarray:
     their harmonics coeffs (2 N_h + 1, m), eq. (5) order [c_0, a_1, b_1, ..., a_Nh, b_Nh].
 
     Sampled on 16 (N_h + 1) points (the nearest sample to the maximum is within 1 - (pi /
-    16)^2 / 2 of it), then the largest sampled local maxima of g and of -g refined by Newton's method on
-    g' = 0 within one sample of where they started: to round-off, whatever the AFT grid (from
-    within a sample the phase error k dtau <= pi / 16 falls quadratically: four steps reach
-    round-off; eight gave the same contributions to 1e-16 on the coarse rotor 67 NFRC, for 14 %
-    more time). Every value taken is |g| somewhere, so the result never exceeds the true maximum."""
+    16)^2 / 2 of it), then the largest sampled local maxima of g and of -g refined by
+    Newton's method on g' = 0 within one sample of where they started: to round-off,
+    whatever the AFT grid (from within a sample the phase error k dtau <= pi / 16 falls
+    quadratically: four steps reach round-off; eight gave the same contributions to 1e-16 on
+    the coarse rotor 67 NFRC, for 14 % more time). Every value taken is |g| somewhere, so the result never exceeds the true maximum."""
     c = np.asarray(coeffs, dtype=float)
     if c.ndim != 2 or c.shape[0] % 2 != 1:
         raise ValueError(f"coeffs must have shape (2 N_h + 1, m), got {c.shape}")
