@@ -158,12 +158,10 @@ class CondensedModel:
     def _parts(self, A):
         return A[np.ix_(self.nl, self.nl)], A[np.ix_(self.nl, self.li)], A[np.ix_(self.li, self.nl)], A[np.ix_(self.li, self.li)]
 
-    def complex_blocks(self, omega: float):
-        """Complex Z_k = K - (k w)^2 M + i k w C and d/dw, (N_h, n, n), for k = 1 .. N_h."""
+    def complex_blocks(self, omega: float) -> np.ndarray:
+        """Complex Z_k = K - (k w)^2 M + i k w C, (N_h, n, n), N/m, for k = 1 .. N_h."""
         k = np.arange(1, self.basis.n_harmonics + 1)[:, None, None]
-        Z = self.K - (k * omega) ** 2 * self.M + 1j * k * omega * self.C
-        dZ = -2.0 * k * k * omega * self.M + 1j * k * self.C
-        return Z, dZ
+        return self.K - (k * omega) ** 2 * self.M + 1j * k * omega * self.C
 
     def operator(self, omega: float) -> CondensedOperator:
         """Condensed Z_r(omega), dZ_r/domega and force at omega (cached for the last omega)."""
@@ -245,7 +243,7 @@ class CondensedModel:
                 f[2 * k - 1], f[2 * k] = self._fc.real, -self._fc.imag
         Kll, Kln = self.K[np.ix_(li, li)], self.K[np.ix_(li, nl)]
         out[0, li] = np.linalg.solve(Kll, f[0, li] - Kln @ xr[0])
-        Z, _ = self.complex_blocks(omega)
+        Z = self.complex_blocks(omega)
         Zll, Zln = Z[:, li][:, :, li], Z[:, li][:, :, nl]
         Xn = xr[1::2] - 1j * xr[2::2]
         Fl = f[1::2, li] - 1j * f[2::2, li]

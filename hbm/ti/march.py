@@ -282,11 +282,12 @@ class Recording:
     extreme_stride: the radial extremes of every node are kept per block of this many steps
     from n0 (block b: steps n0 + b extreme_stride .. n0 + (b + 1) extreme_stride - 1; 0: one
     block for all steps >= n0).
-    lam_m denotes the multiplier computed at step m (it moves x_m to x_{m+1}). Force sample i
-    is the block mean of lam_m over the s steps m = n0 + i s - s//2 .. n0 + i s + s - 1 - s//2,
-    so that impulsive forces keep their impulse once downsampled (s = 1: lam at step n0 + i);
-    multipliers at the last step (m = n_steps) are never computed and read 0. The steps of
-    that block with lam_m > 0 are counted too (March.force_steps).
+    lam_m denotes the multiplier of step m: Carpenter's moves x_m to x_{m+1} (it is computed
+    with step m + 1, so at the last step, m = n_steps, it is never computed and reads 0); the
+    massless scheme's is the static projection at t_m (the last step's included). Force
+    sample i is the block mean of lam_m over the s steps m = n0 + i s - s//2 .. n0 + i s + s -
+    1 - s//2, so that impulsive forces keep their impulse once downsampled (s = 1: lam at step
+    n0 + i). The steps of that block with lam_m > 0 are counted too (March.force_steps).
     """
 
     start: int
