@@ -449,9 +449,11 @@ def _curve_guess(b: KnownBranch, x, omega: float, x_scale, omega_scale: float) -
 
 
 # -- phase 2: branches -------------------------------------------------------------------------
-def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float):
+def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float,
+          search_options: SearchOptions | None = None):
     """One half branch from (x0, w0): (Branch, joined) with joined = (label, index, merging)
-    when it stopped on meeting a branch of `others` [(label, index, KnownBranch)]."""
+    when it stopped on meeting a branch of `others` [(label, index, KnownBranch)].
+    search_options: also stop where the half crosses a symmetric branch (_symmetric_crossing)."""
     points = []
 
     def on_point(p):
@@ -461,7 +463,7 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         # the chord from the previous point: a branch crossed between two points passes farther
         # than tol from it at both when the step is longer than tol
         prev = points[-2] if len(points) >= 2 and points[-2].converged else p
-        met = _meeting(residual, prev, p, others, opts, tol)
+        met = _meeting(residual, prev, p, others, opts, tol, search_options, solver)
         if met is not None:
             raise _Joined(*met)
 
@@ -472,10 +474,13 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         return Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
 
 
-def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float):
+def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float,
+             search_options: SearchOptions | None = None, solver=None):
     """(label, index, merging) of the first branch of `others` [(label, index, KnownBranch)]
     that the chord from prev to p (anything with x, omega), or its image, passes within tol
-    of; merging: the chord runs along it (_parallel) rather than across it. None: none."""
+    of; merging: the chord runs along it (_parallel) rather than across it. With
+    search_options, then the branch of `others` the chord crosses at a symmetric solution
+    (_symmetric_crossing, merging False). None: none."""
     prev_images = [prev.x, *images(residual, prev.x)]
     for q, xq in enumerate([p.x, *images(residual, p.x)]):
         for label, idx, b in others:
@@ -485,11 +490,58 @@ def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float):
                 tail = [prev, p] if q == 0 else [SimpleNamespace(x=images(residual, t.x)[q - 1], omega=t.omega)
                                                  for t in (prev, p)]
                 return label + (", an image of it" if q else ""), idx, _parallel(tail, b, xn, wn, opts)
+    if search_options is not None:
+        return _symmetric_crossing(residual, prev, p, others, search_options, solver)
+    return None
+
+
+def _symmetric_parts(x: np.ndarray, x_images: list) -> list[np.ndarray]:
+    """The projections of x on the solutions each subgroup of the residual's symmetries
+    leaves unchanged, one per proper divisor d of the group's order N = len(x_images) + 1:
+    the mean of x and its images j = d, 2 d, ... (x_images[j - 1] is x under the j-th power of
+    the group's generator, as HarmonicBalanceResidual.images lists the lobe shifts)."""
+    n = len(x_images) + 1
+    return [(x + sum(x_images[j - 1] for j in range(d, n, d))) / (n // d) for d in range(1, n) if n % d == 0]
+
+
+def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solver):
+    """(label, index, False) of the branch of `others` that the chord from prev to p crosses
+    where it passes through solutions a symmetry leaves unchanged; None: none.
+
+    A branch of solutions without the casing's symmetry (odd harmonics of Omega with two
+    lobes) meets the symmetric branch it bifurcates from at a symmetry-breaking pitchfork,
+    where it passes through the symmetric subspace: its non-symmetric part x - P x turns
+    over between two points. The chord-to-polyline test sees that crossing only where the
+    step and the crossed branch's chords are short beside their bends (on the default
+    rotor 67 scene both treatments' 3 Omega = w_1 branches crossed their primary NFRC twice
+    unseen and were called closed isolas). So the crossing is located on the chord (where
+    its non-symmetric part is smallest), projected on the symmetric subspace, solved by
+    Newton at its Omega (a symmetric start stays symmetric) and tested with lies_on, which
+    refines near a polyline's bends."""
+    pi, qi = images(residual, prev.x), images(residual, p.x)
+    if not pi:
+        return None
+    co = options.continuation
+    sx = np.broadcast_to(np.asarray(co.x_scale, dtype=float), np.shape(p.x))
+    for k, (sp, sq) in enumerate(zip(_symmetric_parts(prev.x, pi), _symmetric_parts(p.x, qi))):
+        a, b = (prev.x - sp) / sx, (p.x - sq) / sx  # the non-symmetric parts, scaled
+        if not float(a @ b) < 0.0:  # not turned over
+            continue
+        da = b - a
+        t = float(-(a @ da) / (da @ da))  # in (0, 1): a . b < 0
+        xt, wt = prev.x + t * (p.x - prev.x), float(prev.omega + t * (p.omega - prev.omega))
+        xs = _symmetric_parts(xt, images(residual, xt))[k]
+        sol = newton_solve(residual, xs, wt, options.newton, solver=copy.deepcopy(solver))
+        if not sol.converged:
+            continue
+        for label, idx, kb in others:
+            if lies_on_any(residual, sol.x, wt, [kb], options, copy.deepcopy(solver)) == 0:
+                return f"{label} (at a symmetric solution, {wt:.6g} rad/s)", idx, False
     return None
 
 
 def _meeting_polyline(fb: "FoundBranch", label: str, earlier, residual, opts: ContinuationOptions,
-                      tol: float) -> KnownBranch:
+                      tol: float, search_options: SearchOptions | None = None, solver=None) -> KnownBranch:
     """The polyline of the found branch fb that later halves and seeds are measured against:
     its converged points, less an end that lies one step past a branch it crossed.
 
@@ -510,7 +562,7 @@ def _meeting_polyline(fb: "FoundBranch", label: str, earlier, residual, opts: Co
             if not ok[end]:  # a half that failed did not meet anything
                 continue
             prev, p = (SimpleNamespace(x=fb.x[j], omega=float(fb.omega[j])) for j in (inner, end))
-            met = _meeting(residual, prev, p, earlier, opts, tol)
+            met = _meeting(residual, prev, p, earlier, opts, tol, search_options, solver)
             if met is not None and not met[2]:
                 keep[end] = False
     return KnownBranch.of(fb.omega, fb.x, label, keep)
@@ -543,13 +595,14 @@ def _back_at_start(residual, half: Branch, options: "SearchOptions", solver) -> 
     return float(a @ b) > 0.0
 
 
-def _run_half(factory, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float):
+def _run_half(factory, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float,
+              search_options: SearchOptions | None = None):
     """_half with a fresh (residual, solver) from factory, in this process or a worker: a
     half branch does not depend on which process ran it nor on what that process solved
     before (a kept preconditioner would change its last digits). -> (Branch, joined, CPU s)."""
     t = time.process_time()
     residual, solver = factory()
-    br, joined = _half(residual, solver, x0, w0, direction, opts, others, tol)
+    br, joined = _half(residual, solver, x0, w0, direction, opts, others, tol, search_options)
     return br, joined, time.process_time() - t
 
 
@@ -794,7 +847,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
 
         def add_polyline(k):
             polys.append(_meeting_polyline(found[k], f"branch {k}", known_others + [
-                (f"branch {j}", j, p) for j, p in enumerate(polys)], residual, co, options.tolerance))
+                (f"branch {j}", j, p) for j, p in enumerate(polys)], residual, co, options.tolerance, options,
+                solver))
 
         for k in range(len(found)):
             add_polyline(k)
@@ -815,7 +869,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 continue
             t0 = time.process_time()
             others = known_others + [(f"branch {j}", j, p) for j, p in enumerate(polys)]
-            args = (factory, x0, w0, +1, co, others, options.tolerance)
+            args = (factory, x0, w0, +1, co, others, options.tolerance, options)
             doing[0] = f"branch being continued: from seed {i} at {w0:g} rad/s"
             if pool is not None:  # both halves at once; the second is dropped if the first closes
                 futures = [pool.submit(_run_half, *args), pool.submit(_run_half, *args[:3], -1, *args[4:])]

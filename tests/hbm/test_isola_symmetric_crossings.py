@@ -1,0 +1,122 @@
+"""A branch without the residual's symmetry that bifurcates from a symmetric branch at two
+pitchforks, and crosses it where the symmetric branch's polyline cuts a bend: the search must
+see both crossings (hbm.isolas.search._symmetric_crossing), not close the loop as an isola.
+The solution sets are known in closed form."""
+from __future__ import annotations
+
+import re
+
+import numpy as np
+import pytest
+
+from hbm.continuation.arclength import ContinuationOptions
+from hbm.continuation.newton import NewtonOptions
+from hbm.isolas.membership import KnownBranch
+from hbm.isolas.search import SearchOptions, Seed, search
+from hbm.linalg.dense import DirectSolver
+
+C = 1.0  # curvature of the symmetric branch x1 = C (w - 1/2)^2
+A, B = 0.1, 0.23  # the loop's half axes in x2 and Omega: pitchforks at Omega = 1/2 -+ B
+X_SCALE, OMEGA_SCALE = 0.05, 0.01  # the branches run mostly along Omega in the scaled metric
+
+
+class PitchforkLoop:
+    """R = (x1 - C (w - 1/2)^2, x2 g) with g = x2^2 / A^2 + (w - 1/2)^2 / B^2 - 1, unchanged under
+    x -> (x1, -x2) (`images`). Solutions: the symmetric branch x2 = 0 at every Omega, and the
+    ellipse g = 0 (same x1), which passes through it at Omega = 1/2 -+ B. Picklable."""
+
+    def g(self, x2, w):
+        return x2 * x2 / A**2 + (w - 0.5) ** 2 / B**2 - 1.0, 2.0 * x2 / A**2, 2.0 * (w - 0.5) / B**2
+
+    def __call__(self, x, w, jacobian=True):
+        g, g_x, g_w = self.g(x[1], w)
+        R = np.array([x[0] - C * (w - 0.5) ** 2, x[1] * g])
+        if not jacobian:
+            return R
+        J = np.array([[1.0, 0.0], [0.0, g + x[1] * g_x]])
+        return R, J, np.array([-2.0 * C * (w - 0.5), x[1] * g_w])
+
+    def images(self, x):
+        return [np.array([x[0], -x[1]])]
+
+
+class DetachedLoops(PitchforkLoop):
+    """The same symmetric branch, and two mirror-image loops with x2^2 between 0.5 A^2 and
+    1.5 A^2: g = (x2^2 - A^2)^2 / (A^2 / 2)^2 + (w - 1/2)^2 / B^2 - 1 never lets x2 reach 0."""
+
+    def g(self, x2, w):
+        s = x2 * x2 - A**2
+        h2 = (A**2 / 2) ** 2
+        return s * s / h2 + (w - 0.5) ** 2 / B**2 - 1.0, 4.0 * s * x2 / h2, 2.0 * (w - 0.5) / B**2
+
+
+def pitchfork_loop():
+    return PitchforkLoop(), DirectSolver()
+
+
+def detached_loops():
+    return DetachedLoops(), DirectSolver()
+
+
+def _options():
+    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.5, ds_min=1e-5, ds_max=1.0, x_scale=X_SCALE,
+                             omega_scale=OMEGA_SCALE, max_points=400, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
+    return SearchOptions(tolerance=1e-2, continuation=co, workers=1,
+                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+
+
+def _symmetric_branch():
+    """The symmetric branch as an NFRC would store it: a point every 0.1 in Omega. Between two
+    points its polyline lies up to C 0.1^2 / 4 / X_SCALE = 0.05 (five tolerances) off the curve
+    in x1; at the pitchfork Omega = 0.27, 0.042."""
+    w = np.linspace(0.0, 1.0, 11)
+    return KnownBranch.of(w, np.column_stack([C * (w - 0.5) ** 2, np.zeros_like(w)]), "primary")
+
+
+def test_the_polyline_alone_misses_the_crossing():
+    """What makes the case hard: the chord from the loop's points to the symmetric branch's
+    polyline is farther than the tolerance at the pitchfork."""
+    from hbm.isolas.membership import polyline_distance
+
+    w = 0.5 - B
+    d = polyline_distance(np.array([C * (w - 0.5) ** 2, 0.0]), w, _symmetric_branch(), X_SCALE, OMEGA_SCALE)[0]
+    # the offset in x1, C 0.07 0.03 / X_SCALE, seen across a segment 10 long in Omega, 1 in x1
+    assert d == pytest.approx(C * 0.07 * 0.03 / X_SCALE * 10 / np.hypot(10, 1.0), rel=1e-9)
+    assert d > 4 * _options().tolerance
+
+
+@pytest.mark.parametrize("ds_max, workers", [(1.0, 1), (1.0, 2), (0.1, 1)])
+def test_a_loop_through_two_pitchforks_is_bifurcated_and_meets_the_primary_at_both(ds_max, workers):
+    """Seeded at the loop's top (Omega = 1/2, x2 = A). With long steps each half stepped onto
+    the symmetric branch at a pitchfork and ran along it until it came near a vertex of its
+    polyline: the loop was called part of the primary, stretches of the primary included; with
+    short ones it went on through the pitchforks onto its own mirror image, an isola. Each
+    half now ends one step past a pitchfork, at Omega = 1/2 -+ B."""
+    from dataclasses import replace
+
+    opts = _options()
+    opts = replace(opts, workers=workers, continuation=replace(opts.continuation, ds=min(0.5, ds_max), ds_max=ds_max))
+    res = search(pitchfork_loop, [Seed(0.5, np.array([0.0, A * 1.02]), "top")], [_symmetric_branch()], opts)
+    (b,) = res.branches
+    assert b.kind == "bifurcated" and not b.closed, b.status
+    assert np.asarray(b.converged, bool).all()
+    w, x = b.omega, b.x
+    np.testing.assert_allclose(x[:, 0], C * (w - 0.5) ** 2, atol=1e-10)  # on both branches
+    # every point on the ellipse on the side x2 > 0, but each half's last one, past a pitchfork:
+    # on the ellipse's other side or on the symmetric branch (here it stepped onto that one)
+    np.testing.assert_allclose((x[1:-1, 1] / A) ** 2 + ((w[1:-1] - 0.5) / B) ** 2, 1.0, atol=1e-8)
+    assert (x[1:-1, 1] > 0).all() and (x[[0, -1], 1] <= 1e-9).all()
+    met = [float(v) for v in re.findall(r"at a symmetric solution, ([0-9.eE+-]+) rad/s", b.status)]
+    assert len(met) == 2, b.status
+    np.testing.assert_allclose(sorted(met), [0.5 - B, 0.5 + B], atol=0.01)  # within the last step
+    assert b.status.count("met known branch 0 (primary)") == 2
+
+
+def test_loops_that_never_reach_the_symmetric_branch_stay_a_closed_isola():
+    """The same search on loops that keep x2 >= 0.7 A: nothing turns over, one closed isola
+    (its mirror image is the same branch)."""
+    res = search(detached_loops, [Seed(0.5, np.array([0.0, A * 1.2]), "top")], [_symmetric_branch()], _options())
+    (b,) = res.branches
+    assert b.kind == "isola" and b.closed, b.status
+    assert "symmetric" not in b.status
