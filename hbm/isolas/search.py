@@ -504,6 +504,11 @@ def _symmetric_parts(x: np.ndarray, x_images: list) -> list[np.ndarray]:
     return [(x + sum(x_images[j - 1] for j in range(d, n, d))) / (n // d) for d in range(1, n) if n % d == 0]
 
 
+#: the most the chord's part without the symmetry may keep of its ends' at a crossing
+#: (_symmetric_crossing): a part that only turns keeps cos(phi / 2), over 0.25 for phi < 151 deg
+_CROSSING_FRACTION = 0.25
+
+
 def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solver):
     """(label, index, False) of the branch of `others` that the chord from prev to p crosses
     where it passes through solutions a symmetry leaves unchanged; None: none.
@@ -529,6 +534,12 @@ def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solve
             continue
         da = b - a
         t = float(-(a @ da) / (da @ da))  # in (0, 1): a . b < 0
+        # through zero, not turned round it: at a crossing the chord's part without the symmetry
+        # falls to the step's sagitta (1e-4 to 1e-3 of the ends' on rotor 67), where a part
+        # turned by an angle phi at constant size keeps cos(phi / 2) of it
+        if float(np.linalg.norm(a + t * da)) > _CROSSING_FRACTION * min(float(np.linalg.norm(a)),
+                                                                          float(np.linalg.norm(b))):
+            continue
         xt, wt = prev.x + t * (p.x - prev.x), float(prev.omega + t * (p.omega - prev.omega))
         xs = _symmetric_parts(xt, images(residual, xt))[k]
         sol = newton_solve(residual, xs, wt, options.newton, solver=copy.deepcopy(solver))

@@ -120,3 +120,57 @@ def test_loops_that_never_reach_the_symmetric_branch_stay_a_closed_isola():
     (b,) = res.branches
     assert b.kind == "isola" and b.closed, b.status
     assert "symmetric" not in b.status
+
+
+RHO, KAPPA = 0.02, 175.0  # the helix's radius (m-like units of x) and turn rate, rad per unit Omega
+
+
+class TurningPart:
+    """R = (x1 - C (w - 1/2)^2, -x2 s + x3 c, (x2 c + x3 s) ((x2^2 + x3^2) / RHO^2 - 1)) with
+    c, s = cos, sin(KAPPA w), unchanged under x -> (x1, -x2, -x3). Solutions: the symmetric
+    branch x2 = x3 = 0, and the helix (x2, x3) = +-RHO (c, s): its part without the symmetry
+    keeps its size and turns, by ~100 degrees over a step of 0.01 in Omega. Picklable."""
+
+    def __call__(self, x, w, jacobian=True):
+        c, s = np.cos(KAPPA * w), np.sin(KAPPA * w)
+        u, v = x[1] * c + x[2] * s, -x[1] * s + x[2] * c
+        q = (x[1] ** 2 + x[2] ** 2) / RHO**2 - 1.0
+        R = np.array([x[0] - C * (w - 0.5) ** 2, v, u * q])
+        if not jacobian:
+            return R
+        J = np.array([[1.0, 0.0, 0.0], [0.0, -s, c],
+                      [0.0, c * q + 2 * u * x[1] / RHO**2, s * q + 2 * u * x[2] / RHO**2]])
+        return R, J, np.array([-2.0 * C * (w - 0.5), -KAPPA * u, KAPPA * v * q])
+
+    def images(self, x):
+        return [np.array([x[0], -x[1], -x[2]])]
+
+
+def turning_part():
+    return TurningPart(), DirectSolver()
+
+
+def test_a_part_that_turns_without_shrinking_is_no_crossing(monkeypatch):
+    """Over a step the helix's part without the symmetry turns by more than 90 degrees, so it
+    'turns over' between two points, but its chord keeps cos(phi / 2) of its size: no crossing.
+    Without that check (the fraction set to infinity) the symmetric projection's Newton lands on
+    the symmetric branch and the helix was said to meet it."""
+    from dataclasses import replace
+
+    import hbm.isolas.search as search_module
+
+    opts = _options()
+    opts = replace(opts, continuation=replace(opts.continuation, ds=1.0, ds_max=1.0, x_scale=1.0))
+    w0 = 0.5
+    seed = [Seed(w0, np.array([0.0, RHO * np.cos(KAPPA * w0), RHO * np.sin(KAPPA * w0)]), "on the helix")]
+    primary = KnownBranch.of(np.linspace(0.0, 1.0, 11), np.column_stack(
+        [C * (np.linspace(0.0, 1.0, 11) - 0.5) ** 2, np.zeros(11), np.zeros(11)]), "primary")
+    (b,) = search(turning_part, seed, [primary], opts).branches
+    assert "symmetric" not in b.status and b.omega.min() == 0.0 and b.omega.max() == 1.0, b.status
+    x = b.x[np.asarray(b.converged, bool)]
+    np.testing.assert_allclose(np.hypot(x[:, 1], x[:, 2]), RHO, rtol=1e-8)  # every point on the helix
+    turns = np.einsum("ij,ij->i", x[:-1, 1:], x[1:, 1:]) < 0
+    assert turns.any()  # the part turned over between two points somewhere: the case is exercised
+    monkeypatch.setattr(search_module, "_CROSSING_FRACTION", np.inf)
+    (b,) = search(turning_part, seed, [primary], opts).branches
+    assert "symmetric solution" in b.status, b.status
