@@ -143,3 +143,26 @@ def unit_search_options(*, max_points: int, ds_max: float, newton_tol: float = 1
                              newton=NewtonOptions(tol_residual=newton_tol, max_iter=12))
     return SearchOptions(tolerance=tolerance, continuation=co, workers=1,
                          newton=NewtonOptions(tol_residual=newton_tol, max_iter=seed_iterations, line_search=True))
+
+
+def forced_standin_residual(method: str = "dlft", n_harmonics: int = 8, n_time: int = 128, rotation: int = 1,
+                            **contact):
+    """The HBM residual of standin_rom(rotation=rotation) forced at engine order 2 on a
+    boundary dof and a modal dof (50 and 20 N: dR/domega has a force part), contact options
+    from `contact` (e.g. mu=0.15). With perturbed_state, a state in contact part of the period."""
+    from hbm.harmonic.condensation import HarmonicForcing
+    from hbm.harmonic.residual import build_residual
+    from hbm.options import CasingOptions, ContactOptions, HbmOptions
+
+    rom = standin_rom(rotation=rotation)
+    f = np.zeros(rom.n_dof)
+    f[[0, 30]] = [50.0, 20.0]
+    return build_residual(rom, CasingOptions(), ContactOptions(**contact),
+                          HbmOptions(n_harmonics=n_harmonics, n_time=n_time), method=method,
+                          forcing=HarmonicForcing(f, 2))
+
+
+def perturbed_state(res, seed: int = 3, omega: float = 900.0) -> np.ndarray:
+    """The linear solution at omega (rad/s) plus a random 0.3 in every scaled unknown: on
+    the stand-in, several nodes in contact part of the period, (n_u,)."""
+    return res.linear_solution(omega) + 0.3 * np.random.default_rng(seed).standard_normal(res.size)

@@ -11,10 +11,9 @@ import numpy as np
 import pytest
 
 from hbm.harmonic.fourier import FourierBasis
-from hbm.harmonic.condensation import HarmonicForcing
 from hbm.harmonic.residual import build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from support import standin_rom
+from support import forced_standin_residual, perturbed_state, standin_rom
 
 H = 1e-6
 
@@ -38,13 +37,9 @@ CASES = [("dlft", dict(mu=0.0), 1), ("dlft", dict(mu=0.15), 1), ("rl", dict(lanc
 
 @pytest.mark.parametrize("method,kw,rotation", CASES)
 def test_jacobian_matches_finite_differences(method, kw, rotation):
-    rom = standin_rom(rotation=rotation)
-    f = np.zeros(rom.n_dof)
-    f[[0, 30]] = [50.0, 20.0]  # forcing on a boundary and a modal dof: dR/domega has a force part
-    res = build_residual(rom, CasingOptions(), ContactOptions(**kw), HbmOptions(n_harmonics=5, n_time=64),
-                         method=method, forcing=HarmonicForcing(f, 2))
+    res = forced_standin_residual(method, n_harmonics=5, n_time=64, rotation=rotation, **kw)
     om = 900.0
-    u = res.linear_solution(om) + 0.3 * np.random.default_rng(3).standard_normal(res.size)
+    u = perturbed_state(res, 3, om)
     smp = res.samples(res.to_coefficients(u), om)
     assert 0.05 < smp.active.mean() < 0.95  # a mix of contact and flight
     R, Js, dw = res(u, om)
@@ -57,8 +52,7 @@ def test_jacobian_matches_finite_differences(method, kw, rotation):
     assert np.abs(Js @ V - Jfd @ V).max() <= 1e-6 * np.abs(Jfd @ V).max()
     assert np.abs(dw - dwfd).max() <= 1e-6 * np.abs(dw).max()
     if kw.get("mu"):  # the friction blocks are really there (and were checked above)
-        res0 = build_residual(rom, CasingOptions(), ContactOptions(**{**kw, "mu": 0.0}),
-                              HbmOptions(n_harmonics=5, n_time=64), method=method, forcing=HarmonicForcing(f, 2))
+        res0 = forced_standin_residual(method, n_harmonics=5, n_time=64, rotation=rotation, **{**kw, "mu": 0.0})
         assert np.abs(J - np.asarray(res0(u, om)[1])).max() > 1e-3 * np.abs(J).max()
 
 

@@ -58,20 +58,13 @@ def test_boundary_modes_frequencies_and_shapes():
 def _bordered_system():
     """A friction state of the stand-in ROM (several nodes in contact), its structured and
     dense Jacobians, and a preconditioner from another state and speed."""
-    from hbm.harmonic.condensation import HarmonicForcing
     from hbm.harmonic.preconditioner import ContactPreconditioner
-    from hbm.harmonic.residual import build_residual
-    from hbm.options import CasingOptions, ContactOptions, HbmOptions
-    from support import standin_rom
+    from support import forced_standin_residual, perturbed_state
 
-    rom = standin_rom()
-    f = np.zeros(rom.n_dof)
-    f[[0, 30]] = [50.0, 20.0]
-    res = build_residual(rom, CasingOptions(), ContactOptions(mu=0.15), HbmOptions(n_harmonics=8, n_time=128),
-                         method="dlft", forcing=HarmonicForcing(f, 2))
+    res = forced_standin_residual("dlft", mu=0.15)
 
     def state(seed, omega):
-        return res.linear_solution(omega) + 0.3 * np.random.default_rng(seed).standard_normal(res.size), omega
+        return perturbed_state(res, seed, omega), omega
 
     R, Js, rw = res(*state(3, 900.0))
     old = ContactPreconditioner(res(*state(4, 880.0))[1])

@@ -13,12 +13,9 @@
 import numpy as np
 import pytest
 
-from hbm.harmonic.condensation import HarmonicForcing
-from hbm.harmonic.residual import build_residual
 from hbm.harmonic.solver import HbmSolver
 from hbm.harmonic.start import pad_harmonics
-from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from support import standin_rom
+from support import forced_standin_residual, perturbed_state
 
 
 def _signal(coeffs: np.ndarray, tau: np.ndarray) -> np.ndarray:
@@ -45,13 +42,9 @@ def test_padding_keeps_the_shared_harmonics_and_zeroes_the_rest(n_from, n_to):
 
 @pytest.mark.parametrize("method", ["dlft", "rl"])
 def test_frictionless_bordered_step_needs_no_krylov_iteration(method):
-    rom = standin_rom()
-    f = np.zeros(rom.n_dof)
-    f[[0, 30]] = [50.0, 20.0]
-    res = build_residual(rom, CasingOptions(), ContactOptions(mu=0.0), HbmOptions(n_harmonics=5, n_time=64),
-                         method=method, forcing=HarmonicForcing(f, 2))
+    res = forced_standin_residual(method, n_harmonics=5, n_time=64, mu=0.0)
     om = 900.0
-    u = res.linear_solution(om) + 0.3 * np.random.default_rng(3).standard_normal(res.size)
+    u = perturbed_state(res, 3, om)
     assert res.samples(res.to_coefficients(u), om).active.any()  # contact: J is not Z_r alone
     R, Js, c = res(u, om)
     rng = np.random.default_rng(7)

@@ -10,25 +10,13 @@ Each answer is also checked against numpy's dense solve of the same J.
 import numpy as np
 import pytest
 
-from hbm.harmonic.condensation import HarmonicForcing
-from hbm.harmonic.residual import build_residual
 from hbm.harmonic.solver import HbmSolver
-from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from support import standin_rom
+from support import forced_standin_residual, perturbed_state
 
 
 def _jacobians():
-    rom = standin_rom()
-    f = np.zeros(rom.n_dof)
-    f[[0, 30]] = [50.0, 20.0]
-    res = build_residual(rom, CasingOptions(), ContactOptions(mu=0.15), HbmOptions(n_harmonics=5, n_time=64),
-                         method="dlft", forcing=HarmonicForcing(f, 2))
-
-    def jac(seed, omega):
-        u = res.linear_solution(omega) + 0.3 * np.random.default_rng(seed).standard_normal(res.size)
-        return res(u, omega)[1]
-
-    return jac(3, 900.0), jac(4, 880.0)
+    res = forced_standin_residual("dlft", n_harmonics=5, n_time=64, mu=0.15)
+    return (res(perturbed_state(res, 3, 900.0), 900.0)[1], res(perturbed_state(res, 4, 880.0), 880.0)[1])
 
 
 @pytest.mark.parametrize("margin,expected", [(-1, 2), (0, 1), (1000, 1)])

@@ -12,14 +12,13 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hbm.harmonic.condensation import HarmonicForcing
 from hbm.harmonic.residual import build_residual
 from hbm.harmonic.nfrc import compute_nfrc, default_continuation
 from hbm.harmonic.preconditioner import ContactPreconditioner
 from hbm.harmonic.solver import HbmSolver
 from hbm.linalg.dense import DirectSolver
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from support import coarse_rom, distance_to_polyline, standin_rom
+from support import coarse_rom, distance_to_polyline, forced_standin_residual, perturbed_state
 
 
 CASES = [("dlft", 0.0), ("dlft", 0.15), ("rl", 0.0), ("rl", 0.15)]
@@ -27,13 +26,8 @@ CASES = [("dlft", 0.0), ("dlft", 0.15), ("rl", 0.0), ("rl", 0.15)]
 
 def _state(method, mu, seed=3, omega=900.0, nh=8, nt=128):
     """A residual and a state with several nodes in contact part of the period."""
-    rom = standin_rom()
-    f = np.zeros(rom.n_dof)
-    f[[0, 30]] = [50.0, 20.0]
-    res = build_residual(rom, CasingOptions(), ContactOptions(mu=mu), HbmOptions(n_harmonics=nh, n_time=nt),
-                         method=method, forcing=HarmonicForcing(f, 2))
-    u = res.linear_solution(omega) + 0.3 * np.random.default_rng(seed).standard_normal(res.size)
-    return res, u, omega
+    res = forced_standin_residual(method, n_harmonics=nh, n_time=nt, mu=mu)
+    return res, perturbed_state(res, seed, omega), omega
 
 
 def _pair(res, u, omega):
