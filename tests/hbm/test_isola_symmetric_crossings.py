@@ -174,3 +174,27 @@ def test_a_part_that_turns_without_shrinking_is_no_crossing(monkeypatch):
     monkeypatch.setattr(search_module, "_CROSSING_FRACTION", np.inf)
     (b,) = search(turning_part, seed, [primary], opts).branches
     assert "symmetric solution" in b.status, b.status
+
+
+@pytest.mark.parametrize("nu, kept", [(1, [2]), (2, [4, 2])])
+def test_symmetric_parts_of_a_two_lobe_residual_keep_the_harmonics_of_each_subgroup(nu, kept):
+    """On the HBM residual of a 2-lobe casing the images are the orbit shifted by j / (2 nu)
+    of the basis period; the projections keep exactly the harmonics k of the basis that those
+    shifts leave unchanged: with nu = 1 the even ones (the symmetric orbits), with nu = 2 the
+    multiples of 4 (symmetric) and the even ones (orbits of period T, which a period-doubled
+    branch passes through where it is born)."""
+    from hbm.harmonic.residual import build_residual
+    from hbm.isolas.search import _symmetric_parts
+    from hbm.options import CasingOptions, ContactOptions, HbmOptions
+    from support import standin_rom
+
+    res = build_residual(standin_rom(), CasingOptions(), ContactOptions(),
+                         HbmOptions(n_harmonics=8, n_time=128, subharmonic=nu), method="dlft")
+    u = np.random.default_rng(5).standard_normal(res.size)
+    parts = _symmetric_parts(u, res.images(u))
+    assert len(parts) == len(kept)
+    order = np.concatenate([[0], np.repeat(np.arange(1, 9), 2)])  # harmonic of each coefficient row
+    xr = res.to_coefficients(u)
+    for part, m in zip(parts, kept):  # harmonics that are multiples of m
+        expected = np.where((order % m == 0)[:, None], xr, 0.0)
+        np.testing.assert_allclose(res.to_coefficients(part), expected, atol=1e-12 * np.abs(xr).max())
