@@ -23,7 +23,10 @@ Two phases:
    chord from its previous point passes within the tolerance of that branch's polyline (a
    branch that only touches another, tangentially, closer than the tolerance meets it, and
    merges into it: the tolerance is the resolution of "the same solution"; one that stays
-   farther does not). A half that crosses a branch ends there, on its first point past it:
+   farther does not), or when its part without the residual's symmetry turns over through
+   zero between two points and the symmetric solution there lies on that branch (a
+   symmetry-breaking pitchfork, which the polyline test misses where the chords cut a bend:
+   _symmetric_crossing). A half that crosses a branch ends there, on its first point past it:
    a branch crossing another twice is continued between the crossings only, and a later
    seed beyond them gives another branch. That last step past a crossing is left out of
    the polyline later halves and seeds are measured against (_meeting_polyline): a half
@@ -521,7 +524,7 @@ def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solve
     rotor 67 scene both treatments' 3 Omega = w_1 branches crossed their primary NFRC twice
     unseen and were called closed isolas). So the crossing is located on the chord (where
     its non-symmetric part is smallest), projected on the symmetric subspace, solved by
-    Newton at its Omega (a symmetric start stays symmetric) and tested with lies_on, which
+    Newton at its Omega (a symmetric start stays symmetric) and tested with lies_on_any, which
     refines near a polyline's bends."""
     pi, qi = images(residual, prev.x), images(residual, p.x)
     if not pi:
