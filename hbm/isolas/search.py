@@ -485,7 +485,8 @@ def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float,
     search_options, then the branch of `others` the chord crosses at a symmetric solution
     (_symmetric_crossing, merging False). None: none."""
     prev_images = [prev.x, *images(residual, prev.x)]
-    for q, xq in enumerate([p.x, *images(residual, p.x)]):
+    p_images = [p.x, *images(residual, p.x)]
+    for q, xq in enumerate(p_images):
         for label, idx, b in others:
             d, xn, wn = segment_polyline_distance(prev_images[q], prev.omega, xq, p.omega, b, opts.x_scale,
                                                   opts.omega_scale, within=tol)
@@ -494,7 +495,7 @@ def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float,
                                                  for t in (prev, p)]
                 return label + (", an image of it" if q else ""), idx, _parallel(tail, b, xn, wn, opts)
     if search_options is not None:
-        return _symmetric_crossing(residual, prev, p, others, search_options, solver)
+        return _symmetric_crossing(residual, prev, p, others, search_options, solver, prev_images[1:], p_images[1:])
     return None
 
 
@@ -512,9 +513,10 @@ def _symmetric_parts(x: np.ndarray, x_images: list) -> list[np.ndarray]:
 _CROSSING_FRACTION = 0.25
 
 
-def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solver):
+def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solver, pi: list, qi: list):
     """(label, index, False) of the branch of `others` that the chord from prev to p crosses
-    where it passes through solutions a symmetry leaves unchanged; None: none.
+    where it passes through solutions a symmetry leaves unchanged; None: none. pi, qi:
+    images(residual, x) of prev.x and p.x (the caller's, computed once a point).
 
     A branch of solutions without the casing's symmetry (odd harmonics of Omega with two
     lobes) meets the symmetric branch it bifurcates from at a symmetry-breaking pitchfork,
@@ -526,7 +528,6 @@ def _symmetric_crossing(residual, prev, p, others, options: SearchOptions, solve
     its non-symmetric part is smallest), projected on the symmetric subspace, solved by
     Newton at its Omega (a symmetric start stays symmetric) and tested with lies_on_any, which
     refines near a polyline's bends."""
-    pi, qi = images(residual, prev.x), images(residual, p.x)
     if not pi:
         return None
     co = options.continuation
