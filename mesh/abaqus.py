@@ -37,10 +37,10 @@ INPUT= on *NODE, *ELEMENT, *NSET, *ELSET and *BOUNDARY (data lines in another fi
 CalculiX does not read there either: write them in the deck or *INCLUDE them); a keyword
 line continued on the next one (ending in "," before a line of parameters), which
 CalculiX rejects as well. A keyword line merely ending in "," is read, as CalculiX does.
-Refused too, naming both lines: a node id or a solid element id defined twice (two meshes
-written with overlapping numbering; CalculiX refuses the element, and keeps the last
-coordinates of the node without a word). Skipped elements' ids are not checked: their data
-lines are not parsed (one element a line is assumed only where a set names them).
+Refused too, naming both lines: a node id or an element id defined twice, a skipped
+element's too (two meshes written with overlapping numbering; CalculiX refuses the element,
+a shell with a solid's id as well, and keeps the last coordinates of the node without a
+word). A skipped element's line is read for its id only: one element a line.
 """
 from __future__ import annotations
 
@@ -324,6 +324,7 @@ def read_deck(path: Path) -> SourceMesh:
     node_chunks, node_set_ids, elem_set_ids = [], {}, {}  # set name -> (listed ids, GENERATE'd ids)
     elements = []  # (type, ids (k,), node ids (k, n), where)
     ignored, skipped = {}, []  # skipped: (data lines, where) of non-solid elements, for sets
+    skipped_ids = []  # (ordinal of the *ELEMENT block, numbers per line, ids): checked for repeats
     boundary = []  # (node id or set name, dofs, where)
     node_blocks, element_blocks = [], []  # (ordinal of the *NODE / *ELEMENT block, numbers per record)
     ordinal = {"NODE": -1, "ELEMENT": -1}
@@ -360,8 +361,10 @@ def read_deck(path: Path) -> SourceMesh:
             if m is None:  # skipped, but a set may name its elements (a root skin of S8R...)
                 ignored[etype] = ignored.get(etype, 0) + len(data)
                 skipped.append((data, where))
+                ids = _skipped_ids(data, where)
+                skipped_ids.append((ordinal["ELEMENT"], len(_tokens(data[:1])), np.asarray(ids, dtype=np.int64)))
                 if "ELSET" in params:
-                    elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))[0].extend(_skipped_ids(data, where))
+                    elem_set_ids.setdefault(params["ELSET"].upper(), ([], []))[0].extend(ids)
                 continue
             n = int(m.group(1))
             vals = _numbers(data, np.int64, where)
@@ -419,8 +422,7 @@ def read_deck(path: Path) -> SourceMesh:
             f"{at[0]}: node id {int(node_ids[later])} is defined twice, first at {at[1]}"
             f"{' (same coordinates)' if same else ', with other coordinates'}: two meshes written with "
             "overlapping numbering? Renumber one so that every *NODE id is defined once")
-    if elements:
-        _refuse_repeated_elements(path, elements, element_blocks)
+    _refuse_repeated_elements(path, [(*b, e[1]) for b, e in zip(element_blocks, elements)] + skipped_ids)
 
     def index(ids, what):
         ids = np.asarray(ids, dtype=np.int64)
@@ -461,15 +463,22 @@ def read_deck(path: Path) -> SourceMesh:
                       files=(path, *included_files(path)), unknown_ids=unknown_ids)
 
 
-def _refuse_repeated_elements(path: Path, elements: list, element_blocks: list) -> None:
-    """Refuse a solid element id defined twice: the deck is broken (two meshes written with
-    overlapping numbering), and CalculiX refuses it ("*ERROR reading *ELEMENT"). Both lines
-    are named; they are looked up only then, by reading the deck again."""
-    ids = np.concatenate([e[1] for e in elements])
+def _refuse_repeated_elements(path: Path, blocks: list) -> None:
+    """Refuse an element id defined twice, solid or skipped (a shell whose id a solid already
+    has): the deck is broken (two meshes written with overlapping numbering), and CalculiX
+    refuses it ("*ERROR reading *ELEMENT", a shell's id too), and a set naming the id would
+    take both elements' nodes. Both lines are named; they are looked up only then, by reading
+    the deck again. blocks: (ordinal of the *ELEMENT block, numbers per record, ids) for each
+    block read, solid or skipped, in any order."""
+    blocks = sorted(blocks, key=lambda b: b[0])  # file order
+    if not blocks:
+        return
+    ids = np.concatenate([b[2] for b in blocks])
     if np.unique(ids).size == ids.size:
         return
     later, first = _first_repeat(ids)
-    at = [_record_line(path, "ELEMENT", element_blocks, [len(e[1]) for e in elements], k) for k in (later, first)]
+    at = [_record_line(path, "ELEMENT", [b[:2] for b in blocks], [len(b[2]) for b in blocks], k)
+          for k in (later, first)]
     raise MeshImportError(f"{at[0]}: element id {int(ids[later])} is defined twice, first at {at[1]}: two meshes "
                           "written with overlapping numbering? Renumber one so that every *ELEMENT id is defined once")
 

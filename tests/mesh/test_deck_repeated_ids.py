@@ -106,3 +106,35 @@ def test_a_node_id_defined_twice_is_refused_with_both_lines(moved, tmp_path):
     what = ", with other coordinates" if moved else r" \(same coordinates\)"
     _refused(deck, rf"nodes\.inp:{repeat}: node id 14 is defined twice, first at nodes\.inp:{first}{what}: .*"
                    r"Renumber one so that every \*NODE id is defined once")
+
+
+@pytest.mark.parametrize("where", ["after the solids", "before the solids", "two skins"])
+def test_a_skipped_element_with_a_taken_id_is_refused_with_both_lines(where, tmp_path):
+    """A shell is skipped, but its id is the deck's all the same: CalculiX refuses an S3 whose
+    id a C3D10 has ("*ERROR reading *ELEMENT: element 1", ccx 2.20), and an *NSET, ELSET= naming
+    the id would take both elements' nodes. Two skins repeating an id among themselves too."""
+    solids = ["*ELEMENT, TYPE=C3D10, ELSET=EALL"] + _tet10_element(1, 1) + _tet10_element(2, 11)
+    if where == "after the solids":
+        lines = ["*HEADING"] + NODES + solids + ["*ELEMENT, TYPE=S3, ELSET=SKIN", "5, 1, 2, 3", "2, 11, 12, 13"]
+        first, repeat = _line_of(lines, "2, 11, 12, 13, ")[0], lines.index("2, 11, 12, 13") + 1
+    elif where == "before the solids":
+        lines = ["*HEADING"] + NODES + ["*ELEMENT, TYPE=S3, ELSET=SKIN", "2, 11, 12, 13,"] + solids
+        first, repeat = lines.index("2, 11, 12, 13,") + 1, _line_of(lines, "2, 11, 12, 13, ")[0]
+    else:
+        lines = (["*HEADING"] + NODES + solids + ["*ELEMENT, TYPE=S3, ELSET=SKIN", "7, 1, 2, 3"]
+                 + ["*ELEMENT, TYPE=S6, ELSET=SKIN2", "8, 1, 2, 3, 5, 6, 7", "7, 11, 12, 13, 15, 16, 17"])
+        first, repeat = lines.index("7, 1, 2, 3") + 1, lines.index("7, 11, 12, 13, 15, 16, 17") + 1
+    deck = _write(tmp_path / "skin.inp", lines)
+    eid = 7 if where == "two skins" else 2
+    _refused(deck, rf"skin\.inp:{repeat}: element id {eid} is defined twice, first at skin\.inp:{first}: .*")
+
+
+def test_skipped_elements_with_their_own_ids_are_read_as_before(tmp_path):
+    """A root skin numbered apart from the solids: skipped and counted, its nodes still taken
+    by a set of its elements."""
+    lines = (["*HEADING"] + NODES + ["*ELEMENT, TYPE=C3D10, ELSET=EALL"] + _tet10_element(1, 1)
+             + _tet10_element(2, 11) + ["*ELEMENT, TYPE=S3, ELSET=SKIN", "3, 1, 2, 3", "4, 11, 12, 13,"]
+             + ["*NSET, NSET=ROOT, ELSET=SKIN"])
+    mesh = read_deck(_write(tmp_path / "skin.inp", lines))
+    assert mesh.ignored == {"S3": 2}
+    assert sorted(mesh.node_ids[mesh.node_sets["ROOT"]].tolist()) == [1, 2, 3, 11, 12, 13]
