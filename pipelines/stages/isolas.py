@@ -16,7 +16,8 @@ searches of a treatment in its group.
 
 Layout of isolas.h5 (root: the usual provenance attributes):
   /<method>/ per treatment ("dlft", "rl"); attrs n_seeds, n_converged, n_distinct,
-      n_branches, cpu_time (s), wall_time (s), status (str)
+      n_branches, cpu_time (s), wall_time (s; a resumed search's counts the interrupted
+      runs' time up to their last saved step), status (str)
   /<method>/seeds/ omega (s,) rad/s; origin (s,) fixed-length ASCII; converged (s,) bool;
       branch (s,) int (the branch it lies on; -1 not converged, -2 on the primary NFRC);
       the period-doubled search's seeds last, their branches numbered after the first's
@@ -237,6 +238,19 @@ class _Partial:
         except (OSError, KeyError, ValueError):
             return None, []
 
+    def spent(self, method: str) -> float:
+        """Wall time (s) the interrupted run(s) of these inputs spent on `method` up to their
+        last saved step: a resumed search's wall time is theirs plus the resume's."""
+        import h5py
+
+        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+            return 0.0
+        try:
+            with h5py.File(self.path, "r") as h5:
+                return float(h5[method].attrs.get("wall_time", 0.0)) if method in h5 else 0.0
+        except (OSError, KeyError, ValueError):
+            return 0.0
+
     def _open(self):
         if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
             h5 = art.open_in_place(self.path, "w")
@@ -244,7 +258,8 @@ class _Partial:
             return h5
         return art.open_in_place(self.path, "a")
 
-    def corrections(self, method: str, c, seeds=None) -> None:
+    def corrections(self, method: str, c, seeds=None, wall: float = 0.0) -> None:
+        """wall: s spent on `method` so far, resumed runs included (see `spent`)."""
         with self._open() as h5:
             if method in h5:
                 del h5[method]
@@ -254,11 +269,15 @@ class _Partial:
                 g["corrections"].attrs["seeds_digest"] = _seeds_digest(seeds)
             g.create_group("branches")
             g.attrs["n_branches"] = 0
+            g.attrs["wall_time"] = float(wall)
             _count_branches(h5)
 
-    def branch(self, method: str, index: int, fb, nu: int) -> None:
+    def branch(self, method: str, index: int, fb, nu: int, wall: float | None = None) -> None:
+        """wall: as in `corrections`, at this branch's end (None: left as it is)."""
         with self._open() as h5:
             g = h5[method]
+            if wall is not None:
+                g.attrs["wall_time"] = float(wall)
             name = f"{index:03d}"
             if name in g["branches"]:
                 old = g["branches"][name]
@@ -498,9 +517,12 @@ def _compute(ctx: Context, outputs) -> None:
         corrections, done = partial.resume(key, seeds) if root else (None, [])
         if comm is not None:
             corrections, done = comm.bcast((corrections, done), root=0)
+        # the wall time of the runs this one resumes: the search's wall time is all of them
+        before = partial.spent(key) if root and corrections is not None else 0.0
         if root and corrections is not None:
             ctx.log(f"  {label}: resuming: seeds corrected, {len(done)} branches on disk")
         t0 = time.perf_counter()
+        spent = lambda: before + time.perf_counter() - t0  # noqa: E731
         with ctx.progress.step(f"isolas {label}", len(seeds)) as update:
             def on_progress(phase, d, total):
                 if phase == "seeds":
@@ -513,10 +535,10 @@ def _compute(ctx: Context, outputs) -> None:
                             bifurcation_points=bif, primaries=primaries,
                             describe=BranchDescriber(problem, problem.hbm.stability, (co.x_scale, co.omega_scale),
                                                      stab),
-                            on_corrections=lambda c: partial.corrections(key, c, seeds) if root else None,
-                            on_branch=lambda i, fb: partial.branch(key, i, fb, res.nu) if root else None,
+                            on_corrections=lambda c: partial.corrections(key, c, seeds, spent()) if root else None,
+                            on_branch=lambda i, fb: partial.branch(key, i, fb, res.nu, spent()) if root else None,
                             on_progress=on_progress)
-        wall = time.perf_counter() - t0
+        wall = spent()
         cpu = result.cpu_time + sum(b.cpu_time for b in done)
         if root:
             kinds = result.kind_counts()  # linked pieces of one branch (several records) counted once
@@ -524,7 +546,8 @@ def _compute(ctx: Context, outputs) -> None:
             ctx.log(f"  {label}: {len(seeds)} seeds, {result.n_converged} converged ({result.n_distinct} distinct), "
                     f"{len(result.groups)} branches{records} ("
                     + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none")
-                    + f"), CPU {cpu:.0f} s, wall {wall:.0f} s")
+                    + f"), CPU {cpu:.0f} s, wall {wall:.0f} s"
+                    + (f" ({before:.0f} s of it before the resume)" if before else ""))
             for k, b in enumerate(result.branches):
                 ok = b.converged
                 h = b.extras.get("harmonics")

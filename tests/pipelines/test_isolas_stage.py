@@ -131,11 +131,16 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
                                                          "index": (np.array([0]), "-")}}},
                      n_points_computed=2, cpu_time=0.5)
     p = _Partial(tmp_path / "isolas.partial.h5", "hash-a")
-    p.corrections("dlft", c)
-    p.branch("dlft", 0, fb, 1)
-    p.corrections("rl", c)
-    p.branch("rl", 0, fb, 1)
-    p.branch("rl", 1, fb, 1)
+    assert p.spent("dlft") == 0.0  # nothing on disk: a search that starts now
+    p.corrections("dlft", c, wall=12.0)
+    assert p.spent("dlft") == 12.0
+    p.branch("dlft", 0, fb, 1, wall=30.5)
+    p.corrections("rl", c, wall=40.0)
+    p.branch("rl", 0, fb, 1)  # no wall given: what is on disk stays
+    p.branch("rl", 1, fb, 1, wall=55.0)
+    # a resumed search's wall time starts from what the interrupted runs spent
+    assert (p.spent("dlft"), p.spent("rl")) == (30.5, 55.0)
+    assert _Partial(tmp_path / "isolas.partial.h5", "hash-b").spent("dlft") == 0.0  # other inputs
     # what an interrupted run says it kept
     assert art.read_attrs(tmp_path / "isolas.partial.h5")["n_branches"] == 3
     c2, done = p.resume("dlft")
