@@ -522,7 +522,9 @@ def _compute(ctx: Context, outputs) -> None:
         if root and corrections is not None:
             ctx.log(f"  {label}: resuming: seeds corrected, {len(done)} branches on disk")
         t0 = time.perf_counter()
-        spent = lambda: before + time.perf_counter() - t0  # noqa: E731
+
+        def spent() -> float:
+            return before + time.perf_counter() - t0
         with ctx.progress.step(f"isolas {label}", len(seeds)) as update:
             def on_progress(phase, d, total):
                 if phase == "seeds":
