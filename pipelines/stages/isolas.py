@@ -214,13 +214,17 @@ class _Partial:
     def __init__(self, path, inputs_hash: str):
         self.path, self.hash = path, inputs_hash
 
+    def _ours(self) -> bool:
+        """The file exists and was written for these inputs."""
+        return self.path.is_file() and art.read_attrs(self.path).get("inputs_hash") == self.hash
+
     def resume(self, method: str, seeds=None):
         """(corrections or None, [FoundBranch]) of an interrupted run of these inputs; (None, [])
         when that run corrected other seeds than `seeds` (given: e.g. a sweep computed again
         under the same inputs brings other seeds from time integration)."""
         import h5py
 
-        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+        if not self._ours():
             return None, []
         try:
             with h5py.File(self.path, "r") as h5:
@@ -243,7 +247,7 @@ class _Partial:
         last saved step: a resumed search's wall time is theirs plus the resume's."""
         import h5py
 
-        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+        if not self._ours():
             return 0.0
         try:
             with h5py.File(self.path, "r") as h5:
@@ -252,7 +256,7 @@ class _Partial:
             return 0.0
 
     def _open(self):
-        if not self.path.is_file() or art.read_attrs(self.path).get("inputs_hash") != self.hash:
+        if not self._ours():
             h5 = art.open_in_place(self.path, "w")
             h5.attrs["inputs_hash"] = self.hash
             return h5

@@ -7,7 +7,6 @@ wrong: here a copy with the axial and the radius factors changed, read against t
 numbers times the factors. Blade counts: NASA rotor 67 has 22 blades (the table's NB),
 rotor 37 has 36 (NASA TP-1659; its table does not say, shared/data/README.md).
 """
-import numpy as np
 import pytest
 
 from support import SHARED
