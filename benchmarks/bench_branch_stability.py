@@ -1,10 +1,14 @@
 """Which branches of an isola search a blade can be found on: Floquet multipliers (Hill's
 method, hbm.stability.spectrum.orbit_spectrum) at every k-th point of every branch of
 OUT/isolas.h5, then time integration (100 periods, the validation stage's march and
-verdict) from up to --march stable points per branch, spread over its stable points.
+verdict) from up to --march stable points per branch: spread over its stable points (the
+first and last included), or with --picks centres the middle analysed point of each of its
+longest stretches of stable analysed points (away from where stability changes: next to a
+fold or a pitchfork the stable and unstable orbits are closer than the HBM orbit is to time
+integration's own, and a march from there can fall either way).
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT [--scene scenes/rotor67_coarse.toml]
-        [--every 6] [--march 3] [--methods dlft rl] [--kinds isola detached]
+        [--every 6] [--march 3] [--picks spread|centres] [--methods dlft rl] [--kinds isola detached]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --window-check 12
         [--branches rl/007 dlft/008] [--seed 1]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --monitor --branches rl/006
@@ -63,6 +67,9 @@ def main() -> None:
     ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67_coarse.toml")
     ap.add_argument("--every", type=int, default=6, help="analyse every k-th point of a branch")
     ap.add_argument("--march", type=int, default=3, help="time integrations per branch, from its stable points")
+    ap.add_argument("--picks", choices=("spread", "centres"), default="spread",
+                    help="march from stable points spread over all of them, or from the middles of the longest "
+                         "stable stretches")
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
     ap.add_argument("--kinds", nargs="+", default=["isola", "detached", "bifurcated"])
     ap.add_argument("--window-check", type=int, default=0, metavar="N",
@@ -121,9 +128,7 @@ def main() -> None:
                   f"{largest.min():.3g} to {largest.max():.3g} (median {np.median(largest):.3g}); minimal period "
                   f"T / g, g in {sorted(ratios)}; one analysis {np.median(cost):.2f} s CPU (median); "
                   f"{time.process_time() - t0:.0f} s CPU", flush=True)
-            picks = idx[stable]
-            if len(picks) > a.march:
-                picks = picks[np.linspace(0, len(picks) - 1, a.march).round().astype(int)]
+            picks = _picks(idx, stable, a.march, a.picks)
             for i in picks:
                 ti = march_from_hbm(system, scene.casing, scene.contact.mu,
                                     res.expand_harmonics(br.x[i], float(br.omega[i])), float(br.omega[i]),
@@ -132,6 +137,24 @@ def main() -> None:
                       f"{ti.verdict().replace('leaves', 'LEAVES', 1)} (growth {ti.growth:.2f}, last deviation "
                       f"{ti.last_deviation:.3g}), contact force at the end up to {ti.force_peak.max():.0f} N",
                       flush=True)
+
+
+def _picks(idx: np.ndarray, stable: np.ndarray, n: int, how: str) -> np.ndarray:
+    """Up to n point indices among the analysed idx whose flag in stable is set: spread over
+    them (first and last included), or the middle of each of the n longest runs of
+    consecutive stable analysed points, in branch order."""
+    picks = idx[stable]
+    if how == "spread":
+        return picks[np.linspace(0, len(picks) - 1, n).round().astype(int)] if len(picks) > n else picks
+    runs, start = [], None
+    for k, s in enumerate(list(stable) + [False]):
+        if s and start is None:
+            start = k
+        elif not s and start is not None:
+            runs.append((start, k))
+            start = None
+    runs = sorted(runs, key=lambda r: r[0] - r[1])[:n]  # longest first (stable sort: branch order on ties)
+    return np.array(sorted(idx[(a + b - 1) // 2] for a, b in runs), dtype=int)
 
 
 def _window_check(out: Path, method: str, br, res, n: int, seed: int) -> None:

@@ -6,8 +6,12 @@ the point), and Hill's method on each.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_rl_penalty.py OUT --scene scenes/rotor67.toml
         [--kappas 1e9,3e9,1e10,3e10,1e11] [--gamma G] [--nfrc rl --omegas 1459.5]
+        [--branch rl/001 --indices 10,54]
 
-Needs OUT/rom.h5 and OUT/validation.h5. Prints, per point: DLFT's largest multiplier
+--branch METHOD/NNN --indices: those points of a branch of OUT/isolas.h5 instead (a branch
+can pass a speed several times, so points are named by index).
+
+Needs OUT/rom.h5 and OUT/validation.h5 (or OUT/isolas.h5 with --branch). Prints, per point: DLFT's largest multiplier
 modulus and unstable count, then per kappa the distance of RL's orbit to DLFT's (relative
 2-norm of the harmonic coefficients) and RL's largest modulus and unstable count. The
 scene's kappa should come first: the validation stage compared the treatments there.
@@ -42,12 +46,17 @@ def main(argv=None) -> None:
     p.add_argument("--gamma", type=float, default=None, help="RL regularisation, N (default: the scene's)")
     p.add_argument("--nfrc", choices=("dlft", "rl"), help="the points of nfrc_METHOD.h5 nearest --omegas instead")
     p.add_argument("--omegas", type=lambda t: [float(v) for v in t.split(",")], default=[], help="rad/s")
+    p.add_argument("--branch", metavar="METHOD/NNN", help="points of this branch of OUT/isolas.h5 instead")
+    p.add_argument("--indices", type=lambda t: [int(v) for v in t.split(",")], default=[],
+                   help="with --branch: the branch's point indices")
     a = p.parse_args(argv)
     if a.nfrc and not a.omegas:
         p.error("--nfrc needs --omegas")
+    if a.branch and not a.indices:
+        p.error("--branch needs --indices")
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
-    val = read_validation(a.out)
+    val = None if (a.nfrc or a.branch) else read_validation(a.out)
     n_r = 3 * rom.n_boundary
     tol = scene.hbm.tolerance
     kappas = [float(k) for k in a.kappas.split(",")]
@@ -68,7 +77,8 @@ def main(argv=None) -> None:
         own = build_residual(rom, scene.casing, scene.contact, opts, method=method)
         c_pt = own.to_coefficients(pt.u)
         ti = ti_verdict(pt.ti, rom, scene.contact.mu) if pt.ti is not None else "not marched here"
-        print(f"{method.upper()} {kind} {om:.1f} rad/s (time integration: {ti})")
+        amp = f", LE {1e3 * pt.le_amplitude:.3f} mm" if getattr(pt, "le_amplitude", None) is not None else ""
+        print(f"{method.upper()} {kind} {om:.1f} rad/s{amp} (time integration: {ti})")
         if method == "dlft":
             c_d = c_pt
         else:
@@ -98,6 +108,19 @@ def points(a, val, kinds):
 
     from pipelines.branch_store import load_branch
 
+    if a.branch:
+        from pipelines.stages.isolas import read_isolas
+
+        method, _, index = a.branch.partition("/")
+        rows = {b.index: b for b in read_isolas(a.out / "isolas.h5").get(method, [])}
+        if int(index) not in rows:
+            raise SystemExit(f"{a.out / 'isolas.h5'} has no branch {a.branch}")
+        b = rows[int(index)]
+        for i in a.indices:
+            yield method, f"{a.branch} point {i}", SimpleNamespace(
+                omega=float(b.omega[i]), u=b.x[i], subharmonic=b.subharmonic, ti=None,
+                le_amplitude=float(b.le_amplitude[i]))
+        return
     if not a.nfrc:
         for method in ("dlft", "rl"):
             for kind in kinds:
