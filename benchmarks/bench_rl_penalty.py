@@ -11,9 +11,10 @@ the point), and Hill's method on each.
 --branch METHOD/NNN --indices: those points of a branch of OUT/isolas.h5 instead (a branch
 can pass a speed several times, so points are named by index).
 
-Needs OUT/rom.h5 and OUT/validation.h5 (or OUT/isolas.h5 with --branch). Prints, per point: DLFT's largest multiplier
-modulus and unstable count, then per kappa the distance of RL's orbit to DLFT's (relative
-2-norm of the harmonic coefficients) and RL's largest modulus and unstable count. The
+Needs OUT/rom.h5 and OUT/validation.h5 (or OUT/isolas.h5 with --branch). Prints, per point:
+DLFT's LE amplitude, largest multiplier modulus and unstable count, then per kappa RL's LE
+amplitude, the distance of its orbit to DLFT's (relative 2-norm of the harmonic
+coefficients; none when DLFT has no orbit there) and its largest modulus and unstable count. The
 scene's kappa should come first: the validation stage compared the treatments there.
 """
 from __future__ import annotations
@@ -31,6 +32,7 @@ sys.path.insert(0, str(ROOT))
 
 def main(argv=None) -> None:
     from hbm.continuation.newton import NewtonOptions
+    from hbm.harmonic.nfrc import nfrc_extras
     from hbm.harmonic.residual import build_residual
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
@@ -83,11 +85,12 @@ def main(argv=None) -> None:
             c_d = c_pt
         else:
             s = solve(dl, c_pt)
-            if not s.converged:
+            c_d = dl.to_coefficients(s.x) if s.converged else None
+            if c_d is None:
                 print(f"  DLFT: no solution at this Omega ({s.reason})")
-                continue
-            c_d = dl.to_coefficients(s.x)
-        print(f"  DLFT: largest |mu| {verdict(dl, dl.to_unknowns(c_d), om)}")
+        if c_d is not None:
+            print(f"  DLFT: LE {1e3 * nfrc_extras(dl, dl.to_unknowns(c_d))['le_amplitude']:.3f} mm, "
+                  f"largest |mu| {verdict(dl, dl.to_unknowns(c_d), om)}")
         start = c_pt
         for kappa in kappas:
             contact = replace(scene.contact, kappa=kappa, **({} if a.gamma is None else {"gamma": a.gamma}))
@@ -97,8 +100,9 @@ def main(argv=None) -> None:
                 print(f"  RL kappa {kappa:.0e} N/m: no solution ({s.reason})")
                 continue
             start = rl.to_coefficients(s.x)
-            dist = np.linalg.norm(start - c_d) / np.linalg.norm(c_d)
-            print(f"  RL kappa {kappa:.0e} N/m: {dist:.1%} from DLFT, largest |mu| {verdict(rl, s.x, om)}")
+            dist = "" if c_d is None else f"{np.linalg.norm(start - c_d) / np.linalg.norm(c_d):.1%} from DLFT, "
+            print(f"  RL kappa {kappa:.0e} N/m: LE {1e3 * nfrc_extras(rl, s.x)['le_amplitude']:.3f} mm, {dist}"
+                  f"largest |mu| {verdict(rl, s.x, om)}")
 
 
 def points(a, val, kinds):
