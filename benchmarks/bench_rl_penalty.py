@@ -113,13 +113,12 @@ def points(a, val, kinds):
     from pipelines.branch_store import load_branch
 
     if a.branch:
-        from pipelines.stages.isolas import read_isolas
+        from pipelines.stages.validation import read_branch_set
 
-        method, _, index = a.branch.partition("/")
-        rows = {b.index: b for b in read_isolas(a.out / "isolas.h5").get(method, [])}
-        if int(index) not in rows:
+        method, name = a.branch.split("/")
+        b = next((b for b in read_branch_set(a.out / "isolas.h5", method) if b.name == name), None)
+        if b is None:
             raise SystemExit(f"{a.out / 'isolas.h5'} has no branch {a.branch}")
-        b = rows[int(index)]
         for i in a.indices:
             yield method, f"{a.branch} point {i}", SimpleNamespace(
                 omega=float(b.omega[i]), u=b.x[i], subharmonic=b.subharmonic, ti=None,

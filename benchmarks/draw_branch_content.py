@@ -39,17 +39,16 @@ def main(argv=None) -> None:
     ap.add_argument("--png", type=Path, help="draw the branches' harmonic content there")
     a = ap.parse_args(argv)
 
-    found = read_isolas(a.out / "isolas.h5")
+    found = read_isolas(a.out / "isolas.h5")  # read once: the branches are looked up by name below
     rom = read_rom(a.out)
     omega_j = rom_modes(rom.K, rom.M)[0][:4]
     print("modes (rad/s): " + ", ".join(f"{j + 1}: {w:.1f}" for j, w in enumerate(omega_j)))
     curves = {}
     for name in a.branches:
-        method, _, index = name.partition("/")
-        rows = {b.index: b for b in found.get(method, [])}
-        if int(index) not in rows:
+        method, nnn = name.split("/")
+        b = next((b for b in found.get(method, []) if b.name == nnn), None)
+        if b is None:
             raise SystemExit(f"{a.out / 'isolas.h5'} has no branch {name}")
-        b = rows[int(index)]
         if b.harmonic_contribution is None or b.modal_contribution is None:
             raise SystemExit(f"branch {name} carries no content (isolas.h5 written without it)")
         ok = b.converged
