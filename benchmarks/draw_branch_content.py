@@ -1,10 +1,10 @@
 """Dynamical content (paper Figs. 11 and 12) along chosen branches of an isola search, whatever
-their kind (the stage draws its isolas only), and the figures the README quotes from it: for
-every crossing k Omega = omega_j of a harmonic k of Omega in --harmonics (column k nu on a
-branch of basis Omega / nu) with one of the ROM's first four modes inside a branch's span,
-the largest |c_k| of the LE radial displacement within --window of the crossing's speed,
-where it lies, and that mode's relative contribution there (eqs. (32)-(34), as stored in
-isolas.h5), against their medians over the branch.
+their kind, on one figure (the stage draws each treatment's on its own), and the figures the
+README quotes from it: for every crossing k Omega = omega_j of a harmonic k of Omega in
+--harmonics (column k nu on a branch of basis Omega / nu) with one of the ROM's first four
+modes inside a branch's span, the largest |c_k| of the LE radial displacement within
+--window of the crossing's speed, where it lies, and that mode's relative contribution there
+(eqs. (32)-(34), as stored in isolas.h5), against their medians over the branch.
 
     PYTHONPATH=. .venv/bin/python benchmarks/draw_branch_content.py OUT --branches dlft/003 rl/002
         [--harmonics 8,10] [--window 0.03] [--png content.png]

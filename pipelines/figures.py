@@ -430,7 +430,7 @@ def _times_omega(k) -> str:
 
 
 def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4, 6, 8, 10), n_modes: int = 4,
-                 mode_frequencies=None) -> Path:
+                 mode_frequencies=None, max_panels: int = MAX_CONTENT_PANELS) -> Path:
     """Dynamical content along branches (paper Figs. 11 and 12) against Omega, one panel per
     branch, each drawn in its points' order (an isola is a loop in these planes too).
 
@@ -448,8 +448,8 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
     where they carry content (the five largest columns where none does), with the branch's
     largest harmonic besides (k = 3/2 on a nu = 2 branch: "k = 3/2"). Given mode_frequencies
     ((n,) rad/s), every crossing k Omega = omega_j of a drawn k with one of the first n_modes
-    modes inside the panel's span is marked (Fig. 12's dashed lines). The MAX_CONTENT_PANELS
-    branches with the most points are drawn when there are more; a branch without any finite
+    modes inside the panel's span is marked (Fig. 12's dashed lines). The max_panels branches
+    with the most points are drawn when there are more; a branch without any finite
     contribution is left out.
     """
     def masked(v):  # a point not converged (its 4th item, optional) is left out: the line breaks there
@@ -460,9 +460,9 @@ def plot_content(curves: dict, out_png, *, kind: str = "modal", harmonics=(2, 4,
 
     # a branch with no finite contribution (none of its points converged) has nothing to draw
     items = [(k, v) for k, v in ((k, masked(v)) for k, v in curves.items()) if np.isfinite(v[1]).any()]
-    dropped = max(0, len(items) - MAX_CONTENT_PANELS)
+    dropped = max(0, len(items) - max_panels)
     if dropped:
-        keep = sorted(sorted(range(len(items)), key=lambda i: -len(items[i][1][0]))[:MAX_CONTENT_PANELS])
+        keep = sorted(sorted(range(len(items)), key=lambda i: -len(items[i][1][0]))[:max_panels])
         items = [items[i] for i in keep]
     ncols = 2 if len(items) > 1 else 1
     nrows = max(1, -(-len(items) // ncols))

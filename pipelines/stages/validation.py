@@ -838,8 +838,8 @@ def _set_inputs(scene) -> tuple[str, ...]:
 
 def draw_content(ctx: Context) -> None:
     """Figs. 11 and 12 (dynamical content along the isolas, one panel per isola) when
-    isolas.h5 carries it; the harmonic panels mark where k Omega / nu meets one of the ROM's
-    first four modes."""
+    isolas.h5 carries it; the harmonic panels mark where a harmonic's frequency k Omega meets
+    one of the ROM's first four modes."""
     from hbm.harmonic.content import rom_modes
     from pipelines.figures import plot_content
 
@@ -863,6 +863,50 @@ def draw_content(ctx: Context) -> None:
     plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic", mode_frequencies=freq)
 
 
+#: Panels of a treatment's content figures: more than the search finds on rotor 67 (11 and 9
+#: branches besides the NFRC on the default and coarse scenes).
+MAX_BRANCH_PANELS = 16
+
+
+def draw_branch_content(ctx: Context) -> None:
+    """Figs. 11 and 12 along every branch of each treatment (content_modal_METHOD.png,
+    content_harmonic_METHOD.png): one panel for the NFRC ("primary") and one for each branch
+    of isolas.h5 whatever its kind, from the contributions stored with their points (the
+    isola figures hold the isolas of both treatments side by side, as the paper's do)."""
+    from hbm.harmonic.content import rom_modes
+    from pipelines.branch_store import load_branch
+    from pipelines.figures import plot_content
+
+    scene, out = ctx.scene, ctx.out
+    freq = None
+    if (out / "rom.h5").is_file():
+        rom = read_rom(out)
+        freq = rom_modes(rom.K, rom.M)[0]
+    for m in scene.hbm.methods:
+        modal, harmonic = {}, {}
+        path = out / nfrc_output(m).file
+        if path.is_file():
+            s = load_branch(path)
+            ex = s.extras
+            for store, name in ((modal, "modal_contribution"), (harmonic, "harmonic_contribution")):
+                if name in ex:
+                    store[f"{m.upper()} primary"] = (s.branch.omega, ex[name], scene.hbm.subharmonic,
+                                                     s.branch.converged)
+        for br in read_branch_set(out / ISOLAS, m):
+            label = f"{m.upper()} {br.kind} {br.name}"
+            if br.modal_contribution is not None:
+                modal[label] = (br.omega, br.modal_contribution, br.subharmonic, br.converged)
+            if br.harmonic_contribution is not None:
+                harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic, br.converged)
+        for kind, curves in (("modal", modal), ("harmonic", harmonic)):
+            plot_content(curves, out / "figures" / f"content_{kind}_{m}.png", kind=kind, mode_frequencies=freq,
+                         max_panels=MAX_BRANCH_PANELS)
+
+
+def _content_files(scene) -> tuple[str, ...]:
+    return tuple(f"content_{k}_{m}.png" for m in scene.hbm.methods for k in ("modal", "harmonic"))
+
+
 SIGNALS = Figure("validation", files=_signal_files, depends=("hbm.methods",),
                  inputs=lambda s: (VALIDATION.file,), draw=draw_time_signals)
 SOLUTION_SET = Figure("solution_set", files=_set_files,
@@ -872,6 +916,10 @@ SOLUTION_SET = Figure("solution_set", files=_set_files,
 CONTENT = Figure("isola_content", files=lambda s: ("isola_modal_content.png", "isola_harmonic_content.png"),
                  depends=("hbm.methods",), inputs=lambda s: (ISOLAS, "rom.h5"), draw=draw_content)
 
+BRANCH_CONTENT = Figure("branch_content", files=_content_files, depends=("hbm.methods", "hbm.subharmonic"),
+                        inputs=lambda s: tuple(nfrc_output(m).file for m in s.hbm.methods) + (ISOLAS, "rom.h5"),
+                        draw=draw_branch_content)
+
 STAGE = Stage("validation", depends=("casing", "contact", "ti.dt", "hbm", "validation"), upstream=UPSTREAM,
               outputs=lambda scene: (VALIDATION,) if scene.hbm.methods else (), compute=_compute,
-              figures=(SIGNALS, SOLUTION_SET, CONTENT))
+              figures=(SIGNALS, SOLUTION_SET, CONTENT, BRANCH_CONTENT))

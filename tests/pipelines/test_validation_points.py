@@ -171,11 +171,60 @@ def test_figures_are_drawn_from_the_artifacts(runs):
     figs = out / "figures"
     for name in ("solution_set.png", "solution_set_dlft.png", "solution_set_rl.png", "validation_dlft.png",
                  "validation_rl.png", "contact_dlft.png", "contact_rl.png", "isola_modal_content.png",
-                 "isola_harmonic_content.png"):
+                 "isola_harmonic_content.png", "content_modal_dlft.png", "content_harmonic_dlft.png",
+                 "content_modal_rl.png", "content_harmonic_rl.png"):
         _check_png(figs / name)
     # the overlay holds both treatments' curves: it differs from a single one
     both, one = _check_png(figs / "solution_set.png"), _check_png(figs / "solution_set_dlft.png")
     assert np.abs(both - one).max(axis=2).__gt__(0.2).sum() > 200
+
+
+def test_content_is_drawn_along_every_branch_of_each_treatment(runs, tmp_path, monkeypatch):
+    """Figs. 11 and 12 along any branch: one panel for the NFRC and one for each branch of
+    isolas.h5 whatever its kind, each line the stored column it stands for (modal: the
+    contribution of modes 1-4 and the sum of the rest; harmonic: |c_k| in mm), points not
+    converged left out."""
+    import matplotlib.pyplot as plt
+
+    from pipelines import figures
+    from pipelines.stages.base import Context
+    from pipelines.stages.validation import draw_branch_content
+
+    out, _ = runs
+    scene = clone(out, tmp_path / "content")
+    folder = scene.parent
+    write_isolas(folder / "isolas.h5", folder / "nfrc_dlft.h5", 3, 12)
+    drawn = {}
+
+    def keep(fig, path):
+        drawn[path.name] = {ax.get_title().split(",")[0]: [np.asarray(ln.get_ydata(), float) for ln in ax.get_lines()
+                                                           if ln.get_linestyle() == "-"]
+                            for ax in fig.axes if ax.get_lines()}
+        plt.close(fig)
+        return path
+
+    monkeypatch.setattr(figures, "_save", keep)
+    draw_branch_content(Context(load_scene(scene), folder, Progress(quiet=True)))
+    assert set(drawn) == {f"content_{k}_{m}.png" for k in ("modal", "harmonic") for m in ("dlft", "rl")}
+    assert set(drawn["content_modal_dlft.png"]) == {"DLFT primary", "DLFT isola 000", "DLFT bifurcated 001"}
+    assert set(drawn["content_harmonic_rl.png"]) == {"RL primary", "RL bifurcated 000", "RL detached 001"}
+    for m in ("dlft", "rl"):
+        s = load_branch(folder / f"nfrc_{m}.h5")
+        ok = s.branch.converged
+        stored = s.extras["modal_contribution"]
+        lines = drawn[f"content_modal_{m}.png"][f"{m.upper()} primary"]
+        assert len(lines) == 5  # modes 1 to 4, then the rest summed
+        for j in range(4):
+            np.testing.assert_allclose(lines[j][ok], stored[ok, j], rtol=1e-12)
+            assert np.isnan(lines[j][~ok]).all()
+        np.testing.assert_allclose(lines[4][ok], stored[ok, 4:].sum(axis=1), rtol=1e-12)
+        # the fixture's branches: 0.7, 0.2, 0.1 of modes 1-3; |c_2| = 0.8 m, |c_4| = 0.2 m
+        for label, lines in drawn[f"content_modal_{m}.png"].items():
+            if "primary" not in label:
+                assert [np.nanmax(y) for y in lines[:3]] == pytest.approx([0.7, 0.2, 0.1])
+        for label, lines in drawn[f"content_harmonic_{m}.png"].items():
+            if "primary" not in label:
+                assert sorted(np.nanmax(y) for y in lines)[-2:] == pytest.approx([200.0, 800.0])
 
 
 def test_the_solution_set_marks_the_ends_of_stable_stretches():
