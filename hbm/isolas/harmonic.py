@@ -59,13 +59,17 @@ def search_options(hbm: HbmOptions, iso: IsolaOptions) -> SearchOptions:
     on the isolas' omega range, with max_points and crawl_points per half branch; the
     seeds' Newton with backtracking and newton_iterations iterations, given up once three
     iterations in a row fail to lower the best ||R|| tenfold (hbm.continuation.newton
-    stall_iterations: most seeds never converge; this makes them cost ~4 iterations)."""
+    stall_iterations: most seeds never converge; this makes them cost ~4 iterations); the
+    seeds that are solutions of a model (Seed.of_model) get model_seed_iterations and no
+    stall rule."""
     lo, hi = iso.omega_range(hbm)
     co = replace(default_continuation(hbm), omega_min=lo, omega_max=hi, max_points=iso.max_points,
                  crawl_points=iso.crawl_points)
     newton = NewtonOptions(tol_residual=hbm.tolerance, max_iter=iso.newton_iterations, line_search=True,
                            max_halvings=4, stall_iterations=3, stall_factor=0.1)
-    return SearchOptions(tolerance=iso.tolerance, continuation=co, newton=newton, workers=iso.workers)
+    model = replace(newton, max_iter=iso.model_seed_iterations, stall_iterations=None)
+    return SearchOptions(tolerance=iso.tolerance, continuation=co, newton=newton, workers=iso.workers,
+                         model_newton=model)
 
 
 def boundary_modes(rom, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
@@ -112,7 +116,7 @@ def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np
 def rl_seeds(dlft) -> list[Seed]:
     """RL's modal seeds from a DLFT search (hbm.isolas.search.IsolaSearch on the same ROM,
     N_h and options): every distinct converged DLFT solution of a modal seed, on DLFT's
-    primary or not, origin suffixed " via DLFT".
+    primary or not, origin suffixed " via DLFT", of a model (Seed.of_model).
 
     Why: from eq. (31)'s raw seeds RL's stiff penalty (kappa = 1e9 N/m) makes Newton cost
     3 to 6 s per seed on the coarse rotor 67 ROM at N_h = 40 (GMRES stalls, dense
@@ -127,7 +131,7 @@ def rl_seeds(dlft) -> list[Seed]:
     for i in np.flatnonzero(c.converged & (c.same_as < 0)):
         sd = dlft.seeds[i]
         if sd.origin.startswith("modal"):
-            out.append(Seed(sd.omega, np.array(c.x[i]), f"{sd.origin} via DLFT"))
+            out.append(Seed(sd.omega, np.array(c.x[i]), f"{sd.origin} via DLFT", of_model=True))
     return out
 
 
@@ -146,9 +150,10 @@ def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, floa
     nu revolutions (sweep.boundary, (n_omega, n_held spr, 3 n_b), m, from Omega t = 0 mod 2 pi;
     spr samples a revolution, read from sweep.times), least-squares fitted on the residual's
     N_h. [] when the sweep holds no boundary states (a ti.h5 written before they were kept);
-    a point whose nu revolutions the file does not hold gives none. only_new_to: skip the
-    points whose orbit the basis of Omega / only_new_to holds already (e.g. 1: only the
-    period-doubled orbits, for a search at nu = 2 beside the one at nu = 1).
+    a point whose nu revolutions the file does not hold gives none. Each is of a model
+    (Seed.of_model: a time-integration orbit). only_new_to: skip the points whose orbit the
+    basis of Omega / only_new_to holds already (e.g. 1: only the period-doubled orbits, for
+    a search at nu = 2 beside the one at nu = 1).
 
     The window may start an odd number of revolutions into the march, i.e. at Omega t / nu
     = pi for nu = 2: the fit then gives the orbit shifted by one revolution, which the
@@ -178,7 +183,7 @@ def ti_seeds(res: HarmonicBalanceResidual, sweep, omega_range: tuple[float, floa
         xr = np.zeros((res.n_c, res.n_r))
         xr[: len(coef)] = coef
         label = PeriodClass(int(c)).label(n_lobes).replace(" ", "")
-        out.append(Seed(float(w), res.to_unknowns(xr), f"ti class {label} period {p} Omega={w:.6g}"))
+        out.append(Seed(float(w), res.to_unknowns(xr), f"ti class {label} period {p} Omega={w:.6g}", of_model=True))
     return out
 
 

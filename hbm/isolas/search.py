@@ -113,11 +113,15 @@ _PARALLEL_COS = 0.9
 @dataclass(frozen=True)
 class Seed:
     """A start guess: omega, rad/s; x (n,) in the residual's unknowns; origin, in words
-    (e.g. "modal j=2 k=4 A=0.0032")."""
+    (e.g. "modal j=2 k=4 A=0.0032"). of_model: x is a solution of a model (a time-integration
+    orbit, another contact treatment's HBM solution), corrected with SearchOptions.model_newton:
+    most of eq. (31)'s guesses lead nowhere and should cost little, such a seed leads
+    somewhere and is worth more iterations."""
 
     omega: float
     x: np.ndarray
     origin: str
+    of_model: bool = False
 
 
 @dataclass(frozen=True)
@@ -126,14 +130,15 @@ class SearchOptions:
     the polyline's nearest point must land within tolerance / 100 for a point closer than
     refine_ratio times the local chord. continuation: the arc length's options (its omega
     range is the search's; direction is set per half; max_points per half). newton: the
-    seeds' Newton rule (line search on). workers: local processes for the corrections
-    (None: every usable core)."""
+    seeds' Newton rule (line search on); model_newton: that of the seeds of_model (None: newton).
+    workers: local processes for the corrections (None: every usable core)."""
 
     tolerance: float
     continuation: ContinuationOptions
     newton: NewtonOptions
     workers: int | None = None
     refine_ratio: float = 0.5
+    model_newton: NewtonOptions | None = None
 
     def __post_init__(self):
         check_option("tolerance", self.tolerance, 0, low_open=True)
@@ -257,15 +262,16 @@ class _Corrector:
         self.known, self.options = list(known), options
 
     def __call__(self, items):
-        """items: [(seed index, omega, x0)] of one omega -> [(index, converged, iterations,
-        on_known, same_as, x or None)]."""
+        """items: [(seed index, omega, x0, of_model)] of one omega -> [(index, converged,
+        iterations, on_known, same_as, x or None)]."""
         out = []
         kept = []  # (index, x) of the distinct converged solutions at this omega
         tol = self.options.tolerance
         sx = self.options.continuation.x_scale  # the membership's metric (scaled unknowns)
-        for i, w, x0 in items:
+        model = self.options.model_newton or self.options.newton
+        for i, w, x0, of_model in items:
             solver = copy.deepcopy(self._solver)
-            sol = newton_solve(self.residual, x0, w, self.options.newton, solver=solver)
+            sol = newton_solve(self.residual, x0, w, model if of_model else self.options.newton, solver=solver)
             if not sol.converged or not np.all(np.isfinite(sol.x)):
                 out.append((i, False, sol.iterations, -1, -1, None))
                 continue
@@ -307,7 +313,8 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
     s = len(seeds)
     groups: dict = {}
     for i, sd in enumerate(seeds):
-        groups.setdefault(float(sd.omega), []).append((i, float(sd.omega), np.asarray(sd.x, dtype=float)))
+        groups.setdefault(float(sd.omega), []).append((i, float(sd.omega), np.asarray(sd.x, dtype=float),
+                                                       bool(sd.of_model)))
     tasks = [groups[w] for w in sorted(groups)]
     progress = on_progress or (lambda done, total: None)
     rows, cpu = [], 0.0

@@ -50,6 +50,7 @@ def test_nu_2_takes_the_period_doubled_and_the_revolution_orbits_with_their_harm
     rev[3] = 3e-4  # cos 2 of Omega / 2
     np.testing.assert_allclose(seeds[1].x, rev, atol=1e-15)
     assert "period 4" in seeds[0].origin
+    assert all(s.of_model for s in seeds)  # corrected with the search's patient Newton
 
 
 def test_nu_1_takes_the_revolution_orbit_only():

@@ -1,0 +1,72 @@
+"""Seeds that are solutions of a model (the sweep's orbits, DLFT's solutions as RL's seeds)
+get the search's patient Newton (SearchOptions.model_newton: more iterations, no stall rule);
+eq. (31)'s guesses keep the cheap one. The residual R(x) = x - 1/2 reports a Jacobian twice
+the true slope (as a kink's one-sided slope can be), so Newton converges linearly, halving
+||R|| per iteration: the stall rule (tenfold in three iterations) gives up at once, 32
+patient iterations reach 1e-10."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from hbm.continuation.newton import NewtonOptions
+from hbm.isolas.harmonic import search_options
+from hbm.isolas.options import IsolaOptions
+from hbm.isolas.search import Seed, correct_seeds
+from hbm.linalg.dense import DirectSolver
+from hbm.options import HbmOptions
+from support import unit_search_options
+
+
+class HalvingNewton:
+    def __call__(self, x, w, jacobian=True):
+        R = np.array([x[0] - 0.5])
+        if not jacobian:
+            return R
+        return R, np.array([[2.0]]), np.array([0.0])
+
+
+def halving():
+    return HalvingNewton(), DirectSolver()
+
+
+def test_a_seed_of_a_model_is_corrected_without_the_stall_rule():
+    opts = unit_search_options(max_points=10, ds_max=0.2, newton_tol=1e-10)
+    cheap = NewtonOptions(tol_residual=1e-10, max_iter=12, line_search=True, max_halvings=4, stall_iterations=3)
+    opts = replace(opts, newton=cheap, model_newton=replace(cheap, max_iter=60, stall_iterations=None))
+    seeds = [Seed(0.5, np.array([0.8]), "modal j=1 k=1"), Seed(0.5, np.array([0.8]), "ti class 1", of_model=True),
+             Seed(0.7, np.array([0.8]), "modal j=1 k=2 via DLFT", of_model=True)]
+    c = correct_seeds(halving, seeds, [], opts)
+    assert list(c.converged) == [False, True, True]
+    assert c.iterations[0] <= 4  # given up after three iterations without a tenfold fall
+    # 0.3 / 2^k <= 1e-10: k = 32
+    assert list(c.iterations[1:]) == [32, 32]
+    np.testing.assert_allclose(c.x[1:, 0], 0.5, atol=1e-10)
+    assert c.same_as[1] == -1 and np.isnan(c.x[0]).all()
+    # without a model Newton every seed takes the cheap one
+    c = correct_seeds(halving, seeds, [], replace(opts, model_newton=None))
+    assert not c.converged.any()
+
+
+def test_rl_seeds_from_dlft_solutions_are_of_a_model():
+    from types import SimpleNamespace
+
+    from hbm.isolas.harmonic import rl_seeds
+    from hbm.isolas.search import Corrections
+
+    seeds = (Seed(500.0, np.zeros(3), "modal j=1 k=5 A=0.001"), Seed(500.0, np.zeros(3), "ti class 1"),
+             Seed(600.0, np.zeros(3), "modal j=2 k=3 A=0.01"))
+    x = np.arange(9.0).reshape(3, 3)
+    c = Corrections(np.array([True, True, False]), np.zeros(3, int), np.full(3, -1), np.full(3, -1), x)
+    (sd,) = rl_seeds(SimpleNamespace(corrections=c, seeds=seeds))  # TI seeds RL gets itself; 600 failed
+    assert sd.of_model and sd.origin.endswith("via DLFT") and sd.omega == 500.0
+    np.testing.assert_array_equal(sd.x, x[0])
+
+
+def test_the_stage_options_give_model_seeds_the_patient_newton():
+    o = search_options(HbmOptions(), IsolaOptions(model_seed_iterations=45))
+    assert o.newton.stall_iterations == 3 and o.newton.max_iter == 12
+    assert o.model_newton.stall_iterations is None and o.model_newton.max_iter == 45
+    assert o.model_newton.line_search and o.model_newton.tol_residual == o.newton.tol_residual
+    with pytest.raises(ValueError, match="model_seed_iterations"):
+        IsolaOptions(model_seed_iterations=0)
