@@ -863,8 +863,8 @@ def draw_content(ctx: Context) -> None:
     plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic", mode_frequencies=freq)
 
 
-#: Panels of a treatment's content figures: more than the search finds on rotor 67 (11 and 9
-#: branches besides the NFRC on the default and coarse scenes).
+#: Panels of a treatment's content figures: more than the search finds on rotor 67 (at most 11
+#: branches besides the NFRC on its default and coarse scenes).
 MAX_BRANCH_PANELS = 16
 
 
