@@ -1,6 +1,7 @@
 """Stage validation: the paper's three validation points (section 3.3, Figs. 9 and 10), chosen
 automatically for each contact treatment, time integration marched from each and compared
-with both HBM treatments (validation.h5); and the full view of the solution set (Fig. 8).
+with both HBM treatments (validation.h5); the full view of the solution set (Fig. 8); and
+the dynamical content along the isolas and along every branch (Figs. 11-12).
 
 For each treatment of [hbm] methods:
 - primary: a stable point near the primary resonance of its NFRC (hbm.stability.selection.
