@@ -837,28 +837,39 @@ def _set_inputs(scene) -> tuple[str, ...]:
     return tuple(nfrc_output(m).file for m in scene.hbm.methods) + (ISOLAS, VALIDATION.file, "ti.h5")
 
 
+def _add_content(modal: dict, harmonic: dict, label: str, omega, converged, nu: int, modal_c, harmonic_c) -> None:
+    """One branch's curves for pipelines.figures.plot_content, under `label`, where it carries
+    them (None: not stored)."""
+    for curves, c in ((modal, modal_c), (harmonic, harmonic_c)):
+        if c is not None:
+            curves[label] = (omega, c, nu, converged)
+
+
+def _mode_frequencies(out: Path):
+    """The ROM's mode frequencies (n,), rad/s, for the content figures' crossings; None without
+    rom.h5."""
+    from hbm.harmonic.content import rom_modes
+
+    if not (out / "rom.h5").is_file():
+        return None
+    rom = read_rom(out)
+    return rom_modes(rom.K, rom.M)[0]
+
+
 def draw_content(ctx: Context) -> None:
     """Figs. 11 and 12 (dynamical content along the isolas, one panel per isola) when
     isolas.h5 carries it; the harmonic panels mark where a harmonic's frequency k Omega meets
     one of the ROM's first four modes."""
-    from hbm.harmonic.content import rom_modes
     from pipelines.figures import plot_content
 
     scene, out = ctx.scene, ctx.out
     modal, harmonic = {}, {}
     for m in scene.hbm.methods:
         for br in read_branch_set(out / ISOLAS, m):
-            if br.kind != "isola":
-                continue
-            label = f"{m.upper()} isola {br.name}"
-            if br.modal_contribution is not None:
-                modal[label] = (br.omega, br.modal_contribution, br.subharmonic, br.converged)
-            if br.harmonic_contribution is not None:
-                harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic, br.converged)
-    freq = None
-    if (harmonic or modal) and (out / "rom.h5").is_file():
-        rom = read_rom(out)
-        freq = rom_modes(rom.K, rom.M)[0]
+            if br.kind == "isola":
+                _add_content(modal, harmonic, f"{m.upper()} isola {br.name}", br.omega, br.converged,
+                             br.subharmonic, br.modal_contribution, br.harmonic_contribution)
+    freq = _mode_frequencies(out) if harmonic or modal else None
     # drawn (with a note) even without content: a figure that is never drawn would be redrawn by every run
     plot_content(modal, out / "figures" / "isola_modal_content.png", kind="modal", mode_frequencies=freq)
     plot_content(harmonic, out / "figures" / "isola_harmonic_content.png", kind="harmonic", mode_frequencies=freq)
@@ -874,31 +885,22 @@ def draw_branch_content(ctx: Context) -> None:
     content_harmonic_METHOD.png): one panel for the NFRC ("primary") and one for each branch
     of isolas.h5 whatever its kind, from the contributions stored with their points (the
     isola figures hold the isolas of both treatments side by side, as the paper's do)."""
-    from hbm.harmonic.content import rom_modes
     from pipelines.branch_store import load_branch
     from pipelines.figures import plot_content
 
     scene, out = ctx.scene, ctx.out
-    freq = None
-    if (out / "rom.h5").is_file():
-        rom = read_rom(out)
-        freq = rom_modes(rom.K, rom.M)[0]
+    freq = _mode_frequencies(out)
     for m in scene.hbm.methods:
         modal, harmonic = {}, {}
         path = out / nfrc_output(m).file
         if path.is_file():
             s = load_branch(path)
-            ex = s.extras
-            for store, name in ((modal, "modal_contribution"), (harmonic, "harmonic_contribution")):
-                if name in ex:
-                    store[f"{m.upper()} primary"] = (s.branch.omega, ex[name], scene.hbm.subharmonic,
-                                                     s.branch.converged)
+            _add_content(modal, harmonic, f"{m.upper()} primary", s.branch.omega, s.branch.converged,
+                         scene.hbm.subharmonic, s.extras.get("modal_contribution"),
+                         s.extras.get("harmonic_contribution"))
         for br in read_branch_set(out / ISOLAS, m):
-            label = f"{m.upper()} {br.kind} {br.name}"
-            if br.modal_contribution is not None:
-                modal[label] = (br.omega, br.modal_contribution, br.subharmonic, br.converged)
-            if br.harmonic_contribution is not None:
-                harmonic[label] = (br.omega, br.harmonic_contribution, br.subharmonic, br.converged)
+            _add_content(modal, harmonic, f"{m.upper()} {br.kind} {br.name}", br.omega, br.converged,
+                         br.subharmonic, br.modal_contribution, br.harmonic_contribution)
         for kind, curves in (("modal", modal), ("harmonic", harmonic)):
             plot_content(curves, out / "figures" / f"content_{kind}_{m}.png", kind=kind, mode_frequencies=freq,
                          max_panels=MAX_BRANCH_PANELS)
