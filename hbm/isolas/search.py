@@ -152,7 +152,10 @@ class Corrections:
     """Phase 1, per seed (s seeds): converged (s,) bool; iterations (s,) int; on_known (s,)
     int, index of the known branch it lies on (-1: none); same_as (s,) int, the seed it
     duplicates at the same omega (-1: none); x (s, n), the corrected solution (nan where
-    not converged); cpu_time, s (summed over processes)."""
+    not converged); cpu_time, s (summed over processes); residual_norm (s,), ||R|| of the
+    last iterate, as Newton measures it against its tolerance (nan where unknown); reason
+    (s,) str, why Newton gave up ("" where it converged; () when unknown: read from a
+    partial file of an earlier version)."""
 
     converged: np.ndarray
     iterations: np.ndarray
@@ -160,6 +163,8 @@ class Corrections:
     same_as: np.ndarray
     x: np.ndarray
     cpu_time: float = 0.0
+    residual_norm: np.ndarray | None = None
+    reason: tuple[str, ...] = ()
 
     def candidates(self) -> np.ndarray:
         """Seeds to continue unless they lie on a branch found before them: converged, on
@@ -263,7 +268,7 @@ class _Corrector:
 
     def __call__(self, items):
         """items: [(seed index, omega, x0, of_model)] of one omega -> [(index, converged,
-        iterations, on_known, same_as, x or None)]."""
+        iterations, on_known, same_as, x or None, ||R||, reason)]."""
         out = []
         kept = []  # (index, x) of the distinct converged solutions at this omega
         tol = self.options.tolerance
@@ -273,14 +278,15 @@ class _Corrector:
             solver = copy.deepcopy(self._solver)
             sol = newton_solve(self.residual, x0, w, model if of_model else self.options.newton, solver=solver)
             if not sol.converged or not np.all(np.isfinite(sol.x)):
-                out.append((i, False, sol.iterations, -1, -1, None))
+                why = sol.reason or f"non-finite solution at omega={w:.6g}"
+                out.append((i, False, sol.iterations, -1, -1, None, sol.residual_norm, why))
                 continue
             mine = [sol.x, *images(self.residual, sol.x)]
             k = lies_on_any(self.residual, sol.x, w, self.known, self.options, solver, x_images=mine[1:])
             same = next((j for j, xj in kept if any(np.linalg.norm((xq - xj) / sx) <= tol for xq in mine)), -1)
             if k < 0 and same < 0:
                 kept.append((i, sol.x))
-            out.append((i, True, sol.iterations, k, same, sol.x))
+            out.append((i, True, sol.iterations, k, same, sol.x, sol.residual_norm, ""))
         return out
 
 
@@ -369,11 +375,12 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
     conv, its = np.zeros(s, bool), np.zeros(s, np.int64)
     on_known, same = np.full(s, -1, np.int64), np.full(s, -1, np.int64)
     X = np.full((s, n), np.nan)
-    for i, c, it, k, sm, x in rows:
-        conv[i], its[i], on_known[i], same[i] = c, it, k, sm
+    rn, why = np.full(s, np.nan), [""] * s
+    for i, c, it, k, sm, x, r, w in rows:
+        conv[i], its[i], on_known[i], same[i], rn[i], why[i] = c, it, k, sm, r, w
         if x is not None:
             X[i] = x
-    return Corrections(conv, its, on_known, same, X, cpu)
+    return Corrections(conv, its, on_known, same, X, cpu, rn, tuple(why))
 
 
 def images(residual, x: np.ndarray) -> list:

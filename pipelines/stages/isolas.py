@@ -20,6 +20,9 @@ Layout of isolas.h5 (root: the usual provenance attributes):
       runs' time up to their last saved step), status (str)
   /<method>/seeds/ omega (s,) rad/s; origin (s,) fixed-length ASCII; converged (s,) bool;
       branch (s,) int (the branch it lies on; -1 not converged, -2 on the primary NFRC);
+      iterations (s,) int, Newton's; residual_norm (s,), ||R|| of its last iterate (nan
+      where unknown); reason (s,) fixed-length ASCII, why Newton gave up ("" converged,
+      "unknown" where a resumed search's partial file of an earlier version lacks it);
       the period-doubled search's seeds last, their branches numbered after the first's
   /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
       le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; with
@@ -187,12 +190,22 @@ def _read_found(group):
                        extras=extras, n_points_computed=int(a["n_points_computed"]), cpu_time=float(a["cpu_time"]))
 
 
+def _ascii(texts) -> np.ndarray:
+    """Fixed-length ASCII (plain bytes, which the checksums read as they are) of a list of str."""
+    b = [t.encode("ascii", "replace") for t in texts]
+    return np.array(b, dtype=f"S{max([len(x) for x in b] + [1])}")
+
+
 def _write_corrections(group, c) -> None:
     kept = np.flatnonzero(c.converged & (c.same_as < 0))  # the distinct solutions (RL seeds from DLFT's)
     for name in ("converged", "iterations", "on_known", "same_as"):
         group.create_dataset(name, data=getattr(c, name)).attrs["unit"] = "1"
     group.create_dataset("kept", data=kept).attrs["unit"] = "1"
     group.create_dataset("kept_x", data=c.x[kept]).attrs["unit"] = "1"
+    if c.residual_norm is not None:
+        group.create_dataset("residual_norm", data=c.residual_norm).attrs["unit"] = "1"
+    if len(c.reason):
+        group.create_dataset("reason", data=_ascii(c.reason)).attrs["unit"] = "-"
     group.attrs["cpu_time"] = float(c.cpu_time)
 
 
@@ -203,8 +216,36 @@ def _read_corrections(group):
     cand, xc = group["kept"][()], group["kept_x"][()]
     X = np.full((len(conv), xc.shape[1] if xc.ndim == 2 else 0), np.nan)
     X[cand] = xc
+    rn = group["residual_norm"][()] if "residual_norm" in group else None
+    why = tuple(_text(v) for v in group["reason"][()]) if "reason" in group else ()
     return Corrections(conv, group["iterations"][()], group["on_known"][()], group["same_as"][()], X,
-                       float(group.attrs["cpu_time"]))
+                       float(group.attrs["cpu_time"]), rn, why)
+
+
+def _seed_failures(parts) -> tuple[np.ndarray, np.ndarray, list[str]]:
+    """One treatment's searches' seeds in _merged's order: Newton iterations (s,), ||R|| of
+    the last iterate (s,) (nan where unknown) and why Newton gave up (s,) ("" where it
+    converged, "unknown" where a resumed part's partial file did not keep it)."""
+    its, rn, why = [], [], []
+    for r, _ in parts:
+        c = r.corrections
+        s = len(c.converged)
+        its.append(np.asarray(c.iterations, np.int64))
+        rn.append(np.full(s, np.nan) if c.residual_norm is None else np.asarray(c.residual_norm, float))
+        why += list(c.reason) if len(c.reason) == s else ["" if ok else "unknown" for ok in c.converged]
+    return np.concatenate(its), np.concatenate(rn), why
+
+
+def failure_counts(reasons) -> dict[str, int]:
+    """{kind of failure: seeds} of Newton's reasons (hbm.continuation.newton): each reason
+    up to where it names the point (" at omega=..."), e.g. "stalled", "no convergence in 60
+    iterations"; converged seeds ("") left out."""
+    out: dict = {}
+    for w in reasons:
+        if w:
+            k = w.split(" at omega=")[0].split(":")[0]
+            out[k] = out.get(k, 0) + 1
+    return out
 
 
 class _Partial:
@@ -429,12 +470,13 @@ def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
                                 "cpu_time": float(cpu), "wall_time": float(wall), "status": status})
                 s = g.create_group("seeds")
                 s.create_dataset("omega", data=np.array([sd.omega for sd in seeds], float)).attrs["unit"] = "rad/s"
-                # fixed-length ASCII: plain bytes, which the checksums read as they are
-                origins = [sd.origin.encode("ascii", "replace") for sd in seeds]
-                width = max([len(o) for o in origins] + [1])
-                s.create_dataset("origin", data=np.array(origins, dtype=f"S{width}")).attrs["unit"] = "-"
+                s.create_dataset("origin", data=_ascii([sd.origin for sd in seeds])).attrs["unit"] = "-"
                 s.create_dataset("converged", data=converged).attrs["unit"] = "1"
                 s.create_dataset("branch", data=seed_branch).attrs["unit"] = "1"
+                its, rn, why = _seed_failures(parts)
+                s.create_dataset("iterations", data=its).attrs["unit"] = "1"
+                s.create_dataset("residual_norm", data=rn).attrs["unit"] = "1"
+                s.create_dataset("reason", data=_ascii(why)).attrs["unit"] = "-"
                 b = g.create_group("branches")
                 for k, (fb, nu) in enumerate(branches):
                     _write_branch(b.create_group(f"{k:03d}"), fb, nu, content.get(method, [None] * (k + 1))[k],
@@ -554,6 +596,9 @@ def _compute(ctx: Context, outputs) -> None:
                     + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none")
                     + f"), CPU {cpu:.0f} s, wall {wall:.0f} s"
                     + (f" ({before:.0f} s of it before the resume)" if before else ""))
+            failed = failure_counts(result.corrections.reason)
+            if failed:  # Newton's verdicts on the seeds that did not converge, by kind
+                ctx.log("    seeds not converged: " + ", ".join(f"{n} {k}" for k, n in sorted(failed.items())))
             for k, b in enumerate(result.branches):
                 ok = b.converged
                 h = b.extras.get("harmonics")

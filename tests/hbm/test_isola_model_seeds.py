@@ -43,6 +43,10 @@ def test_a_seed_of_a_model_is_corrected_without_the_stall_rule():
     assert list(c.iterations[1:]) == [32, 32]
     np.testing.assert_allclose(c.x[1:, 0], 0.5, atol=1e-10)
     assert c.same_as[1] == -1 and np.isnan(c.x[0]).all()
+    # why the first gave up, and where: ||R|| = 0.3 / 2^k after its k iterations
+    assert c.reason[0].startswith("stalled at omega=0.5:") and c.reason[1:] == ("", "")
+    np.testing.assert_allclose(c.residual_norm[0], 0.3 / 2 ** c.iterations[0], rtol=1e-12)
+    assert (c.residual_norm[1:] <= 1e-10).all()
     # without a model Newton every seed takes the cheap one
     c = correct_seeds(halving, seeds, [], replace(opts, model_newton=None))
     assert not c.converged.any()

@@ -52,6 +52,15 @@ def test_layout(searched):
                 modal = [o for o in origins if o.startswith("modal")]
                 assert modal == ["modal j=1 k=2 A=0.001 via DLFT"] * int(h5["dlft"]["seeds"]["converged"][:2].sum())
             assert int(s["converged"][()].sum()) == int(g.attrs["n_converged"])
+            # every seed says how Newton ended: "" and ||R|| within the NFRC's tolerance where
+            # it converged; a reason that names the seed's speed and ||R|| over it where not
+            conv, rn = s["converged"][()], s["residual_norm"][()]
+            why = [w.decode() for w in s["reason"][()]]
+            tol = load_scene(scene).hbm.tolerance
+            assert s["iterations"].shape == rn.shape == (n,) and len(why) == n
+            assert all(w == "" for w, c in zip(why, conv) if c) and (rn[conv] <= tol).all()
+            for w, r, om in zip(np.array(why)[~conv], rn[~conv], s["omega"][()][~conv]):
+                assert f" at omega={om:.6g}" in w and (r > tol or "non-finite" in w or "within tolerance" in w), (w, r)
             br = s["branch"][()]
             assert ((br >= -2) & (br < int(g.attrs["n_branches"]))).all()
             assert (br[~s["converged"][()]] == -1).all()
@@ -117,7 +126,9 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
 
     c = Corrections(converged=np.array([True, False, True]), iterations=np.array([3, 5, 4]),
                     on_known=np.array([-1, -1, 0]), same_as=np.array([-1, -1, -1]),
-                    x=np.array([[1.0, 2.0], [np.nan, np.nan], [3.0, 4.0]]), cpu_time=1.5)
+                    x=np.array([[1.0, 2.0], [np.nan, np.nan], [3.0, 4.0]]), cpu_time=1.5,
+                    residual_norm=np.array([1e-9, 2.5e-3, 3e-9]),
+                    reason=("", "no convergence in 5 iterations at omega=1000 (||R||=2.500e-03 > 1.0e-08)", ""))
     fb = FoundBranch(omega=np.array([1.0, 1.1]), x=np.array([[1.0, 2.0], [1.1, 2.1]]), converged=np.array([True, True]),
                      kind="isola", closed=True, status="+: closed loop", start=0, seeds=(0,),
                      extras={"le_amplitude": np.array([1e-4, 2e-4]), "harmonics": np.zeros((2, 3, 2)),
@@ -145,6 +156,8 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
     assert art.read_attrs(tmp_path / "isolas.partial.h5")["n_branches"] == 3
     c2, done = p.resume("dlft")
     np.testing.assert_array_equal(c2.candidates(), [0])
+    assert c2.reason == c.reason  # why a seed failed survives the resume
+    np.testing.assert_array_equal(c2.residual_norm, c.residual_norm)
     np.testing.assert_array_equal(c2.x[0], [1.0, 2.0])
     assert len(done) == 1 and done[0].kind == "isola" and done[0].seeds == (0,) and done[0].closed
     np.testing.assert_array_equal(done[0].x, fb.x)
@@ -216,3 +229,44 @@ def test_every_mpi_rank_goes_past_a_ti_h5_without_boundary_states(tmp_path, monk
         with pytest.raises(AttributeError, match="hashes"):
             stage._compute(ctx, None)
         assert len(warned) == (1 if rank == 0 else 0)
+
+
+def test_the_log_counts_seed_failures_by_kind():
+    """The run's log line counts Newton's reasons by kind, the point left out of each."""
+    from hbm.continuation.newton import NewtonOptions, newton_solve
+    from pipelines.stages.isolas import failure_counts
+
+    def flat(x, omega, jacobian=True):  # R = 1 everywhere: Newton's step is singular
+        R = np.ones(1)
+        return R if not jacobian else (R, np.zeros((1, 1)), np.zeros(1))
+
+    def slow(x, omega, jacobian=True):  # R = x^2 + 1: no root, ||R|| stalls at 1
+        R = np.array([x[0] ** 2 + 1.0])
+        return R if not jacobian else (R, np.array([[2.0 * x[0]]]), np.zeros(1))
+
+    reasons = ["", newton_solve(flat, np.zeros(1), 400.0).reason,
+               newton_solve(slow, np.array([3.0]), 440.0, NewtonOptions(max_iter=5)).reason,
+               newton_solve(slow, np.array([2.0]), 450.0, NewtonOptions(max_iter=5)).reason,
+               newton_solve(slow, np.array([3.0]), 460.0, NewtonOptions(max_iter=30, stall_iterations=3)).reason]
+    assert failure_counts(reasons) == {"singular Jacobian": 1, "no convergence in 5 iterations": 2, "stalled": 1}, reasons
+
+
+def test_seed_failures_follow_the_merged_order():
+    """isolas.h5's seeds/ lists the first search's seeds, then the period-doubled one's: their
+    iterations, ||R|| and reasons in that order; a part resumed from a partial file of an
+    earlier version (no reasons) says "unknown" where a seed failed."""
+    from types import SimpleNamespace
+
+    from hbm.isolas.search import Corrections
+    from pipelines.stages.isolas import _seed_failures
+
+    first = Corrections(np.array([True, False]), np.array([4, 60]), np.full(2, -1), np.full(2, -1), np.zeros((2, 1)),
+                        residual_norm=np.array([1e-9, 0.34]),
+                        reason=("", "no convergence in 60 iterations at omega=440 (||R||=3.4e-01 > 1.0e-08)"))
+    resumed = Corrections(np.array([False, True]), np.array([3, 7]), np.full(2, -1), np.full(2, -1), np.zeros((2, 1)))
+    parts = [(SimpleNamespace(corrections=first), None), (SimpleNamespace(corrections=resumed), None)]
+    its, rn, why = _seed_failures(parts)
+    np.testing.assert_array_equal(its, [4, 60, 3, 7])
+    np.testing.assert_array_equal(rn[:2], [1e-9, 0.34])
+    assert np.isnan(rn[2:]).all()
+    assert why == ["", first.reason[1], "unknown", ""]
