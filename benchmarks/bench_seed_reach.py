@@ -1,0 +1,81 @@
+"""Where do the sweep's seeds that RL's Newton gives up on lead? For every seed of OUT's
+ti.h5 at the given speeds (hbm.isolas.harmonic.ti_seeds in the basis of Omega), the search's
+patient Newton (SearchOptions.model_newton) with DLFT and with RL, and RL's Newton again
+from DLFT's corrected solution of the same seed, as RL's modal seeds are made
+(hbm.isolas.harmonic.rl_seeds).
+
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT [--scene scenes/rotor67.toml]
+        [--omegas 440,450,460,470,480,660,690,700,1350]
+
+Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
+search's scaled polyline metric, hbm.isolas.membership; its tolerance is [isolas] tolerance),
+converged or not, Newton's iterations and last ||R||, the solution's distance to the
+primary, and the CPU time. A solution at a distance well above the tolerance may still lie on
+the primary: the search's own test also corrects onto the primary's curve (lies_on).
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def main() -> None:
+    from hbm.continuation.newton import newton_solve
+    from hbm.isolas.harmonic import HbmProblem, search_options, ti_seeds
+    from hbm.isolas.membership import nearest_on_polyline
+    from pipelines.scene import load_scene
+    from pipelines.stages.isolas import _known
+    from pipelines.stages.rom import read_rom
+    from pipelines.stages.ti import read_sweep
+
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67.toml")
+    ap.add_argument("--omegas", default="440,450,460,470,480,660,690,700,1350")
+    args = ap.parse_args()
+    scene = load_scene(args.scene)
+    omegas = {float(w) for w in args.omegas.split(",")}
+    rom, sweep = read_rom(args.out), read_sweep(args.out)
+    hbm, iso = scene.hbm, scene.isolas
+    opts = search_options(hbm, iso)
+    co = opts.continuation
+    lo, hi = iso.omega_range(hbm)
+
+    def distance(x, w, primary):
+        return nearest_on_polyline(x, w, primary, co.x_scale, co.omega_scale)[0]
+
+    def correct(res, solver, x0, w, primary, label):
+        t = time.process_time()
+        sol = newton_solve(res, x0, w, opts.model_newton, solver=copy.deepcopy(solver))
+        d = f"{distance(sol.x, w, primary):.3g}" if sol.converged else "-"
+        print(f"{w:7.1f}  {label:<14} {distance(x0, w, primary):8.3g}  {str(sol.converged):<9} {sol.iterations:5d}  "
+              f"{sol.residual_norm:9.2e}  {d:>8}  {time.process_time() - t:5.1f}", flush=True)
+        return sol
+
+    print(f"tolerance {iso.tolerance:g} (scaled)")
+    print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s")
+    dlft = {}
+    for method in ("dlft", "rl"):
+        res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
+        primary = _known(args.out, method)[0][0]
+        for sd in ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes):
+            if sd.omega in omegas:
+                sol = correct(res, solver, sd.x, sd.omega, primary, f"{method.upper()} from TI")
+                if method == "dlft" and sol.converged:
+                    dlft[sd.omega] = sol.x
+        if method == "rl":
+            for w in sorted(dlft):
+                correct(res, solver, dlft[w], w, primary, "RL from DLFT")
+
+
+if __name__ == "__main__":
+    np.seterr(all="ignore")
+    main()
