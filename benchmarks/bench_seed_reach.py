@@ -6,12 +6,17 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT [--scene scenes/rotor67.toml]
         [--omegas 440,450,460,470,480,660,690,700,1350]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
 
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
 search's scaled polyline metric, hbm.isolas.membership; its tolerance is [isolas] tolerance),
 converged or not, Newton's iterations and last ||R||, the solution's distance to the
 primary, and the CPU time. A solution at a distance well above the tolerance may still lie on
 the primary: the search's own test also corrects onto the primary's curve (lies_on).
+
+--singular OMIN,OMAX: instead, at every other converged point of the treatment's primary NFRC
+in that speed range, the smallest two and the largest singular value of its dense Jacobian
+(scipy.linalg.svdvals): where Newton is slow because the root is nearly singular.
 """
 from __future__ import annotations
 
@@ -40,8 +45,13 @@ def main() -> None:
     ap.add_argument("out", type=Path)
     ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67.toml")
     ap.add_argument("--omegas", default="440,450,460,470,480,660,690,700,1350")
+    ap.add_argument("--singular", default=None, help="OMIN,OMAX (rad/s): singular values along the primary")
+    ap.add_argument("--method", default="rl", choices=("dlft", "rl"))
     args = ap.parse_args()
     scene = load_scene(args.scene)
+    if args.singular:
+        singular_values(args, scene)
+        return
     omegas = {float(w) for w in args.omegas.split(",")}
     rom, sweep = read_rom(args.out), read_sweep(args.out)
     hbm, iso = scene.hbm, scene.isolas
@@ -74,6 +84,24 @@ def main() -> None:
         if method == "rl":
             for w in sorted(dlft):
                 correct(res, solver, dlft[w], w, primary, "RL from DLFT")
+
+
+def singular_values(args, scene) -> None:
+    import scipy.linalg as sla
+
+    from hbm.harmonic.residual import build_residual
+    from pipelines.branch_store import load_branch
+    from pipelines.stages.hbm import nfrc_output
+    from pipelines.stages.rom import read_rom
+
+    lo, hi = (float(w) for w in args.singular.split(","))
+    res = build_residual(read_rom(args.out), scene.casing, scene.contact, scene.hbm, method=args.method)
+    b = load_branch(args.out / nfrc_output(args.method).file).branch
+    print("  Omega      s_min       s_2     s_max  (points in continuation order)")
+    for i in np.flatnonzero((b.omega > lo) & (b.omega < hi) & b.converged)[::2]:
+        J = res(b.x[i], float(b.omega[i]))[1]
+        s = sla.svdvals(J.toarray() if hasattr(J, "toarray") else np.asarray(J))
+        print(f"{b.omega[i]:7.2f}  {s[-1]:9.3e} {s[-2]:9.3e} {s[0]:9.3e}", flush=True)
 
 
 if __name__ == "__main__":
