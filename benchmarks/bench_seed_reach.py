@@ -105,5 +105,4 @@ def singular_values(args, scene) -> None:
 
 
 if __name__ == "__main__":
-    np.seterr(all="ignore")
     main()
