@@ -11,8 +11,10 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
 search's scaled polyline metric, hbm.isolas.membership; its tolerance is [isolas] tolerance),
 converged or not, Newton's iterations and last ||R||, the solution's distance to the
-primary, and the CPU time. A solution at a distance well above the tolerance may still lie on
-the primary: the search's own test also corrects onto the primary's curve (lies_on).
+primary, the CPU time, and which known branch the search's own test puts the solution on
+(hbm.isolas.search.lies_on_any: the polyline distance, or Newton onto the branch's curve
+there; against the primary and OUT/isolas.h5's branches in the basis of Omega): a solution
+at a distance well above the tolerance may still lie on the primary.
 
 --singular OMIN,OMAX: instead, at every other converged point of the treatment's primary NFRC
 in that speed range, the smallest two and the largest singular value of its dense Jacobian
@@ -35,9 +37,10 @@ sys.path.insert(0, str(ROOT))
 def main() -> None:
     from hbm.continuation.newton import newton_solve
     from hbm.isolas.harmonic import HbmProblem, search_options, ti_seeds
-    from hbm.isolas.membership import nearest_on_polyline
+    from hbm.isolas.membership import KnownBranch, nearest_on_polyline
+    from hbm.isolas.search import lies_on_any
     from pipelines.scene import load_scene
-    from pipelines.stages.isolas import _known
+    from pipelines.stages.isolas import _known, read_isolas
     from pipelines.stages.rom import read_rom
     from pipelines.stages.ti import read_sweep
 
@@ -58,32 +61,40 @@ def main() -> None:
     opts = search_options(hbm, iso)
     co = opts.continuation
     lo, hi = iso.omega_range(hbm)
+    found = read_isolas(args.out / "isolas.h5") if (args.out / "isolas.h5").is_file() else {}
 
     def distance(x, w, primary):
         return nearest_on_polyline(x, w, primary, co.x_scale, co.omega_scale)[0]
 
-    def correct(res, solver, x0, w, primary, label):
+    def correct(res, solver, x0, w, known, label):
         t = time.process_time()
+        primary = known[0]
         sol = newton_solve(res, x0, w, opts.model_newton, solver=copy.deepcopy(solver))
-        d = f"{distance(sol.x, w, primary):.3g}" if sol.converged else "-"
+        d, on = "-", "-"
+        if sol.converged:
+            d = f"{distance(sol.x, w, primary):.3g}"
+            k = lies_on_any(res, sol.x, w, known, opts, copy.deepcopy(solver))
+            on = known[k].label if k >= 0 else "none"
         print(f"{w:7.1f}  {label:<14} {distance(x0, w, primary):8.3g}  {str(sol.converged):<9} {sol.iterations:5d}  "
-              f"{sol.residual_norm:9.2e}  {d:>8}  {time.process_time() - t:5.1f}", flush=True)
+              f"{sol.residual_norm:9.2e}  {d:>8}  {time.process_time() - t:5.1f}  {on}", flush=True)
         return sol
 
     print(f"tolerance {iso.tolerance:g} (scaled)")
-    print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s")
+    print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s  lies on")
     dlft = {}
     for method in ("dlft", "rl"):
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
-        primary = _known(args.out, method)[0][0]
+        known = _known(args.out, method)[0] + [
+            KnownBranch.of(br.omega, br.x, f"branch {br.name}", br.converged)
+            for br in found.get(method, []) if br.subharmonic == 1]
         for sd in ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes):
             if sd.omega in omegas:
-                sol = correct(res, solver, sd.x, sd.omega, primary, f"{method.upper()} from TI")
+                sol = correct(res, solver, sd.x, sd.omega, known, f"{method.upper()} from TI")
                 if method == "dlft" and sol.converged:
                     dlft[sd.omega] = sol.x
         if method == "rl":
             for w in sorted(dlft):
-                correct(res, solver, dlft[w], w, primary, "RL from DLFT")
+                correct(res, solver, dlft[w], w, known, "RL from DLFT")
 
 
 def singular_values(args, scene) -> None:
