@@ -430,3 +430,56 @@ def test_a_turn_whose_next_point_lands_at_the_vertex_is_a_fold():
     _feed(mon, omegas)
     assert [(b.kind, b.index) for b in mon.bifurcations] in ([(FOLD, 19)], [(FOLD, 20)])
     assert mon.bifurcations[0].omega == pytest.approx(omegas[20], abs=0.1)  # the parabola through 3 points
+
+
+def two_pairs(a: float, b: float) -> FloquetSpectrum:
+    """Complex pairs exp(a +- 1.1 i) and exp(b +- 2.0 i), and a real stable multiplier 0.4."""
+    mu = np.array([np.exp(a + 1.1j), np.exp(a - 1.1j), np.exp(b + 2.0j), np.exp(b - 2.0j), 0.4 + 0j])
+    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
+                           centred=np.ones(5, bool), edge_energy=np.zeros(5),
+                           eigenvectors=np.zeros((5, 3, 2), complex), modulus_floor=0.05, method="arnoldi")
+
+
+def run_pairs(a, b, n: int, watch: str):
+    mon = StabilityMonitor(analyse=lambda x, w: (two_pairs(a(float(x[0])), b(float(x[0]))), 1),
+                           options=StabilityOptions(watch=watch))
+    return mon, _feed(mon, OMEGA - np.arange(n))
+
+
+def test_the_flag_watch_lets_a_multiplier_creep_towards_the_circle_of_an_unstable_orbit():
+    # pair a stays out (the orbit is unstable throughout); pair b creeps out through the
+    # circle between s = 99 and 100. Every multiplier watched, the analyses crowd round b's
+    # approach; watching the flag, they come every max_gap points, and the count change is
+    # still bisected to neighbours and located at the exact crossing
+    a = lambda s: 0.5  # noqa: E731
+    b = lambda s: -0.3 + 0.003 * s + 1e-3  # noqa: E731
+    n = 160
+    exact = [(NEIMARK_SACKER, i) for i in range(n - 1) if b(i) <= 0 < b(i + 1)]
+    assert exact == [(NEIMARK_SACKER, 99)]
+    counts = {}
+    for watch in ("every", "flag"):
+        mon, got = run_pairs(a, b, n, watch)
+        assert [(x.kind, x.index) for x in mon.bifurcations] == exact, watch
+        assert all(not got[i]["stable"] for i in range(n))
+        assert all(got[i]["n_unstable"] == (2 if b(i) <= 0 else 4) for i in range(n)), watch
+        counts[watch] = mon.n_analyses
+    assert counts["flag"] <= n / StabilityOptions().max_gap + 6 and counts["flag"] < counts["every"], counts
+
+
+@pytest.mark.parametrize("watch", ["every", "flag"])
+def test_the_flag_watch_finds_where_an_unstable_orbit_becomes_stable(watch):
+    # pair a comes back inside between s = 49 and 50, then a short unstable stretch: it goes
+    # out again between 120 and 121 and back between 127 and 128 (pair b stays inside)
+    a = lambda s: 0.3 - 0.006 * s + 1e-3 + 0.5 * np.exp(-((s - 124) / 5) ** 2)  # noqa: E731
+    b = lambda s: -0.4  # noqa: E731
+    n = 170
+    mon, got = run_pairs(a, b, n, watch)
+    exact = [i for i in range(n - 1) if (a(i) > 0) != (a(i + 1) > 0)]
+    assert len(exact) == 3
+    assert [(x.kind, x.index) for x in mon.bifurcations] == [(NEIMARK_SACKER, i) for i in exact]
+    assert {i: got[i]["stable"] for i in range(n)} == {i: a(i) <= 0 for i in range(n)}
+
+
+def test_an_unknown_watch_is_named():
+    with pytest.raises(ValueError, match="watch"):
+        StabilityOptions(watch="stable")
