@@ -13,8 +13,6 @@ integration's own, and a march from there can fall either way).
         [--branches rl/007 dlft/008] [--seed 1]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --monitor --branches rl/006
         [--span 450:650] [--save new.npz]
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --watch-compare --branches dlft/008
-        [--span 0:200]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --nfrc [--methods dlft]
 
 --window-check N: on branches stored with stability ([hbm] stability), N of the points the
@@ -33,11 +31,6 @@ between them), and the CPU time of the analyses, split between plain and widened
 --nfrc: the same over the NFRC files' converged points. Both also count the steps whose
 records do not add up to the change of the count of unstable multipliers or to the sign
 changes of det(I + M) and det(I - M) there (see hbm.stability.bifurcation.real_parities).
---watch-compare: the monitor over each branch once per StabilityOptions.watch ("every"
-multiplier moving towards the circle, or only what can change the stable "flag"), each
-point analysed once for both; the analyses, their CPU time, the stable points and the
-bifurcations of each, and where the second differs from the first. Needs no stored
-stability.
 
 Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE --out OUT`).
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
@@ -91,9 +84,6 @@ def main() -> None:
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--span", default=":", metavar="A:B",
                     help="with --monitor: only the branch's converged points A to B - 1 (a Python slice)")
-    ap.add_argument("--watch-compare", action="store_true",
-                    help="run the monitor over each branch (those of --span) once per StabilityOptions.watch, "
-                         "each point analysed once for both, and compare the schedules")
     ap.add_argument("--save", type=Path, metavar="NPZ",
                     help="with --monitor: write the new per-point stability and bifurcations there "
                          "(METHOD_NNN_ prefixed keys), to compare two codes")
@@ -116,9 +106,6 @@ def main() -> None:
                                  _options_for(scene.hbm, br.x.shape[1], n_r, br.subharmonic), method=method)
             if a.window_check:
                 _window_check(a.out, method, br, res, a.window_check, a.seed)
-                continue
-            if a.watch_compare:
-                _watch_compare(scene, method, br, res, slice(*(int(v) if v else None for v in a.span.split(":"))))
                 continue
             if a.monitor:
                 _monitor_again(a.out, scene, method, br, res, slice(*(int(v) if v else None for v in a.span.split(":"))),
@@ -319,55 +306,6 @@ def _monitor_nfrc(out: Path, scene, rom, method: str) -> None:
           f"{int(new['stability_analysed'].sum())} analysed, {int(new['stable'].sum())} stable, bifurcations "
           f"{_bifurcation_counts(new['tables']['bifurcations'], new['stable'])}; {cpu:.0f} s CPU; "
           f"{_parity_check(new['tables']['bifurcations'], s.branch.omega[ok], spectra.by_omega)}", flush=True)
-
-
-def _watch_compare(scene, method: str, br, res, span: slice = slice(None)) -> None:
-    """The monitor over br's converged points (those of span), as the isolas stage runs it,
-    once per StabilityOptions.watch; a point's analyses (and widenings) are made once and
-    shared. Prints per watch the analyses, their CPU time, the stable points and the
-    bifurcations, and how the second schedule differs from the first."""
-    from bench_stability import _missed
-    from hbm.harmonic.nfrc import nfrc_extras
-    from hbm.isolas.harmonic import search_options
-    from hbm.stability.monitor import WATCHES, StabilityOptions, monitor_branch
-    from hbm.stability.spectrum import orbit_spectrum
-
-    ok = np.flatnonzero(br.converged)[span]
-    omega, x = br.omega[ok], br.x[ok]
-    co = search_options(res.options, scene.isolas).continuation
-    extras = [nfrc_extras(res, u) for u in x]
-    cache, cpu = {}, {}
-
-    def analysed(key, f):
-        if key not in cache:
-            c0 = time.process_time()
-            cache[key] = f()
-            cpu[key] = time.process_time() - c0
-        used.add(key)
-        return cache[key]
-
-    def analyse(u, w):
-        return analysed((float(w), 0), lambda: orbit_spectrum(res, u, w, n_eig=StabilityOptions().n_eig, min_ceiling=1.0))
-
-    def widen(u, w, k):
-        return analysed((float(w), k), lambda: orbit_spectrum(res, u, w, n_eig=k, min_ceiling=1.0))
-
-    got = {}
-    for watch in WATCHES:
-        used = set()
-        st = monitor_branch(analyse, omega, x, extras, co.x_scale, co.omega_scale,
-                            StabilityOptions(max_gap=scene.hbm.stability_max_gap, watch=watch), widen=widen)
-        got[watch] = st
-        kinds = Counter(b.kind for b in st.bifurcations)
-        print(f"{method} {br.name} {br.kind}, {omega.min():.0f}-{omega.max():.0f} rad/s, {len(ok)} points, "
-              f"watch {watch}: {st.n_analyses} analyses, {sum(cpu[k] for k in used):.0f} s CPU, "
-              f"{int(st.stable.sum())} stable, bifurcations {dict(sorted(kinds.items()))}", flush=True)
-    first, second = (got[w] for w in WATCHES[:2])
-    lost = _missed(first.bifurcations, second.bifurcations)
-    print(f"  {WATCHES[1]} against {WATCHES[0]}: stable flag differs at {int((first.stable != second.stable).sum())} "
-          f"of {len(ok)} points, count at {int((first.n_unstable != second.n_unstable).sum())}; "
-          f"{len(lost)} of {len(first.bifurcations)} bifurcations without a counterpart"
-          f"{': ' + '; '.join(lost) if lost else ''}", flush=True)
 
 
 def _monitor_again(out: Path, scene, method: str, br, res, span: slice = slice(None), save: Path | None = None) -> None:

@@ -3,8 +3,7 @@
 Usage:
   .venv/bin/python benchmarks/bench_hbm.py [--rom out/.../rom.h5] [--repeat 3]
       [--penetration 1.25e-4] [--table] [--nh 10 20 40 60] [--nt 256 512 1024 2048]
-      [--methods dlft rl] [--no-default] [--stability {off,on,both}] [--watch every,flag]
-      [--iter-reject {8,none}]
+      [--methods dlft rl] [--no-default] [--stability {off,on,both}] [--iter-reject {8,none}]
   .venv/bin/python benchmarks/bench_hbm.py --stage [--scene scenes/rotor67_coarse.toml] [--rom ...] [--repeat 2]
 
 Without --rom the 39-dof stand-in of tests/support.py is used (not a blade: figures
@@ -17,9 +16,7 @@ drawn a little earlier or later gives a large local difference). --no-default sk
 --stability on: the NFRC with Floquet stability and bifurcations (hbm.stability); both:
 each repeat runs without, then with (alternating, so that the machine's load hits both
 alike), and the table gives both medians, the stability monitor's own time, the analyses,
-and the bifurcations found (those of the last watch listed).
---watch: [hbm] stability_watch of the runs with stability; several, comma-separated, are
-alternated within each repeat.
+and the bifurcations found.
 --iter-reject: the continuation's corrector iteration cap (ContinuationOptions.iter_reject;
 default: default_continuation's), "none" for no cap.
 --stage: the hbm stage itself on a scene (default the coarse rotor 67 scene with the ROM of
@@ -53,12 +50,12 @@ def load(path: str | None):
     return load_rom(path)
 
 
-def run(rom, method, nh, nt, casing, stability=False, cap="default", watch=HbmOptions.stability_watch):
+def run(rom, method, nh, nt, casing, stability=False, cap="default"):
     """One NFRC; cap: the corrector iteration cap (--iter-reject), "default" for
-    default_continuation's; watch: [hbm] stability_watch."""
+    default_continuation's."""
     from dataclasses import replace
 
-    hbm = HbmOptions(n_harmonics=nh, n_time=nt, stability_watch=watch)
+    hbm = HbmOptions(n_harmonics=nh, n_time=nt)
     co = None if cap == "default" else replace(default_continuation(hbm), iter_reject=None if cap == "none" else int(cap))
     return compute_nfrc(rom, casing, ContactOptions(), hbm, method, stability=stability, continuation=co)
 
@@ -75,8 +72,6 @@ def main():
     ap.add_argument("--nt", type=int, nargs="+", default=[256, 512, 1024, 2048])
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
     ap.add_argument("--stability", choices=["off", "on", "both"], default="off")
-    ap.add_argument("--watch", default=HbmOptions.stability_watch,
-                    help="with --stability: [hbm] stability_watch of the runs with stability, e.g. every,flag")
     ap.add_argument("--stage", action="store_true", help="time the hbm stage, serial against concurrent")
     ap.add_argument("--scene", default=str(ROOT / "scenes" / "rotor67_coarse.toml"))
     ap.add_argument("--iter-reject", default="default", help="corrector iteration cap: an integer or none")
@@ -140,30 +135,26 @@ def main():
 
 def stability_table(rom, a, casing):
     """N_h = 40, N_t = 1024 NFRCs with stability (and without, for --stability both)."""
-    watches = a.watch.split(",")
-    print("| method | watch | median wall without (s) | median wall with (s) | added | monitor time (s) | analyses "
+    print("| method | median wall without (s) | median wall with (s) | added | monitor time (s) | analyses "
           "| points | bifurcations |")
-    print("|---|---|---|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|---|")
     for m in a.methods:
-        off, on = [], {w: [] for w in watches}
-        for _ in range(a.repeat):  # alternated, so that the machine's load hits each alike
+        off, on = [], []
+        for _ in range(a.repeat):
             if a.stability == "both":
                 off.append(run(rom, m, 40, 1024, casing, False, a.iter_reject))
-            for w in watches:
-                on[w].append(run(rom, m, 40, 1024, casing, True, a.iter_reject, w))
-                print(f"  {m}: without {off[-1].wall_time if off else float('nan'):.1f} s, with ({w}) "
-                      f"{on[w][-1].wall_time:.1f} s (monitor {on[w][-1].stability_time:.1f} s, "
-                      f"{on[w][-1].n_stability_analyses} analyses)", flush=True)
+            on.append(run(rom, m, 40, 1024, casing, True, a.iter_reject))
+            print(f"  {m}: without {off[-1].wall_time if off else float('nan'):.1f} s, with {on[-1].wall_time:.1f} s "
+                  f"(monitor {on[-1].stability_time:.1f} s, {on[-1].n_stability_analyses} analyses)", flush=True)
         t_off = statistics.median(r.wall_time for r in off) if off else float("nan")
-        for w in watches:
-            t_on = statistics.median(r.wall_time for r in on[w])
-            r = on[w][-1]
-            kinds = {}
-            for b in r.bifurcations:
-                kinds[b.kind] = kinds.get(b.kind, 0) + 1
-            print(f"| {m} | {w} | {t_off:.1f} | {t_on:.1f} | {100 * (t_on / t_off - 1):.0f} % | "
-                  f"{statistics.median(x.stability_time for x in on[w]):.1f} | {r.n_stability_analyses} | "
-                  f"{len(r.omega)} | " + ", ".join(f"{v} {k}" for k, v in sorted(kinds.items())) + " |", flush=True)
+        t_on = statistics.median(r.wall_time for r in on)
+        r = on[-1]
+        kinds = {}
+        for b in r.bifurcations:
+            kinds[b.kind] = kinds.get(b.kind, 0) + 1
+        print(f"| {m} | {t_off:.1f} | {t_on:.1f} | {100 * (t_on / t_off - 1):.0f} % | "
+              f"{statistics.median(x.stability_time for x in on):.1f} | {r.n_stability_analyses} | {len(r.omega)} | "
+              + ", ".join(f"{v} {k}" for k, v in sorted(kinds.items())) + " |", flush=True)
         for b in r.bifurcations:
             print(f"    {b.kind:16s} Omega = {b.omega:8.2f} rad/s (bracket {min(b.omega_bracket):.2f}-"
                   f"{max(b.omega_bracket):.2f}), LE amplitude {1e3 * b.le_amplitude:.3f} mm, |mu| = "

@@ -87,10 +87,6 @@ class ContactOptions:
         check_flag("lanczos", self.lanczos)
 
 
-#: what the stability monitor's gap rule may watch ([hbm] stability_watch; hbm.stability.monitor)
-STABILITY_WATCHES = ("every", "flag")
-
-
 @dataclass(frozen=True)
 class HbmOptions:
     """Harmonic balance and its continuation (scene section [hbm]).
@@ -110,21 +106,15 @@ class HbmOptions:
       almost every point: 2911 points instead of 338 for RL at N_h = 10, same peaks).
     tolerance: Newton's test on the scaled residual ||R|| (R ~ H_r / (k_ref / alpha)).
     stability: Floquet stability of every point and the bifurcations of the branch
-      (Hill's method, hbm.stability). Off by default: it adds 0.8-1.4 (RL) to 1.1-2.0 (DLFT)
-      times the NFRC's own time on the coarse rotor 67 ROM (about 470 and 320 analyses of
-      ~0.13 s CPU each, see hbm.stability.monitor).
+      (Hill's method, hbm.stability). Off by default: it adds 1.4 (RL) to 1.8 (DLFT) times
+      the NFRC's own time on the coarse rotor 67 ROM (518 and 342 analyses of ~0.12 s CPU
+      each, see hbm.stability.monitor).
     stability_max_gap: most points between two Floquet analyses (the monitor analyses
       sooner where multipliers approach the unit circle). 8 analyses about half the points
       of the coarse rotor 67 NFRCs; 1 analyses every point (1.9 times the analyses) and so
       also finds the short stretches of the other stability that lie inside one gap (a pair
       of crossings a few rad/s apart: 4 of 53 and 8 of 87 crossings are missed with 8 on the
       coarse DLFT and RL NFRCs).
-    stability_watch: what the monitor's gap rule watches: "every" multiplier moving towards
-      the unit circle, or only what can change the stable "flag" (on an unstable orbit, how
-      soon its unstable multipliers can all be back inside). "flag" makes 23-27 % fewer
-      analyses on the coarse rotor 67 NFRCs, with the stable flags but of a point or two
-      those of "every", and misses more pairs of crossings on orbits already unstable (a
-      second pair out and back within one gap); see hbm.stability.monitor.
     subharmonic: nu, the HBM's fundamental is omega = Omega / nu (nu = 1: the casing's
       period; nu = 2 holds the period-doubled orbits). The continuation parameter stays
       Omega.
@@ -141,7 +131,6 @@ class HbmOptions:
     tolerance: float = 1e-8
     stability: bool = False
     stability_max_gap: int = 8
-    stability_watch: str = "every"
     subharmonic: int = 1
 
     def __post_init__(self):
@@ -166,9 +155,6 @@ class HbmOptions:
         check_option("tolerance", self.tolerance, 0, 1, low_open=True, high_open=True)
         check_flag("stability", self.stability)
         check_option("stability_max_gap", self.stability_max_gap, 1, integer=True, note="1: every point analysed")
-        if self.stability_watch not in STABILITY_WATCHES:
-            raise ValueError(f"stability_watch must be one of {', '.join(map(repr, STABILITY_WATCHES))}, "
-                             f"got {self.stability_watch!r}")
         check_option("subharmonic", self.subharmonic, 1, integer=True)
 
 

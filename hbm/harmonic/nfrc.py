@@ -198,7 +198,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     pending = []
     if stability is None:
         stability = hbm.stability
-    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions.of_scene(hbm)
+    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions(max_gap=hbm.stability_max_gap)
     monitor = StabilityMonitor.for_residual(res, sopts) if stability else None
     per_point = {}  # index -> stability extras
     t_stab = [0.0]

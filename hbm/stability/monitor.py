@@ -56,7 +56,6 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from hbm.options import STABILITY_WATCHES as WATCHES
 from hbm.options import HbmOptions, check_option
 from hbm.stability.bifurcation import (BRANCH_POINT, CROSSING, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING,
                                       UNCLASSIFIED, Bifurcation, classify, crossings, lone_real, pair_multipliers,
@@ -97,13 +96,6 @@ class StabilityOptions:
     there, and an analysis at each. One side is enough: the point after a real turn can
     land next to the vertex (RL NFRC at 1478.3 rad/s: -0.48 then +4.6e-6 rad/s), and
     requiring both lost that fold. A crawl's first or last step can still make one turn.
-    watch: what the gap rule watches (WATCHES). "every": every multiplier moving towards the
-    circle. "flag": on an unstable orbit, only how soon it can be stable again: the largest
-    reach back to the circle of its unstable multipliers (_reach_back); on a stable orbit as
-    "every". A crossing that changes the count is still bisected and located; what "flag"
-    lets through is a second pair of crossings on an orbit already unstable (out and back
-    within one gap), and a multiplier hovering at the circle on the unstable side (its reach
-    back counts at its present speed whichever way it moves).
     """
 
     n_eig: int = 40
@@ -113,7 +105,6 @@ class StabilityOptions:
     window: float = 3.0
     reach_fraction: float = 0.25
     turn_tol: float = 1e-7
-    watch: str = HbmOptions.stability_watch  # the scene's default ([hbm] stability_watch)
 
     def __post_init__(self):
         check_option("n_eig", self.n_eig, 2, integer=True)
@@ -123,13 +114,6 @@ class StabilityOptions:
         check_option("window", self.window, 0, low_open=True)
         check_option("reach_fraction", self.reach_fraction, 0, 1, low_open=True)
         check_option("turn_tol", self.turn_tol, 0)
-        if self.watch not in WATCHES:
-            raise ValueError(f"watch must be one of {', '.join(map(repr, WATCHES))}, got {self.watch!r}")
-
-    @classmethod
-    def of_scene(cls, hbm: HbmOptions) -> "StabilityOptions":
-        """The settings a scene's [hbm] section gives: stability_max_gap, stability_watch."""
-        return cls(max_gap=hbm.stability_max_gap, watch=hbm.stability_watch)
 
 
 @dataclass(eq=False)
@@ -352,40 +336,18 @@ class StabilityMonitor:
             if j not in paired and up[j] and abs(sb.multipliers[j]) > floor \
                     and abs(lb_all[j]) < self.options.margin:
                 return 1  # a multiplier near the circle that came from nowhere: look closely
-        if self.options.watch == "flag" and b.n_unstable > 0:
-            reach = self._reach_back(sa, sb, pairs, b.s - a.s)
-        else:
-            reach = np.inf
-            for i, j in pairs:
-                la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
-                if la * lb > 0 and abs(lb) >= abs(la):
-                    continue  # moving away from the circle: no crossing ahead on its present course
-                speed = abs(lb - la) / (b.s - a.s)
-                if speed > 0:
-                    reach = min(reach, abs(lb) / speed)
+        reach = np.inf
+        for i, j in pairs:
+            la, lb = math.log(abs(sa.multipliers[i])), math.log(abs(sb.multipliers[j]))
+            if la * lb > 0 and abs(lb) >= abs(la):
+                continue  # moving away from the circle: no crossing ahead on its present course
+            speed = abs(lb - la) / (b.s - a.s)
+            if speed > 0:
+                reach = min(reach, abs(lb) / speed)
         ds = (b.s - a.s) / (b.index - a.index)  # mean arc length per point
         if not np.isfinite(reach):
             return self.options.max_gap
         return int(np.clip(self.options.reach_fraction * reach / ds, 1, self.options.max_gap))
-
-    def _reach_back(self, sa: FloquetSpectrum, sb: FloquetSpectrum, pairs, ds: float) -> float:
-        """Arc length before the orbit of sb (unstable) can be stable again: the largest of its
-        unstable multipliers' reaches back to the circle at their speeds since sa (ds before).
-        The speed counts whichever way a multiplier moves (one hovering just outside may turn
-        back: moving out, on rotor 67, it missed stable stretches and flags); one that does
-        not move never comes back (inf); one unpaired beyond the pairing window is far (inf),
-        one unpaired inside it, of unknown speed, may be back at once (0)."""
-        came = {j: i for i, j in pairs}
-        out = 0.0
-        for j in np.flatnonzero(sb.unstable):
-            lb = math.log(abs(sb.multipliers[j]))
-            if j not in came:
-                r = np.inf if lb >= self.options.window else 0.0
-            else:
-                la = math.log(abs(sa.multipliers[came[j]]))
-                r = lb * ds / abs(la - lb) if la != lb else np.inf
-            out = max(out, r)
-        return out
 
     def _release(self, k: int) -> list:
         out = []

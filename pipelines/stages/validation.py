@@ -520,12 +520,12 @@ def _searched_point(ctx, rom, system, method: str, n_r: int, where: str, br, upd
 
 def _branch_monitor(hbm) -> tuple:
     """Candidate.monitor of a branch computed with `hbm`: the continuation's scales and the
-    scene's monitor settings (gap, watch)."""
+    scene's stability gap."""
     from hbm.harmonic.nfrc import default_continuation
     from hbm.stability.monitor import StabilityOptions
 
     co = default_continuation(hbm)
-    return co.x_scale, co.omega_scale, StabilityOptions.of_scene(hbm)
+    return co.x_scale, co.omega_scale, StabilityOptions(max_gap=hbm.stability_max_gap)
 
 
 def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update, nfrc: Candidate | None = None):

@@ -100,27 +100,3 @@ def test_resumed_run_keeps_the_old_points_and_goes_on_with_stability(run):
     assert seen == list(range(m0, len(r2.omega)))  # only the new points are handed on
     assert np.all(r2.n_unstable[m0:] >= 0)
     assert np.all(r2.n_unstable[:m0] == -1)  # a Branch carries no stability: unknown, not invented
-
-
-def test_the_scene_s_watch_reaches_the_monitor(monkeypatch):
-    """[hbm] stability_watch and stability_max_gap (HbmOptions) are the monitor's settings
-    (StabilityOptions.of_scene, which the NFRC, the isola search and the validation stage
-    read), and the NFRC's monitor gets them."""
-    import dataclasses
-
-    from hbm.stability.monitor import StabilityMonitor
-
-    assert StabilityOptions.of_scene(HbmOptions(stability_max_gap=3, stability_watch="flag")) == \
-        StabilityOptions(max_gap=3, watch="flag")
-    assert StabilityOptions.of_scene(HbmOptions()) == StabilityOptions()
-    got = []
-    make = StabilityMonitor.for_residual.__func__
-
-    def spy(cls, residual, options=StabilityOptions()):
-        got.append(options)
-        return make(cls, residual, options)
-
-    monkeypatch.setattr(StabilityMonitor, "for_residual", classmethod(spy))
-    opts = dataclasses.replace(OPTS, omega_min=1990.0, stability=True, stability_max_gap=3, stability_watch="flag")
-    r = compute_nfrc(coarse_rom(), CasingOptions(), ContactOptions(), opts, "dlft")
-    assert got == [StabilityOptions(max_gap=3, watch="flag")] and r.n_stability_analyses > 0
