@@ -23,7 +23,8 @@ of time integration from the point (hbm.ti.validation.march_from_hbm, its verdic
 for the friction's fluctuating sliding terms) completed by refinement or by GMRES to 1e-13;
 prints the build and per-solve CPU times and how each iteration converges to the LU's answer.
 --schedule --replay 0.5,0.25: the NFRC once, every point analysed once, then the monitor
-replayed on those spectra for each StabilityOptions.reach_fraction given (and --max-gap; the schedule's
+replayed on those spectra for each StabilityOptions.reach_fraction given (and --max-gap; --spectra
+keeps the NFRC and the spectra for the next replay; the schedule's
 decisions are all that differ: the same analyses give the same spectra; the monitor's
 widened analyses, hbm.stability.monitor, are made on demand and kept); prints per fraction
 the analyses (and what asked for them: StabilityMonitor.causes), the crossings of the
@@ -41,6 +42,7 @@ there also counts the waits for a core.
 from __future__ import annotations
 
 import argparse
+import pickle
 import statistics
 import sys
 import time
@@ -91,6 +93,10 @@ def main():
     ap.add_argument("--filter-check", action="store_true")
     ap.add_argument("--woodbury-check", action="store_true")
     ap.add_argument("--every", type=int, default=6)
+    ap.add_argument("--spectra", default="",
+                    help="with --replay: keep the NFRC and its spectra in SPECTRA.<method>.pkl, and read them "
+                         "from there when it exists (the same ROM and arguments: other fractions replayed in "
+                         "seconds)")
     ap.add_argument("--max-gap", default=str(StabilityOptions().max_gap),
                     help="with --replay: StabilityOptions.max_gap of the replayed schedules, e.g. 8,16")
     a = ap.parse_args()
@@ -160,14 +166,19 @@ def replay(rom, a):
     fractions = [float(f) for f in a.replay.split(",")]
     opts = HbmOptions(n_harmonics=a.nh, n_time=a.nt, omega_min=a.omega_min, omega_max=a.omega_max)
     for m in a.methods:
-        r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
         res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=m)
-        n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
-        c0 = time.process_time()
-        with threadpool_limits(limits=1, user_api="blas"):
-            spectra = [orbit_spectrum(res, r.unknowns[i], float(r.omega[i]), min_ceiling=1.0) for i in range(n)]
-        per = (time.process_time() - c0) / n
-        wider = {}
+        cache = Path(f"{a.spectra}.{m}.pkl") if a.spectra else None
+        if cache is not None and cache.is_file():  # an earlier run's NFRC and spectra, same arguments
+            with cache.open("rb") as f:
+                r, n, spectra, wider, per = pickle.load(f)
+        else:
+            r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
+            n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
+            c0 = time.process_time()
+            with threadpool_limits(limits=1, user_api="blas"):
+                spectra = [orbit_spectrum(res, r.unknowns[i], float(r.omega[i]), min_ceiling=1.0) for i in range(n)]
+            per = (time.process_time() - c0) / n
+            wider = {}
 
         def widen(x, w, k):  # the monitor's widening, each (point, n_eig) analysed once
             i = int(x[0])
@@ -204,6 +215,9 @@ def replay(rom, a):
                       f"{': ' + '; '.join(missed) if missed else ''} | {wrong} of {n} | "
                       f"{', '.join(f'{k} {v}' for k, v in sorted(mon.causes.items(), key=lambda kv: -kv[1]))} |",
                       flush=True)
+        if cache is not None:  # with the widenings the replays asked for
+            with cache.open("wb") as f:
+                pickle.dump((r, n, spectra, wider, per), f)
 
 
 def widen_check(rom, a):

@@ -106,9 +106,9 @@ class HbmOptions:
       almost every point: 2911 points instead of 338 for RL at N_h = 10, same peaks).
     tolerance: Newton's test on the scaled residual ||R|| (R ~ H_r / (k_ref / alpha)).
     stability: Floquet stability of every point and the bifurcations of the branch
-      (Hill's method, hbm.stability). Off by default: it adds 1.4 (RL) to 1.8 (DLFT) times
-      the NFRC's own time on the coarse rotor 67 ROM (518 and 342 analyses of ~0.12 s CPU
-      each, see hbm.stability.monitor).
+      (Hill's method, hbm.stability). Off by default: it adds 0.8-1.4 (RL) to 1.1-2.0 (DLFT)
+      times the NFRC's own time on the coarse rotor 67 ROM (about 470 and 320 analyses of
+      ~0.13 s CPU each, see hbm.stability.monitor).
     stability_max_gap: most points between two Floquet analyses (the monitor analyses
       sooner where multipliers approach the unit circle). 8 analyses about half the points
       of the coarse rotor 67 NFRCs; 1 analyses every point (1.9 times the analyses) and so
