@@ -216,7 +216,9 @@ def replay(rom, a):
                       f"{', '.join(f'{k} {v}' for k, v in sorted(mon.causes.items(), key=lambda kv: -kv[1]))} |",
                       flush=True)
         if cache is not None:  # with the widenings the replays asked for
-            with cache.open("wb") as f:
+            from pipelines.artifacts import atomic_output
+
+            with atomic_output(cache) as tmp, open(tmp, "wb") as f:
                 pickle.dump((r, n, spectra, wider, per), f)
 
 
