@@ -60,6 +60,7 @@ from hbm.options import CasingOptions, ContactOptions, HbmOptions  # noqa: E402
 from hbm.stability import hill  # noqa: E402
 from hbm.stability.monitor import StabilityOptions  # noqa: E402
 from hbm.stability.spectrum import orbit_spectrum  # noqa: E402
+from pipelines.artifacts import atomic_output  # noqa: E402
 from rom.model import load_rom  # noqa: E402
 
 
@@ -95,8 +96,8 @@ def main():
     ap.add_argument("--every", type=int, default=6)
     ap.add_argument("--spectra", default="",
                     help="with --replay: keep the NFRC and its spectra in SPECTRA.<method>.pkl, and read them "
-                         "from there when it exists (the same ROM and arguments: other fractions replayed in "
-                         "seconds)")
+                         "from there when it exists (refused for another ROM, N_h, N_t or Omega range): other "
+                         "fractions replayed in seconds")
     ap.add_argument("--max-gap", default=str(StabilityOptions().max_gap),
                     help="with --replay: StabilityOptions.max_gap of the replayed schedules, e.g. 8,16")
     a = ap.parse_args()
@@ -168,9 +169,13 @@ def replay(rom, a):
     for m in a.methods:
         res = build_residual(rom, CasingOptions(), ContactOptions(), opts, method=m)
         cache = Path(f"{a.spectra}.{m}.pkl") if a.spectra else None
-        if cache is not None and cache.is_file():  # an earlier run's NFRC and spectra, same arguments
+        key = (str(Path(a.rom).resolve()), a.nh, a.nt, a.omega_min, a.omega_max)  # what the spectra depend on
+        if cache is not None and cache.is_file():  # an earlier run's NFRC and spectra
             with cache.open("rb") as f:
-                r, n, spectra, wider, per = pickle.load(f)
+                cached, r, n, spectra, wider, per = pickle.load(f)
+            if cached != key:
+                raise SystemExit(f"{cache} holds the spectra of (ROM, N_h, N_t, omega_min, omega_max) = {cached}, "
+                                 f"not of {key}: remove it or name another --spectra")
         else:
             r = compute_nfrc(rom, CasingOptions(), ContactOptions(), opts, m, stability=False)
             n = int(np.argmin(r.converged)) if not r.converged.all() else len(r.omega)
@@ -216,10 +221,8 @@ def replay(rom, a):
                       f"{', '.join(f'{k} {v}' for k, v in sorted(mon.causes.items(), key=lambda kv: -kv[1]))} |",
                       flush=True)
         if cache is not None:  # with the widenings the replays asked for
-            from pipelines.artifacts import atomic_output
-
             with atomic_output(cache) as tmp, open(tmp, "wb") as f:
-                pickle.dump((r, n, spectra, wider, per), f)
+                pickle.dump((key, r, n, spectra, wider, per), f)
 
 
 def widen_check(rom, a):
