@@ -55,6 +55,15 @@ class ContinuationOptions:
       sharp corner of the branch, e.g. at a contact onset with the stiff penalty law, turns
       by tens of degrees even at ds ~ 1e-5, where no other stretch is that close); a turn
       beyond 90 deg there ends the branch.
+    corner_turns: with it set, a turn up to 90 deg is also accepted above the floor when the
+      last corner_turns corrections refused at this point, each at twice the step of the
+      next, turned within corner_tol_deg of it: a turn that does not shrink with the step
+      is a corner of the branch (DLFT's non-smooth law makes them: 52, 50, 50 deg at ds =
+      0.057, 0.029, 0.014 on a period-doubled branch of rotor 67 at 719.9 rad/s), whereas
+      a landing on another stretch turns less as the step shrinks. None (the default):
+      corners only at the floor. Halving down to the floor, a corrector that takes the
+      prediction itself (0 iterations, its residual below tolerance at ds ~ 1e-5) keeps
+      the old direction past the corner, and the branch crawls there at the floor.
     turn_shrink_deg: a point whose secant turns more than this is kept but the next step
       shrinks instead of growing: the branch curves too much for the current step.
     rejoin_check: refuse a correction that lands back on the branch's own earlier path
@@ -107,6 +116,8 @@ class ContinuationOptions:
     shrink: float = 0.5
     max_turn_deg: float = 45.0
     turn_shrink_deg: float = 30.0
+    corner_turns: int | None = None
+    corner_tol_deg: float = 2.0
     rejoin_check: bool = True
     rejoin_tol: float = 1e-3
     iter_reject: int | None = None
@@ -151,6 +162,9 @@ class ContinuationOptions:
             raise ValueError(f"turn_shrink_deg must be in (0, 180], got {self.turn_shrink_deg}")
         if self.crawl_points is not None:
             check_option("crawl_points", self.crawl_points, 1, integer=True, note="or None")
+        if self.corner_turns is not None:
+            check_option("corner_turns", self.corner_turns, 1, integer=True, note="or None")
+        check_option("corner_tol_deg", self.corner_tol_deg, 0, low_open=True)
 
     def next_step(self, ds: float, iterations: int, turn_deg: float = 0.0) -> float:
         """Step after a correction that converged in `iterations` with step `ds` and turned
@@ -427,11 +441,13 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
         else:
             tx, tw = _tangent(residual, last.x, last.omega, opt.direction, sc, solver)
         t0 = time.perf_counter()
+        turns = []  # turns of the corrections refused for their turn at this point, degrees
         while True:
             xp, wp = _prediction(points, ds, tx, tw, sc, opt.predictor == "quadratic")
             c = _correct(residual, xp, wp, last.x, last.omega, ds, sc, opt.newton, solver)
             cx, cw = c.x[:n], float(c.x[n])
             floor = ds * opt.shrink < opt.ds_min
+            turned = False  # refused for its turn alone
             if c.converged and not floor and opt.iter_reject is not None and c.iterations > opt.iter_reject:
                 c = c._replace(converged=False, reason=f"correction took {c.iterations} iterations (more than "
                                                        f"{opt.iter_reject}) near omega={cw:.6g}")
@@ -440,7 +456,10 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
                 cos = (float(((cx - last.x) / sc.sx) @ tx) + (cw - last.omega) / sc.sw * tw) / max(d, 1e-300)
                 turn = math.degrees(math.acos(max(-1.0, min(1.0, cos))))
                 rejoin = None
-                if d > 0 and (turn <= opt.max_turn_deg or (floor and turn <= 90.0)):
+                k = opt.corner_turns
+                corner = (k is not None and len(turns) >= k
+                          and max(abs(t - turn) for t in turns[-k:]) <= opt.corner_tol_deg)
+                if d > 0 and (turn <= opt.max_turn_deg or ((floor or corner) and turn <= 90.0)):
                     # A loop coming back to its start lands on its own first segment: the
                     # crossing test closes it there, before the rejoin test would refuse it.
                     if not opt.rejoin_check or closes(last, cx, cw) is not None:
@@ -457,8 +476,12 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
                     c = c._replace(converged=False, reason=f"correction landed {why} on the branch's own path "
                                                            f"(points {rejoin[0]}-{rejoin[0] + 1}) near omega={cw:.6g}")
                 else:
+                    turned = True
+                    turns.append(turn)
                     c = c._replace(converged=False, reason=f"correction turned {turn:.0f} deg from the previous "
                                                            f"secant near omega={cw:.6g}")
+            if not turned:
+                turns.clear()  # a corner is told by refusals at successive halvings only
             if floor:
                 emit(cx, cw, False, c.residual_norm, c.iterations, ds, t0)
                 return done(f"{STATUS_STEP_FLOOR}: {c.reason} (ds={ds:.3g}, ds_min={opt.ds_min:.3g})")

@@ -228,6 +228,46 @@ def test_sharp_corner_at_the_step_floor(a, passes):
         assert abs(b.x[ok][-1, 0]) < 0.01 and np.all(np.diff(b.x[ok, 0]) > 0)  # it ended at the corner
 
 
+
+def test_a_corner_is_passed_above_the_step_floor():
+    # Vee (a = 0.9) turns by 84 deg at its corner, whatever the step. Without corner_turns
+    # the steps there halve down to the floor (1e-6); with corner_turns = 2 the third
+    # halving that turns by the same angle (within 2 deg) is taken, at a step of ds_max / 8
+    # or more; every point on the branch, forwards through the corner.
+    v = Vee(a=0.9)
+    runs = {}
+    for k in (None, 2):
+        b = continue_branch(v, np.array([-0.5, 0.0]), 1.45,
+                            opts(0.0, 5.0, ds_min=1e-6, max_points=60, direction=-1, corner_turns=k))
+        assert np.all(b.converged)
+        np.testing.assert_allclose(b.omega, 1.0 + 0.9 * np.hypot(b.x[:, 0], 1e-7), atol=TOL)  # on the branch
+        assert np.all(np.diff(b.x[:, 0]) > 0)
+        runs[k] = b
+    assert gaps(runs[None]).min() < 2e-6
+    assert gaps(runs[2]).min() >= DS_MAX / 16
+    assert runs[2].x[-1, 0] > 2 * runs[None].x[-1, 0] > 0  # 60 points reach further
+
+
+def test_a_turn_that_shrinks_with_the_step_is_no_corner():
+    # On the circle of radius 0.5 a chord of ds = 0.6 turns by ~74 deg from the previous
+    # secant, one of 0.3 by ~35: the turn halves with the step, the corner rule never fires,
+    # and the points are those without it.
+    c, x0 = Circle(), np.array([2.5, 1.5625])
+    b0, b2 = (continue_branch(c, x0, 1.5, opts(0.0, 5.0, ds=0.6, ds_max=0.6, ds_min=1e-4, max_points=40,
+                                                    corner_turns=k)) for k in (None, 2))
+    np.testing.assert_array_equal(b0.x, b2.x)
+    np.testing.assert_array_equal(b0.omega, b2.omega)
+    assert b0.step[1:].min() < 0.6  # steps were refused for their turn
+
+
+def test_a_corner_beyond_90_degrees_still_ends_the_branch():
+    # corner_turns accepts turns up to 90 deg only: Vee's 157 deg corner ends the branch at
+    # the floor, as without it
+    b = continue_branch(Vee(a=5.0), np.array([-0.5, 0.0]), 3.5,
+                        opts(0.0, 5.0, ds_min=1e-3, max_points=400, direction=-1, corner_turns=2))
+    assert b.status.startswith(STATUS_STEP_FLOOR)
+    assert abs(b.x[b.converged][-1, 0]) < 0.01
+
 def test_zigzag_branch_traverses_every_fold():
     # ZigZag folds every pi / kappa = 0.26 in x1 between stretches ~0.26 apart, a cluster like
     # RL-HBM's over 420-432 rad/s on rotor 67. With ds_max = 1 a step can reach a later stretch.
