@@ -59,11 +59,11 @@ def search_options(hbm: HbmOptions, iso: IsolaOptions) -> SearchOptions:
     on the isolas' omega range, with max_points and crawl_points per half branch and
     corners of a branch passed above the step floor (ContinuationOptions.corner_turns 2:
     a branch that reaches a corner at the floor may crawl there, and a crawl ends a half;
-    the NFRC, never ended by a crawl, keeps the floor rule); the seeds' Newton with backtracking and newton_iterations iterations, given up once three
-    iterations in a row fail to lower the best ||R|| tenfold (hbm.continuation.newton
-    stall_iterations: most seeds never converge; this makes them cost ~4 iterations); the
-    seeds that are solutions of a model (Seed.of_model) get model_seed_iterations and no
-    stall rule."""
+    the NFRC, never ended by a crawl, keeps the floor rule); the seeds' Newton with
+    backtracking and newton_iterations iterations, given up once three iterations in a row
+    fail to lower the best ||R|| tenfold (hbm.continuation.newton stall_iterations: most
+    seeds never converge; this makes them cost ~4 iterations); the seeds that are solutions
+    of a model (Seed.of_model) get model_seed_iterations and no stall rule."""
     lo, hi = iso.omega_range(hbm)
     co = replace(default_continuation(hbm), omega_min=lo, omega_max=hi, max_points=iso.max_points,
                  crawl_points=iso.crawl_points, corner_turns=2)
