@@ -14,11 +14,20 @@ Two phases:
    spread over local processes (concurrent.futures, one task per omega) or over the MPI
    ranks (each takes its share, then allgather).
 2. branches: each remaining solution, in seed order, unless it lies on a branch found so
-   far, is continued both ways by arc length (hbm.continuation.arclength, closed-loop
-   test of eq. (26)-(27): a loop closed in the first direction is not followed back, once
+   far, is continued both ways by arc length (hbm.continuation.arclength), the two halves
+   at the same time, each sending the other its points. The halves meet where a loop
+   closes: a half stops (STATUS_HALVES_MET) at its first point k whose chord from point
+   k - 1 runs against the other's points 0 .. k - _HALF_LAG within the tolerance, away from
+   the seed (_met_segment); the loop is the two halves, each about half of it plus the lag,
+   their overlap kept once (_trimmed). Where they meet depends on the points only: the
+   halves run on two processes, or on two threads of one process that take turns (one
+   core: under MPI, where rank 0 continues alone, or with one worker), and give the same
+   branch. A half that came back onto its own start by the
+   closed-loop test of eq. (26)-(27) (the other having ended first, or a loop too small for
+   the halves to meet away from the seed) went round alone, and the other is dropped, once
    it is checked to have come back onto its start, travelling the way it left: eq. (27)
    measures the return relative to |x|, which one turn of a coil later can pass; such a
-   half is no loop, and the other half is continued (_back_at_start)). A
+   half is no loop, and the branch is both halves (_back_at_start). A
    half branch also ends when it (or its image) meets a known or found branch: when the
    chord from its previous point passes within the tolerance of that branch's polyline (a
    branch that only touches another, tangentially, closer than the tolerance meets it, and
@@ -31,11 +40,9 @@ Two phases:
    seed beyond them gives another branch. That last step past a crossing is left out of
    the polyline later halves and seeds are measured against (_meeting_polyline): a half
    coming from beyond the crossing crosses the branch there too, rather than running into
-   the step, merging and having its points, the piece beyond the crossing, dropped. Where two
-   cores are usable (and not under MPI, where rank 0 continues alone) the two halves run at once on
-   two processes, and the second is dropped when the first closes the loop: the wall time
-   of an open branch halves, that of a closed one does not change. The halves are merged
-   into one branch and classified:
+   the step, merging and having its points, the piece beyond the crossing, dropped. On two
+   processes the wall time of a branch halves, open or closed. The halves are merged into
+   one branch and classified:
      primary: it merges into (runs along) the primary NFRC;
      bifurcated: it crosses another branch (a branch point; a found branch it crosses is
        made bifurcated too, with the pieces it is one branch with), merges into a known
@@ -47,8 +54,8 @@ Two phases:
        start without closing (a loop through the seed cannot leave the range): such a
        branch is not closed (_classify), nor is one whose "closed loop" did not come back
        onto its start.
-   closed: the branch is one closed loop: its points were followed round back onto the
-   start, and no other branch runs into it. Closed branches are isolas or bifurcated
+   closed: the branch is one closed loop: its halves met, or one was followed round back
+   onto the start, and no other branch runs into it. Closed branches are isolas or bifurcated
    (through a located bifurcation point, or crossed by another branch: a crossing leaves
    both branches whole), never primary or detached.
    A half that merges into a branch found earlier makes the new one part of it: its seeds
@@ -82,7 +89,9 @@ import copy
 import math
 import os
 import pickle
+import queue
 import re
+import threading
 import time
 from dataclasses import dataclass, field, replace
 from types import SimpleNamespace
@@ -466,16 +475,164 @@ def _curve_guess(b: KnownBranch, x, omega: float, x_scale, omega_scale: float) -
 
 
 # -- phase 2: branches -------------------------------------------------------------------------
+#: How a half ends that met the other half (module doc): the two are one closed loop.
+STATUS_HALVES_MET = f"{STATUS_CLOSED_LOOP} (the halves met)"
+
+#: A half meets the other one only where the stretch of the branch between the two places
+#: (back through the seed) goes farther than this many tolerances from where they meet: at
+#: the seed the halves' first chords touch, and a seed at a sharp turn keeps both within the
+#: tolerance of it for several points, whereas a loop's far side is its diameter away.
+_LOOP_REACH = 10.0
+
+#: A half's point k is tested against the other half's points 0 .. k - _HALF_LAG: a half
+#: waits only for one that lags further behind (a point costs 1 to 10 times another: step
+#: refusals, Newton iterations), and both overrun the place they meet by about this many
+#: points, which the merged loop leaves out (_trimmed). Point for point (lag 0) the halves
+#: of the coarse rotor 67 doubled branches took as much wall time as two independent ones.
+_HALF_LAG = 16
+
+
+class _OtherHalf:
+    """The other half of the branch being continued, as its points come (module doc: the
+    halves meet). send, recv: queues of (tag, kind, payload): kind "P" a converged point
+    (omega, x), "E" the half ended, "F" it failed (raised); recv skips messages of another
+    tag (an earlier branch's, left in a pool's queues). baton: a lock held while computing
+    and released while waiting, so that two halves on two threads of one process take
+    turns (the work of one core); None on two processes."""
+
+    def __init__(self, send, recv, tag, baton=None):
+        self.send, self.recv, self.tag, self.baton = send, recv, tag, baton
+        self.omega = np.zeros(0)
+        self.x = None
+        self.m = 0  # points received
+        self.ended = False
+
+    def begin(self):
+        if self.baton is not None:
+            self.baton.acquire()
+
+    def end(self, failed: bool = False):
+        """Say this half ended, and read the other's messages up to its own end: none is left
+        in a queue for a later branch. failed: this half raised (an error, an interrupt): the
+        other stops at its next message (_OtherHalfFailed) instead of going on alone."""
+        try:
+            self.post("F" if failed else "E")
+            while not (self.ended or failed):
+                self.take()
+        finally:
+            if self.baton is not None:
+                self.baton.release()
+
+    def post(self, kind: str, payload=None):
+        self.send.put((self.tag, kind, payload))
+
+    def take(self):
+        """Read the other half's next message, waiting for it."""
+        if self.baton is not None:
+            self.baton.release()
+        try:
+            while True:
+                tag, kind, payload = self.recv.get()
+                if tag == self.tag:
+                    break
+        finally:
+            if self.baton is not None:
+                self.baton.acquire()
+        if kind == "F":
+            self.ended = True
+            raise _OtherHalfFailed()
+        if kind == "E":
+            self.ended = True
+        elif kind == "P":
+            w, x = payload
+            if self.x is None or self.m == len(self.omega):  # grown by doubling: views, no copy per point
+                cap = max(64, 2 * self.m)
+                om, X = np.zeros(cap), np.zeros((cap, len(x)))
+                if self.m:
+                    om[: self.m], X[: self.m] = self.omega[: self.m], self.x[: self.m]
+                self.omega, self.x = om, X
+            self.omega[self.m], self.x[self.m] = w, x
+            self.m += 1
+
+    def points_upto(self, k: int) -> KnownBranch:
+        """The other half's points 0 .. k, waiting for them; fewer when it ended before k."""
+        while self.m <= k and not self.ended:
+            self.take()
+        m = min(self.m, k + 1)
+        return KnownBranch(self.omega[:m], self.x[:m], "the other half")
+
+
+def _met_segment(points, b: KnownBranch, opts: ContinuationOptions, tol: float) -> int:
+    """The segment s (points s, s + 1) of the other half's polyline b that this half's last
+    chord (points[-2] to points[-1], ContinuationPoints or anything with x and omega, from the
+    seed, converged) meets, -1 when it does not: within tol, running against it (the halves
+    leave the seed in opposite directions, so along a loop they come back towards each
+    other: |cos| above _PARALLEL_COS, negative), and where the stretch of the branch between
+    the two places, back through the seed, goes farther than _LOOP_REACH tol from them."""
+    if len(b.omega) < 2 or len(points) < 2:
+        return -1
+    prev, p = points[-2], points[-1]
+    sx = np.broadcast_to(np.asarray(opts.x_scale, dtype=float), np.shape(p.x))
+    sw = opts.omega_scale
+    d, xn, wn = segment_polyline_distance(prev.x, prev.omega, p.x, p.omega, b, sx, sw, within=tol)
+    if not d <= tol:
+        return -1
+    s = nearest_segment(xn, wn, b, sx, sw)[3]
+    a = np.append((p.x - prev.x) / sx, (p.omega - prev.omega) / sw)
+    g = np.append((b.x[s + 1] - b.x[s]) / sx, (b.omega[s + 1] - b.omega[s]) / sw)
+    na, ng = np.linalg.norm(a), np.linalg.norm(g)
+    if not (na > 0 and ng > 0 and float(a @ g) < -_PARALLEL_COS * na * ng):
+        return -1
+    stretch = np.vstack([b.x[: s + 1]] + [np.asarray(q.x)[None] for q in points[1:-1]])
+    w_str = np.concatenate([b.omega[: s + 1], [q.omega for q in points[1:-1]]])
+    reach = np.sqrt(np.sum(((stretch - xn) / sx) ** 2, axis=1) + ((w_str - wn) / sw) ** 2)
+    return s if reach.max() > _LOOP_REACH * tol else -1
+
+
+def _trimmed(met: Branch, other: Branch, opts: ContinuationOptions, tol: float) -> Branch:
+    """other without its points past the place where the half `met` met it (its points
+    there overlap met's last ones, _HALF_LAG): the segment met's last chord met, among the
+    points 0 .. len(met) - 1 - _HALF_LAG of other it was tested against, is kept whole."""
+    ok = np.asarray(met.converged, bool)
+    pts = [SimpleNamespace(x=x, omega=w) for x, w in zip(met.x[ok], met.omega[ok])]
+    # the points it was tested against: other's converged ones (a failed last point was never sent)
+    upto = min(len(met) - 1 - _HALF_LAG, len(other) - 1 - int(not other.converged[-1]))
+    b = KnownBranch(other.omega[: upto + 1], other.x[: upto + 1], "the other half")
+    s = _met_segment(pts, b, opts, tol)
+    if s < 0:  # not found again (cannot happen: the same points): keep the whole
+        return other
+    keep = slice(0, s + 2)
+    return replace(other, omega=other.omega[keep], x=other.x[keep], converged=other.converged[keep],
+                   residual_norm=other.residual_norm[keep], iterations=other.iterations[keep],
+                   step=other.step[keep], time=other.time[keep])
+
+
+class _HalvesMet(Exception):
+    """Raised from on_point: this half met the other."""
+
+
+class _OtherHalfFailed(Exception):
+    """Raised in a half whose other half raised: the search fails with the other's error."""
+
+
 def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float,
-          search_options: SearchOptions | None = None):
+          search_options: SearchOptions | None = None, other: _OtherHalf | None = None):
     """One half branch from (x0, w0): (Branch, joined) with joined = (label, index, merging)
     when it stopped on meeting a branch of `others` [(label, index, KnownBranch)].
-    search_options: also stop where the half crosses a symmetric branch (_symmetric_crossing)."""
+    search_options: also stop where the half crosses a symmetric branch (_symmetric_crossing).
+    other: the other half, run at the same time: this one stops (STATUS_HALVES_MET) at its
+    first point k whose chord from k - 1 meets the other's points 0 .. k - _HALF_LAG
+    (_met_segment; fewer when the other ended before), so its points do not depend on which
+    half ran faster."""
     points = []
 
     def on_point(p):
         points.append(p)
-        if not p.converged or p.index == 0:
+        if not p.converged:
+            return
+        if other is not None:
+            other.post("P", (p.omega, p.x))
+        if p.index == 0:
             return
         # the chord from the previous point: a branch crossed between two points passes farther
         # than tol from it at both when the step is longer than tol
@@ -483,12 +640,27 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
         met = _meeting(residual, prev, p, others, opts, tol, search_options, solver)
         if met is not None:
             raise _Joined(*met)
+        if other is not None and p.index - _HALF_LAG >= 1:
+            if _met_segment(points, other.points_upto(p.index - _HALF_LAG), opts, tol) >= 0:
+                raise _HalvesMet()
 
+    if other is not None:
+        other.begin()
+    failed = True
     try:
-        br = continue_branch(residual, x0, w0, replace(opts, direction=direction), on_point=on_point, solver=solver)
-        return br, None
-    except _Joined as j:
-        return Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
+        try:
+            br = continue_branch(residual, x0, w0, replace(opts, direction=direction), on_point=on_point,
+                                 solver=solver)
+            out = br, None
+        except _Joined as j:
+            out = Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
+        except _HalvesMet:
+            out = Branch.from_points(points, len(x0), STATUS_HALVES_MET), None
+        failed = False
+        return out
+    finally:
+        if other is not None:
+            other.end(failed)
 
 
 def _meeting(residual, prev, p, others, opts: ContinuationOptions, tol: float,
@@ -624,15 +796,60 @@ def _back_at_start(residual, half: Branch, options: "SearchOptions", solver) -> 
     return float(a @ b) > 0.0
 
 
+#: A branch-phase worker's queues to the other half, by the direction of the half that posts
+#: to it (_init_branch_worker)
+_HALF_QUEUES: dict = {}
+
+
+def _init_branch_worker(queues: dict) -> None:
+    """Pool initializer of the branch phase: one BLAS thread, and the two queues the halves
+    of a branch talk through (a multiprocessing queue reaches a worker only as it starts).
+    A worker's exit does not wait for what it posted to be read (after a failure the other
+    half reads no more)."""
+    limit_blas_threads()
+    for q in queues.values():
+        q.cancel_join_thread()
+    _HALF_QUEUES.clear()
+    _HALF_QUEUES.update(queues)
+
+
 def _run_half(factory, x0, w0, direction: int, opts: ContinuationOptions, others, tol: float,
-              search_options: SearchOptions | None = None):
+              search_options: SearchOptions | None = None, other=None):
     """_half with a fresh (residual, solver) from factory, in this process or a worker: a
     half branch does not depend on which process ran it nor on what that process solved
-    before (a kept preconditioner would change its last digits). -> (Branch, joined, CPU s)."""
+    before (a kept preconditioner would change its last digits). other: an _OtherHalf, or the
+    tag of the branch in a pool's worker (its queues: _HALF_QUEUES). -> (Branch, joined, CPU s)."""
     t = time.process_time()
+    if other is not None and not isinstance(other, _OtherHalf):
+        other = _OtherHalf(_HALF_QUEUES[direction], _HALF_QUEUES[-direction], other)
     residual, solver = factory()
-    br, joined = _half(residual, solver, x0, w0, direction, opts, others, tol, search_options)
+    br, joined = _half(residual, solver, x0, w0, direction, opts, others, tol, search_options, other)
     return br, joined, time.process_time() - t
+
+
+def _both_halves(args, tag, pool=None):
+    """The two halves of a branch from _run_half's args (direction +1 in them), at the same
+    time: on the pool's two processes, or on two threads of this one taking turns.
+    -> ((Branch, joined, CPU s) of the + half, the same of the - half)."""
+    minus = args[:3] + (-1,) + args[4:]
+    if pool is not None:
+        futures = [pool.submit(_run_half, *args, other=tag), pool.submit(_run_half, *minus, other=tag)]
+        concurrent.futures.wait(futures)
+        # the error of the half that failed, not the other's _OtherHalfFailed
+        for f in sorted(futures, key=lambda f: isinstance(f.exception(), _OtherHalfFailed)):
+            if f.exception() is not None:
+                raise f.exception()
+        return tuple(f.result() for f in futures)
+    # the + half in this thread: an interrupt (Ctrl-C) reaches it, and the - half stops at its next point
+    q_plus, q_minus, baton = queue.SimpleQueue(), queue.SimpleQueue(), threading.Lock()
+    with concurrent.futures.ThreadPoolExecutor(1) as thread:
+        f_minus = thread.submit(_run_half, *minus, other=_OtherHalf(q_minus, q_plus, tag, baton))
+        try:
+            plus = _run_half(*args, other=_OtherHalf(q_plus, q_minus, tag, baton))
+        except _OtherHalfFailed:
+            f_minus.result()  # raises the - half's error
+            raise
+        return plus, f_minus.result()
 
 
 def _parallel(points, b: KnownBranch, xn, wn, opts) -> bool:
@@ -735,7 +952,8 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
               back=None):
     """(kind, closed) of a merged branch from its halves [(Branch, joined)]; the known
     branches of index < primaries are the primary NFRC(s). back: per half, whether its
-    "closed loop" came back onto its start (_back_at_start; None: every one did).
+    "closed loop" came back onto its start (_back_at_start) or met the other half
+    (STATUS_HALVES_MET); None: every one did.
 
     A "closed loop" of eq. (26)-(27) is back within d_min of the start relative to |x|,
     which one turn of a coil later can be: it closes the branch only when it came back onto
@@ -900,28 +1118,28 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             others = known_others + [(f"branch {j}", j, p) for j, p in enumerate(polys)]
             args = (factory, x0, w0, +1, co, others, options.tolerance, options)
             doing[0] = f"branch being continued: from seed {i} at {w0:g} rad/s"
-            if pool is not None:  # both halves at once; the second is dropped if the first closes
-                futures = [pool.submit(_run_half, *args), pool.submit(_run_half, *args[:3], -1, *args[4:])]
-                (first, j1, c1), (second, j2, c2) = (f.result() for f in futures)
-                cpu_half = c1 + c2
+            # both halves at once, until they meet (a closed loop) or each ends otherwise
+            (first, j1, c1), (second, j2, c2) = _both_halves(args, i, pool)
+            cpu_half = c1 + c2
+            if pool is not None:
                 cpu_workers += cpu_half
-            else:
-                first, j1, cpu_half = _run_half(*args)
-                second = None
+            met = [br.status == STATUS_HALVES_MET for br in (first, second)]
+            n_computed = len(first) + len(second) - 1
+            if met[0]:  # the halves overrun the place they meet: the overlap is kept once, on the half that met
+                second = _trimmed(first, second, co, options.tolerance)
+            elif met[1]:
+                first = _trimmed(second, first, co, options.tolerance)
             halves = [(first, j1)]
-            # a "closed loop" that did not come back onto the start (a coil's next turn) is
-            # no loop: the branch goes on the other way
-            back = [_closes(residual, first, options, solver)]
-            if not back[0] and first.converged[0]:
-                if second is None:
-                    second, j2, c2 = _run_half(*args[:3], -1, *args[4:])
-                    cpu_half += c2
+            # a "closed loop" of eq. (26)-(27) that did not come back onto the start (a coil's
+            # next turn) is no loop: the branch goes on the other way
+            back = [met[0] or _closes(residual, first, options, solver)]
+            if any(met) or (not back[0] and first.converged[0]):
                 halves.append((second, j2))
-                back.append(_closes(residual, second, options, solver))
-            else:
+                back.append(met[1] or _closes(residual, second, options, solver))
+            else:  # the + half went round a loop back onto the start by itself: the - half repeats it
                 second = None
             n_cont += 1
-            computed = len(first) + (len(second) - 1 if second is not None else 0)
+            computed = n_computed if any(met) else len(first) + (len(second) - 1 if second is not None else 0)
             n_pts += computed
             merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
             omega, x, conv = _merge(first, second)
@@ -1013,8 +1231,9 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             found, owner, n_cont, n_pts, cpu2 = branches_phase()
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = process_context()
+            queues = {+1: ctx.Queue(), -1: ctx.Queue()}
             with reported_deaths("the isola search", lambda: doing[0]), concurrent.futures.ProcessPoolExecutor(
-                    2, mp_context=ctx, initializer=limit_blas_threads) as pool:
+                    2, mp_context=ctx, initializer=_init_branch_worker, initargs=(queues,)) as pool:
                 found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
         found, owner, n_cont, n_pts, cpu2 = on_root(comm, branches_phase, "the isola search's continuation")

@@ -64,21 +64,123 @@ def test_a_first_half_back_near_its_start_one_coil_turn_later_is_no_closed_loop(
     assert "not a closed loop (+): it came back near its start, not onto it" in b.status
 
 
-def test_a_genuine_loop_still_closes_in_the_first_direction():
-    """The check costs a genuine loop nothing more: the first half's loop comes back onto the
-    start and the second half is not continued (the ring of test_isola_classification_edges,
-    alone)."""
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_genuine_loop_is_closed_by_its_halves_meeting_on_its_far_side(workers):
+    """The ring of test_isola_classification_edges, alone, seeded at its right end (angle 0
+    about its centre (x1, Omega) = (2, 1.5)): the two halves run round it at the same time,
+    each tested against the other's points up to _HALF_LAG behind its own, and stop past
+    the far side (angle pi) where they meet: one closed isola that covers the ring once
+    (the overlap of the two halves kept once), every point on it, each half with about half
+    the points plus the lag where one half going all the way round took 79 (the wall time
+    of a closed branch nearly halves on two processes). The same points with one worker
+    (two threads taking turns) as with two processes."""
     from test_isola_classification_edges import ring
+
+    from hbm.isolas.search import _HALF_LAG
 
     co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
                              omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
                              newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=1,
+    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=workers,
                          newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
-    res = search(ring, [Seed(1.5, np.array([2.51, 1.5]), "top")], [], opts)
+    res = search(ring, [Seed(1.5, np.array([2.51, 1.5]), "right")], [], opts)
     (b,) = res.branches
-    assert (b.kind, b.closed) == ("isola", True) and b.status.startswith("+: closed loop") and "-:" not in b.status
-    assert res.n_points_computed == len(b.omega)
+    assert (b.kind, b.closed) == ("isola", True), b.status
+    assert b.status.startswith("+: closed loop (the halves met); -:"), b.status
+    np.testing.assert_allclose((b.x[:, 0] - 2.0) ** 2 + (b.omega - 1.5) ** 2, 0.25, atol=1e-10)
+    np.testing.assert_allclose(b.x[:, 1], 0.25 * b.x[:, 0] ** 2, atol=1e-10)
+    angle = np.unwrap(np.arctan2(b.omega - 1.5, b.x[:, 0] - 2.0))
+    start = int(np.argmin(np.abs(b.x[:, 0] - 2.5) + np.abs(b.omega - 1.5)))
+    # once round: the ends within a step or two of each other (ds_max = 0.05 on a radius of 0.5)
+    span = abs(angle[-1] - angle[0])
+    assert 2 * np.pi - 0.2 < span < 2 * np.pi + 0.2, span
+    plus = len(b.omega) - start  # the + half's points, the seed included
+    minus_computed = res.n_points_computed + 1 - plus
+    assert plus <= 63 / 2 + _HALF_LAG + 3 and minus_computed <= 63 / 2 + _HALF_LAG + 3, (plus, minus_computed)
+    assert abs(angle[start] - angle[-1]) > np.pi  # the + half went past the far side
+
+
+class Cup:
+    """The parabola Omega = 1 + x^2: a fold (a minimum in Omega) at x = 0. Picklable."""
+
+    def __call__(self, x, w, jacobian=True):
+        R = np.array([w - 1.0 - x[0] ** 2])
+        if not jacobian:
+            return R
+        return R, np.array([[-2.0 * x[0]]]), np.array([1.0])
+
+
+def cup():
+    return Cup(), DirectSolver()
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_halves_leaving_a_seed_at_a_fold_in_small_steps_do_not_meet(workers):
+    """Seeded at the fold's tip, the halves leave it in opposite directions (+x and -x) with
+    steps of a hundredth of the tolerance: for the first points tested each half's chord runs
+    against the other's first segments within the tolerance, as where a loop's halves meet. The stretch
+    between the two places (through the seed) stays within the tolerance of them, so they
+    do not meet: both rise to omega_max, one open branch through the fold."""
+    from hbm.isolas.search import _HALF_LAG
+
+    co = ContinuationOptions(omega_min=0.5, omega_max=2.0, ds=1e-4, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
+                             omega_scale=1.0, max_points=2000, grow=1.05, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
+    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=workers,
+                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    res = search(cup, [Seed(1.0, np.array([0.0]), "tip")], [], opts)
+    (b,) = res.branches
+    assert b.status == "+: reached omega_max; -: reached omega_max", b.status
+    assert (b.kind, b.closed) == ("detached", False)
+    np.testing.assert_allclose(b.omega, 1.0 + b.x[:, 0] ** 2, atol=1e-10)
+    assert b.x[:, 0].min() == pytest.approx(-1.0) and b.x[:, 0].max() == pytest.approx(1.0)
+    start = int(np.argmin(np.abs(b.x[:, 0])))
+    # the points each half's chords were first tested against (_HALF_LAG behind) within the tolerance of the seed
+    lag = _HALF_LAG + 5
+    assert np.abs(b.x[start - lag:start + lag + 1, 0]).max() < 1e-2
+
+
+class BrokenCup(Cup):
+    """Cup, whose residual raises past x = -0.5 (the - half's side only). Picklable."""
+
+    def __call__(self, x, w, jacobian=True):
+        if x[0] < -0.5:
+            raise FloatingPointError(f"broken residual at x = {x[0]:.3f}")
+        return super().__call__(x, w, jacobian)
+
+
+def broken_cup():
+    return BrokenCup(), DirectSolver()
+
+
+def broken_search(workers: int) -> None:
+    """A search on BrokenCup whose + half would rise for ever (run in a subprocess by the
+    test below)."""
+    co = ContinuationOptions(omega_min=0.5, omega_max=1e12, ds=1e-2, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
+                             omega_scale=1.0, max_points=10**9, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
+    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=workers,
+                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    search(broken_cup, [Seed(1.0, np.array([0.0]), "tip")], [], opts)
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_half_that_raises_fails_the_search_with_its_own_error(workers):
+    """The two halves wait for each other point by point: when one raises, the other stops
+    at its next point (here it would go on for ever), and the search fails with the error
+    of the half that raised, not the other's "my other half failed"."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    here = Path(__file__).resolve().parent
+    code = (f"import sys; sys.path[:0] = [{str(here)!r}, {str(here.parent)!r}]; "
+            f"from test_isola_search_edges import broken_search; broken_search({workers})")
+    run = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=240,
+                         cwd=here.parents[1])
+    assert run.returncode != 0
+    last = run.stderr.strip().splitlines()[-1]
+    assert last.startswith("FloatingPointError: broken residual at x = -0.5"), run.stderr[-2000:]
 
 
 # -- 2. a closed isola that a branch reaching the range's bound runs into ------------------

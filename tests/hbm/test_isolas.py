@@ -346,7 +346,7 @@ def _killed(items):
     return _timed(_WORKER["corrector"], items)
 
 
-def _killed_half(*args):
+def _killed_half(*args, **kwargs):
     """A half branch's task (hbm.isolas.search._run_half), but its worker is killed."""
     import signal
 
@@ -564,3 +564,20 @@ def test_the_describers_keep_a_bounded_number_of_residuals(monkeypatch):
     assert built == list(range(6)) + [0] and len(harmonic._RESIDUALS) == 4
     # 0 took the place of the least recently used, 2 (3 and 4 came after it, then 5 again)
     assert list(harmonic._RESIDUALS.values()) == ["residual 3", "residual 4", "residual 5", "residual 0"]
+
+
+def test_the_branches_are_the_same_with_one_worker_and_with_two(primary):
+    """The halves of a branch run at the same time, on two processes or on two threads of
+    one taking turns, and stop at the first point where either meets the other: where they
+    meet depends only on their points, not on which half computed faster. The isola's
+    halves meet; every branch is the same to the bit either way."""
+    serial = search(factory, modal_seeds(), [primary], options(workers=1))
+    two = search(factory, modal_seeds(), [primary], options(workers=2))
+    assert [b.kind for b in two.branches] == [b.kind for b in serial.branches]
+    (isola,) = [b for b in serial.branches if b.kind == "isola"]
+    assert isola.closed and isola.status == "+: closed loop (the halves met); -: closed loop (the halves met)"
+    for a, b in zip(serial.branches, two.branches):
+        assert a.status == b.status
+        np.testing.assert_array_equal(a.omega, b.omega)
+        np.testing.assert_array_equal(a.x, b.x)
+    assert serial.n_points_computed == two.n_points_computed
