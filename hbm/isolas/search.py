@@ -488,7 +488,7 @@ _LOOP_REACH = 10.0
 #: waits only for one that lags further behind (a point costs 1 to 10 times another: step
 #: refusals, Newton iterations), and both overrun the place they meet by about this many
 #: points, which the merged loop leaves out (_trimmed). Point for point (lag 0) the halves
-#: of the coarse rotor 67 doubled branches took as much wall time as two independent ones.
+#: of the coarse rotor 67 doubled branches took about as much wall time as before they met.
 _HALF_LAG = 16
 
 
@@ -577,11 +577,8 @@ def _met_segment(points, b: KnownBranch, opts: ContinuationOptions, tol: float) 
     d, xn, wn = segment_polyline_distance(prev.x, prev.omega, p.x, p.omega, b, sx, sw, within=tol)
     if not d <= tol:
         return -1
-    s = nearest_segment(xn, wn, b, sx, sw)[3]
-    a = np.append((p.x - prev.x) / sx, (p.omega - prev.omega) / sw)
-    g = np.append((b.x[s + 1] - b.x[s]) / sx, (b.omega[s + 1] - b.omega[s]) / sw)
-    na, ng = np.linalg.norm(a), np.linalg.norm(g)
-    if not (na > 0 and ng > 0 and float(a @ g) < -_PARALLEL_COS * na * ng):
+    cos, s = _chord_cos(points, b, xn, wn, opts)
+    if not cos < -_PARALLEL_COS:  # nan (a zero-length chord) included
         return -1
     stretch = np.vstack([b.x[: s + 1]] + [np.asarray(q.x)[None] for q in points[1:-1]])
     w_str = np.concatenate([b.omega[: s + 1], [q.omega for q in points[1:-1]]])
@@ -852,18 +849,25 @@ def _both_halves(args, tag, pool=None):
         return plus, f_minus.result()
 
 
+def _chord_cos(points, b: KnownBranch, xn, wn, opts) -> tuple[float, int]:
+    """(cos, k): the cosine (scaled metric) between the half's last chord (points[-2] to
+    points[-1]) and b's segment k (points k, k + 1) on which (xn, wn) lies; nan when either
+    has zero length. The segment (xn, wn) lies on, not the one after the nearest vertex: past
+    a segment's middle that is the next one, which at a fold runs the other way."""
+    sx, sw = opts.x_scale, opts.omega_scale
+    a = np.append((points[-1].x - points[-2].x) / sx, (points[-1].omega - points[-2].omega) / sw)
+    k = nearest_segment(xn, wn, b, sx, sw)[3]
+    g = np.append((b.x[k + 1] - b.x[k]) / sx, (b.omega[k + 1] - b.omega[k]) / sw)
+    na, ng = np.linalg.norm(a), np.linalg.norm(g)
+    return (float(a @ g) / (na * ng) if na > 0 and ng > 0 else np.nan), k
+
+
 def _parallel(points, b: KnownBranch, xn, wn, opts) -> bool:
     """Whether the half branch's last secant runs along b's segment near (xn, wn)."""
     if len(points) < 2 or len(b.omega) < 2:
         return True
-    sx, sw = opts.x_scale, opts.omega_scale
-    a = np.append((points[-1].x - points[-2].x) / sx, (points[-1].omega - points[-2].omega) / sw)
-    # the segment (xn, wn) lies on, not the one after the nearest vertex: past a segment's
-    # middle that is the next one, which at a fold runs the other way
-    k = nearest_segment(xn, wn, b, sx, sw)[3]
-    s = np.append((b.x[k + 1] - b.x[k]) / sx, (b.omega[k + 1] - b.omega[k]) / sw)
-    na, ns = np.linalg.norm(a), np.linalg.norm(s)
-    return bool(na == 0 or ns == 0 or abs(a @ s) / (na * ns) > _PARALLEL_COS)
+    cos = _chord_cos(points, b, xn, wn, opts)[0]
+    return bool(np.isnan(cos) or abs(cos) > _PARALLEL_COS)
 
 
 def _merge(first: Branch, second: Branch | None):
