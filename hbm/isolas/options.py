@@ -33,8 +33,10 @@ class IsolaOptions:
       Omega from the polyline's nearest point lands within tolerance / 100 of it. Default
       1e-2: 1 % of the casing clearance (4 um) in the tip displacement at the same Omega.
     max_points: most points of each half branch (each direction from a seed). Default 600:
-      the default rotor 67 scene's RL isola closes after 437 points in one half (400 would
-      cut it); open branches that wind on cost up to twice this.
+      the halves of a closed loop share it (the longest seen on rotor 67, the coarse DLFT
+      682-853 rad/s period-doubled loop, has 547 points in all, ~280 a half), so 600 leaves
+      room for a finer step; an open branch that winds on (RL's coarse 486-1190 rad/s one)
+      stops here in each half, at twice this in all.
     crawl_points: a half branch ends after this many successive points at a step below 4
       ds_min (status "crawled at the step floor"): such stretches cost a correction per
       ~1e-5 of arc length. Default 30.

@@ -90,10 +90,11 @@ class StabilityOptions:
     the rule and with round-off; only max_gap = 1 finds them all.
     turn_tol: a change of direction in Omega is a turn (a fold) only when Omega moves by
     more than this fraction of itself on at least one side of the middle point. A branch
-    that crawls at the continuation's step floor moves along x at an Omega fixed to the
-    corrector's round-off (1e-6 rad/s, 1e-9 of Omega, on rotor 67's DLFT doubled branch at
-    719.9 and 746.3 rad/s), and that round-off changes sign every other point: 22 "folds"
-    there, and an analysis at each. One side is enough: the point after a real turn can
+    that crawls at the continuation's step floor (at a corner, where the NFRC keeps the
+    floor rule: ContinuationOptions.corner_turns) moves along x at an Omega fixed to the
+    corrector's round-off, ~1e-9 of Omega, and that round-off changes sign every other
+    point: a "fold" at every other point, and an analysis at each (22 on a crawl of rotor
+    67's coarse DLFT doubled branch). One side is enough: the point after a real turn can
     land next to the vertex (RL NFRC at 1478.3 rad/s: -0.48 then +4.6e-6 rad/s), and
     requiring both lost that fold. A crawl's first or last step can still make one turn.
     """
