@@ -60,8 +60,9 @@ GROWTH_TOL = 1.5
 DEVIATION_TOL = 0.6
 BASELINE_PERIODS = 3
 #: Newton from a march's last period (reached_orbit) finds the orbit itself (1e-13 to 5e-7 of
-#: its norm away, measured on rotor 67) or another solution (20 % or more away): a solution
-#: farther than this from the orbit is another one
+#: its norm away, measured on rotor 67) or another solution (20 % or more away, but 0.1 to
+#: 0.5 % from a point 2 rad/s from a period doubling of the default scene's DLFT NFRC): a
+#: solution farther than this from the orbit is another one
 LANDING_TOL = 1e-3
 #: A march that stays has settled when its last period repeats the one before to this fraction
 #: of the amplitude (drift). On rotor 67 settled marches end at 0 to 0.02; one near an orbit
@@ -93,6 +94,12 @@ class ReachedOrbit:
     distance: float = field(metadata={"unit": "1"})
     converged: bool = field(metadata={"unit": "1"})
     solution_distance: float = field(metadata={"unit": "1"})
+
+    def solution_percent(self) -> str:
+        """solution_distance in per cent, e.g. "23 %", with two significant digits under 10 %:
+        a solution just past LANDING_TOL (0.1 %) is not "0 %" from the orbit."""
+        p = 100.0 * self.solution_distance
+        return f"{p:.0f} %" if not p < 10.0 else f"{p:.2g} %"
 
 
 @dataclass(frozen=True)
@@ -201,7 +208,7 @@ class OrbitValidation:
             return (f"leaves for an orbit of period {self.repeat} T (the last tenth repeats every {self.repeat} "
                     f"periods, not every one: drift {np.max(self.drift):.2f})")
         if self.outcome == "another solution" and self.reached is not None:
-            return (f"leaves for another solution ({100 * self.reached.solution_distance:.0f} % from the orbit, by "
+            return (f"leaves for another solution ({self.reached.solution_percent()} from the orbit, by "
                     f"Newton from the last period)")
         if self.outcome != "permanent contact":
             return "leaves"

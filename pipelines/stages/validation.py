@@ -671,7 +671,7 @@ def _landing(ti: OrbitValidation) -> str:
         return ""
     newton = ("Newton from it fails" if not r.converged else "Newton from it finds the orbit"
               if r.solution_distance <= LANDING_TOL else f"Newton from it finds another solution "
-              f"{100 * r.solution_distance:.0f} % away")
+              f"{r.solution_percent()} away")
     return f", last period {100 * r.distance:.1f} % from the orbit in the unknowns, {newton}"
 
 

@@ -87,6 +87,9 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     assert not other.stays and other.outcome == "another solution"
     assert other.reached.solution_distance == pytest.approx(0.3 / 1.3, rel=1e-6)
     assert other.verdict().startswith("leaves for another solution (23 %")
+    # one just past LANDING_TOL says how far, not "0 %"
+    near = confirm_orbit(res, ti, 1.003 * sol.x, OMEGA)
+    assert near.outcome == "another solution" and near.verdict().startswith("leaves for another solution (0.3 %")
     # started 10 % off the orbit, TI comes back (its distance shrinks: it stays) but ten
     # periods are too few for the start's transient to die out (drift 0.075 of the amplitude
     # from one period to the next, measured; 0.001 after 100 periods): the verdict says so
