@@ -433,7 +433,16 @@ def _born_at_doublings(result, res, pd_res, known, options, ctx=None):
                 if out[i].kind != "bifurcated":
                     out[i] = replace(out[i], kind="bifurcated",
                                      status=f"{out[i].status}; bifurcated: one branch with a branch born at a period doubling")
-    return replace(result, branches=tuple(out))
+    final = replace(result, branches=tuple(out))
+    if ctx is not None and any(a.kind != b.kind for a, b in zip(out, result.branches)):
+        # the search's own line counted the kinds before this test
+        ctx.log(f"    branches by kind, the doublings above included: {_kinds_text(final.kind_counts())}")
+    return final
+
+
+def _kinds_text(kinds: dict) -> str:
+    """{kind: branches} in words for the log, e.g. "2 bifurcated, 1 isola" ("none" when empty)."""
+    return ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"
 
 
 def _embedded(branch, res, target):
@@ -592,9 +601,7 @@ def _compute(ctx: Context, outputs) -> None:
             kinds = result.kind_counts()  # linked pieces of one branch (several records) counted once
             records = "" if len(result.groups) == len(result.branches) else f" in {len(result.branches)} records"
             ctx.log(f"  {label}: {len(seeds)} seeds, {result.n_converged} converged ({result.n_distinct} distinct), "
-                    f"{len(result.groups)} branches{records} ("
-                    + (", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none")
-                    + f"), CPU {cpu:.0f} s, wall {wall:.0f} s"
+                    f"{len(result.groups)} branches{records} ({_kinds_text(kinds)}), CPU {cpu:.0f} s, wall {wall:.0f} s"
                     + (f" ({before:.0f} s of it before the resume)" if before else ""))
             failed = failure_counts(result.corrections.reason)
             if failed:  # Newton's verdicts on the seeds that did not converge, by kind

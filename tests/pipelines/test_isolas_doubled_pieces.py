@@ -32,11 +32,15 @@ def test_a_piece_linked_to_a_branch_born_at_a_doubling_is_bifurcated_too(monkeyp
                         lambda res, pd_res, solver, fb, known, options: (0, 205.0) if fb.omega[0] == 200.0 else None)
     res = SimpleNamespace(options=SimpleNamespace(tolerance=1e-2))
     known = [SimpleNamespace(label="the primary NFRC")]
-    out = stage._born_at_doublings(_result([a, b, c]), res, None, known, None)
+    lines = []
+    out = stage._born_at_doublings(_result([a, b, c]), res, None, known, None, SimpleNamespace(log=lines.append))
     assert [f.kind for f in out.branches] == ["bifurcated", "bifurcated", "isola"]
     assert "born at a period doubling of the primary NFRC near 205.0 rad/s" in out.branches[1].status
     assert "one branch with a branch born at a period doubling" in out.branches[0].status
     assert out.kind_counts() == {"bifurcated": 1, "isola": 1}
+    # the log says so after the search's own line, which counted them before this test
+    assert lines == ["    doubled branch 001: a period doubling of the primary NFRC near 205.0 rad/s: bifurcated",
+                     "    branches by kind, the doublings above included: 1 bifurcated, 1 isola"]
 
 
 def test_the_file_names_the_other_records_of_a_branch_in_its_own_numbering(tmp_path):
