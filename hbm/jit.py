@@ -7,9 +7,9 @@ is known only then. The time integration's step loop (hbm.ti.kernel.run_steps) i
 such loops, over 9 contact nodes and 48 padded modes: tuned for 'znver3' it compiles to
 21 000 instructions, against 8 100 tuned for 'znver2', and 8 200 tuned for 'znver3' with
 LLVM's runtime unrolling switched off (-unroll-runtime=false: that is the difference); on a
-Zen 3 host its steps take 1.6 to 1.8 times as long (README, *Time integration*). The host's
-own features are kept (numba asks LLVM for them apart from the name): the code uses the
-same instructions, tuned otherwise.
+Zen 3 host its steps take 1.6 to 1.8 times as long (benchmarks/README.md, *Time
+integration*). The host's own features are kept (numba asks LLVM for them apart from the
+name): the code uses the same instructions, tuned otherwise.
 
 The choice is numba's process-wide one: the NUMBA_CPU_NAME environment variable, read into
 numba.core.config.CPU_NAME, which numba uses when the process compiles or loads from its
@@ -29,8 +29,8 @@ node loop is one 512-bit vector and a masked tail, and Zen 4 executes each 512-b
 operation as two 256-bit halves. So where the host has AVX-512 and the user gave numba no
 features (NUMBA_CPU_FEATURES or numba.core.config.CPU_FEATURES), the host's features are
 passed with LLVM's '+prefer-256-bit' added: on a Zen 4 host the time integration's speeds
-then take 0.79 to 0.89 of the time they took with 512-bit vectors (README, *Time
-integration*). On Intel's models the flag is already part of the tuning, and the code is
+then take 0.79 to 0.89 of the time they took with 512-bit vectors (benchmarks/README.md,
+*Time integration*). On Intel's models the flag is already part of the tuning, and the code is
 the same. numba's cache keys its entries by the features too.
 """
 from __future__ import annotations

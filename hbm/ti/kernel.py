@@ -359,8 +359,8 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
     profile: (P, n_b), m: d_j at steps 0 .. P - 1 when the casing's period is P whole steps
         (hbm.ti.march.casing_profile); d_j at step m is then row m mod P, which spares the
         casing law's floor at every node and step and its exponential at every node near
-        the casing (a speed then takes 0.78 to 0.86 of its time: README, *Time
-        integration*). (0, n_b): the law is evaluated at every step.
+        the casing (a speed then takes 0.78 to 0.86 of its time: benchmarks/README.md,
+        *Time integration*). (0, n_b): the law is evaluated at every step.
     par = (mu, Omega, dt, has_coff, massless, step0, n_steps).
     state = (q, qm, lam_prev, st_prev, sz_prev, idx_prev, m_prev): q_{step0}, q_{step0-1} (n,)
         and the massless scheme's pending forces; all updated in place (m_prev: (1,) int).

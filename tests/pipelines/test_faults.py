@@ -244,7 +244,7 @@ def test_an_interrupted_nfrc_with_stability_keeps_its_bifurcations(coarse_run, t
     from pipelines.branch_store import read_tables
 
     # every point analysed: a gapped schedule restarted at the resume may find a pair of
-    # crossings inside one of the uninterrupted run's gaps (README, stability schedule)
+    # crossings inside one of the uninterrupted run's gaps (benchmarks/README.md, the stability schedule)
     stab = ("--set", "hbm.stability=true", "--set", "hbm.stability_max_gap=1", "--set", 'hbm.methods=["dlft"]',
             "--until", "hbm")
     ref_dir = tmp_path / "ref"
