@@ -60,9 +60,10 @@ GROWTH_TOL = 1.5
 DEVIATION_TOL = 0.6
 BASELINE_PERIODS = 3
 #: Newton from a march's last period (reached_orbit) finds the orbit itself (1e-13 to 5e-7 of
-#: its norm away, measured on rotor 67) or another solution (20 % or more away, but 0.1 to
-#: 0.5 % from a point 2 rad/s from a period doubling of the default scene's DLFT NFRC): a
-#: solution farther than this from the orbit is another one
+#: its norm away, measured on rotor 67) or another solution (20 % or more away, but 0.32 %
+#: from a point of the unstable branch of a subcritical period doubling of the default scene's
+#: DLFT NFRC, 0.3 rad/s from the doubling: the stable primary orbit, the distance being the
+#: branch's odd-harmonic content): a solution farther than this from the orbit is another one
 LANDING_TOL = 1e-3
 #: A march that stays has settled when its last period repeats the one before to this fraction
 #: of the amplitude (drift). On rotor 67 settled marches end at 0 to 0.02; one near an orbit

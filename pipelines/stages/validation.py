@@ -27,7 +27,9 @@ For each treatment of [hbm] methods:
   finds none whose branch switch converges), the period-doubled branch switched to there
   and continued both ways (stored here), and a point of it (stable if any, checked with 2 N_h as the primary
   point is: one that fails is passed over for the next stable choice of the same branch,
-  unmarched); when time integration leaves that point, the isola search's own branches of
+  unmarched; a switched branch with no stable point, a subcritical doubling's, is passed over
+  for the next try and marched only when no try gives a point); when time integration leaves
+  that point, the isola search's own branches of
   twice the period (searched_doubled_branches: its second search, seeded from the sweep),
   then the period doublings that end stable stretches of its branches (doubling_candidates),
   up to [validation] pd_tries in all, until it stays on one.
@@ -578,7 +580,10 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                                        n_points=opts.pd_points, more_starts=loc.switch_starts(omega, x)[1:])
 
     first, tried = None, []
-    for where, *source in sources:
+    # the first switched branch without a stable point: (its index in tried, where, the located
+    # Omega, its Candidate, its DoubledBranch)
+    deferred = None
+    for k, (where, *source) in enumerate(sources):
         if len(source) == 1:  # a doubled branch of the isola search: no switch
             update(f"{tag}: the isola search's period-doubled branch {where}")
             result = _searched_point(ctx, rom, system, method, res.n_r, where, source[0], update)
@@ -619,6 +624,16 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                                     pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
                                     np.ones(len(pd_branch.omega), bool), pd_branch.stable,
                                     eligible=far if far.any() else None)
+                choosable = far if far.any() else np.ones(len(pd_branch.omega), bool)
+                if k < len(sources) - 1 and not (np.asarray(pd_branch.stable, bool) & choosable).any():
+                    # a subcritical doubling: its doubled branch is unstable throughout, and time
+                    # integration from it goes to the stable orbit beside it (default rotor 67
+                    # scene, DLFT: the primary orbit 0.3 % away, the branch's odd content). The
+                    # next try first; this branch is marched only when no try is kept.
+                    tried.append(f"{where}: PD at {loc.bifurcation.omega:.1f} rad/s, no stable point on its "
+                                 f"doubled branch ({len(pd_branch.omega)} points), not marched")
+                    deferred = deferred or (len(tried) - 1, where, loc.bifurcation.omega, doubled, pd_branch)
+                    continue
                 # one march per doubled branch, its stable choice checked with 2 N_h first as the
                 # primary's is (the next doubling is the retry, not the next stretch)
                 result = (_try_until_kept(ctx, rom, system, "period_doubling", method, [doubled], 1, update),
@@ -632,6 +647,15 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             break
     else:
         result = first
+        if deferred is not None and (first is None or not first[0].found):
+            # no try gave a point time integration keeps, nor any point: the least unstable
+            # point of the first branch without a stable one, rather than none
+            i, where, omega_pd, doubled, pd_branch = deferred
+            p = _try_until_kept(ctx, rom, system, "period_doubling", method, [doubled], 1, update)
+            tried[i] = (f"{where}: PD at {omega_pd:.1f} rad/s, no stable point on its doubled branch, point at "
+                        f"{p.omega:.1f} rad/s, time integration {ti_verdict(p.ti, rom, scene.contact.mu)}"
+                        if p.found else f"{where}: none ({p.reason})")
+            result = (p, pd_branch)
     if len(tried) > 1:
         note = f"tried {len(tried)}: " + " | ".join(tried)
         result = (replace(result[0], reason=f"{result[0].reason}; {note}"),
