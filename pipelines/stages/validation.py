@@ -534,8 +534,9 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     """(ValidationPoint, DoubledBranch) of the period-doubling point: the NFRC's first period
     doubling, then searched_doubled_branches and doubling_candidates of isolas.h5, up to
     [validation] pd_tries, until time
-    integration stays on the doubled branch's chosen point (the first try is kept when none
-    does; the reason lists every try). An NFRC stored without stability: its doublings from
+    integration stays on the doubled branch's chosen point (the first try marched is kept when
+    none does; a switched branch with no stable point is marched only when no other try gives
+    a point; the reason lists every try). An NFRC stored without stability: its doublings from
     the branch stability that nfrc (Candidate of the NFRC with a monitor) computed for the
     primary point, else from a scan; when the scan finds none, or none whose branch switch
     converges, from that stability computed here."""
@@ -629,7 +630,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                     # a subcritical doubling: its doubled branch is unstable throughout, and time
                     # integration from it goes to the stable orbit beside it (default rotor 67
                     # scene, DLFT: the primary orbit 0.3 % away, the branch's odd content). The
-                    # next try first; this branch is marched only when no try is kept.
+                    # next try first; this branch is marched only when no other try gives a point.
                     tried.append(f"{where}: PD at {loc.bifurcation.omega:.1f} rad/s, no stable point on its "
                                  f"doubled branch ({len(pd_branch.omega)} points), not marched")
                     deferred = deferred or (len(tried) - 1, where, loc.bifurcation.omega, doubled, pd_branch)
