@@ -621,12 +621,12 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             else:
                 # points that carry the new frequencies: the start's neighbours are still the old orbit
                 far = pd_branch.new_content >= 0.05
+                eligible = far if far.any() else None
                 doubled = Candidate(f"{VALIDATION.file} period-doubled branch of {method}, from {where}", r_pd,
                                     pd_branch.omega, pd_branch.x, pd_branch.le_amplitude,
-                                    np.ones(len(pd_branch.omega), bool), pd_branch.stable,
-                                    eligible=far if far.any() else None)
-                choosable = far if far.any() else np.ones(len(pd_branch.omega), bool)
-                if k < len(sources) - 1 and not (np.asarray(pd_branch.stable, bool) & choosable).any():
+                                    np.ones(len(pd_branch.omega), bool), pd_branch.stable, eligible=eligible)
+                stable = np.asarray(pd_branch.stable, bool)
+                if k < len(sources) - 1 and not (stable if eligible is None else stable[eligible]).any():
                     # a subcritical doubling: its doubled branch is unstable throughout, and time
                     # integration from it goes to the stable orbit beside it (default rotor 67
                     # scene, DLFT: the primary orbit 0.3 % away, the branch's odd content). The
@@ -648,7 +648,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             break
     else:
         result = first
-        if deferred is not None and (first is None or not first[0].found):
+        if deferred is not None and not first[0].found:  # the last try is never deferred: first is set
             # no try gave a point time integration keeps, nor any point: the least unstable
             # point of the first branch without a stable one, rather than none
             i, where, omega_pd, doubled, pd_branch = deferred

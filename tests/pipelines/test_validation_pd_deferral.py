@@ -72,8 +72,9 @@ def run(monkeypatch, tmp_path):
             validation=SimpleNamespace(pd_tries=2, n_scan=24, pd_points=80),
             hbm=SimpleNamespace(subharmonic=1), contact=SimpleNamespace(mu=MU)))
         b = SimpleNamespace(omega=np.linspace(2000, 400, 5), x=np.zeros((5, 3)), converged=np.ones(5, bool))
-        p, branch = stage._period_doubling(ctx, SimpleNamespace(friction_lock=None), None, "dlft", SimpleNamespace(n_r=3), b,
-                                           {"le_amplitude": np.zeros(5)}, tmp_path / "nfrc_dlft.h5", lambda s: None)
+        rom, res = SimpleNamespace(friction_lock=None), SimpleNamespace(n_r=3)
+        p, branch = stage._period_doubling(ctx, rom, None, "dlft", res, b, {"le_amplitude": np.zeros(5)},
+                                           tmp_path / "nfrc_dlft.h5", lambda s: None)
         return p, branch, marches
 
     return go
