@@ -84,15 +84,21 @@ def _multipliers(y0, w):
     return np.linalg.eigvals(Phi)
 
 
-@pytest.fixture(scope="module")
-def branch():
+def obstacle_residual():
+    """The oscillator's RL-HBM residual (N_h = 30, N_t = 512; the obstacle a single boundary
+    node at x = 0) and Newton's solution at W = 4.6, where the branches start."""
     rom = SimpleNamespace(K=np.eye(3), M=np.diag([1.0, 0.0, 0.0]), C=np.diag([C, 0.0, 0.0]), rho=np.array([0.25]),
                           theta=np.array([0.0]), rotation=1, n_boundary=1, nonlinear_dofs=np.arange(3))
     res = build_residual(rom, CasingOptions(), ContactOptions(kappa=KAPPA, gamma=GAMMA, epsilon=3.0, mu=0.0,
                                                               lanczos=False),
                          HbmOptions(n_harmonics=30, n_time=512), method="rl", forcing=HarmonicForcing(np.array([F, 0, 0]), 1),
                          alpha=1.0, distance=lambda tau: np.zeros((len(tau), 1)))
-    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    return res, newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+
+
+@pytest.fixture(scope="module")
+def branch():
+    res, sol = obstacle_residual()
     opts = ContinuationOptions(omega_min=4.0, omega_max=4.6, ds=0.005, ds_max=0.02, direction=-1, newton=NOPT,
                                closed_loop_tol=None, omega_scale=1.0)
     mon = StabilityMonitor.for_residual(res)

@@ -21,7 +21,6 @@ from scipy.integrate import solve_ivp
 
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.newton import NewtonOptions, newton_solve
-from hbm.harmonic.condensation import HarmonicForcing
 from hbm.harmonic.nfrc import compute_nfrc, nfrc_extras
 from hbm.harmonic.residual import build_residual
 from hbm.harmonic.solver import HbmSolver
@@ -31,6 +30,7 @@ from hbm.stability.bifurcation import PERIOD_DOUBLING
 from hbm.stability.selection import LocatedDoubling, choose_point, continue_doubled_branch, locate_period_doubling
 from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, compare_with_hbm, march_from_hbm
 from support import coarse_rom
+from test_period_doubling import C, F, GAMMA, KAPPA, NOPT, obstacle_residual
 
 
 def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees():
@@ -68,9 +68,7 @@ def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees()
     assert np.all(other.force_error < [0.2, 0.24]), other.force_error
 
 
-# -- period doubling: the forced RL obstacle oscillator ---------------------------------------
-C, KAPPA, GAMMA, F = 0.05, 10.0, 0.1, 1.0
-NOPT = NewtonOptions(tol_residual=1e-10, max_iter=40)
+# -- period doubling: the forced RL obstacle oscillator of test_period_doubling ----------------
 
 
 def _rhs(t, y, w):
@@ -81,14 +79,7 @@ def _rhs(t, y, w):
 
 @pytest.fixture(scope="module")
 def oscillator():
-    rom = SimpleNamespace(K=np.eye(3), M=np.diag([1.0, 0.0, 0.0]), C=np.diag([C, 0.0, 0.0]), rho=np.array([0.25]),
-                          theta=np.array([0.0]), rotation=1, n_boundary=1, nonlinear_dofs=np.arange(3))
-    res = build_residual(rom, CasingOptions(), ContactOptions(kappa=KAPPA, gamma=GAMMA, epsilon=3.0, mu=0.0,
-                                                              lanczos=False),
-                         HbmOptions(n_harmonics=30, n_time=512), method="rl",
-                         forcing=HarmonicForcing(np.array([F, 0, 0]), 1), alpha=1.0,
-                         distance=lambda tau: np.zeros((len(tau), 1)))
-    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    res, sol = obstacle_residual()
     opts = ContinuationOptions(omega_min=3.4, omega_max=4.6, ds=0.005, ds_max=0.02, direction=-1, newton=NOPT,
                                closed_loop_tol=None, omega_scale=1.0)
     br = continue_branch(res, sol.x, 4.6, opts)
