@@ -115,6 +115,10 @@ class HbmOptions:
       also finds the short stretches of the other stability that lie inside one gap (a pair
       of crossings a few rad/s apart: 4 of 53 and 8 of 87 crossings are missed with 8 on the
       coarse DLFT and RL NFRCs).
+    refine_bifurcations: with stability, points solved and analysed per bifurcation (not a
+      fold) to locate it finer than the branch's points (regula falsi on the crossing
+      multiplier, hbm.stability.refinement); 0 (the default) interpolates between the two
+      points around it, whose spacing then bounds the error.
     subharmonic: nu, the HBM's fundamental is omega = Omega / nu (nu = 1: the casing's
       period; nu = 2 holds the period-doubled orbits). The continuation parameter stays
       Omega.
@@ -131,6 +135,7 @@ class HbmOptions:
     tolerance: float = 1e-8
     stability: bool = False
     stability_max_gap: int = 8
+    refine_bifurcations: int = 0
     subharmonic: int = 1
 
     def __post_init__(self):
@@ -155,6 +160,7 @@ class HbmOptions:
         check_option("tolerance", self.tolerance, 0, 1, low_open=True, high_open=True)
         check_flag("stability", self.stability)
         check_option("stability_max_gap", self.stability_max_gap, 1, integer=True, note="1: every point analysed")
+        check_option("refine_bifurcations", self.refine_bifurcations, 0, integer=True, note="0: no refinement")
         check_option("subharmonic", self.subharmonic, 1, integer=True)
 
 

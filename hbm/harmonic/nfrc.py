@@ -177,7 +177,7 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
       Newton from u0, the unknowns of a solution at any N_h (pad_harmonics adapts them),
       e.g. a low-N_h NFRC's point; the branch then goes in the continuation's direction.
     stability: Floquet stability of every point and the bifurcations (hbm.stability.monitor;
-      True: StabilityOptions with hbm.stability_max_gap; None: hbm.stability). on_point then sees each point
+      True: StabilityOptions.of(hbm); None: hbm.stability). on_point then sees each point
       once its stability is final (up to StabilityOptions.max_gap + 1 points later), its extras
       completed with hbm.stability.monitor.PER_POINT (stable, n_unstable, stability_analysed,
       stability_widened, stability_cpu_time, leading_multipliers, period_ratio; the failed
@@ -198,8 +198,8 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
     pending = []
     if stability is None:
         stability = hbm.stability
-    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions(max_gap=hbm.stability_max_gap)
-    monitor = StabilityMonitor.for_residual(res, sopts) if stability else None
+    sopts = stability if isinstance(stability, StabilityOptions) else StabilityOptions.of(hbm)
+    monitor = StabilityMonitor.for_residual(res, sopts, newton=opts.newton) if stability else None
     per_point = {}  # index -> stability extras
     t_stab = [0.0]
 

@@ -75,6 +75,11 @@ class Bifurcation:
     "guess": no multiplier pairs across and the signs do not tell: kind and multiplier are
     those of the unstable multiplier nearest the circle on the side with more of them
     (leaving out those paired with an unstable one of the other side), placed half-way.
+    refine_steps: points solved and analysed between the two stored points to locate it
+    (hbm.stability.refinement; 0: interpolated between the stored points, the default).
+    located_bracket: (Omega, Omega) rad/s of the two nearest points, stored or solved, on
+    either side of the crossing: omega_bracket unless refined. refine_note: why the
+    refinement stopped before its tolerance with solves left ("" otherwise).
     """
 
     kind: str
@@ -90,6 +95,15 @@ class Bifurcation:
     mode_omega: float = 0.0
     eigenvector: np.ndarray | None = field(default=None, repr=False)
     kind_from: str = CROSSING
+    refine_steps: int = 0
+    located_bracket: tuple[float, float] | None = None
+    refine_note: str = ""
+
+    @property
+    def bracket(self) -> tuple[float, float]:
+        """(Omega, Omega) rad/s of the nearest points on either side (located_bracket, else
+        omega_bracket)."""
+        return self.omega_bracket if self.located_bracket is None else self.located_bracket
 
     @property
     def paired(self) -> bool:
@@ -228,7 +242,9 @@ def bifurcation_arrays(bifurcations) -> dict:
     kind (k,) str; omega (k,) rad/s; le_amplitude (k,) m; index (k,) int; fraction (k,) -;
     omega_low, omega_high (k,) rad/s (the bracketing points); multiplier_real,
     multiplier_imag (k,) -; direction (k,) int (+1 loses stability along the branch);
-    period_ratio (k,) int; kind_from (k,) str (crossing, parity or guess: see Bifurcation).
+    period_ratio (k,) int; kind_from (k,) str (crossing, parity or guess: see Bifurcation);
+    refine_steps (k,) int, located_low, located_high (k,) rad/s (Bifurcation.bracket),
+    refine_note (k,) str.
     Returns {name: (array, unit)}.
     """
     b = list(bifurcations)
@@ -245,6 +261,10 @@ def bifurcation_arrays(bifurcations) -> dict:
         "direction": (np.array([x.direction for x in b], dtype=np.int64), "-"),
         "period_ratio": (np.array([x.period_ratio for x in b], dtype=np.int64), "-"),
         "kind_from": (np.array([x.kind_from for x in b], dtype=object), "-"),
+        "refine_steps": (np.array([x.refine_steps for x in b], dtype=np.int64), "-"),
+        "located_low": (np.array([x.bracket[0] for x in b], dtype=float), "rad/s"),
+        "located_high": (np.array([x.bracket[1] for x in b], dtype=float), "rad/s"),
+        "refine_note": (np.array([x.refine_note for x in b], dtype=object), "-"),
     }
 
 
@@ -256,13 +276,23 @@ def bifurcations_from_arrays(table: dict) -> tuple:
     n = len(np.asarray(table["omega"]))
     col = {k: np.asarray(v) for k, v in table.items()}
     source = kind_sources(table)
+
+    def text(v) -> str:
+        return v.decode() if isinstance(v, bytes) else str(v)
+
+    def refined(i) -> dict:  # a table written before refinement has none of its columns
+        if "refine_steps" not in col or int(col["refine_steps"][i]) == 0:
+            return {}
+        return dict(refine_steps=int(col["refine_steps"][i]), refine_note=text(col["refine_note"][i]),
+                    located_bracket=(float(col["located_low"][i]), float(col["located_high"][i])))
+
     return tuple(Bifurcation(
         kind=str(col["kind"][i]), omega=float(col["omega"][i]), le_amplitude=float(col["le_amplitude"][i]),
         index=int(col["index"][i]), fraction=float(col["fraction"][i]),
         omega_bracket=(float(col["omega_low"][i]), float(col["omega_high"][i])),
         multiplier=complex(float(col["multiplier_real"][i]), float(col["multiplier_imag"][i])),
         direction=int(col["direction"][i]), period_ratio=int(col["period_ratio"][i]),
-        kind_from=str(source[i])) for i in range(n))
+        kind_from=str(source[i]), **refined(i)) for i in range(n))
 
 
 def kind_sources(table: dict) -> np.ndarray:

@@ -19,8 +19,10 @@ may have changed since the last analysed one, and infers the others:
   StabilityMonitor), the point half-way between them is analysed, and so on (bisection on the stored points), until
   the change lies between two neighbouring points. There the crossing multipliers are
   paired (bifurcation.crossings), classified on the minimal period, and located by linear
-  interpolation of log|mu| in arc length between the two points (folds: at the vertex of
-  the parabola through the three points around the turn in Omega). Where none pairs across,
+  interpolation of log|mu| in arc length between the two points, or with
+  StabilityOptions.refine_steps by points solved and analysed between them
+  (hbm.stability.refinement) (folds: at the vertex of the parabola through the three
+  points around the turn in Omega). Where none pairs across,
   or the paired ones do not add up to the count change, the parities of the real
   multipliers beyond -1 and +1 give the kind where they can, and it is guessed where they
   cannot (Bifurcation.kind_from).
@@ -56,11 +58,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from hbm.continuation.newton import NewtonOptions
 from hbm.options import HbmOptions, check_option
 from hbm.stability.bifurcation import (BRANCH_POINT, CROSSING, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING,
                                       UNCLASSIFIED, Bifurcation, classify, crossings, lone_real, pair_multipliers,
                                       parabola_vertex, real_parities, upper_half)
 from hbm.stability.hill import harmonic_period
+from hbm.stability.refinement import Refinement, refine_crossing, solve_between, tracked_log_modulus
 from hbm.stability.spectrum import MAX_EIG, FloquetSpectrum, orbit_spectrum
 
 #: a neighbour's unstable multiplier of modulus above ceiling^WIDEN_FRACTION may lie beyond a
@@ -97,6 +101,12 @@ class StabilityOptions:
     67's coarse DLFT doubled branch). One side is enough: the point after a real turn can
     land next to the vertex (RL NFRC at 1478.3 rad/s: -0.48 then +4.6e-6 rad/s), and
     requiring both lost that fold. A crawl's first or last step can still make one turn.
+    refine_steps: points solved and analysed per paired crossing to locate it finer than the
+    stored points (hbm.stability.refinement; 0: linear interpolation of log|mu| between
+    them). Not a fold (the parabola's vertex locates it), nor a crossing next to a turn in
+    Omega (between two points around a turn the branch need not cross each hyperplane of
+    the refinement once). Each costs a Newton solve and an analysis. refine_rtol: the refinement stops once the two points around the crossing are
+    within this fraction of Omega (1e-5: 0.013 rad/s at 1300 rad/s).
     """
 
     n_eig: int = 40
@@ -106,6 +116,13 @@ class StabilityOptions:
     window: float = 3.0
     reach_fraction: float = 0.25
     turn_tol: float = 1e-7
+    refine_steps: int = HbmOptions.refine_bifurcations  # the scene's default ([hbm] refine_bifurcations)
+    refine_rtol: float = 1e-5
+
+    @classmethod
+    def of(cls, hbm: HbmOptions) -> "StabilityOptions":
+        """The settings a scene's [hbm] keys give (stability_max_gap, refine_bifurcations)."""
+        return cls(max_gap=hbm.stability_max_gap, refine_steps=hbm.refine_bifurcations)
 
     def __post_init__(self):
         check_option("n_eig", self.n_eig, 2, integer=True)
@@ -115,6 +132,8 @@ class StabilityOptions:
         check_option("window", self.window, 0, low_open=True)
         check_option("reach_fraction", self.reach_fraction, 0, 1, low_open=True)
         check_option("turn_tol", self.turn_tol, 0)
+        check_option("refine_steps", self.refine_steps, 0, integer=True, note="0: no refinement")
+        check_option("refine_rtol", self.refine_rtol, 0, low_open=True)
 
 
 @dataclass(eq=False)
@@ -156,7 +175,10 @@ class StabilityMonitor:
     finish() hands on the rest. bifurcations: the located ones, in the order found.
     undecided: {index: why} of the points whose analysis gave no verdict (module doc).
     analyse(x, omega) -> (FloquetSpectrum, g) is the Floquet analysis of one point;
-    widen(x, omega, n_eig) -> the same with n_eig Hill eigenvalues (None: never widened).
+    widen(x, omega, n_eig) -> the same with n_eig Hill eigenvalues (None: never widened);
+    refine(xa, wa, xb, wb, f) -> (x, omega, le_amplitude), or a str saying why not, is the
+    branch's point between two points (hbm.stability.refinement.solve_between), used with
+    options.refine_steps > 0 (None: crossings are interpolated between stored points).
 
     Widening: an analysis lists every multiplier below its modulus_ceiling only (see
     hbm.stability.spectrum), so a multiplier that grows past it drops out and the count
@@ -185,6 +207,7 @@ class StabilityMonitor:
 
     analyse: object
     widen: object = None
+    refine: object = None
     options: StabilityOptions = field(default_factory=StabilityOptions)
     bifurcations: list = field(default_factory=list)
     n_analyses: int = 0
@@ -192,7 +215,8 @@ class StabilityMonitor:
     #: turned), "next point" (the gap rule gave 1: a multiplier close to the circle and moving
     #: towards it), "reach" (a longer gap from the same rule), "gap cap" (max_gap points),
     #: "last", "bisection", "widening", "after undecided" (the point after an analysis without
-    #: a verdict); "first" also counts the seeded points of a resumed branch (seed)
+    #: a verdict), "refinement" (a point solved between two stored ones); "first" also counts
+    #: the seeded points of a resumed branch (seed)
     causes: dict = field(default_factory=dict)
     undecided: dict = field(default_factory=dict)
     _buffer: list = field(default_factory=list)
@@ -205,13 +229,31 @@ class StabilityMonitor:
     _s: float = 0.0
 
     @classmethod
-    def for_residual(cls, residual, options: StabilityOptions = StabilityOptions()) -> "StabilityMonitor":
-        """A monitor analysing points of hbm.harmonic.residual.HarmonicBalanceResidual."""
+    def for_residual(cls, residual, options: StabilityOptions = StabilityOptions(), *,
+                     newton: NewtonOptions | None = None, solver=None) -> "StabilityMonitor":
+        """A monitor analysing points of hbm.harmonic.residual.HarmonicBalanceResidual. newton
+        and solver: the refinement's Newton rule and LinearSolver (defaults: NewtonOptions(),
+        the scene's default tolerance, and an HbmSolver of its own, as compute_nfrc builds
+        one: the continuation's keeps its preconditioner), used with options.refine_steps > 0."""
+        refine = None
+        if options.refine_steps:
+            from hbm.harmonic.nfrc import nfrc_extras
+            from hbm.harmonic.solver import HbmSolver
+
+            nopt = newton or NewtonOptions()
+            lin = solver or HbmSolver(atol=0.1 * nopt.tol_residual)
+
+            def refine(xa, wa, xb, wb, f):
+                got = solve_between(residual, xa, wa, xb, wb, f, nopt, lin)
+                if isinstance(got, str):
+                    return got
+                return got[0], got[1], float(nfrc_extras(residual, got[0])["le_amplitude"])
+
         # no min_ceiling per analysis (it would double most stable ones): the monitor widens
         # where a neighbour says it must
         return cls(analyse=lambda x, w: orbit_spectrum(residual, x, w, n_eig=options.n_eig, min_ceiling=1.0),
                    widen=lambda x, w, k: orbit_spectrum(residual, x, w, n_eig=k, min_ceiling=1.0),
-                   options=options)
+                   refine=refine, options=options)
 
     # -- feeding ----------------------------------------------------------------------------
     def push(self, point, extras: dict) -> list:
@@ -488,16 +530,59 @@ class StabilityMonitor:
             found += 1
             if kind == FOLD:
                 continue
+            where = dict(omega=a.omega + frac * (b.omega - a.omega),
+                         le_amplitude=a.amplitude + frac * (b.amplitude - a.amplitude), fraction=float(frac))
+            if self.refine is not None and self.options.refine_steps and not fold:
+                r = self._refined(a, b, i, j, kind, floor)
+                where = dict(omega=r.omega, le_amplitude=r.le_amplitude, fraction=r.fraction,
+                             refine_steps=r.steps, located_bracket=r.bracket, refine_note=r.note)
+            # the multiplier and mode stay the stored side's: a branch switch starts from a
+            # stored point (hbm.stability.switching)
             self.bifurcations.append(Bifurcation(
-                kind=kind, omega=a.omega + frac * (b.omega - a.omega),
-                le_amplitude=a.amplitude + frac * (b.amplitude - a.amplitude), index=a.index, fraction=float(frac),
-                omega_bracket=(a.omega, b.omega), multiplier=complex(mu), direction=1 if lb > la else -1,
-                period_ratio=side.g, exponent=complex(side.spectrum.exponents[k]),
-                mode_omega=float(side.spectrum.omega), eigenvector=side.spectrum.eigenvectors[k]))
+                kind=kind, index=a.index, omega_bracket=(a.omega, b.omega), multiplier=complex(mu),
+                direction=1 if lb > la else -1, period_ratio=side.g, exponent=complex(side.spectrum.exponents[k]),
+                mode_omega=float(side.spectrum.omega), eigenvector=side.spectrum.eigenvectors[k], **where))
         if not found:
             self._unpaired(a, b, fold, floor)
         elif not fold:
             self._reconcile(a, b, first)
+
+    def _refined(self, a: _Entry, b: _Entry, i: int, j: int, kind: str, floor: float) -> Refinement:
+        """The crossing of a's multiplier i (b's j) located by points solved between a and b
+        (hbm.stability.refinement). At each solved point the crossing multiplier is the one
+        nearest, in (log|mu|, |arg mu|), to the linear interpolation of a's and b's at that
+        point's f, among those that can be it: for a period doubling those with Re mu < 0, for
+        a branch point Re mu > 0 (on its stable side a real crossing multiplier may still be
+        one of a complex pair about to meet on the real axis; its modulus has the sign the
+        regula falsi needs), for a Neimark-Sacker the complex ones. The CPU time goes to a's
+        stability_cpu_time."""
+        mu_a, mu_b = a.spectrum.multipliers[i], b.spectrum.multipliers[j]
+        ca = (math.log(abs(mu_a)), abs(np.angle(mu_a)))
+        cb = (math.log(abs(mu_b)), abs(np.angle(mu_b)))
+        candidate = {PERIOD_DOUBLING: lambda m: m.real < 0.0, BRANCH_POINT: lambda m: m.real > 0.0}.get(
+            kind, lambda m: classify(m, False) == NEIMARK_SACKER)
+
+        def evaluate(f):
+            c0 = time.process_time()
+            try:
+                got = self.refine(a.x, a.omega, b.x, b.omega, f)
+                if isinstance(got, str):
+                    return got
+                x, w, amp = got
+                sp, _ = self.analyse(x, w)
+                self._count("refinement")
+            finally:
+                a.cpu += time.process_time() - c0
+            if not sp.decided:
+                return f"no verdict at omega={w:.6g}: {sp.undecided_reason}"
+            target = (ca[0] + f * (cb[0] - ca[0]), ca[1] + f * (cb[1] - ca[1]))
+            lm = tracked_log_modulus(sp.multipliers, max(floor, sp.modulus_floor), target, candidate)
+            if lm is None:
+                return f"no {kind} multiplier at omega={w:.6g}"
+            return lm, w, amp
+
+        ends = ((ca[0], a.omega, a.amplitude), (cb[0], b.omega, b.amplitude))
+        return refine_crossing(evaluate, ends, self.options.refine_steps, self.options.refine_rtol)
 
     def _parities(self, a: _Entry, b: _Entry):
         """real_parities of a and b within _near (None when either is unclear)."""
@@ -706,15 +791,16 @@ class BranchStability:
 
 
 def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_scale=1.0, omega_scale: float = 1.0,
-                   options: StabilityOptions = StabilityOptions(), widen=None) -> BranchStability:
+                   options: StabilityOptions = StabilityOptions(), widen=None, refine=None) -> BranchStability:
     """The monitor run over the points of a branch computed without it (e.g. a branch of the
     isola search): the same gapped analyses, bisection on the stored points and located
     bifurcations as if it had watched the continuation, analysing a fraction of the points
     (a quarter on a smooth branch; about half on rotor 67's isolas and detached branches,
     whose multipliers stay near the unit circle).
 
-    analyse(x, omega) -> (FloquetSpectrum, g) and widen(x, omega, n_eig) (StabilityMonitor.analyse
-    and .widen; widen None: never widened). omega (m,) rad/s
+    analyse(x, omega) -> (FloquetSpectrum, g), widen(x, omega, n_eig) and refine (StabilityMonitor.analyse,
+    .widen and .refine; widen None: never widened; refine None: crossings interpolated
+    between the stored points). omega (m,) rad/s
     and x (m, n): consecutive converged points of one branch; extras: m dicts with
     le_amplitude (m) and harmonics (hbm.harmonic.nfrc.nfrc_extras). x_scale (scalar or
     (n,)) and omega_scale (rad/s): the continuation's scales, which give the arc length
@@ -725,7 +811,7 @@ def monitor_branch(analyse, omega: np.ndarray, x: np.ndarray, extras: list, x_sc
     omega = np.asarray(omega, dtype=float)
     x = np.asarray(x, dtype=float)
     m = len(omega)
-    mon = StabilityMonitor(analyse=analyse, widen=widen, options=options)
+    mon = StabilityMonitor(analyse=analyse, widen=widen, refine=refine, options=options)
     done = {}
     for i in range(m):
         step = 0.0 if i == 0 else float(np.sqrt(np.sum(((x[i] - x[i - 1]) / x_scale) ** 2)

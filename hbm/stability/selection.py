@@ -157,7 +157,8 @@ def branch_stability(residual, omega, x, converged, *, x_scale=1.0, omega_scale:
         raise ValueError("branch_stability: the branch has no converged point")
     mon = StabilityMonitor.for_residual(residual, options)
     st = monitor_branch(mon.analyse, omega[idx], x[idx], [nfrc_extras(residual, xi) for xi in x[idx]],
-                        x_scale, omega_scale, options, widen=mon.widen)
+                        x_scale, omega_scale, options, widen=mon.widen,
+                        refine=mon.refine)
     full = {"stable": np.zeros(m, bool), "n_unstable": np.full(m, -1, np.int64),
             "stability_analysed": np.zeros(m, bool), "stability_widened": np.zeros(m, bool),
             "stability_cpu_time": np.zeros(m), "leading_multipliers": np.full((m, k), np.nan),
@@ -615,7 +616,7 @@ def continue_doubled_branch(residual, u: np.ndarray, omega: float, bifurcation: 
     parts, statuses = [], []
     for direction in (-1, 1):
         rows: dict[int, tuple] = {}
-        mon = StabilityMonitor.for_residual(new, stability)
+        mon = StabilityMonitor.for_residual(new, stability, newton=continuation.newton)
 
         def keep(items, rows=rows):
             for q, ex in items:

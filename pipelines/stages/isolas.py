@@ -552,11 +552,11 @@ def _compute(ctx: Context, outputs) -> None:
     omegas = np.linspace(lo, hi, iso.n_omega)
     opts = search_options(hbm, iso)
     co = opts.continuation
-    stab = None  # the monitor's options: [hbm] stability_max_gap, as for the NFRC
+    stab = None  # the monitor's options: [hbm] stability_max_gap and refine_bifurcations, as for the NFRC
     if hbm.stability:
         from hbm.stability.monitor import StabilityOptions
 
-        stab = StabilityOptions(max_gap=hbm.stability_max_gap)
+        stab = StabilityOptions.of(hbm)
     final = out / ISOLAS.file
     partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
     results = {}  # method -> ([(IsolaSearch, its residual), ...], status, cpu, wall), in hbm.methods' order

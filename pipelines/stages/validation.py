@@ -527,7 +527,7 @@ def _branch_monitor(hbm) -> tuple:
     from hbm.stability.monitor import StabilityOptions
 
     co = default_continuation(hbm)
-    return co.x_scale, co.omega_scale, StabilityOptions(max_gap=hbm.stability_max_gap)
+    return co.x_scale, co.omega_scale, StabilityOptions.of(hbm)
 
 
 def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update, nfrc: Candidate | None = None):

@@ -40,6 +40,7 @@ BAD = [
     (HbmOptions, {}, "stability", "no", "stability must be true or false, got 'no'"),
     (HbmOptions, {}, "stability_max_gap", 0, "stability_max_gap must be >= 1 (1: every point analysed), got 0"),
     (HbmOptions, {}, "subharmonic", 1.5, "subharmonic must be an integer >= 1, got 1.5"),
+    (HbmOptions, {}, "refine_bifurcations", -1, "refine_bifurcations must be >= 0 (0: no refinement), got -1"),
     (ValidationOptions, {}, "n_periods", 100.5, "n_periods must be an integer >= 3, got 100.5"),
     (ValidationOptions, {}, "dt_refinement", 0, "dt_refinement must be >= 1 (1: no second march), got 0"),
     (TimeIntegrationOptions, {}, "dt", INF, "dt must be a finite number > 0 s, got inf"),
@@ -73,6 +74,8 @@ BAD = [
     (StabilityOptions, {}, "window", NAN, "window must be a finite number > 0, got nan"),
     (StabilityOptions, {}, "margin", -0.02, "margin must be >= 0, got -0.02"),
     (StabilityOptions, {}, "turn_tol", INF, "turn_tol must be a finite number >= 0, got inf"),
+    (StabilityOptions, {}, "refine_steps", 2.5, "refine_steps must be an integer >= 0 (0: no refinement), got 2.5"),
+    (StabilityOptions, {}, "refine_rtol", 0.0, "refine_rtol must be > 0, got 0.0"),
 ]
 
 

@@ -1,0 +1,88 @@
+"""Bifurcations located between stored points against refined ones: speed against error.
+
+    OPENBLAS_NUM_THREADS=1 PYTHONPATH=. .venv/bin/python benchmarks/bench_refinement.py OUT \
+        [--scene scenes/rotor67_coarse.toml] [--methods dlft rl] [--steps 0 2 4 8] [--reference 24]
+
+OUT: a run's folder with rom.h5 and nfrc_METHOD.h5 (computed with or without stability).
+The stability monitor runs over the NFRC's converged points as the isola search runs it
+over its branches (hbm.isolas.harmonic.describe, the NFRC's arc-length scales): once per
+--steps value (StabilityOptions.refine_steps, refine_rtol 1e-5, the scene's
+[hbm] refine_bifurcations) and once as the reference (--reference steps, refine_rtol
+1e-8). The monitor's schedule does not depend on the refinement, so every run locates the
+same bifurcations, matched in order. Prints, per run: CPU time, analyses, and per kind the
+median and largest |Omega - Omega_reference| (rad/s) of the crossings that were refined in
+the reference (folds are located by their parabola, not refined), with the median bracket
+between stored points for scale.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+
+def _run(res, scales, omega, x, steps: int, rtol: float):
+    from hbm.isolas.harmonic import describe
+    from hbm.stability.monitor import StabilityOptions
+
+    c0 = time.process_time()
+    d = describe(res, True, scales, StabilityOptions(refine_steps=steps, refine_rtol=rtol))(omega, x)
+    cpu = time.process_time() - c0
+    t = {k: np.asarray(v) for k, (v, _) in d["tables"]["bifurcations"].items()}
+    return cpu, int(d["stability_analysed"].sum()), t
+
+
+def main() -> None:
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.harmonic.residual import build_residual
+    from pipelines.branch_store import load_branch
+    from pipelines.scene import load_scene
+    from pipelines.stages.rom import read_rom
+
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("out", type=Path)
+    ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67_coarse.toml")
+    ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
+    ap.add_argument("--steps", type=int, nargs="+", default=[0, 2, 4, 8])
+    ap.add_argument("--reference", type=int, default=24)
+    a = ap.parse_args()
+    scene = load_scene(a.scene)
+    rom = read_rom(a.out)
+    co = default_continuation(scene.hbm)
+    for method in a.methods:
+        s = load_branch(a.out / f"nfrc_{method}.h5")
+        ok = np.flatnonzero(s.branch.converged)
+        omega, x = s.branch.omega[ok], s.branch.x[ok]
+        res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
+        scales = (co.x_scale, co.omega_scale)
+        cpu_r, _, ref = _run(res, scales, omega, x, a.reference, 1e-8)
+        refined = ref["refine_steps"] > 0
+        width = np.abs(ref["omega_high"] - ref["omega_low"])
+        print(f"{method} NFRC, {len(ok)} points: {len(ref['kind'])} bifurcations, {int(refined.sum())} refined in "
+              f"the reference ({cpu_r:.1f} s CPU; notes: "
+              f"{sorted(set(str(n) for n in ref['refine_note'] if str(n))) or 'none'}); "
+              f"stored-point brackets of those: median {np.median(width[refined]):.3g} rad/s, "
+              f"largest {width[refined].max():.3g}", flush=True)
+        for steps in a.steps:
+            cpu, n_an, t = _run(res, scales, omega, x, steps, 1e-5)
+            if len(t["kind"]) != len(ref["kind"]) or np.any(t["index"] != ref["index"]):
+                print(f"  steps {steps}: other bifurcations than the reference's ({len(t['kind'])})", flush=True)
+                continue
+            err = np.abs(t["omega"] - ref["omega"])
+            parts = []
+            for kind in sorted(set(str(k) for k in ref["kind"][refined])):
+                sel = refined & (ref["kind"].astype(str) == kind)
+                parts.append(f"{kind} ({int(sel.sum())}): median {np.median(err[sel]):.2g}, largest "
+                             f"{err[sel].max():.2g}")
+            print(f"  steps {steps}: {cpu:.1f} s CPU, {n_an} points analysed, refinement solves "
+                  f"{int(t['refine_steps'].sum())}, |Omega - reference| rad/s: " + "; ".join(parts), flush=True)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,154 @@
+"""A bifurcation located finer than the branch's points (hbm.stability.refinement): points
+solved between the two stored points around the crossing, analysed, and the bracket closed
+by Brent's method on the crossing multiplier's log|mu|.
+
+References: shooting's multiplier -1 (solve_ivp's variational equations, independent of
+the HBM and of Hill's method) on the period-doubling oscillator of test_period_doubling,
+and closed-form test functions for the root finding."""
+import pytest
+from scipy.optimize import brentq
+
+from hbm.continuation.arclength import ContinuationOptions, continue_branch
+from hbm.continuation.newton import newton_solve
+from hbm.harmonic.nfrc import nfrc_extras
+from hbm.options import HbmOptions
+from hbm.stability.bifurcation import PERIOD_DOUBLING, Bifurcation, bifurcation_arrays, bifurcations_from_arrays
+from hbm.stability.monitor import StabilityMonitor, StabilityOptions
+from hbm.stability.refinement import refine_crossing
+from test_period_doubling import NOPT, _pd_multiplier, _state, obstacle_residual
+
+
+@pytest.fixture(scope="module")
+def oscillator():
+    """The obstacle oscillator's W-periodic branch from 4.6 down to 4.0 at a fixed step of
+    0.02 (its period doubling near W = 4.3275 falls inside one step)."""
+    res, sol = obstacle_residual()
+    opts = ContinuationOptions(omega_min=4.0, omega_max=4.6, ds=0.02, ds_max=0.02, direction=-1, newton=NOPT,
+                               closed_loop_tol=None, omega_scale=1.0)
+    br = continue_branch(res, sol.x, 4.6, opts)
+    assert br.status == "reached omega_min"
+    return res, br
+
+
+def _monitor(res, br, steps, rtol=1e-9):
+    mon = StabilityMonitor.for_residual(res, StabilityOptions(refine_steps=steps, refine_rtol=rtol), newton=NOPT)
+    for i in range(len(br)):
+        mon.push(br.point(i), nfrc_extras(res, br.x[i]))
+    mon.finish()
+    return mon
+
+
+def _exact(res, br, pd):
+    """Omega where shooting's multiplier is -1, from the stored point before the bracket."""
+    lo, hi = sorted(pd.omega_bracket)
+    y = _state(res, br.x[pd.index], br.omega[pd.index])
+    return brentq(lambda w: _pd_multiplier(y, w) + 1.0, lo - 0.01, hi + 0.01, xtol=1e-10)
+
+
+def test_a_refined_period_doubling_lies_where_shooting_puts_it(oscillator):
+    res, br = oscillator
+    plain = _monitor(res, br, 0)
+    (pd0,) = plain.bifurcations
+    w_exact = _exact(res, br, pd0)
+    # interpolated between the stored points 0.02 apart: measured 6.2e-3 off, a third of the
+    # bracket (log|mu| is flat on the stable side, where the crossing multiplier is one of
+    # a complex pair, and steep once it is real)
+    assert pd0.refine_steps == 0 and pd0.bracket == pd0.omega_bracket
+    assert abs(pd0.omega - w_exact) > 2e-3
+    ref = _monitor(res, br, 6)
+    (pd,) = ref.bifurcations
+    assert pd.kind == PERIOD_DOUBLING and pd.refine_note == ""
+    assert pd.index == pd0.index and pd.omega_bracket == pd0.omega_bracket
+    assert 1 <= pd.refine_steps <= 6 and ref.causes["refinement"] == pd.refine_steps
+    assert ref.n_analyses == plain.n_analyses + pd.refine_steps
+    # shooting's crossing inside the refined bracket, and the located Omega within 1e-5 of
+    # it (measured 2e-7 after five solves)
+    lo, hi = sorted(pd.bracket)
+    assert lo <= w_exact <= hi and hi - lo < 2e-3
+    assert abs(pd.omega - w_exact) < 1e-5
+    assert min(pd.omega_bracket) < pd.omega < max(pd.omega_bracket)
+    # the amplitude there: between those of the stored points, near the one of the solved
+    # orbit at that Omega
+    assert min(pd0.le_amplitude, pd.le_amplitude) > 0
+    sol = newton_solve(res, br.x[pd.index], pd.omega, NOPT)
+    assert pd.le_amplitude == pytest.approx(nfrc_extras(res, sol.x)["le_amplitude"], rel=1e-3)
+    # the multiplier and mode stay the stored side's (a branch switch starts from a stored
+    # point), and the table keeps how it was located
+    assert pd.multiplier == pd0.multiplier
+    back, = bifurcations_from_arrays({k: v for k, (v, _) in bifurcation_arrays([pd]).items()})
+    assert (back.refine_steps, back.bracket, back.refine_note, back.omega) == (pd.refine_steps, pd.bracket, "",
+                                                                                pd.omega)
+
+
+def test_a_loose_tolerance_stops_the_refinement_early(oscillator):
+    res, br = oscillator
+    (pd,) = _monitor(res, br, 20, rtol=2e-4).bifurcations
+    lo, hi = sorted(pd.bracket)
+    assert hi - lo <= 2e-4 * hi * 1.0001
+    assert pd.refine_steps < 20
+    assert abs(pd.omega - _exact(res, br, pd)) < hi - lo
+
+
+def test_brent_on_a_kinked_test_function_closes_the_bracket():
+    """l(f) flat at -0.02 up to f = 0.628 then rising steeply through 0 at 0.632, as a
+    crossing multiplier that leaves a complex pair; Omega = 100 - 10 f."""
+    root = 0.6321
+
+    def l_of(f):
+        return max(-0.02, 5.0 * (f - root))
+
+    calls = []
+
+    def evaluate(f):
+        calls.append(f)
+        return l_of(f), 100.0 - 10.0 * f, 1e-3 * (1 + f)
+
+    r = refine_crossing(evaluate, ((l_of(0.0), 100.0, 1e-3), (l_of(1.0), 90.0, 2e-3)), steps=30, rtol=1e-9)
+    assert r.note == "" and r.steps == len(calls) <= 30
+    assert r.fraction == pytest.approx(root, abs=1e-8)
+    assert r.omega == pytest.approx(100.0 - 10.0 * root, abs=1e-7)
+    assert r.le_amplitude == pytest.approx(1e-3 * (1 + root), rel=1e-6)
+    lo, hi = sorted(r.bracket)
+    assert lo <= 100.0 - 10.0 * root <= hi and hi - lo <= 1e-6
+    # linear interpolation between the ends, as without refinement, is 0.61 off in f
+    assert abs(0.02 / (0.02 + l_of(1.0)) - root) > 0.5
+
+
+def test_a_failed_point_ends_the_refinement_with_its_reason_and_the_bracket_so_far():
+    def evaluate(f):
+        if len(seen) == 2:
+            return "no point at f = 0.5: no convergence in 12 iterations"
+        seen.append(f)
+        return (f - 0.3) * (1.0 + 3.0 * f), 10.0 * f, 1.0
+
+    seen = []
+    r = refine_crossing(evaluate, ((-0.3, 0.0, 1.0), (2.8, 10.0, 1.0)), steps=10, rtol=1e-12)
+    assert r.note.startswith("no point at f = 0.5") and r.steps == 3 and len(seen) == 2
+    lo, hi = sorted(r.bracket)
+    assert lo <= 3.0 <= hi and hi - lo < 10.0  # narrower than the stored points' bracket
+    assert lo <= r.omega <= hi
+    with pytest.raises(ValueError, match="do not bracket a crossing"):
+        refine_crossing(evaluate, ((0.1, 0.0, 1.0), (0.7, 10.0, 1.0)), steps=3, rtol=1e-6)
+
+
+def test_zero_steps_and_a_bracket_already_within_tolerance_solve_nothing():
+    def evaluate(f):
+        raise AssertionError("no point should be solved")
+
+    ends = ((-1.0, 1000.0, 1.0), (3.0, 1000.001, 1.0))
+    for steps, rtol in ((0, 1e-12), (5, 1e-5)):
+        r = refine_crossing(evaluate, ends, steps=steps, rtol=rtol)
+        assert r.steps == 0 and r.fraction == pytest.approx(0.25) and r.bracket == (1000.0, 1000.001)
+
+
+def test_the_scene_key_reaches_the_monitor():
+    opts = StabilityOptions.of(HbmOptions(stability_max_gap=3, refine_bifurcations=4))
+    assert (opts.max_gap, opts.refine_steps) == (3, 4)
+    assert StabilityOptions.of(HbmOptions()).refine_steps == 0
+    # a table written before refinement existed reads back as interpolated between its points
+    b = Bifurcation(kind=PERIOD_DOUBLING, omega=10.0, le_amplitude=1.0, index=2, fraction=0.5,
+                    omega_bracket=(9.0, 11.0), multiplier=-1.1, direction=1)
+    cols = {k: v for k, (v, _) in bifurcation_arrays([b]).items()
+            if k not in ("refine_steps", "located_low", "located_high", "refine_note")}
+    (back,) = bifurcations_from_arrays(cols)
+    assert back.refine_steps == 0 and back.bracket == (9.0, 11.0) and back.located_bracket is None
