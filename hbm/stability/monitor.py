@@ -105,8 +105,10 @@ class StabilityOptions:
     stored points (hbm.stability.refinement; 0: linear interpolation of log|mu| between
     them). Not a fold (the parabola's vertex locates it), nor a crossing next to a turn in
     Omega (between two points around a turn the branch need not cross each hyperplane of
-    the refinement once). Each costs a Newton solve and an analysis. refine_rtol: the refinement stops once the two points around the crossing are
-    within this fraction of Omega (1e-5: 0.013 rad/s at 1300 rad/s).
+    the refinement once). Each costs a Newton solve and an analysis. refine_rtol: the
+    refinement stops once the two points around the crossing are within this fraction of
+    Omega (1e-5: 0.013 rad/s at 1300 rad/s). refine_tolerance: Newton's test on ||R|| for
+    those points (the scene's [hbm] tolerance, as for the branch's own points).
     """
 
     n_eig: int = 40
@@ -118,11 +120,14 @@ class StabilityOptions:
     turn_tol: float = 1e-7
     refine_steps: int = HbmOptions.refine_bifurcations  # the scene's default ([hbm] refine_bifurcations)
     refine_rtol: float = 1e-5
+    refine_tolerance: float = HbmOptions.tolerance
 
     @classmethod
     def of(cls, hbm: HbmOptions) -> "StabilityOptions":
-        """The settings a scene's [hbm] keys give (stability_max_gap, refine_bifurcations)."""
-        return cls(max_gap=hbm.stability_max_gap, refine_steps=hbm.refine_bifurcations)
+        """The settings a scene's [hbm] keys give (stability_max_gap, refine_bifurcations,
+        tolerance)."""
+        return cls(max_gap=hbm.stability_max_gap, refine_steps=hbm.refine_bifurcations,
+                   refine_tolerance=hbm.tolerance)
 
     def __post_init__(self):
         check_option("n_eig", self.n_eig, 2, integer=True)
@@ -134,6 +139,7 @@ class StabilityOptions:
         check_option("turn_tol", self.turn_tol, 0)
         check_option("refine_steps", self.refine_steps, 0, integer=True, note="0: no refinement")
         check_option("refine_rtol", self.refine_rtol, 0, low_open=True)
+        check_option("refine_tolerance", self.refine_tolerance, 0, low_open=True)
 
 
 @dataclass(eq=False)
@@ -232,15 +238,15 @@ class StabilityMonitor:
     def for_residual(cls, residual, options: StabilityOptions = StabilityOptions(), *,
                      newton: NewtonOptions | None = None, solver=None) -> "StabilityMonitor":
         """A monitor analysing points of hbm.harmonic.residual.HarmonicBalanceResidual. newton
-        and solver: the refinement's Newton rule and LinearSolver (defaults: NewtonOptions(),
-        the scene's default tolerance, and an HbmSolver of its own, as compute_nfrc builds
-        one: the continuation's keeps its preconditioner), used with options.refine_steps > 0."""
+        and solver: the refinement's Newton rule and LinearSolver (defaults: NewtonOptions with
+        options.refine_tolerance, and an HbmSolver of its own, as compute_nfrc builds one: the
+        continuation's keeps its preconditioner), used with options.refine_steps > 0."""
         refine = None
         if options.refine_steps:
             from hbm.harmonic.nfrc import nfrc_extras
             from hbm.harmonic.solver import HbmSolver
 
-            nopt = newton or NewtonOptions()
+            nopt = newton or NewtonOptions(tol_residual=options.refine_tolerance)
             lin = solver or HbmSolver(atol=0.1 * nopt.tol_residual)
 
             def refine(xa, wa, xb, wb, f):

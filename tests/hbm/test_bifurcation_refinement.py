@@ -142,8 +142,8 @@ def test_zero_steps_and_a_bracket_already_within_tolerance_solve_nothing():
 
 
 def test_the_scene_key_reaches_the_monitor():
-    opts = StabilityOptions.of(HbmOptions(stability_max_gap=3, refine_bifurcations=4))
-    assert (opts.max_gap, opts.refine_steps) == (3, 4)
+    opts = StabilityOptions.of(HbmOptions(stability_max_gap=3, refine_bifurcations=4, tolerance=1e-9))
+    assert (opts.max_gap, opts.refine_steps, opts.refine_tolerance) == (3, 4, 1e-9)
     assert StabilityOptions.of(HbmOptions()).refine_steps == 0
     # a table written before refinement existed reads back as interpolated between its points
     b = Bifurcation(kind=PERIOD_DOUBLING, omega=10.0, le_amplitude=1.0, index=2, fraction=0.5,
