@@ -2,7 +2,8 @@
 
     OPENBLAS_NUM_THREADS=1 PYTHONPATH=. .venv/bin/python benchmarks/bench_refinement.py OUT \
         [--scene scenes/rotor67_coarse.toml] [--methods dlft rl] [--steps 0 2 4 8] [--reference 24]
-    ... bench_refinement.py OUT --scene SCENE --methods dlft --along OMEGA [--n-time 1024 4096]
+    ... bench_refinement.py OUT --scene SCENE --methods dlft --along OMEGA [--n-time 1024 4096] [--same-orbits]
+    ... bench_refinement.py OUT --scene SCENE --methods dlft --monitor-n-time 1024 4096
 
 OUT: a run's folder with rom.h5 and nfrc_METHOD.h5 (computed with or without stability).
 The stability monitor runs over the NFRC's converged points as the isola search runs it
@@ -18,7 +19,13 @@ between stored points for scale.
 --along OMEGA: instead, the period-doubling multiplier (the real negative one of largest
 modulus) at 11 points solved on the branch between the stored point nearest OMEGA and the
 next one (hbm.stability.refinement.solve_between), for each --n-time (the AFT's instants;
-the stored points are the scene's): whether it crosses -1 once between two points.
+the stored points are the scene's): whether it crosses -1 once between two points. With
+--same-orbits the points are solved once, at the scene's N_t, and only Hill's operator is
+built on each N_t's instants (the orbit's sampling against the Jacobian's).
+
+--monitor-n-time N ...: the monitor over the NFRC's stored points (as above, no refinement)
+with Hill's operator built on N instants: CPU time, points analysed and stable, and the
+bifurcations by kind.
 """
 from __future__ import annotations
 
@@ -44,7 +51,27 @@ def _run(res, scales, omega, x, steps: int, rtol: float):
     return cpu, int(d["stability_analysed"].sum()), t
 
 
-def _along(out: Path, scene, rom, method: str, omega: float, n_times) -> None:
+def _monitor_n_time(out: Path, scene, rom, method: str, n_times) -> None:
+    import dataclasses
+    from collections import Counter
+
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.harmonic.residual import build_residual
+    from pipelines.branch_store import load_branch
+
+    s = load_branch(out / f"nfrc_{method}.h5")
+    ok = np.flatnonzero(s.branch.converged)
+    co = default_continuation(scene.hbm)
+    for nt in n_times:
+        res = build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
+                             method=method)
+        cpu, n_an, t = _run(res, (co.x_scale, co.omega_scale), s.branch.omega[ok], s.branch.x[ok], 0, 1e-5)
+        kinds = dict(sorted(Counter(str(k) for k in t["kind"]).items()))
+        print(f"{method}, Hill's operator on N_t = {nt}: {cpu:.1f} s CPU, {n_an} of {len(ok)} points analysed, "
+              f"bifurcations {kinds}", flush=True)
+
+
+def _along(out: Path, scene, rom, method: str, omega: float, n_times, same_orbits: bool = False) -> None:
     import dataclasses
 
     from hbm.harmonic.nfrc import default_continuation
@@ -59,20 +86,22 @@ def _along(out: Path, scene, rom, method: str, omega: float, n_times) -> None:
     ia = int(np.argmin(np.where(s.branch.converged, np.abs(om - omega), np.inf)))
     nopt = default_continuation(scene.hbm).newton
     print(f"{method}: points {ia} and {ia + 1} ({om[ia]:.2f}, {om[ia + 1]:.2f} rad/s)", flush=True)
+    scene_res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     for nt in n_times:
         res = build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
                              method=method)
         solver = HbmSolver(atol=0.1 * nopt.tol_residual)
         row = []
         for f in np.linspace(0.0, 1.0, 11):
-            got = solve_between(res, xs[ia], om[ia], xs[ia + 1], om[ia + 1], f, nopt, solver)
+            got = solve_between(scene_res if same_orbits else res, xs[ia], om[ia], xs[ia + 1], om[ia + 1], f, nopt,
+                                solver)
             if isinstance(got, str):
                 row.append(f"f = {f:.1f}: {got}")
                 continue
             sp, _ = orbit_spectrum(res, got[0], got[1], n_eig=40, min_ceiling=1.0)
             mu = sp.multipliers[(sp.multipliers.real < 0) & (np.abs(np.angle(sp.multipliers)) > np.pi - 0.05)]
             row.append(f"{got[1]:.2f}: {-np.abs(mu).max() if len(mu) else np.nan:.4f}")
-        print(f"  N_t = {nt}: " + ", ".join(row), flush=True)
+        print(f"  N_t = {nt}{' (Hill only)' if same_orbits else ''}: " + ", ".join(row), flush=True)
 
 
 def main() -> None:
@@ -90,13 +119,19 @@ def main() -> None:
     ap.add_argument("--reference", type=int, default=24)
     ap.add_argument("--along", type=float, metavar="OMEGA")
     ap.add_argument("--n-time", type=int, nargs="+", default=[1024, 4096])
+    ap.add_argument("--same-orbits", action="store_true")
+    ap.add_argument("--monitor-n-time", type=int, nargs="+", metavar="N")
     a = ap.parse_args()
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
     co = default_continuation(scene.hbm)
     if a.along is not None:
         for method in a.methods:
-            _along(a.out, scene, rom, method, a.along, a.n_time)
+            _along(a.out, scene, rom, method, a.along, a.n_time, a.same_orbits)
+        return
+    if a.monitor_n_time:
+        for method in a.methods:
+            _monitor_n_time(a.out, scene, rom, method, a.monitor_n_time)
         return
     for method in a.methods:
         s = load_branch(a.out / f"nfrc_{method}.h5")
