@@ -116,7 +116,7 @@ class HbmOptions:
       of crossings a few rad/s apart: 4 of 53 and 8 of 87 crossings are missed with 8 on the
       coarse DLFT and RL NFRCs).
     refine_bifurcations: with stability, points solved and analysed per bifurcation (not a
-      fold) to locate it finer than the branch's points (regula falsi on the crossing
+      fold) to locate it finer than the branch's points (Brent's method on the crossing
       multiplier, hbm.stability.refinement); 0 (the default) interpolates between the two
       points around it, whose spacing then bounds the error.
     subharmonic: nu, the HBM's fundamental is omega = Omega / nu (nu = 1: the casing's

@@ -276,7 +276,8 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
 
             opts = options or StabilityOptions()
             mon = StabilityMonitor.for_residual(res, opts)
-            st = monitor_branch(mon.analyse, omega, u, ex, scales[0], scales[1], opts, widen=mon.widen, refine=mon.refine)
+            st = monitor_branch(mon.analyse, omega, u, ex, scales[0], scales[1], opts, widen=mon.widen,
+                                refine=mon.refine)
             out.update(st.per_point())
             out["tables"] = {"bifurcations": bifurcation_arrays(st.bifurcations)}
         return out

@@ -59,6 +59,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 
 from hbm.continuation.newton import NewtonOptions
+from hbm.linalg.errors import SingularMatrixError
 from hbm.options import HbmOptions, check_option
 from hbm.stability.bifurcation import (BRANCH_POINT, CROSSING, FOLD, GUESS, NEIMARK_SACKER, PARITY, PERIOD_DOUBLING,
                                       UNCLASSIFIED, Bifurcation, classify, crossings, lone_real, pair_multipliers,
@@ -560,7 +561,7 @@ class StabilityMonitor:
         point's f, among those that can be it: for a period doubling those with Re mu < 0, for
         a branch point Re mu > 0 (on its stable side a real crossing multiplier may still be
         one of a complex pair about to meet on the real axis; its modulus has the sign the
-        regula falsi needs), for a Neimark-Sacker the complex ones. The CPU time goes to a's
+        root finding needs), for a Neimark-Sacker the complex ones. The CPU time goes to a's
         stability_cpu_time."""
         mu_a, mu_b = a.spectrum.multipliers[i], b.spectrum.multipliers[j]
         ca = (math.log(abs(mu_a)), abs(np.angle(mu_a)))
@@ -570,13 +571,16 @@ class StabilityMonitor:
 
         def evaluate(f):
             c0 = time.process_time()
+            w = a.omega + f * (b.omega - a.omega)  # the prediction's, until a point is solved
             try:
                 got = self.refine(a.x, a.omega, b.x, b.omega, f)
                 if isinstance(got, str):
                     return got
                 x, w, amp = got
-                sp, _ = self.analyse(x, w)
                 self._count("refinement")
+                sp, _ = self.analyse(x, w)
+            except SingularMatrixError as exc:  # H(0) singular: a multiplier exactly +1 there
+                return f"no analysis at omega={w:.6g}: {exc}"
             finally:
                 a.cpu += time.process_time() - c0
             if not sp.decided:

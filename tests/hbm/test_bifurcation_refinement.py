@@ -5,6 +5,7 @@ by Brent's method on the crossing multiplier's log|mu|.
 References: shooting's multiplier -1 (solve_ivp's variational equations, independent of
 the HBM and of Hill's method) on the period-doubling oscillator of test_period_doubling,
 and closed-form test functions for the root finding."""
+import numpy as np
 import pytest
 from scipy.optimize import brentq
 
@@ -152,3 +153,45 @@ def test_the_scene_key_reaches_the_monitor():
             if k not in ("refine_steps", "located_low", "located_high", "refine_note")}
     (back,) = bifurcations_from_arrays(cols)
     assert back.refine_steps == 0 and back.bracket == (9.0, 11.0) and back.located_bracket is None
+
+
+def test_the_monitor_refines_closed_form_crossings_and_reports_a_failed_analysis():
+    """The monitor of test_stability_monitor on a complex pair whose log|mu| is a Gaussian
+    bump along the arc length s (out of the circle and back, Omega = 1000 - s): refined, both
+    Neimark-Sacker crossings lie at the bump's exact roots (brentq on the closed form) to
+    1e-6 rad/s, where the interpolation between the stored points is 1e-3 off or more. An
+    analysis that fails at the solved point (a singular H(0)) ends that refinement with its
+    reason; the crossing keeps the interpolated place."""
+    from hbm.linalg.errors import SingularMatrixError
+    from hbm.stability.bifurcation import NEIMARK_SACKER
+    from test_stability_monitor import OMEGA, _feed, spectrum
+
+    def log_mod(s):
+        return -0.3 + 0.4 * np.exp(-((s - 100) / 6) ** 2)
+
+    def refine(xa, wa, xb, wb, f):  # the "branch": x = [s], Omega = 1000 - s
+        s = float(xa[0] + f * (xb[0] - xa[0]))
+        return np.array([s]), OMEGA - s, 1e-4 * s
+
+    exact = [brentq(log_mod, 90, 100, xtol=1e-13), brentq(log_mod, 100, 110, xtol=1e-13)]
+    found = {}
+    for steps in (0, 12):
+        mon = StabilityMonitor(analyse=lambda x, w: (spectrum(log_mod(float(x[0]))), 1), refine=refine,
+                               options=StabilityOptions(refine_steps=steps, refine_rtol=1e-9))
+        _feed(mon, OMEGA - np.arange(160))
+        assert [b.kind for b in mon.bifurcations] == [NEIMARK_SACKER] * 2
+        found[steps] = [b.omega for b in mon.bifurcations]
+    assert all(abs(w - (OMEGA - s)) > 1e-3 for w, s in zip(found[0], exact))
+    assert all(abs(w - (OMEGA - s)) < 1e-6 for w, s in zip(found[12], exact))
+
+    def analyse(x, w):
+        if float(x[0]) != round(float(x[0])):  # a solved point, between two stored ones
+            raise SingularMatrixError("Hill operator at lam = 0: singular condensed matrix")
+        return spectrum(log_mod(float(x[0]))), 1
+
+    mon = StabilityMonitor(analyse=analyse, refine=refine, options=StabilityOptions(refine_steps=12))
+    _feed(mon, OMEGA - np.arange(160))
+    assert [b.omega for b in mon.bifurcations] == found[0]
+    for b in mon.bifurcations:
+        assert b.refine_steps == 1 and b.refine_note.startswith("no analysis at omega=")
+        assert "singular condensed matrix" in b.refine_note and b.bracket == b.omega_bracket
