@@ -133,6 +133,7 @@ def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_pat
      r"\[ti\] n_keep = 1 with \[casing\] n_lobes = 1: the periodicity class needs at least 3 Poincare sections"),
     ("[limits]\nmemory_gb = -1\n", r"memory_gb must be >= 0 GB"),
     ("[hbm]\nstability_max_gap = 0\n", r"stability_max_gap must be >= 1 \(1: every point analysed\)"),
+    ("[hbm]\nrefine_bifurcations = -1\n", r"refine_bifurcations must be >= 0 \(0: no refinement\), got -1"),
     ("[validation]\nn_scan = 1\n", r"^\[validation\] n_scan must be >= 2, got 1$"),
     ("[isolas]\nomega_min = 2500\n", r"\[isolas\] omega_min = 2500 is not below \[hbm\] omega_max = 2000: the isola "),
     ("[isolas]\nomega_max = 300\n", r"\[hbm\] omega_min = 400 is not below \[isolas\] omega_max = 300"),
