@@ -24,6 +24,7 @@ import numpy as np
 import scipy.optimize
 
 from hbm.continuation.newton import NewtonOptions, newton_solve_on_plane
+from hbm.stability.bifurcation import upper_half
 
 
 @dataclass(frozen=True)
@@ -120,14 +121,13 @@ def solve_between(residual, xa: np.ndarray, wa: float, xb: np.ndarray, wb: float
     return r.x[:-1], float(r.x[-1])
 
 
-def tracked_log_modulus(multipliers: np.ndarray, floor: float, target: tuple, same_kind) -> float | None:
+def tracked_log_modulus(multipliers: np.ndarray, floor: float, target: tuple, candidate) -> float | None:
     """log|mu| of the multiplier nearest the target (log|mu|, |arg mu|) among those above
-    floor, one of each conjugate pair, for which same_kind(mu) holds (None: no such one)."""
-    from hbm.stability.bifurcation import upper_half
-
+    floor, one of each conjugate pair, for which candidate(mu) holds (None: no such one).
+    multipliers: (m,) complex."""
     mu = np.asarray(multipliers)
     ok = upper_half(mu) & (np.abs(mu) > floor)
-    ok &= np.array([bool(same_kind(m)) for m in mu], dtype=bool) if len(mu) else ok
+    ok &= np.array([bool(candidate(m)) for m in mu], dtype=bool) if len(mu) else ok
     if not ok.any():
         return None
     c = np.stack([np.log(np.abs(mu[ok])), np.abs(np.angle(mu[ok]))], axis=-1)
