@@ -4,6 +4,8 @@
         [--scene scenes/rotor67_coarse.toml] [--methods dlft rl] [--steps 0 2 4 8] [--reference 24]
     ... bench_refinement.py OUT --scene SCENE --methods dlft --along OMEGA [--n-time 1024 4096] [--same-orbits]
     ... bench_refinement.py OUT --scene SCENE --methods dlft --monitor-n-time 1024 4096
+    ... bench_refinement.py OUT --scene SCENE --methods dlft rl --every-point-n-time 1024 4096 [--every K]
+    ... bench_refinement.py OUT --scene SCENE --methods rl --at 1422.65,1619.9 [--n-time 1024 2048 4096 8192]
 
 OUT: a run's folder with rom.h5 and nfrc_METHOD.h5 (computed with or without stability).
 The stability monitor runs over the NFRC's converged points as the isola search runs it
@@ -26,6 +28,15 @@ built on each N_t's instants (the orbit's sampling against the Jacobian's).
 --monitor-n-time N ...: the monitor over the NFRC's stored points (as above, no refinement)
 with Hill's operator built on N instants: CPU time, points analysed and stable, and the
 bifurcations by kind.
+
+--every-point-n-time N1 N2: every K-th converged stored point (--every, default 1) analysed
+with Hill's operator on N1 and on N2 instants (the same orbits, solved at the scene's N_t):
+how many points get another stable flag or another count of unstable multipliers, and how
+far the largest log|mu| moves (median, 95th percentile, largest), then each point whose flag
+differs with its Omega and both largest log|mu|.
+
+--at OMEGA,...: the stored point nearest each OMEGA analysed with Hill's operator on each
+--n-time's instants: the count of unstable multipliers and the three of largest modulus.
 """
 from __future__ import annotations
 
@@ -69,6 +80,66 @@ def _monitor_n_time(out: Path, scene, rom, method: str, n_times) -> None:
         kinds = dict(sorted(Counter(str(k) for k in t["kind"]).items()))
         print(f"{method}, Hill's operator on N_t = {nt}: {cpu:.1f} s CPU, {n_an} of {len(ok)} points analysed, "
               f"bifurcations {kinds}", flush=True)
+
+
+def _largest_log_modulus(sp) -> float:
+    """log|mu| of the multiplier of largest modulus (nan without one)."""
+    return float(np.log(np.abs(sp.multipliers)).max()) if len(sp.multipliers) else float("nan")
+
+
+def _every_point_n_time(out: Path, scene, rom, method: str, n_times, every: int) -> None:
+    import dataclasses
+
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.spectrum import orbit_spectrum
+    from pipelines.branch_store import load_branch
+
+    s = load_branch(out / f"nfrc_{method}.h5")
+    ok = np.flatnonzero(s.branch.converged)[::every]
+    verdicts = []
+    for nt in n_times:
+        res = build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
+                             method=method)
+        c0 = time.process_time()
+        rows = []
+        for i in ok:
+            sp, _ = orbit_spectrum(res, s.branch.x[i], float(s.branch.omega[i]), n_eig=40, min_ceiling=1.0)
+            rows.append((sp.decided and sp.n_unstable == 0, sp.n_unstable if sp.decided else -1,
+                         _largest_log_modulus(sp)))
+        verdicts.append(rows)
+        print(f"{method}, N_t = {nt}: {len(ok)} points, {time.process_time() - c0:.1f} s CPU, "
+              f"{sum(r[0] for r in rows)} stable, {sum(r[1] < 0 for r in rows)} without a verdict", flush=True)
+    (a, b) = verdicts[0], verdicts[-1]
+    flag = [k for k in range(len(ok)) if a[k][0] != b[k][0]]
+    count = [k for k in range(len(ok)) if a[k][1] != b[k][1]]
+    d = np.abs([a[k][2] - b[k][2] for k in range(len(ok))])
+    d = d[np.isfinite(d)]
+    print(f"{method}: N_t = {n_times[0]} against {n_times[-1]}: stable flag differs at {len(flag)} of {len(ok)} "
+          f"points, unstable count at {len(count)}; largest log|mu| moves by median {np.median(d):.2e}, "
+          f"95th percentile {np.percentile(d, 95):.2e}, largest {d.max():.2e}", flush=True)
+    for k in flag:
+        print(f"  {float(s.branch.omega[ok[k]]):.2f} rad/s: largest log|mu| {a[k][2]:+.4f} ({n_times[0]}), "
+              f"{b[k][2]:+.4f} ({n_times[-1]}); unstable {a[k][1]} and {b[k][1]}", flush=True)
+
+
+def _at(out: Path, scene, rom, method: str, omegas, n_times) -> None:
+    import dataclasses
+
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.spectrum import orbit_spectrum
+    from pipelines.branch_store import load_branch
+
+    s = load_branch(out / f"nfrc_{method}.h5")
+    ops = {nt: build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
+                              method=method) for nt in n_times}
+    for w in omegas:
+        i = int(np.argmin(np.where(s.branch.converged, np.abs(s.branch.omega - w), np.inf)))
+        row = []
+        for nt, res in ops.items():
+            sp, _ = orbit_spectrum(res, s.branch.x[i], float(s.branch.omega[i]), n_eig=40, min_ceiling=1.0)
+            mu = sp.multipliers[np.argsort(-np.abs(sp.multipliers))][:3]
+            row.append(f"N_t {nt}: {sp.n_unstable} unstable, |mu| " + " ".join(f"{abs(m):.4f}" for m in mu))
+        print(f"{method} {float(s.branch.omega[i]):.2f} rad/s: " + "; ".join(row), flush=True)
 
 
 def _along(out: Path, scene, rom, method: str, omega: float, n_times, same_orbits: bool = False) -> None:
@@ -121,6 +192,9 @@ def main() -> None:
     ap.add_argument("--n-time", type=int, nargs="+", default=[1024, 4096])
     ap.add_argument("--same-orbits", action="store_true")
     ap.add_argument("--monitor-n-time", type=int, nargs="+", metavar="N")
+    ap.add_argument("--every-point-n-time", type=int, nargs=2, metavar="N")
+    ap.add_argument("--every", type=int, default=1)
+    ap.add_argument("--at", type=lambda v: [float(w) for w in v.split(",")], metavar="OMEGA,...")
     a = ap.parse_args()
     scene = load_scene(a.scene)
     rom = read_rom(a.out)
@@ -128,6 +202,14 @@ def main() -> None:
     if a.along is not None:
         for method in a.methods:
             _along(a.out, scene, rom, method, a.along, a.n_time, a.same_orbits)
+        return
+    if a.at:
+        for method in a.methods:
+            _at(a.out, scene, rom, method, a.at, a.n_time)
+        return
+    if a.every_point_n_time:
+        for method in a.methods:
+            _every_point_n_time(a.out, scene, rom, method, a.every_point_n_time, a.every)
         return
     if a.monitor_n_time:
         for method in a.methods:
