@@ -5,10 +5,13 @@ verdict) from up to --march stable points per branch: spread over its stable poi
 first and last included), or with --picks centres the middle analysed point of each of its
 longest stretches of stable analysed points (away from where stability changes: next to a
 fold or a pitchfork the stable and unstable orbits are closer than the HBM orbit is to time
-integration's own, and a march from there can fall either way).
+integration's own, and a march from there can fall either way). --picks all: every analysed
+point, stable or not (where time integration's own stability changes against Hill's);
+--omega-span: only the points with LO <= Omega <= HI; --periods: the march's length.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT [--scene scenes/rotor67_coarse.toml]
-        [--every 6] [--march 3] [--picks spread|centres] [--methods dlft rl] [--kinds isola detached]
+        [--every 6] [--march 3] [--picks spread|centres|all] [--periods 100] [--omega-span LO:HI]
+        [--methods dlft rl] [--kinds isola detached]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --window-check 12
         [--branches rl/007 dlft/008] [--seed 1]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_branch_stability.py OUT --monitor --branches rl/006
@@ -67,9 +70,12 @@ def main() -> None:
     ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67_coarse.toml")
     ap.add_argument("--every", type=int, default=6, help="analyse every k-th point of a branch")
     ap.add_argument("--march", type=int, default=3, help="time integrations per branch, from its stable points")
-    ap.add_argument("--picks", choices=("spread", "centres"), default="spread",
+    ap.add_argument("--picks", choices=("spread", "centres", "all"), default="spread",
                     help="march from stable points spread over all of them, or from the middles of the longest "
-                         "stable stretches")
+                         "stable stretches, or from every analysed point")
+    ap.add_argument("--periods", type=int, default=100, help="periods of each march")
+    ap.add_argument("--omega-span", default="", metavar="LO:HI",
+                    help="analyse only the points with LO <= Omega <= HI (rad/s)")
     ap.add_argument("--methods", nargs="+", default=["dlft", "rl"])
     ap.add_argument("--kinds", nargs="+", default=["isola", "detached", "bifurcated"])
     ap.add_argument("--window-check", type=int, default=0, metavar="N",
@@ -111,7 +117,8 @@ def main() -> None:
                 _monitor_again(a.out, scene, method, br, res, slice(*(int(v) if v else None for v in a.span.split(":"))),
                                a.save)
                 continue
-            idx = [i for i in range(0, len(br.omega), a.every) if br.converged[i]]
+            lo, hi = (float(v) for v in a.omega_span.split(":")) if a.omega_span else (-np.inf, np.inf)
+            idx = [i for i in range(0, len(br.omega), a.every) if br.converged[i] and lo <= br.omega[i] <= hi]
             largest, stable, cost, ratios = [], [], [], set()
             for i in idx:
                 c = time.process_time()
@@ -128,12 +135,14 @@ def main() -> None:
                   f"{largest.min():.3g} to {largest.max():.3g} (median {np.median(largest):.3g}); minimal period "
                   f"T / g, g in {sorted(ratios)}; one analysis {np.median(cost):.2f} s CPU (median); "
                   f"{time.process_time() - t0:.0f} s CPU", flush=True)
-            picks = _picks(idx, stable, a.march, a.picks)
+            picks = idx if a.picks == "all" else _picks(idx, stable, a.march, a.picks)
             for i in picks:
                 ti = march_from_hbm(system, scene.casing, scene.contact.mu,
                                     res.expand_harmonics(br.x[i], float(br.omega[i])), float(br.omega[i]),
-                                    subharmonic=br.subharmonic, n_periods=100, dt=scene.ti.dt)
-                print(f"    TI from Omega = {br.omega[i]:.1f} rad/s (LE {1e3 * br.le_amplitude[i]:.3f} mm): "
+                                    subharmonic=br.subharmonic, n_periods=a.periods, dt=scene.ti.dt)
+                k = int(np.flatnonzero(idx == i)[0])
+                print(f"    TI from Omega = {br.omega[i]:.2f} rad/s (LE {1e3 * br.le_amplitude[i]:.3f} mm; Hill: "
+                      f"{'stable' if stable[k] else 'unstable'}, largest |mu| {largest[k]:.3g}): "
                       f"{ti.verdict().replace('leaves', 'LEAVES', 1)} (growth {ti.growth:.2f}, last deviation "
                       f"{ti.last_deviation:.3g}), contact force at the end up to {ti.force_peak.max():.0f} N",
                       flush=True)

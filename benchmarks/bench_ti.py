@@ -6,7 +6,9 @@
 1. Time per Omega point on one core, per scheme: from rest until settled or 200 revolutions
    ([ti] defaults; --no-early-stop: always 200), Carpenter at dt = 1e-7 s, massless at
    each of --massless-dt (median of --repeat runs, CPU time of this process, so that other
-   users' load counts less); ns per step, share of steps in contact, revolutions marched;
+   users' load counts less); ns per step, share of steps in contact, revolutions marched,
+   the class and its non-repeat (the Poincare sections' mismatch at the period found,
+   relative to their range: hbm.ti.periodicity; --revolutions N,...: each N marched in full);
    for each friction coefficient of --mu (default [contact] mu; the header gives the ROM's
    mu_set, above which a massless contact node can lock, rom.friction_lock). --casing
    table,law: each point with the casing profile tabulated over a casing period (the
@@ -84,8 +86,8 @@ def main():
     print(f"ROM: {label}; {os.cpu_count()} cores; load average {os.getloadavg()[0]:.1f}"
           f"{f'; mu_set {lock.mu_set:.3g}' if lock is not None else ''}\n")
     print("| mu | scheme | Omega (rad/s) | dt (s) | steps | CPU time per point (s), median | ns/step | contact steps "
-          "| revolutions | LE amplitude (m) | class |")
-    print("|---|---|---|---|---|---|---|---|---|---|---|")
+          "| revolutions | LE amplitude (m) | class | non-repeat |")
+    print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     mus = [float(m) for m in a.mu.split(",")] if a.mu else [con.mu]
     runs = [(s, opts.dt) for s in schemes if s != "massless"]
     runs += [("massless", float(dt)) for dt in a.massless_dt.split(",") if "massless" in schemes]
@@ -108,7 +110,7 @@ def main():
             label = f"{scheme} ({c})" if len(modes) > 1 else scheme
             print(f"| {mu:g} | {label} | {w:.0f} | {r.dt:.3g} | {steps:.3e} | {med:.2f} | "
                   f"{1e9 * med / steps:.0f} | {r.contact_fraction:.2f} | {r.revolutions} | {r.amplitude:.4e} | "
-                  f"{r.period_class} |", flush=True)
+                  f"{r.period_class} | {r.mismatch:.1e} |", flush=True)
     print()
     if not a.skip_dt:
         # error against Carpenter at dt = 5e-8 for every scheme (the massless one is another model)
