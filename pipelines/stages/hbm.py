@@ -8,16 +8,15 @@ other on one core, or under an MPI launcher, where the stage runs on rank 0).
 """
 from __future__ import annotations
 
-import os
 import time
-from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
 from pipelines.stages.rom import read_rom, warn_friction_lock
+from pipelines.stages import treatments
+from pipelines.stages.treatments import Reporter, run_treatments
 
 #: Units of the per-point extras that compute_nfrc hands over (hbm.harmonic.nfrc.nfrc_extras).
 EXTRA_UNITS = {"le_amplitude": "m", "le_max": "m", "harmonics": "m", "modal_contribution": "1",
@@ -37,133 +36,19 @@ def _outputs(scene) -> tuple[Output, ...]:
     return tuple(nfrc_output(m) for m in scene.hbm.methods)
 
 
-@dataclass(frozen=True)
-class _Reporter:
-    """Where one treatment's run speaks: log(text) a line of the run's log, warn(text) a
-    warning, update(text) its live line."""
-
-    log: Callable[[str], None]
-    warn: Callable[[str], None]
-    update: Callable[[str], None]
-
-
 def _compute(ctx: Context, outputs, workers: int | None = None) -> None:
     """workers: processes, one treatment each (default: one per core, at most one per
     treatment; 1 runs them one after the other in this process)."""
-    rom = read_rom(ctx.out)
-    warn_friction_lock(ctx, rom)
-    workers = min(_workers(len(outputs)) if workers is None else workers, len(outputs))
-    if workers <= 1:
-        ctx.lend_cores(len(os.sched_getaffinity(0)) - 1)  # this process computes on one (Stage.busy_cores)
-        for output in outputs:
-            with ctx.progress.step(f"hbm {output.key}", None) as update:
-                _run_method(ctx, rom, output, _Reporter(ctx.log, ctx.progress.warn, update))
-        return
-    _run_concurrently(ctx, tuple(outputs))
+    warn_friction_lock(ctx, read_rom(ctx.out))
+    run_treatments(ctx, {o.key: o for o in outputs}, _nfrc, "hbm", "NFRC", workers)
 
 
-def _workers(n_treatments: int) -> int:
-    """Processes for n treatments: one per core, at most one per treatment; 1 under an MPI
-    launcher (the stage runs on rank 0 there, and its children would not be MPI ranks)."""
-    from pipelines.parallel import world
-
-    if world() is not None:
-        return 1
-    return max(1, min(n_treatments, len(os.sched_getaffinity(0))))
+def _nfrc(ctx: Context, output: Output, say: Reporter) -> None:
+    """One treatment's NFRC (run_treatments' work)."""
+    _run_method(ctx, read_rom(ctx.out), output, say)
 
 
-def _treatment_process(scene, out, hashes: dict, inputs: dict, output: Output, messages) -> None:
-    """Target of a treatment's process: its NFRC, as _run_method in the run's own process;
-    every word of it, and its end ("done", or "error" with the exception), goes to the
-    parent through `messages`."""
-    import signal
-
-    from threadpoolctl import threadpool_limits
-
-    from pipelines.progress import Progress
-
-    # Ctrl-C reaches the whole process group: the parent speaks for the run, this process
-    # just ends (its points are on disk, flushed one by one)
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
-    key = output.key
-
-    def send(kind: str):
-        return lambda payload: messages.put((key, kind, payload))
-
-    try:
-        ctx = Context(scene, out, Progress(quiet=True), hashes, inputs)
-        with threadpool_limits(limits=1, user_api="blas"):  # one process per core
-            _run_method(ctx, read_rom(out), output, _Reporter(send("log"), send("warn"), send("update")))
-        messages.put((key, "done", None))
-    except BaseException as exc:  # noqa: BLE001 - handed to the parent, which raises it
-        try:
-            messages.put((key, "error", exc))
-        except Exception:  # an exception that does not pickle
-            messages.put((key, "error", RuntimeError(f"{type(exc).__name__}: {exc}")))
-
-
-def _run_concurrently(ctx: Context, outputs: tuple) -> None:
-    """Every output's treatment in a process of its own; the parent shows their live lines
-    and log, waits for all of them (a failing treatment does not stop the others) and then
-    raises the first failure in the order of `outputs`."""
-    import queue
-
-    from hbm.processes import process_context
-    from pipelines.child import ChildDied
-
-    mp = process_context()
-    messages = mp.Queue()
-    procs = {o.key: mp.Process(target=_treatment_process, args=(ctx.scene, ctx.out, ctx.hashes, ctx.inputs, o, messages),
-                               daemon=True, name=f"hbm {o.key}") for o in outputs}
-    ctx.log(f"  {' and '.join(procs)} at once, one process each")
-    for p in procs.values():  # before the live line's thread starts (fork copies one thread)
-        p.start()
-    # the cores these processes leave free, now that they are forked (Stage.busy_cores)
-    ctx.lend_cores(max(0, len(os.sched_getaffinity(0)) - len(procs)))
-    lines = {key: "starting" for key in procs}
-    ended: dict = {}
-
-    def line() -> str:
-        """Each treatment's last words, then how far the stage started beside this one is."""
-        parts = [f"{k}: {'ended' if k in ended else t}" for k, t in lines.items()]
-        beside = ctx.beside()
-        return "; ".join(parts + ([beside] if beside else []))
-
-    try:
-        with ctx.progress.step("hbm " + " + ".join(procs), None) as update:
-            while len(ended) < len(procs):
-                try:
-                    key, kind, payload = messages.get(timeout=0.5)
-                except queue.Empty:
-                    for key, p in procs.items():  # killed or crashed without a word
-                        if key not in ended and not p.is_alive() and messages.empty():
-                            ended[key] = ChildDied(f"the {key} NFRC process ended without an answer "
-                                                   f"(exit code {p.exitcode})")
-                            ctx.lend_cores(1)
-                    update(line())  # the sweep beside moves between the treatments' words
-                    continue
-                if kind == "update":
-                    lines[key] = payload
-                    update(line())
-                elif kind == "log":
-                    ctx.log(payload)
-                elif kind == "warn":
-                    ctx.progress.warn(payload)
-                else:
-                    ended[key] = payload
-                    ctx.lend_cores(1)  # its core, to the stage started beside this one
-                    update(line())
-    finally:
-        for p in procs.values():
-            if p.is_alive() and len(ended) < len(procs):  # interrupted: the others end too
-                p.terminate()
-            p.join()
-    for o in outputs:
-        if ended[o.key] is not None:
-            raise ended[o.key]
-
-
-def _run_method(ctx: Context, rom, output: Output, say: _Reporter) -> None:
+def _run_method(ctx: Context, rom, output: Output, say: Reporter) -> None:
     from hbm.harmonic.nfrc import compute_nfrc
     from hbm.stability.bifurcation import bifurcation_arrays, bifurcations_from_arrays
     from pipelines.branch_store import BranchStore, load_branch, partial_path, read_tables
@@ -387,7 +272,7 @@ def _estimate(scene, out, outputs) -> Estimate:
     per_point = max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9,
                     3 * AFT_SECONDS * h.n_time * n_r)
     points = min(h.max_points, 1500)
-    at_once = _workers(len(outputs))
+    at_once = treatments.treatment_workers(len(outputs))
     from pipelines.guard import count
 
     dense = 10 * n_u ** 2 * 8.0
@@ -415,4 +300,4 @@ AFT_SECONDS = 4e-7
 # hbm~methods: adding or removing a treatment leaves the other's NFRC current
 STAGE = Stage("hbm", depends=("casing", "contact.mu", "contact.epsilon", "hbm~methods"), upstream=("rom",),
               outputs=_outputs, compute=_compute, figures=(NFRC_FIGURE, HBM_VTU), estimate=_estimate,
-              busy_cores=lambda scene, outputs: _workers(len(outputs)))
+              busy_cores=lambda scene, outputs: treatments.treatment_workers(len(outputs)))

@@ -57,6 +57,7 @@ from pipelines import artifacts as art
 from pipelines.stages.base import Context, Figure, Output, Stage
 from pipelines.stages.hbm import nfrc_output
 from pipelines.stages.rom import read_rom
+from pipelines.stages.treatments import run_treatments
 
 VALIDATION = Output("validation.h5")
 
@@ -731,24 +732,32 @@ def _summary(t: TreatmentValidation, rom, mu: float) -> list[str]:
     return lines
 
 
-def _compute(ctx: Context, outputs) -> None:
-    from hbm.ti.march import rom_modal_system
-
+def _compute(ctx: Context, outputs, workers: int | None = None) -> None:
+    """workers: processes, one treatment each (default: one per core, at most one per
+    treatment; 1 runs them one after the other in this process)."""
     c0 = time.process_time()
-    rom = read_rom(ctx.out)
-    system = rom_modal_system(rom)
     isolas = ctx.out / ISOLAS
-    done = {}
-    with ctx.progress.step("validation", None) as update:
-        for method in ctx.scene.hbm.methods:
-            done[method] = _treatment(ctx, rom, system, method, lambda text: update(text))
+    methods = ctx.scene.hbm.methods
+    done = run_treatments(ctx, {m: m for m in methods}, _validate_treatment, "validation", "validation", workers)
+    # this process's own time, and each treatment's in its process (the same time when they run here)
+    own = time.process_time() - c0
+    cpu = max(own, sum(t.cpu_time for t in done.values()))
     a = ValidationArtifact(isolas=str(isolas) if isolas.is_file() else "absent", growth_tol=GROWTH_TOL,
-                           deviation_tol=DEVIATION_TOL, cpu_time=time.process_time() - c0, **done)
+                           deviation_tol=DEVIATION_TOL, cpu_time=cpu, **done)
     art.write_artifact(ctx.out / VALIDATION.file, a, **ctx.provenance(VALIDATION, "validation"))
+    rom = read_rom(ctx.out)
     for t in done.values():
         for line in _summary(t, rom, ctx.scene.contact.mu):
             ctx.log(line)
     ctx.log(f"  validation: {a.cpu_time:.1f} s CPU")
+
+
+def _validate_treatment(ctx: Context, method: str, say) -> TreatmentValidation:
+    """One treatment's three points (run_treatments' work)."""
+    from hbm.ti.march import rom_modal_system
+
+    rom = read_rom(ctx.out)
+    return _treatment(ctx, rom, rom_modal_system(rom), method, say.update)
 
 
 # -- figures -----------------------------------------------------------------------------------

@@ -187,9 +187,9 @@ def _ctrl_c_before_point(monkeypatch, name: str, n_points: int) -> None:
     """The treatments one after the other in this process (one core: the patch reaches them),
     and Ctrl-C (KeyboardInterrupt) when NAME's store is about to append its point n_points + 1."""
     from pipelines import branch_store
-    from pipelines.stages import hbm
+    from pipelines.stages import treatments
 
-    monkeypatch.setattr(hbm, "_workers", lambda n: 1)
+    monkeypatch.setattr(treatments, "treatment_workers", lambda n: 1)
     real = branch_store.BranchStore.append
 
     def append(self, point, extras=None):

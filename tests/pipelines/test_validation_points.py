@@ -66,9 +66,10 @@ def _check_png(path):
     return img
 
 
-def _validate(scene_path, out):
+def _validate(scene_path, out, **kwargs):
     """The validation stage alone on the folder as it is (the fixture isolas.h5 stands in for
-    the search's), as benchmarks/bench_validation.py runs it."""
+    the search's), as benchmarks/bench_validation.py runs it; kwargs: the stage's compute's
+    (workers)."""
     from pipelines.runner import expected_inputs, update_figures
     from pipelines.stages import REGISTRY
     from pipelines.stages.base import Context
@@ -78,7 +79,7 @@ def _validate(scene_path, out):
     stage, ctx = REGISTRY["validation"], Context(scene, out, Progress(quiet=True))
     for o in stage.outputs(scene):
         ctx.inputs[o.file], ctx.hashes[o.file] = expected[o.file]
-    stage.compute(ctx, stage.outputs(scene))
+    stage.compute(ctx, stage.outputs(scene), **kwargs)
     update_figures(scene, out, [stage], Progress(quiet=True))
     return read_validation(out)
 
@@ -88,7 +89,8 @@ def runs(coarse_nfrc, tmp_path_factory):
     """A clone of the SHORT coarse folder run through validation (its own search finds no
     isola), again; the validation stage on a fixture isolas.h5 with an isola; then the scene's
     [isolas] changed and the search run again. Returns (out, [(records, artifact)] for the
-    first three, then (records, the runner's plan for the validation stage))."""
+    first three, then (records, the runner's plan for the validation stage), then (None, the
+    first run's validation again with its treatments one after the other in this process)))."""
     out = tmp_path_factory.mktemp("validation_points")
     scene = clone(coarse_nfrc[1], out)
     done = []
@@ -98,6 +100,11 @@ def runs(coarse_nfrc, tmp_path_factory):
         done.append((rec, read_validation(out)))
 
     run()
+    # the first run's inputs, linked before anything replaces them
+    serial_out = tmp_path_factory.mktemp("validation_serial")
+    serial_scene = clone(out, serial_out)
+    (serial_out / "validation.h5").unlink()
+    serial = _validate(serial_scene, serial_out, workers=1)
     run()
     write_isolas(out / "isolas.h5", out / "nfrc_dlft.h5", 3, 12)
     done.append((None, _validate(scene, out)))
@@ -106,12 +113,13 @@ def runs(coarse_nfrc, tmp_path_factory):
     # plan; the stage's own rerun and reuse: above)
     rec = _records(scene, out, until="isolas")
     done.append((rec, plan(load_scene(scene), out, ("validation",))[0]))
+    done.append((None, serial))
     return out, done
 
 
 def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
     out, done = runs
-    (rec, a), (rec_again, _), (_, b), (rec_changed, next_validation) = done
+    (rec, a), (rec_again, _), (_, b), (rec_changed, next_validation), _ = done
     # the search of the short scene finds no isola: a recorded reason, not an error
     assert rec["validation"][0] == "computed"
     rom = read_rom(out)
@@ -164,6 +172,33 @@ def test_isola_point_from_isolas_h5_and_reruns_when_the_search_does(runs):
     # the search's inputs change: it reruns, and so does the validation after it
     assert rec_changed["isolas"][0] == "computed"
     assert next_validation.todo and "isolas.h5" in next_validation.why, next_validation.why
+
+
+def test_treatments_at_once_give_the_validation_of_one_after_the_other(runs):
+    """The stage's default (one process per treatment, on two cores) against workers=1 (this
+    process, one after the other): the same points, verdicts and differences to round-off
+    (one BLAS thread per treatment either way)."""
+    _, done = runs
+    (_, at_once), (_, serial) = done[0], done[-1]
+    n_found = 0
+    for method in ("dlft", "rl"):
+        t, u = getattr(at_once, method), getattr(serial, method)
+        assert t.cpu_time > 0 and u.cpu_time > 0
+        for kind in ("primary", "isola", "period_doubling"):
+            p, q = getattr(t, kind), getattr(u, kind)
+            assert (p.found, p.reason, p.branch, p.index) == (q.found, q.reason, q.branch, q.index), (method, kind)
+            if not p.found:
+                continue
+            n_found += 1
+            assert p.omega == q.omega and p.stable == q.stable and p.n_unstable == q.n_unstable
+            assert (p.ti is None) == (q.ti is None)
+            if p.ti is not None:
+                assert p.ti.outcome == q.ti.outcome
+                np.testing.assert_allclose(p.ti.deviation, q.ti.deviation, rtol=1e-6, atol=1e-9)
+            for m in ("dlft", "rl"):
+                c, d = getattr(p, m), getattr(q, m)
+                np.testing.assert_allclose(c.displacement_error, d.displacement_error, rtol=1e-6, atol=1e-9)
+    assert n_found >= 2  # both primaries at least: the comparison compares marches
 
 
 def test_figures_are_drawn_from_the_artifacts(runs):
