@@ -13,9 +13,9 @@ import time
 import numpy as np
 
 from pipelines import artifacts as art
+from pipelines.stages import treatments
 from pipelines.stages.base import Context, Estimate, Figure, Output, Stage
 from pipelines.stages.rom import read_rom, warn_friction_lock
-from pipelines.stages import treatments
 from pipelines.stages.treatments import Reporter, run_treatments
 
 #: Units of the per-point extras that compute_nfrc hands over (hbm.harmonic.nfrc.nfrc_extras).
