@@ -134,7 +134,8 @@ class ValidationArtifact:
     """What validation.h5 holds: one TreatmentValidation per treatment of [hbm] methods.
     isolas: how isolas.h5 was used ("absent" or its path). growth_tol, deviation_tol: the
     stated tolerances of "TI stays on the orbit" (hbm.ti.validation.GROWTH_TOL,
-    DEVIATION_TOL), -. cpu_time: the stage's process CPU time, s."""
+    DEVIATION_TOL), -. cpu_time: the stage's CPU time, s (its treatments' summed, each in the
+    process that ran it, or the stage's own process's when that is larger)."""
 
     isolas: str
     growth_tol: float = field(metadata={"unit": "1"})
