@@ -62,20 +62,27 @@ def _run(res, scales, omega, x, steps: int, rtol: float):
     return cpu, int(d["stability_analysed"].sum()), t
 
 
-def _monitor_n_time(out: Path, scene, rom, method: str, n_times) -> None:
+def _residual_on(scene, rom, method: str, n_time: int):
+    """The scene's residual of `method` with the AFT on n_time instants."""
     import dataclasses
+
+    from hbm.harmonic.residual import build_residual
+
+    return build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=n_time),
+                          method=method)
+
+
+def _monitor_n_time(out: Path, scene, rom, method: str, n_times) -> None:
     from collections import Counter
 
     from hbm.harmonic.nfrc import default_continuation
-    from hbm.harmonic.residual import build_residual
     from pipelines.branch_store import load_branch
 
     s = load_branch(out / f"nfrc_{method}.h5")
     ok = np.flatnonzero(s.branch.converged)
     co = default_continuation(scene.hbm)
     for nt in n_times:
-        res = build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
-                             method=method)
+        res = _residual_on(scene, rom, method, nt)
         cpu, n_an, t = _run(res, (co.x_scale, co.omega_scale), s.branch.omega[ok], s.branch.x[ok], 0, 1e-5)
         kinds = dict(sorted(Counter(str(k) for k in t["kind"]).items()))
         print(f"{method}, Hill's operator on N_t = {nt}: {cpu:.1f} s CPU, {n_an} of {len(ok)} points analysed, "
@@ -88,9 +95,6 @@ def _largest_log_modulus(sp) -> float:
 
 
 def _every_point_n_time(out: Path, scene, rom, method: str, n_times, every: int) -> None:
-    import dataclasses
-
-    from hbm.harmonic.residual import build_residual
     from hbm.stability.spectrum import orbit_spectrum
     from pipelines.branch_store import load_branch
 
@@ -98,8 +102,7 @@ def _every_point_n_time(out: Path, scene, rom, method: str, n_times, every: int)
     ok = np.flatnonzero(s.branch.converged)[::every]
     verdicts = []
     for nt in n_times:
-        res = build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
-                             method=method)
+        res = _residual_on(scene, rom, method, nt)
         c0 = time.process_time()
         rows = []
         for i in ok:
@@ -123,15 +126,11 @@ def _every_point_n_time(out: Path, scene, rom, method: str, n_times, every: int)
 
 
 def _at(out: Path, scene, rom, method: str, omegas, n_times) -> None:
-    import dataclasses
-
-    from hbm.harmonic.residual import build_residual
     from hbm.stability.spectrum import orbit_spectrum
     from pipelines.branch_store import load_branch
 
     s = load_branch(out / f"nfrc_{method}.h5")
-    ops = {nt: build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
-                              method=method) for nt in n_times}
+    ops = {nt: _residual_on(scene, rom, method, nt) for nt in n_times}
     for w in omegas:
         i = int(np.argmin(np.where(s.branch.converged, np.abs(s.branch.omega - w), np.inf)))
         row = []
@@ -143,8 +142,6 @@ def _at(out: Path, scene, rom, method: str, omegas, n_times) -> None:
 
 
 def _along(out: Path, scene, rom, method: str, omega: float, n_times, same_orbits: bool = False) -> None:
-    import dataclasses
-
     from hbm.harmonic.nfrc import default_continuation
     from hbm.harmonic.residual import build_residual
     from hbm.harmonic.solver import HbmSolver
@@ -159,8 +156,7 @@ def _along(out: Path, scene, rom, method: str, omega: float, n_times, same_orbit
     print(f"{method}: points {ia} and {ia + 1} ({om[ia]:.2f}, {om[ia + 1]:.2f} rad/s)", flush=True)
     scene_res = build_residual(rom, scene.casing, scene.contact, scene.hbm, method=method)
     for nt in n_times:
-        res = build_residual(rom, scene.casing, scene.contact, dataclasses.replace(scene.hbm, n_time=nt),
-                             method=method)
+        res = _residual_on(scene, rom, method, nt)
         solver = HbmSolver(atol=0.1 * nopt.tol_residual)
         row = []
         for f in np.linspace(0.0, 1.0, 11):
