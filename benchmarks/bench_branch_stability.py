@@ -39,7 +39,8 @@ Needs OUT/rom.h5 and OUT/isolas.h5 of that scene (e.g. from `bladerub run SCENE 
 Prints one line per branch (points analysed, stable ones and their Omega span, the range of
 the largest multiplier modulus, the minimal periods met and the median CPU time of one
 analysis) and one per march (stays or leaves, growth, deviation of the
-last 10 periods, largest contact force at the end).
+last 10 periods, where Newton from the last period lands as the validation stage checks it,
+largest contact force at the end).
 """
 from __future__ import annotations
 
@@ -59,11 +60,11 @@ def main() -> None:
     from hbm.harmonic.residual import build_residual
     from hbm.stability.spectrum import orbit_spectrum
     from hbm.ti.march import rom_modal_system
-    from hbm.ti.validation import march_from_hbm
+    from hbm.ti.validation import confirm_orbit, march_from_hbm
     from pipelines.scene import load_scene
     from pipelines.stages.isolas import read_isolas
     from pipelines.stages.rom import read_rom
-    from pipelines.stages.validation import _options_for
+    from pipelines.stages.validation import _landing, _options_for
 
     ap = argparse.ArgumentParser()
     ap.add_argument("out", type=Path)
@@ -139,13 +140,17 @@ def main() -> None:
             for i in picks:
                 ti = march_from_hbm(system, scene.casing, scene.contact.mu,
                                     res.expand_harmonics(br.x[i], float(br.omega[i])), float(br.omega[i]),
-                                    subharmonic=br.subharmonic, n_periods=a.periods, dt=scene.ti.dt)
+                                    subharmonic=br.subharmonic, n_periods=a.periods, dt=scene.ti.dt,
+                                    record_all=True)
+                # the stage's check: Newton from the last period tells the orbit from another
+                # solution next to it, which the distance rule alone calls "stays"
+                ti = confirm_orbit(res, ti, br.x[i], float(br.omega[i]))
                 k = int(np.flatnonzero(idx == i)[0])
                 print(f"    TI from Omega = {br.omega[i]:.2f} rad/s (LE {1e3 * br.le_amplitude[i]:.3f} mm; Hill: "
                       f"{'stable' if stable[k] else 'unstable'}, largest |mu| {largest[k]:.3g}): "
                       f"{ti.verdict().replace('leaves', 'LEAVES', 1)} (growth {ti.growth:.2f}, last deviation "
-                      f"{ti.last_deviation:.3g}), contact force at the end up to {ti.force_peak.max():.0f} N",
-                      flush=True)
+                      f"{ti.last_deviation:.3g}{_landing(ti)}), contact force at the end up to "
+                      f"{ti.force_peak.max():.0f} N", flush=True)
 
 
 def _picks(idx: np.ndarray, stable: np.ndarray, n: int, how: str) -> np.ndarray:

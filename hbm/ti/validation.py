@@ -90,17 +90,39 @@ class ReachedOrbit:
     Omega from u_TI converged. solution_distance: ||u_N - u|| / ||u|| for that solution u_N
     (nan when it did not converge), -: about 0 when the march's periodic state belongs to the
     orbit, far from 0 when time integration went to another solution.
+    period_ratio, orbit_period_ratio: g of that solution and of the orbit (their harmonics
+    are multiples of g of the basis', their minimal period T / g; T the basis period,
+    2 pi nu / Omega; hbm.stability.hill.harmonic_period), -: a march from a period-doubled
+    orbit that settles next to the orbit of period 2 pi / Omega it was born from lands on a
+    solution with twice the orbit's ratio. period_ratio is 0 when Newton did not converge
+    (both 0 in files of earlier versions).
     """
 
     distance: float = field(metadata={"unit": "1"})
     converged: bool = field(metadata={"unit": "1"})
     solution_distance: float = field(metadata={"unit": "1"})
+    period_ratio: int = field(default=0, metadata={"unit": "1"})
+    orbit_period_ratio: int = field(default=0, metadata={"unit": "1"})
 
     def solution_percent(self) -> str:
         """solution_distance in per cent, e.g. "23 %", with two significant digits under 10 %:
         a solution just past LANDING_TOL (0.1 %) is not "0 %" from the orbit."""
         p = 100.0 * self.solution_distance
         return f"{p:.0f} %" if not p < 10.0 else f"{p:.2g} %"
+
+    def period_words(self, subharmonic: int) -> str:
+        """", whose period is 1 revolution where the orbit's is 2" when Newton's solution has
+        another minimal period than the orbit (nu = subharmonic: the basis period is nu
+        revolutions); "" when they are the same or either is unknown."""
+        g, g0 = self.period_ratio, self.orbit_period_ratio
+        if g <= 0 or g0 <= 0 or g == g0:
+            return ""
+
+        def revolutions(ratio: int) -> str:
+            r = subharmonic / ratio
+            return f"{r:.3g} revolution{'' if r == 1 else 's'}"
+
+        return f", whose period is {revolutions(g)} where the orbit's is {revolutions(g0)}"
 
 
 @dataclass(frozen=True)
@@ -209,8 +231,8 @@ class OrbitValidation:
             return (f"leaves for an orbit of period {self.repeat} T (the last tenth repeats every {self.repeat} "
                     f"periods, not every one: drift {np.max(self.drift):.2f})")
         if self.outcome == "another solution" and self.reached is not None:
-            return (f"leaves for another solution ({self.reached.solution_percent()} from the orbit, by "
-                    f"Newton from the last period)")
+            return (f"leaves for another solution ({self.reached.solution_percent()} from the orbit"
+                    f"{self.reached.period_words(self.subharmonic)}, by Newton from the last period)")
         if self.outcome != "permanent contact":
             return "leaves"
         nb = len(self.contact_fraction)
@@ -434,6 +456,7 @@ def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> Reac
     from hbm.continuation.newton import NewtonOptions
     from hbm.harmonic.solver import HbmSolver
     from hbm.harmonic.start import damped_newton
+    from hbm.stability.hill import harmonic_period
 
     if ti.last_harmonics.size == 0:
         raise ValueError("the march kept no last period: march_from_hbm(..., record_all=True)")
@@ -443,7 +466,9 @@ def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> Reac
     # damped_newton's own cap (40 iterations) applies: an options' max_iter is replaced by it
     sol = damped_newton(res, u_ti, omega, NewtonOptions(tol_residual=1e-8), HbmSolver(atol=1e-9))
     back = float(np.linalg.norm(sol.x - u)) / norm if sol.converged else float("nan")
-    return ReachedOrbit(float(np.linalg.norm(u_ti - u)) / norm, bool(sol.converged), back)
+    g = harmonic_period(res.to_coefficients(sol.x)) if sol.converged else 0
+    return ReachedOrbit(float(np.linalg.norm(u_ti - u)) / norm, bool(sol.converged), back, g,
+                        harmonic_period(res.to_coefficients(u)))
 
 
 def confirm_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> OrbitValidation:

@@ -698,7 +698,7 @@ def _landing(ti: OrbitValidation) -> str:
         return ""
     newton = ("Newton from it fails" if not r.converged else "Newton from it finds the orbit"
               if r.solution_distance <= LANDING_TOL else f"Newton from it finds another solution "
-              f"{r.solution_percent()} away")
+              f"{r.solution_percent()} away{r.period_words(ti.subharmonic)}")
     return f", last period {100 * r.distance:.1f} % from the orbit in the unknowns, {newton}"
 
 

@@ -77,6 +77,8 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     # signal but for the Gibbs ripple at the impacts (4-6 % of the amplitude measured)
     went = reached_orbit(res, ti, sol.x, OMEGA)
     assert went.distance < 0.04 and went.converged and went.solution_distance < 1e-8, went
+    # the orbit and the solution found hold even harmonics of Omega only (omega = 2 Omega)
+    assert went.period_ratio == went.orbit_period_ratio == 2 and went.period_words(1) == "", went
     r = FourierBasis(N_H, len(ti.tau)).to_time(ti.last_harmonics[:, 3 * ti.nodes])
     assert np.all(np.abs(r - ti.displacement).max(axis=0) < 0.1 * np.ptp(ti.displacement, axis=0))
     kept = confirm_orbit(res, ti, sol.x, OMEGA)
@@ -87,6 +89,14 @@ def test_time_marching_from_the_hbm_solution_stays_on_it(orbit):
     assert not other.stays and other.outcome == "another solution"
     assert other.reached.solution_distance == pytest.approx(0.3 / 1.3, rel=1e-6)
     assert other.verdict().startswith("leaves for another solution (23 %")
+    # said to start from an orbit with a first harmonic as well (period one revolution), the
+    # march lands on a solution of half its period, and the verdict says so
+    c = res.to_coefficients(1.3 * sol.x)
+    c[1, 0] = 1e-3 * np.abs(c).max()
+    odd = confirm_orbit(res, ti, res.to_unknowns(c), OMEGA)
+    assert (odd.reached.orbit_period_ratio, odd.reached.period_ratio) == (1, 2), odd.reached
+    assert odd.verdict().startswith("leaves for another solution (23 % from the orbit, whose period is 0.5 "
+                                    "revolutions where the orbit's is 1 revolution, by Newton"), odd.verdict()
     # one just past LANDING_TOL says how far, not "0 %"
     near = confirm_orbit(res, ti, 1.003 * sol.x, OMEGA)
     assert near.outcome == "another solution" and near.verdict().startswith("leaves for another solution (0.3 %")
