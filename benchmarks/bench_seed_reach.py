@@ -7,6 +7,7 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT [--scene scenes/rotor67.toml]
         [--omegas 440,450,460,470,480,660,690,700,1350]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas 560,560.5
 
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
 search's scaled polyline metric, hbm.isolas.membership; its tolerance is [isolas] tolerance),
@@ -15,6 +16,11 @@ primary, the CPU time, and which known branch the search's own test puts the sol
 (hbm.isolas.search.lies_on_any: the polyline distance, or Newton onto the branch's curve
 there; against the primary and OUT/isolas.h5's branches in the basis of Omega): a solution
 at a distance well above the tolerance may still lie on the primary.
+
+--modal: instead, DLFT's modal seeds of eq. (31) at those speeds (any speed, on the grid or
+not; hbm.isolas.harmonic.modal_seeds), with the seeds' Newton rule (SearchOptions.newton),
+one line per converged seed with the LE's three leading harmonics and the share of odd
+ones (the primary NFRC of rotor 67 has none): where a narrow branch is reached from.
 
 --singular OMIN,OMAX: instead, at every other converged point of the treatment's primary NFRC
 in that speed range, the smallest two and the largest singular value of its dense Jacobian
@@ -36,7 +42,7 @@ sys.path.insert(0, str(ROOT))
 
 def main() -> None:
     from hbm.continuation.newton import newton_solve
-    from hbm.isolas.harmonic import HbmProblem, search_options, ti_seeds
+    from hbm.isolas.harmonic import HbmProblem, modal_seeds, search_options, ti_seeds
     from hbm.isolas.membership import KnownBranch, nearest_on_polyline
     from hbm.isolas.search import lies_on_any
     from pipelines.scene import load_scene
@@ -50,6 +56,7 @@ def main() -> None:
     ap.add_argument("--omegas", default="440,450,460,470,480,660,690,700,1350")
     ap.add_argument("--singular", default=None, help="OMIN,OMAX (rad/s): singular values along the primary")
     ap.add_argument("--method", default="rl", choices=("dlft", "rl"))
+    ap.add_argument("--modal", action="store_true", help="DLFT's modal seeds (eq. 31) at --omegas instead")
     args = ap.parse_args()
     scene = load_scene(args.scene)
     if args.singular:
@@ -80,6 +87,24 @@ def main() -> None:
               f"{sol.residual_norm:9.2e}  {d:>8}  {cpu:5.1f}  {on}", flush=True)
         return sol
 
+    if args.modal:
+        res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, "dlft").for_seeds()()
+        known = _known(args.out, "dlft")[0]
+        print("  Omega  seed                    its  LE harmonics (leading)  odd share  lies on")
+        for w in sorted(omegas):
+            seeds = modal_seeds(res, rom, iso, np.array([w]))
+            failed = 0
+            for sd in seeds:
+                sol = newton_solve(res, sd.x, w, opts.newton, solver=copy.deepcopy(solver))
+                if not sol.converged:
+                    failed += 1
+                    continue
+                a = np.abs(res.to_coefficients(sol.x)[1:, 0].reshape(-1, 2)).max(axis=1)  # LE, per harmonic
+                k = lies_on_any(res, sol.x, w, known, opts, copy.deepcopy(solver))
+                print(f"{w:7.1f}  {sd.origin:<22} {sol.iterations:4d}  {str(list(np.argsort(a)[::-1][:3] + 1)):<22}  "
+                      f"{a[0::2].max() / a.max():9.2g}  {known[k].label if k >= 0 else 'none'}", flush=True)
+            print(f"{w:7.1f}  {failed} of {len(seeds)} seeds not converged", flush=True)
+        return
     print(f"tolerance {iso.tolerance:g} (scaled)")
     print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s  lies on")
     dlft = {}
