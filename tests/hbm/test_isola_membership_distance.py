@@ -43,8 +43,8 @@ def _to_segment(p, a, b) -> float:
 def test_the_distance_is_the_smallest_over_dense_samples_of_both_segments():
     """Random polylines of 1 to 5 points (some with a repeated point) and chords (some of
     zero length), in a scaled metric. The nearest point returned lies on the polyline at the
-    distance returned from the chord; with within=w the distance is the same whenever it is
-    <= w, and never claimed <= w when it is not."""
+    distance returned from the chord; with within=w the distance is the same (to round-off)
+    whenever it is <= w, and never claimed <= w when it is not."""
     rng = np.random.default_rng(7)
     scale = np.array([2.0, 0.5, 3.0])  # x_scale (2,), omega_scale
     checked = {"near": 0, "far": 0}
@@ -65,7 +65,9 @@ def test_the_distance_is_the_smallest_over_dense_samples_of_both_segments():
         for tol in (0.1, 0.5, 2.0):
             dw = _distance(p0, p1, points, scale[:2], scale[2], within=tol)[0]
             if d <= tol:
-                assert dw == d
+                # the same minimum over fewer segments: equal to round-off (numpy's vectorised
+                # reductions over another array length differ in the last bit on some hosts)
+                assert dw == pytest.approx(d, rel=1e-13, abs=0.0)
                 checked["near"] += 1
             else:
                 assert dw > tol
