@@ -253,15 +253,13 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
     isolas = ctx.out / ISOLAS
-    # the isolas of the scene's basis: the search's period-doubled branches (subharmonic 2 nu)
-    # are orbits of another kind, the period-doubling point's
-    found = [br for br in read_branch_set(isolas, method) if br.subharmonic == scene.hbm.subharmonic]
-    branches = [br for kind in ISOLA_KINDS for br in found if br.kind == kind]
+    branches = isola_branches(read_branch_set(isolas, method), scene.hbm.subharmonic)
     if not isolas.is_file():
         isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
     elif not branches:
         isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind "
-                                                         f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}")
+                                                         f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}, "
+                                                         f"nor an isola of its period-doubled search")
     else:
         update(f"{tag}: a point on an isola")
         cands = []
@@ -358,6 +356,16 @@ class Candidate:
 #: 1461 rad/s) a perturbation keeps 55 % of itself over 100 periods, and the march, whose
 #: distance to the orbit stays bounded, fails the growth bound (hbm.ti.validation).
 DECISIVE_DECAY = 3.0
+
+
+def isola_branches(branches, nu: int) -> list:
+    """The branches of isolas.h5 (IsolaBranch list) the isola point is taken from, in order of
+    preference: those of the scene's basis (subharmonic nu) of kind "isola", then "detached"
+    (ISOLA_KINDS); without any, the closed isolas of the period-doubled search (subharmonic
+    2 nu), isolas still, whose orbits have twice the period. The search's other doubled
+    branches are born at period doublings: the period-doubling point's."""
+    own = [br for kind in ISOLA_KINDS for br in branches if br.subharmonic == nu and br.kind == kind]
+    return own or [br for br in branches if br.subharmonic == 2 * nu and br.kind == "isola"]
 
 
 def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, tries: int, update) -> ValidationPoint:

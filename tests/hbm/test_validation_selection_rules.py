@@ -145,3 +145,25 @@ def test_only_the_regularised_law_s_stable_points_are_judged_again_with_more_har
         assert not chk.passed and chk.multiplier == pytest.approx(1.3) and calls == [1200.0]
     else:
         assert chk.passed and math.isnan(chk.multiplier) and calls == []
+
+
+def test_the_isola_point_falls_back_on_the_isolas_of_the_doubled_search():
+    """Branches of isolas.h5 by kind and basis (Omega / nu): the scene's isolas first, then
+    its detached branches; only without either, the closed isolas of the period-doubled
+    search (basis Omega / 2 nu), never its branches born at doublings nor those of another
+    basis."""
+    from pipelines.stages.validation import isola_branches
+
+    def br(name, kind, nu):
+        return SimpleNamespace(name=name, kind=kind, subharmonic=nu)
+
+    doubled = [br("d0", "bifurcated", 2), br("d1", "isola", 2), br("d2", "detached", 2), br("d3", "isola", 2),
+               br("q0", "isola", 4)]
+    own = [br("a0", "bifurcated", 1), br("a1", "detached", 1), br("a2", "isola", 1), br("a3", "primary", 1)]
+    names = lambda bs: [b.name for b in bs]  # noqa: E731
+    assert names(isola_branches(own + doubled, 1)) == ["a2", "a1"]
+    assert names(isola_branches(own[:1] + own[3:] + doubled, 1)) == ["d1", "d3"]
+    assert names(isola_branches(own[:1] + doubled[:1], 1)) == []
+    # a scene of basis Omega / 2: its own isolas are the nu = 2 ones, its doubled search's nu = 4
+    assert names(isola_branches(doubled, 2)) == ["d1", "d3", "d2"]
+    assert names(isola_branches(doubled[:1] + doubled[4:], 2)) == ["q0"]
