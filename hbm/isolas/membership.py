@@ -36,9 +36,10 @@ def polyline_distance(x: np.ndarray, omega: float, branch: KnownBranch, x_scale=
 
     within: only the segments whose omega span (scaled) comes within this distance of omega
     are measured; the result is the same (to round-off) whenever the distance is <= within,
-    and (inf, x, omega) when no segment qualifies. A distance is never below its omega part, so a caller that
-    only asks "closer than tol?" loses nothing with within=tol, and the test then costs a
-    few segments instead of the whole branch (m x n, ~60 ms for 600 points at N_h = 40).
+    and (inf, x, omega) when no segment qualifies. A distance is never below its omega part,
+    so a caller that only asks "closer than tol?" loses nothing with within=tol, and the test
+    then costs a few segments instead of the whole branch (m x n, ~60 ms for 600 points at
+    N_h = 40).
     """
     d, xn, wn, _ = nearest_on_polyline(x, omega, branch, x_scale, omega_scale, within)
     return d, xn, wn
