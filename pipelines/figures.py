@@ -366,7 +366,9 @@ def plot_validation_signals(points: dict, out_png, *, title: str | None = None, 
             first = getattr(p, "refined_from", "")
             refined = f"; dt = {p.ti.dt:.3g} s, the first march {first}" if first else ""
             # the verdict can be long (the friction lock names its nodes): wrapped, not cut at the edge
-            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s ({stab}, TI {verdict(p.ti)}"
+            # an orbit of nu revolutions (a period-doubled branch's, nu = 2) spans nu of them here
+            nu = f", \u03bd = {p.subharmonic}" if p.subharmonic > 1 else ""
+            ax.set_title(textwrap.fill(f"{name}, \u03a9 = {p.omega:.1f} rad/s{nu} ({stab}, TI {verdict(p.ti)}"
                                        f"{refined})", 80), fontsize=8)
         row[0].legend(fontsize=6, loc="best", ncol=3)
     for ax in axes[-1]:

@@ -45,20 +45,21 @@ def _locked_march(n_b: int) -> OrbitValidation:
 FIRST = "leaves (growth 3.1) with dt = 1e-07 s"
 
 
-@pytest.mark.parametrize("mu, refined_from, words", [
-    (0.15, "", "TI leaves for permanent contact (LE): the friction lock, mu = 0.15 >= mu_set = 0.123)"),
-    (0.1, "", "TI leaves for permanent contact (LE))"),
+@pytest.mark.parametrize("mu, refined_from, words, nu", [
+    (0.15, "", "TI leaves for permanent contact (LE): the friction lock, mu = 0.15 >= mu_set = 0.123)", 1),
+    # an orbit of two revolutions (a period-doubled branch's): the title gives nu
+    (0.1, "", "TI leaves for permanent contact (LE))", 2),
     # a march repeated with a finer step (the stage's dt_refinement): the figure says so as the log does
-    (0.1, FIRST, f"TI leaves for permanent contact (LE); dt = 5e-08 s, the first march {FIRST})"),
+    (0.1, FIRST, f"TI leaves for permanent contact (LE); dt = 5e-08 s, the first march {FIRST})", 1),
 ])
-def test_fig9_title_names_the_friction_lock_as_the_log_does(tmp_path, monkeypatch, mu, refined_from, words):
+def test_fig9_title_names_the_friction_lock_as_the_log_does(tmp_path, monkeypatch, mu, refined_from, words, nu):
     rom = load_rom(ROM)
     assert rom.friction_lock.mu_set == pytest.approx(0.1232, abs=1e-4)
     ti = _locked_march(rom.n_boundary)
     if refined_from:
         ti = replace(ti, dt=5e-8)
     assert ti.verdict() == "leaves for permanent contact (LE)"
-    p = stage.ValidationPoint("primary", "dlft", True, "chosen", "nfrc_dlft.h5", 3, 1000.0, 1, np.zeros(4), 1e-3,
+    p = stage.ValidationPoint("primary", "dlft", True, "chosen", "nfrc_dlft.h5", 3, 1000.0, nu, np.zeros(4), 1e-3,
                               True, "analysed", 0, 0.97, ti, refined_from=refined_from)
     t = stage.TreatmentValidation("dlft", p, stage.ValidationPoint("isola", "dlft", False, "none"),
                                   stage.ValidationPoint("period_doubling", "dlft", False, "none"),
@@ -77,7 +78,7 @@ def test_fig9_title_names_the_friction_lock_as_the_log_does(tmp_path, monkeypatc
     monkeypatch.setattr(figures, "_save", keep_titles)
     stage.draw_time_signals(SimpleNamespace(out=tmp_path, scene=SimpleNamespace(contact=SimpleNamespace(mu=mu))))
     primary = titles["validation_dlft.png"][:2]  # the primary point's row: displacement and force
-    assert primary == [f"primary, \u03a9 = 1000.0 rad/s (stable, {words}"] * 2
+    assert primary == [f"primary, \u03a9 = 1000.0 rad/s{', ν = 2' if nu == 2 else ''} (stable, {words}"] * 2
     assert ("friction lock" in primary[0]) == (mu >= rom.friction_lock.mu_set)
     # the log line says the same
     log = stage._summary(t, rom, mu)[0]
