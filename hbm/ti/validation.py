@@ -111,9 +111,9 @@ class ReachedOrbit:
         return f"{p:.0f} %" if not p < 10.0 else f"{p:.2g} %"
 
     def period_words(self, subharmonic: int) -> str:
-        """", whose period is 1 revolution where the orbit's is 2" when Newton's solution has
-        another minimal period than the orbit (nu = subharmonic: the basis period is nu
-        revolutions); "" when they are the same or either is unknown."""
+        """The words that name a landing on another minimal period than the orbit's, e.g.
+        ", whose period is 1 revolution where the orbit's is 2 revolutions" (nu = subharmonic:
+        the basis period is nu revolutions); "" when they are the same or either is unknown."""
         g, g0 = self.period_ratio, self.orbit_period_ratio
         if g <= 0 or g0 <= 0 or g == g0:
             return ""
