@@ -142,6 +142,10 @@ def _elsewhere(key: str, section: str) -> str:
     return f" (a key of {' and '.join(owners)}, not of [{section}])" if owners else ""
 
 
+#: list keys whose empty list means something: no seeds around the primary NFRC
+MAY_BE_EMPTY = {("isolas", "primary_amplitudes")}
+
+
 def _coerce(cls: type, section: str, key: str, value, hint):
     """Check a TOML value against the dataclass field's annotation; ints are accepted for floats."""
     where = f"[{section}] {key}"
@@ -169,7 +173,8 @@ def _coerce(cls: type, section: str, key: str, value, hint):
     if origin is tuple:
         if not isinstance(value, list):
             raise SceneError(f"{where} must be a list, got {value!r}")
-        if not value:  # no option of the pipeline means anything with none (hbm.methods = [] ran no NFRC)
+        # an empty list means nothing for every other list key (hbm.methods = [] ran no NFRC)
+        if not value and (section, key) not in MAY_BE_EMPTY:
             raise SceneError(f"{where} must list at least one value, got []")
         args = typing.get_args(hint)
         item = args[0] if args else float

@@ -16,6 +16,7 @@ from hbm.harmonic.content import rom_modes
 from hbm.harmonic.nfrc import default_continuation, nfrc_extras
 from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.harmonic.solver import HbmSolver
+from hbm.isolas.membership import KnownBranch, points_at
 from hbm.isolas.options import IsolaOptions
 from hbm.isolas.search import SearchOptions, Seed, lies_on_any
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
@@ -91,34 +92,52 @@ def boundary_modes(rom, n_modes: int) -> tuple[np.ndarray, np.ndarray]:
     return w[:n], b
 
 
-def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np.ndarray) -> list[Seed]:
+def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np.ndarray,
+                around: tuple[KnownBranch, ...] = ()) -> list[Seed]:
     """Eq. (31): x0(t) = A rho_tip Phi_j cos(k Omega t) for every Omega of the grid (rad/s),
     mode j < n_modes, harmonic k of Omega of iso.harmonics, amplitude A of iso.amplitudes
     (rho_tip: mean radius of the contact nodes, m; Phi_j: boundary_modes). In the basis of
     Omega / nu, k Omega is the basis' harmonic k nu: the k with k nu above the residual's N_h
-    are left out. Origins read "modal j=2 k=4 A=0.0032" (j from 1, k of Omega)."""
+    are left out. Origins read "modal j=2 k=4 A=0.0032" (j from 1, k of Omega).
+
+    around: branches (the primary NFRC, in the residual's unknowns) whose points at each
+    Omega (hbm.isolas.membership.points_at) get the same shapes added with the amplitudes
+    iso.primary_amplitudes (IsolaOptions says why); origins read "modal j=1 k=5 A=0.001
+    + primary DLFT NFRC 2/3" (its 2nd point of 3 at that Omega)."""
     _, phi = boundary_modes(rom, iso.n_modes)
     rho_tip = float(np.mean(rom.rho))
     nh = res.basis.n_harmonics
     nu = int(res.nu)
     out = []
     for w in omegas:
-        for j, shape in enumerate(phi):
-            for k in iso.harmonics:
-                q = k * nu  # k Omega in the basis of Omega / nu
-                if q > nh:
-                    continue
-                for a in iso.amplitudes:
-                    xr = np.zeros((res.n_c, res.n_r))
-                    xr[2 * q - 1] = a * rho_tip * shape  # the cosine of harmonic q, eq. (5) order
-                    out.append(Seed(float(w), res.to_unknowns(xr), f"modal j={j + 1} k={k} A={a:.2g}"))
+        bases = [(None, iso.amplitudes, "")]
+        if iso.primary_amplitudes:
+            for b in around:
+                pts = points_at(b, float(w))
+                bases += [(p, iso.primary_amplitudes, f" + {b.label} {i + 1}/{len(pts)}") for i, p in enumerate(pts)]
+        for base, amplitudes, on in bases:
+            for j, shape in enumerate(phi):
+                for k in iso.harmonics:
+                    q = k * nu  # k Omega in the basis of Omega / nu
+                    if q > nh:
+                        continue
+                    for a in amplitudes:
+                        xr = np.zeros((res.n_c, res.n_r))
+                        xr[2 * q - 1] = a * rho_tip * shape  # the cosine of harmonic q, eq. (5) order
+                        x = res.to_unknowns(xr)
+                        out.append(Seed(float(w), x if base is None else base + x,
+                                        f"modal j={j + 1} k={k} A={a:.2g}{on}"))
     return out
 
 
-def rl_seeds(dlft) -> list[Seed]:
+def rl_seeds(dlft, options: SearchOptions) -> list[Seed]:
     """RL's modal seeds from a DLFT search (hbm.isolas.search.IsolaSearch on the same ROM,
     N_h and options): every distinct converged DLFT solution of a modal seed, on DLFT's
-    primary or not, origin suffixed " via DLFT", of a model (Seed.of_model).
+    primary or not, origin suffixed " via DLFT", of a model (Seed.of_model). Distinct: at
+    one omega, none within options.tolerance of an earlier one in the membership's metric
+    (the search's own test for duplicates, which leaves out the solutions on a known branch:
+    the seeds around the primary land there by the dozen at each speed, one RL seed each
+    otherwise).
 
     Why: from eq. (31)'s raw seeds RL's stiff penalty (kappa = 1e9 N/m) makes Newton cost
     3 to 6 s per seed on the coarse rotor 67 ROM at N_h = 40 (GMRES stalls, dense
@@ -129,11 +148,19 @@ def rl_seeds(dlft) -> list[Seed]:
     i-iii). Not from DLFT: the time-integration seeds, which RL also gets.
     """
     c = dlft.corrections
+    sx, tol = options.continuation.x_scale, options.tolerance
+    kept: dict[float, list[np.ndarray]] = {}
     out = []
     for i in np.flatnonzero(c.converged & (c.same_as < 0)):
         sd = dlft.seeds[i]
-        if sd.origin.startswith("modal"):
-            out.append(Seed(sd.omega, np.array(c.x[i]), f"{sd.origin} via DLFT", of_model=True))
+        if not sd.origin.startswith("modal"):
+            continue
+        x = np.array(c.x[i])
+        here = kept.setdefault(float(sd.omega), [])
+        if any(np.linalg.norm((x - y) / sx) <= tol for y in here):
+            continue
+        here.append(x)
+        out.append(Seed(sd.omega, x, f"{sd.origin} via DLFT", of_model=True))
     return out
 
 

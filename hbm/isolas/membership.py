@@ -29,6 +29,19 @@ class KnownBranch:
         return cls(omega, x.reshape(len(omega), x.shape[-1] if x.ndim == 2 else -1), label)
 
 
+def points_at(branch: KnownBranch, omega: float) -> np.ndarray:
+    """The branch's points at the speed omega (rad/s), (k, n), in the branch's order: each of
+    its points at omega, and on each segment that crosses omega the chord's point there
+    (linear in omega). (0, n) where the branch never reaches omega."""
+    om, x = branch.omega, branch.x
+    d = om - omega
+    cross = np.flatnonzero(d[:-1] * d[1:] < 0)
+    on = np.flatnonzero(d == 0)
+    t = (d[cross] / (d[cross] - d[cross + 1]))[:, None]
+    pts = np.concatenate([x[on], x[cross] + t * (x[cross + 1] - x[cross])])
+    return pts[np.argsort(np.concatenate([on, cross]), kind="stable")]
+
+
 def polyline_distance(x: np.ndarray, omega: float, branch: KnownBranch, x_scale=1.0,
                       omega_scale: float = 1.0, within: float | None = None) -> tuple[float, np.ndarray, float]:
     """Distance of (x (n,), omega) to the branch's polyline in the scaled metric, with the

@@ -23,6 +23,15 @@ class IsolaOptions:
       Default a log grid over [1e-3, 1e-2] (three points): on rotor 67 (rho_tip = 0.241 m)
       that is 0.24 to 2.4 mm, the LE amplitudes seen along the primary NFRC (0.3 to 2.4 mm,
       Fig. 6), which is how the paper chose its range.
+    primary_amplitudes: the amplitudes A of a second family of modal seeds, eq. (31)'s shapes
+      added to each of the primary NFRC's solutions at the grid speed (one per crossing of its
+      curve with that speed): x0 = x_primary + A rho_tip Phi_j cos(k Omega t). The primary of
+      rotor 67 holds only the casing's even harmonics; an odd harmonic added to it breaks that
+      symmetry and leads to branches born from the primary or close to it (the narrow isolas
+      near k Omega = omega_j), which eq. (31)'s seeds from rest reach only by chance: on the
+      default scene they found none of the eight speeds' solutions these seeds reached (at
+      400, 560, 680, 960 and 1160-1280 rad/s), each of those speeds from A = 1e-3, while
+      A = 1e-2 added none. Default (1e-3,); () leaves the family out.
     n_omega: points of the seeds' Omega grid (evenly spaced over the range). Default 41 (the
       paper's 40 rad/s spacing over [400, 2000]).
     omega_min, omega_max: range of the seeds and of the branches' continuation, rad/s;
@@ -63,6 +72,7 @@ class IsolaOptions:
     n_modes: int = 4
     harmonics: tuple[int, ...] = (1, 2, 3, 4, 5, 6, 7, 8, 9, 10)
     amplitudes: tuple[float, ...] = (1e-3, 3.1622776601683794e-3, 1e-2)
+    primary_amplitudes: tuple[float, ...] = (1e-3,)
     n_omega: int = 41
     omega_min: float | None = None
     omega_max: float | None = None
@@ -79,9 +89,11 @@ class IsolaOptions:
         check_option("n_modes", self.n_modes, 0, integer=True)
         if any(isinstance(k, bool) or not (math.isfinite(k) and int(k) == k >= 1) for k in self.harmonics):
             raise ValueError(f"harmonics must be integers >= 1, got {list(self.harmonics)}")
-        if any(not (a > 0 and math.isfinite(a)) for a in self.amplitudes):
-            raise ValueError(f"amplitudes must be > 0, got {list(self.amplitudes)}")
-        for name in ("harmonics", "amplitudes"):  # a repeated value seeds the same solutions twice
+        for name in ("amplitudes", "primary_amplitudes"):
+            values = getattr(self, name)
+            if any(isinstance(a, bool) or not (a > 0 and math.isfinite(a)) for a in values):
+                raise ValueError(f"{name} must be > 0, got {list(values)}")
+        for name in ("harmonics", "amplitudes", "primary_amplitudes"):  # a repeated value seeds the same solutions twice
             values = list(getattr(self, name))
             twice = sorted({v for v in values if values.count(v) > 1})
             if twice:

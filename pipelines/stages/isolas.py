@@ -618,13 +618,13 @@ def _compute(ctx: Context, outputs) -> None:
     for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
         problem = HbmProblem(rom, scene.casing, scene.contact, hbm, method)
         res, _ = problem()
+        known, bif = _known(out, method)
         if method == "rl" and "dlft" in results:
-            seeds = rl_seeds(mains["dlft"])
+            seeds = rl_seeds(mains["dlft"], opts)
         else:
-            seeds = modal_seeds(res, rom, iso, omegas)
+            seeds = modal_seeds(res, rom, iso, omegas, around=tuple(known))
         if sweep is not None:
             seeds += ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes)
-        known, bif = _known(out, method)
         result, cpu, wall = run_part(method, problem, res, seeds, known, bif, method)
         mains[method] = result
         parts = [(result, res)]
@@ -658,7 +658,7 @@ def _compute(ctx: Context, outputs) -> None:
 
 
 def _estimate(scene, out, outputs) -> Estimate:
-    """Seeds: n_modes x harmonics x amplitudes x n_omega per treatment, a Newton of ~4 to 12
+    """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega per treatment, a Newton of ~4 to 12
     iterations each (a continuation point's cost per iteration, see the hbm stage), over the
     cores; then a few branches of up to 2 max_points points."""
     import os
@@ -668,7 +668,8 @@ def _estimate(scene, out, outputs) -> Estimate:
     per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9
     # harmonic k of Omega is harmonic k nu of the basis (hbm.isolas.harmonic.modal_seeds)
     n_kept = len([k for k in iso.harmonics if k * h.subharmonic <= h.n_harmonics])
-    n_seeds = iso.n_modes * n_kept * len(iso.amplitudes) * iso.n_omega
+    # and the family around the primary: one of its points a speed (more where it folds)
+    n_seeds = iso.n_modes * n_kept * (len(iso.amplitudes) + len(iso.primary_amplitudes)) * iso.n_omega
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
     seconds = len(h.methods) * (n_seeds * 2 * per_point / cores + 5 * 2 * iso.max_points * per_point / 4)
     # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,

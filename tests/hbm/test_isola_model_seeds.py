@@ -62,9 +62,33 @@ def test_rl_seeds_from_dlft_solutions_are_of_a_model():
              Seed(600.0, np.zeros(3), "modal j=2 k=3 A=0.01"))
     x = np.arange(9.0).reshape(3, 3)
     c = Corrections(np.array([True, True, False]), np.zeros(3, int), np.full(3, -1), np.full(3, -1), x)
-    (sd,) = rl_seeds(SimpleNamespace(corrections=c, seeds=seeds))  # TI seeds RL gets itself; 600 failed
+    opts = search_options(HbmOptions(), IsolaOptions())
+    (sd,) = rl_seeds(SimpleNamespace(corrections=c, seeds=seeds), opts)  # TI seeds RL gets itself; 600 failed
     assert sd.of_model and sd.origin.endswith("via DLFT") and sd.omega == 500.0
     np.testing.assert_array_equal(sd.x, x[0])
+
+
+def test_rl_gets_one_seed_per_dlft_solution_at_a_speed_on_the_primary_too():
+    """The search leaves duplicates on a known branch unmarked (same_as -1): around the
+    primary, dozens of seeds land on its one point at a speed. RL gets one of them; a
+    solution just beyond the tolerance (in the scaled metric, x_scale per unknown), and the
+    same solution at another speed, are seeds of their own."""
+    from types import SimpleNamespace
+
+    from hbm.isolas.harmonic import rl_seeds
+    from hbm.isolas.search import Corrections
+
+    opts = search_options(HbmOptions(), IsolaOptions())
+    step = opts.tolerance * opts.continuation.x_scale  # one tolerance along the first unknown
+    base = np.full(4, 1e-3)
+    xs = [base, base + 0.5 * np.array([step, 0, 0, 0]), base + 1.5 * np.array([step, 0, 0, 0]), base, base]
+    omegas = [700.0, 700.0, 700.0, 700.0, 740.0]
+    seeds = tuple(Seed(w, np.zeros(4), f"modal j=1 k={k + 1} A=0.001 + primary DLFT NFRC 1/1")
+                  for k, w in enumerate(omegas))
+    same_as = np.array([-1, -1, -1, 0, -1])  # the 4th marked by the search (a solution off the primary)
+    c = Corrections(np.ones(5, bool), np.zeros(5, int), np.array([0, 0, 0, -1, 0]), same_as, np.array(xs))
+    got = rl_seeds(SimpleNamespace(corrections=c, seeds=seeds), opts)
+    assert [(s.omega, s.origin.split()[2]) for s in got] == [(700.0, "k=1"), (700.0, "k=3"), (740.0, "k=5")]
 
 
 def test_the_stage_options_give_model_seeds_the_patient_newton():

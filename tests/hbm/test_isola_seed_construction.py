@@ -15,6 +15,7 @@ import pytest
 import scipy.linalg as sla
 
 from hbm.isolas.harmonic import HbmProblem, modal_seeds, ti_seeds
+from hbm.isolas.membership import KnownBranch
 from hbm.isolas.options import IsolaOptions
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from support import coarse_rom
@@ -37,7 +38,7 @@ def test_modal_seeds_are_A_rho_tip_phi_cos_k_omega_t(rom, nu):
     res = _residual(rom, nu, 10 * nu)  # every default harmonic k <= 10 of Omega fits
     iso = IsolaOptions()
     seeds = modal_seeds(res, rom, iso, np.array([OMEGA]))
-    assert len(seeds) == 4 * 10 * 3  # modes x harmonics x amplitudes, README
+    assert len(seeds) == 4 * 10 * 3  # modes x harmonics x amplitudes, README; no branch around
     nb = rom.n_boundary
     lam, vec = sla.eigh(rom.K, rom.M)
     rho_tip = np.mean(rom.rho)
@@ -68,11 +69,42 @@ def test_modal_seeds_leave_out_the_harmonics_of_omega_beyond_the_basis(rom):
     assert {int(s.origin.split()[2][2:]) for s in seeds} == set(range(1, 7))
 
 
-@pytest.mark.parametrize("nu, n_harmonics, count", [(1, 40, 4920), (2, 12, 2952), (2, 40, 4920)])
+def test_seeds_around_a_branch_add_the_shapes_to_its_points_at_each_speed(rom):
+    """A branch through OMEGA three times (a fold each way), one point exactly on it: the
+    second family adds the same shapes, with primary_amplitudes, to each of the three points,
+    the chord's crossings interpolated linearly in omega by hand here."""
+    res = _residual(rom, 1, 10)
+    n = res.to_unknowns(np.zeros((res.n_c, res.n_r))).size
+    rng = np.random.default_rng(3)
+    om = np.array([900.0, 950.0, 1000.0, 970.0, OMEGA, 940.0, 980.0, 1010.0])
+    x = rng.standard_normal((len(om), n)) * 1e-3
+    branch = KnownBranch.of(om, x, "primary DLFT NFRC")
+    iso = IsolaOptions(primary_amplitudes=(1e-3, 2e-3))
+    plain = modal_seeds(res, rom, iso, np.array([OMEGA]))
+    seeds = modal_seeds(res, rom, iso, np.array([OMEGA, 2000.0]), around=(branch,))
+    at = seeds[:len(seeds) - len(plain)]  # OMEGA's: plain, then three points x 4 x 10 x 2
+    assert len(plain) == 120 and len(at) == 120 + 3 * 80
+    assert all(s.omega == 2000.0 for s in seeds[len(at):])  # the branch never reaches 2000
+    expected = [x[1] + (OMEGA - 950.0) / 50.0 * (x[2] - x[1]), x[4], x[5] + (OMEGA - 940.0) / 40.0 * (x[6] - x[5])]
+    shapes = {s.origin: s.x for s in plain}
+    for i, base in enumerate(expected):
+        for sd in at[120 + 80 * i: 120 + 80 * (i + 1)]:
+            head, on = sd.origin.split(" + ")
+            assert on == f"primary DLFT NFRC {i + 1}/3" and head.split()[-1] in ("A=0.001", "A=0.002")
+            own = modal_seeds(res, rom, IsolaOptions(amplitudes=(float(head.split("A=")[1]),)),
+                              np.array([OMEGA]))
+            shape = next(s.x for s in own if s.origin == head)
+            np.testing.assert_allclose(sd.x, base + shape, rtol=0, atol=1e-15)
+    assert [s.origin for s in at[:120]] == list(shapes)
+    assert not modal_seeds(res, rom, IsolaOptions(primary_amplitudes=()), np.array([OMEGA]), around=(branch,))[120:]
+
+
+@pytest.mark.parametrize("nu, n_harmonics, count", [(1, 40, 6560), (2, 12, 3936), (2, 40, 6560)])
 def test_the_stage_estimate_counts_the_modal_seeds(nu, n_harmonics, count):
     from pipelines.stages.isolas import _estimate
 
-    # 4 modes x (harmonics k of Omega with k nu <= N_h) x 3 amplitudes x 41 speeds
+    # 4 modes x (harmonics k of Omega with k nu <= N_h) x (3 amplitudes + 1 around one primary
+    # point) x 41 speeds
     scene = SimpleNamespace(isolas=IsolaOptions(workers=1),
                             hbm=HbmOptions(subharmonic=nu, n_harmonics=n_harmonics, n_time=4 * n_harmonics),
                             mesh=SimpleNamespace(n_boundary=9), n_contact_nodes=9)

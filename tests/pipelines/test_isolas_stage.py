@@ -42,15 +42,19 @@ def test_layout(searched):
                 assert k in g.attrs, k
             s = g["seeds"]
             n = int(g.attrs["n_seeds"])
-            assert n >= 1  # DLFT: the 2 modal seeds, RL: DLFT's solutions of them; plus the sweep's periodic points
+            # DLFT: the 2 modal seeds and those around the primary; RL: DLFT's solutions of them;
+            # plus the sweep's periodic points
+            assert n >= 1
             for k in ("omega", "origin", "converged", "branch"):
                 assert s[k].shape == (n,), k
             origins = [o.decode() for o in s["origin"][()]]
             if method == "dlft":
-                assert origins[:2] == ["modal j=1 k=2 A=0.001"] * 2
+                assert origins.count("modal j=1 k=2 A=0.001") == 2
             else:  # RL's modal seeds: DLFT's converged ones (hbm.isolas.harmonic.rl_seeds)
                 modal = [o for o in origins if o.startswith("modal")]
-                assert modal == ["modal j=1 k=2 A=0.001 via DLFT"] * int(h5["dlft"]["seeds"]["converged"][:2].sum())
+                d = h5["dlft"]["seeds"]
+                done = {o.decode() + " via DLFT" for o, c in zip(d["origin"][()], d["converged"][()]) if c}
+                assert modal and set(modal) <= done
             assert int(s["converged"][()].sum()) == int(g.attrs["n_converged"])
             # every seed says how Newton ended: "" and ||R|| within the NFRC's tolerance where
             # it converged; a reason that names the seed's speed and ||R|| over it where not
@@ -67,11 +71,18 @@ def test_layout(searched):
             assert len(g["branches"]) == int(g.attrs["n_branches"])
     # DLFT: the 2 modal seeds at 1900 and 2000 rad/s, 0.24 mm of 2nd harmonic of 1B, both
     # converge on the primary NFRC and are recognised as such (RL's stiff penalty takes
-    # neither within the seeds' Newton budget)
+    # neither within the seeds' Newton budget); so do the same shape added to the primary's
+    # point at each speed (the NFRC starts at 2000 rad/s and passes 1900 once): the family
+    # around the primary is built in the residual's unknowns
     found = read_isolas(path)
     with h5py.File(path) as h5:
-        conv = h5["dlft"]["seeds"]["converged"][:2]
-        br = h5["dlft"]["seeds"]["branch"][:2]
+        s = h5["dlft"]["seeds"]
+        origins = [o.decode() for o in s["origin"][()]]
+        modal = [i for i, o in enumerate(origins) if o.startswith("modal")]
+        assert [origins[i] for i in modal] == ["modal j=1 k=2 A=0.001",
+                                               "modal j=1 k=2 A=0.001 + primary DLFT NFRC 1/1"] * 2
+        assert np.array_equal(s["omega"][()][modal], [1900.0, 1900.0, 2000.0, 2000.0])
+        conv, br = s["converged"][()][modal], s["branch"][()][modal]
         assert conv.all() and (br == -2).all(), (conv, br)
         for method in ("dlft", "rl"):
             assert len(found[method]) == int(h5[method].attrs["n_branches"])

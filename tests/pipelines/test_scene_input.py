@@ -89,6 +89,18 @@ def test_an_empty_list_is_refused_by_name(section, key, tmp_path, capsys):
                     f"(command line: --set {section}.{key}=[])")
 
 
+def test_no_seeds_around_the_primary_is_an_empty_list(tmp_path, capsys):
+    """[isolas] primary_amplitudes = [] leaves that family of seeds out; a value that is no
+    amplitude is refused by name."""
+    assert parse_scene("[isolas]\nprimary_amplitudes = []\n", tmp_path / "s.toml").isolas.primary_amplitudes == ()
+    assert parse_scene("", tmp_path / "s.toml", ["isolas.primary_amplitudes=[]"]).isolas.primary_amplitudes == ()
+    out = tmp_path / "out"
+    line = _refused(["run", str(COARSE), "--out", str(out), "--until", "mesh", "--set",
+                     "isolas.primary_amplitudes=[1e-3,0]"], out, capsys)
+    assert line == ("bladerub: error: [isolas] primary_amplitudes must be > 0, got [0.001, 0.0] "
+                    "(command line: --set isolas.primary_amplitudes=[1e-3,0])")
+
+
 @pytest.mark.parametrize("text, owner", [("n_harmonics = 20\n[hbm]\nn_time = 1024\n", "hbm"),
                                          ("E = 110e9\n", "material")])
 def test_a_key_above_every_section_is_called_a_key_and_its_section_named(text, owner, tmp_path, capsys):
