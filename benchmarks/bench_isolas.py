@@ -3,12 +3,14 @@
 Usage:
   PYTHONPATH=. .venv/bin/python benchmarks/bench_isolas.py [--rom tests/data/rotor67_coarse_rom.h5]
       [--methods dlft rl] [--ti out/coarse/ti.h5] [--nh 40] [--n-omega 41] [--amplitudes ...]
-      [--harmonics ...] [--n-modes 4] [--workers N] [--max-points 600] [--save branches.npz]
+      [--harmonics ...] [--primary-amplitudes [...]] [--n-modes 4] [--workers N] [--max-points 600]
+      [--save branches.npz]
 
 The scene defaults ([hbm] N_h = 40, N_t = 1024, Omega in [400, 2000] rad/s; [isolas]
 defaults) unless told otherwise. For each treatment: the primary NFRC (compute_nfrc, timed
 apart), then the search from the modal seeds (RL: DLFT's corrected ones when both run, as
-the stage does), and the periodic points of a ti.h5 when --ti names one. Prints per treatment: seeds, converged, distinct, branches per class with
+the stage does; the modal seeds include those around the primary NFRC unless
+--primary-amplitudes is given without a value), and the periodic points of a ti.h5 when --ti names one. Prints per treatment: seeds, converged, distinct, branches per class with
 their Omega range, closed, dominant harmonic, and the search's CPU and wall time;
 --save writes the branches to an .npz (keys METHOD_K_omega, _x, _converged, _le_amplitude).
 """
@@ -46,6 +48,8 @@ def main():
     ap.add_argument("--n-modes", type=int)
     ap.add_argument("--harmonics", type=int, nargs="+")
     ap.add_argument("--amplitudes", type=float, nargs="+")
+    ap.add_argument("--primary-amplitudes", type=float, nargs="*",
+                    help="the seeds around the primary ([isolas] primary_amplitudes); no value: none")
     ap.add_argument("--workers", type=int)
     ap.add_argument("--max-points", type=int)
     ap.add_argument("--save", help="write each treatment's branches (omega, x, converged, le_amplitude) to this .npz")
@@ -56,7 +60,10 @@ def main():
     changes = {k: v for k, v in (("n_omega", a.n_omega), ("n_modes", a.n_modes), ("workers", a.workers),
                                  ("max_points", a.max_points),
                                  ("harmonics", tuple(a.harmonics) if a.harmonics else None),
-                                 ("amplitudes", tuple(a.amplitudes) if a.amplitudes else None)) if v is not None}
+                                 ("amplitudes", tuple(a.amplitudes) if a.amplitudes else None),
+                                 ("primary_amplitudes",
+                                  tuple(a.primary_amplitudes) if a.primary_amplitudes is not None else None))
+               if v is not None}
     iso = replace(iso, **changes)
     sweep = None
     if a.ti:
@@ -75,13 +82,13 @@ def main():
               f"status {nfrc.status}", flush=True)
         problem = HbmProblem(rom, casing, contact, hbm, method)
         res, _ = problem()
+        known = [KnownBranch.of(nfrc.omega, nfrc.unknowns, "primary", nfrc.converged)]
         if method == "rl" and "dlft" in done:
-            seeds = rl_seeds(done["dlft"])
+            seeds = rl_seeds(done["dlft"], search_options(hbm, iso))
         else:
-            seeds = modal_seeds(res, rom, iso, np.linspace(lo, hi, iso.n_omega))
+            seeds = modal_seeds(res, rom, iso, np.linspace(lo, hi, iso.n_omega), around=tuple(known))
         if sweep is not None:
             seeds += ti_seeds(res, sweep, (lo, hi), casing.n_lobes)
-        known = [KnownBranch.of(nfrc.omega, nfrc.unknowns, "primary", nfrc.converged)]
         t_seeds = {}
 
         def on_progress(phase, done, total):

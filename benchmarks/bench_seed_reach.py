@@ -8,6 +8,7 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
         [--omegas 440,450,460,470,480,660,690,700,1350]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas 560,560.5
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2]
 
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
 search's scaled polyline metric, hbm.isolas.membership; its tolerance is [isolas] tolerance),
@@ -18,9 +19,14 @@ there; against the primary and OUT/isolas.h5's branches in the basis of Omega): 
 at a distance well above the tolerance may still lie on the primary.
 
 --modal: instead, DLFT's modal seeds of eq. (31) at those speeds (any speed, on the grid or
-not; hbm.isolas.harmonic.modal_seeds), with the seeds' Newton rule (SearchOptions.newton),
-one line per converged seed with the LE's three leading harmonics and the share of odd
-ones (the primary NFRC of rotor 67 has none): where a narrow branch is reached from.
+not; `grid`: the scene's [isolas] grid; hbm.isolas.harmonic.modal_seeds), with the seeds'
+Newton rule (SearchOptions.newton), one line per converged seed off every known branch (the
+primary and OUT/isolas.h5's branches in the basis of Omega; --all: every converged seed)
+with the LE's three leading harmonics and the share of odd ones (the primary NFRC of rotor 67
+has none), and per speed the seeds, converged, off every known branch and CPU s: where a
+narrow branch is reached from. --around A1,A2: the seeds around the primary NFRC instead,
+eq. (31)'s shapes with these amplitudes added to its points at each speed ([isolas]
+primary_amplitudes).
 
 --singular OMIN,OMAX: instead, at every other converged point of the treatment's primary NFRC
 in that speed range, the smallest two and the largest singular value of its dense Jacobian
@@ -30,6 +36,7 @@ from __future__ import annotations
 
 import argparse
 import copy
+import dataclasses
 import sys
 import time
 from pathlib import Path
@@ -57,17 +64,20 @@ def main() -> None:
     ap.add_argument("--singular", default=None, help="OMIN,OMAX (rad/s): singular values along the primary")
     ap.add_argument("--method", default="rl", choices=("dlft", "rl"))
     ap.add_argument("--modal", action="store_true", help="DLFT's modal seeds (eq. 31) at --omegas instead")
+    ap.add_argument("--around", default=None, help="A1,A2: with --modal, the seeds around the primary instead")
+    ap.add_argument("--all", action="store_true", help="with --modal, a line for every converged seed")
     args = ap.parse_args()
     scene = load_scene(args.scene)
     if args.singular:
         singular_values(args, scene)
         return
-    omegas = {float(w) for w in args.omegas.split(",")}
     rom, sweep = read_rom(args.out), read_sweep(args.out)
     hbm, iso = scene.hbm, scene.isolas
     opts = search_options(hbm, iso)
     co = opts.continuation
     lo, hi = iso.omega_range(hbm)
+    omegas = ({float(w) for w in np.linspace(lo, hi, iso.n_omega)} if args.omegas == "grid"
+              else {float(w) for w in args.omegas.split(",")})
     found = read_isolas(args.out / "isolas.h5") if (args.out / "isolas.h5").is_file() else {}
 
     def distance(x, w, primary):
@@ -89,21 +99,37 @@ def main() -> None:
 
     if args.modal:
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, "dlft").for_seeds()()
-        known = _known(args.out, "dlft")[0]
+        known = _known(args.out, "dlft")[0] + [
+            KnownBranch.of(br.omega, br.x, f"branch {br.name}", br.converged)
+            for br in found.get("dlft", []) if br.subharmonic == 1]
+        if args.around:
+            amps = tuple(float(a) for a in args.around.split(","))
+            family = dataclasses.replace(iso, amplitudes=(), primary_amplitudes=amps)
+        else:
+            family = dataclasses.replace(iso, primary_amplitudes=())
         print("  Omega  seed                    its  LE harmonics (leading)  odd share  lies on")
+        total = [0, 0, 0, 0.0]
         for w in sorted(omegas):
-            seeds = modal_seeds(res, rom, iso, np.array([w]))
-            failed = 0
+            seeds = modal_seeds(res, rom, family, np.array([w]), around=tuple(known[:1]))
+            conv = off = 0
+            t = time.process_time()
             for sd in seeds:
                 sol = newton_solve(res, sd.x, w, opts.newton, solver=copy.deepcopy(solver))
                 if not sol.converged:
-                    failed += 1
                     continue
-                a = np.abs(res.to_coefficients(sol.x)[1:, 0].reshape(-1, 2)).max(axis=1)  # LE, per harmonic
+                conv += 1
                 k = lies_on_any(res, sol.x, w, known, opts, copy.deepcopy(solver))
-                print(f"{w:7.1f}  {sd.origin:<22} {sol.iterations:4d}  {str(list(np.argsort(a)[::-1][:3] + 1)):<22}  "
-                      f"{a[0::2].max() / a.max():9.2g}  {known[k].label if k >= 0 else 'none'}", flush=True)
-            print(f"{w:7.1f}  {failed} of {len(seeds)} seeds not converged", flush=True)
+                off += k < 0
+                if k < 0 or args.all:
+                    a = np.abs(res.to_coefficients(sol.x)[1:, 0].reshape(-1, 2)).max(axis=1)  # LE, per harmonic
+                    print(f"{w:7.1f}  {sd.origin:<22} {sol.iterations:4d}  {str(list(np.argsort(a)[::-1][:3] + 1)):<22}  "
+                          f"{a[0::2].max() / a.max():9.2g}  {known[k].label if k >= 0 else 'none'}", flush=True)
+            cpu = time.process_time() - t
+            print(f"{w:7.1f}  {len(seeds)} seeds, {conv} converged, {off} off every known branch, CPU {cpu:.1f} s",
+                  flush=True)
+            total = [total[0] + len(seeds), total[1] + conv, total[2] + off, total[3] + cpu]
+        print(f"all: {total[0]} seeds, {total[1]} converged, {total[2]} off every known branch, CPU {total[3]:.0f} s, "
+              f"at {sum(1 for _ in omegas)} speeds", flush=True)
         return
     print(f"tolerance {iso.tolerance:g} (scaled)")
     print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s  lies on")
