@@ -9,6 +9,7 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas 560,560.5
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --from-branch dlft/005 [--every 10]
 
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
 search's scaled polyline metric, hbm.isolas.membership; its tolerance is [isolas] tolerance),
@@ -27,6 +28,11 @@ has none), and per speed the seeds, converged, off every known branch and CPU s:
 narrow branch is reached from. --around A1,A2: the seeds around the primary NFRC instead,
 eq. (31)'s shapes with these amplitudes added to its points at each speed ([isolas]
 primary_amplitudes).
+
+--from-branch METHOD/NNN: instead, the other treatment's patient Newton from every --every-th
+converged point of that branch of OUT/isolas.h5, one line each as above (the known branches:
+the other treatment's primary and its branches of the same basis): whether the other
+treatment has that branch, or puts its orbits elsewhere.
 
 --singular OMIN,OMAX: instead, at every other converged point of the treatment's primary NFRC
 in that speed range, the smallest two and the largest singular value of its dense Jacobian
@@ -66,6 +72,9 @@ def main() -> None:
     ap.add_argument("--modal", action="store_true", help="DLFT's modal seeds (eq. 31) at --omegas instead")
     ap.add_argument("--around", default=None, help="A1,A2: with --modal, the seeds around the primary instead")
     ap.add_argument("--all", action="store_true", help="with --modal, a line for every converged seed")
+    ap.add_argument("--from-branch", default=None, metavar="METHOD/NNN",
+                    help="the other treatment's Newton from every --every-th point of this branch of OUT/isolas.h5")
+    ap.add_argument("--every", type=int, default=10)
     args = ap.parse_args()
     scene = load_scene(args.scene)
     if args.singular:
@@ -133,6 +142,18 @@ def main() -> None:
         return
     print(f"tolerance {iso.tolerance:g} (scaled)")
     print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s  lies on")
+    if args.from_branch:
+        # the other treatment's patient Newton from every k-th converged point of a branch
+        method, name = args.from_branch.split("/")
+        other = "rl" if method == "dlft" else "dlft"
+        (br,) = [b for b in found[method] if b.name == name]
+        res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, other)()
+        known = _known(args.out, other)[0] + [
+            KnownBranch.of(b.omega, b.x, f"branch {b.name}", b.converged)
+            for b in found.get(other, []) if b.subharmonic == br.subharmonic]
+        for i in np.flatnonzero(np.asarray(br.converged, bool))[::args.every]:
+            correct(res, solver, br.x[i], float(br.omega[i]), known, f"{other.upper()} from {name}")
+        return
     dlft = {}
     for method in ("dlft", "rl"):
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
