@@ -1,7 +1,8 @@
 """Stage isolas: the search for the branches the primary NFRC misses (isolas.h5).
 
-Per contact treatment: seeds from eq. (31) and from the periodic time-integration points
-(ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). With both
+Per contact treatment: seeds from eq. (31), from rest and added to the primary NFRC's
+solutions at each grid speed ([isolas] primary_amplitudes), and from the periodic
+time-integration points (ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). With both
 treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_seeds).
 Then, with [isolas] ti_period_doubled, a second search in the basis of twice the period
 (Omega / (2 nu), 2 N_h harmonics) from the sweep's orbits of that period only (omega =
