@@ -147,6 +147,9 @@ def main() -> None:
         method, name = args.from_branch.split("/")
         other = "rl" if method == "dlft" else "dlft"
         (br,) = [b for b in found[method] if b.name == name]
+        if br.subharmonic != hbm.subharmonic:
+            raise SystemExit(f"--from-branch: {args.from_branch} is a branch of Omega / {br.subharmonic}, "
+                             f"not of the scene's basis (Omega / {hbm.subharmonic})")
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, other)()
         known = _known(args.out, other)[0] + [
             KnownBranch.of(b.omega, b.x, f"branch {b.name}", b.converged)
