@@ -10,7 +10,8 @@ The scene defaults ([hbm] N_h = 40, N_t = 1024, Omega in [400, 2000] rad/s; [iso
 defaults) unless told otherwise. For each treatment: the primary NFRC (compute_nfrc, timed
 apart), then the search from the modal seeds (RL: DLFT's corrected ones when both run, as
 the stage does; the modal seeds include those around the primary NFRC unless
---primary-amplitudes is given without a value), and the periodic points of a ti.h5 when --ti names one. Prints per treatment: seeds, converged, distinct, branches per class with
+--primary-amplitudes is given without a value), and the periodic points of a ti.h5 when
+--ti names one. Prints per treatment: seeds, converged, distinct, branches per class with
 their Omega range, closed, dominant harmonic, and the search's CPU and wall time;
 --save writes the branches to an .npz (keys METHOD_K_omega, _x, _converged, _le_amplitude).
 """

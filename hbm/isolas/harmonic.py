@@ -18,7 +18,7 @@ from hbm.harmonic.residual import HarmonicBalanceResidual, build_residual
 from hbm.harmonic.solver import HbmSolver
 from hbm.isolas.membership import KnownBranch, points_at
 from hbm.isolas.options import IsolaOptions
-from hbm.isolas.search import SearchOptions, Seed, lies_on_any
+from hbm.isolas.search import SearchOptions, Seed, lies_on_any, same_solution
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
 from hbm.ti.periodicity import PeriodClass
 
@@ -148,7 +148,6 @@ def rl_seeds(dlft, options: SearchOptions) -> list[Seed]:
     i-iii). Not from DLFT: the time-integration seeds, which RL also gets.
     """
     c = dlft.corrections
-    sx, tol = options.continuation.x_scale, options.tolerance
     kept: dict[float, list[np.ndarray]] = {}
     out = []
     for i in np.flatnonzero(c.converged & (c.same_as < 0)):
@@ -157,7 +156,7 @@ def rl_seeds(dlft, options: SearchOptions) -> list[Seed]:
             continue
         x = np.array(c.x[i])
         here = kept.setdefault(float(sd.omega), [])
-        if any(np.linalg.norm((x - y) / sx) <= tol for y in here):
+        if any(same_solution(x, y, options) for y in here):
             continue
         here.append(x)
         out.append(Seed(sd.omega, x, f"{sd.origin} via DLFT", of_model=True))

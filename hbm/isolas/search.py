@@ -280,8 +280,6 @@ class _Corrector:
         iterations, on_known, same_as, x or None, ||R||, reason)]."""
         out = []
         kept = []  # (index, x) of the distinct converged solutions at this omega
-        tol = self.options.tolerance
-        sx = self.options.continuation.x_scale  # the membership's metric (scaled unknowns)
         model = self.options.model_newton or self.options.newton
         for i, w, x0, of_model in items:
             solver = copy.deepcopy(self._solver)
@@ -292,7 +290,7 @@ class _Corrector:
                 continue
             mine = [sol.x, *images(self.residual, sol.x)]
             k = lies_on_any(self.residual, sol.x, w, self.known, self.options, solver, x_images=mine[1:])
-            same = next((j for j, xj in kept if any(np.linalg.norm((xq - xj) / sx) <= tol for xq in mine)), -1)
+            same = next((j for j, xj in kept if any(same_solution(xq, xj, self.options) for xq in mine)), -1)
             if k < 0 and same < 0:
                 kept.append((i, sol.x))
             out.append((i, True, sol.iterations, k, same, sol.x, sol.residual_norm, ""))
@@ -390,6 +388,12 @@ def correct_seeds(factory, seeds, known, options: SearchOptions, comm=None,
         if x is not None:
             X[i] = x
     return Corrections(conv, its, on_known, same, X, cpu, rn, tuple(why))
+
+
+def same_solution(x: np.ndarray, y: np.ndarray, options: SearchOptions) -> bool:
+    """Whether two solutions (n,) at one omega are one: within options.tolerance of each other
+    in the membership's metric (the scaled unknowns over continuation.x_scale)."""
+    return bool(np.linalg.norm((x - y) / options.continuation.x_scale) <= options.tolerance)
 
 
 def images(residual, x: np.ndarray) -> list:

@@ -2,8 +2,9 @@
 
 Per contact treatment: seeds from eq. (31), from rest and added to the primary NFRC's
 solutions at each grid speed ([isolas] primary_amplitudes), and from the periodic
-time-integration points (ti.h5), corrected by Newton, continued both ways, classified (hbm.isolas). With both
-treatments, RL's modal seeds are DLFT's corrected ones (hbm.isolas.harmonic.rl_seeds).
+time-integration points (ti.h5), corrected by Newton, continued both ways, classified
+(hbm.isolas). With both treatments, RL's modal seeds are DLFT's corrected ones
+(hbm.isolas.harmonic.rl_seeds).
 Then, with [isolas] ti_period_doubled, a second search in the basis of twice the period
 (Omega / (2 nu), 2 N_h harmonics) from the sweep's orbits of that period only (omega =
 Omega / 2), with the primary and the branches just found known (embedded there): the
@@ -659,9 +660,9 @@ def _compute(ctx: Context, outputs) -> None:
 
 
 def _estimate(scene, out, outputs) -> Estimate:
-    """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega per treatment, a Newton of ~4 to 12
-    iterations each (a continuation point's cost per iteration, see the hbm stage), over the
-    cores; then a few branches of up to 2 max_points points."""
+    """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega per treatment,
+    a Newton of ~4 to 12 iterations each (a continuation point's cost per iteration, see the
+    hbm stage), over the cores; then a few branches of up to 2 max_points points."""
     import os
 
     iso, h = scene.isolas, scene.hbm
