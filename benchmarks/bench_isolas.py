@@ -52,6 +52,7 @@ def main():
     ap.add_argument("--primary-amplitudes", type=float, nargs="*",
                     help="the seeds around the primary ([isolas] primary_amplitudes); no value: none")
     ap.add_argument("--workers", type=int)
+    ap.add_argument("--rl-branch-seeds", type=int, help="[isolas] rl_branch_seeds")
     ap.add_argument("--max-points", type=int)
     ap.add_argument("--save", help="write each treatment's branches (omega, x, converged, le_amplitude) to this .npz")
     a = ap.parse_args()
@@ -59,7 +60,7 @@ def main():
     hbm = HbmOptions(n_harmonics=a.nh, n_time=max(1024, 4 * a.nh))
     iso = IsolaOptions()
     changes = {k: v for k, v in (("n_omega", a.n_omega), ("n_modes", a.n_modes), ("workers", a.workers),
-                                 ("max_points", a.max_points),
+                                 ("max_points", a.max_points), ("rl_branch_seeds", a.rl_branch_seeds),
                                  ("harmonics", tuple(a.harmonics) if a.harmonics else None),
                                  ("amplitudes", tuple(a.amplitudes) if a.amplitudes else None),
                                  ("primary_amplitudes",
@@ -85,7 +86,7 @@ def main():
         res, _ = problem()
         known = [KnownBranch.of(nfrc.omega, nfrc.unknowns, "primary", nfrc.converged)]
         if method == "rl" and "dlft" in done:
-            seeds = rl_seeds(done["dlft"], search_options(hbm, iso))
+            seeds = rl_seeds(done["dlft"], search_options(hbm, iso), iso.rl_branch_seeds)
         else:
             seeds = modal_seeds(res, rom, iso, np.linspace(lo, hi, iso.n_omega), around=tuple(known))
         if sweep is not None:

@@ -8,7 +8,7 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
         [--omegas 440,450,460,470,480,660,690,700,1350]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas 560,560.5
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2] [--method rl]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --from-branch dlft/005 [--every 10]
 
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
@@ -19,15 +19,15 @@ primary, the CPU time, and which known branch the search's own test puts the sol
 there; against the primary and OUT/isolas.h5's branches in the basis of Omega): a solution
 at a distance well above the tolerance may still lie on the primary.
 
---modal: instead, DLFT's modal seeds of eq. (31) at those speeds (any speed, on the grid or
-not; `grid`: the scene's [isolas] grid; hbm.isolas.harmonic.modal_seeds), with the seeds'
-Newton rule (SearchOptions.newton), one line per converged seed off every known branch (the
+--modal: instead, the modal seeds of eq. (31) at those speeds (DLFT's; --method rl: RL's;
+any speed, on the grid or not; `grid`: the scene's [isolas] grid;
+hbm.isolas.harmonic.modal_seeds), with the seeds' Newton rule (SearchOptions.newton), one line per converged seed off every known branch (the
 primary and OUT/isolas.h5's branches in the basis of Omega; --all: every converged seed)
 with the LE's three leading harmonics and the share of odd ones (the primary NFRC of rotor 67
 has none), and per speed the seeds, converged, off every known branch and CPU s: where a
 narrow branch is reached from. --around A1,A2: the seeds around the primary NFRC instead,
 eq. (31)'s shapes with these amplitudes added to its points at each speed ([isolas]
-primary_amplitudes).
+primary_amplitudes); with --method rl, RL's primary and RL's branches.
 
 --from-branch METHOD/NNN: instead, the other treatment's patient Newton from every --every-th
 converged point of that branch of OUT/isolas.h5, one line each as above (the known branches:
@@ -68,8 +68,9 @@ def main() -> None:
     ap.add_argument("--scene", type=Path, default=ROOT / "scenes" / "rotor67.toml")
     ap.add_argument("--omegas", default="440,450,460,470,480,660,690,700,1350")
     ap.add_argument("--singular", default=None, help="OMIN,OMAX (rad/s): singular values along the primary")
-    ap.add_argument("--method", default="rl", choices=("dlft", "rl"))
-    ap.add_argument("--modal", action="store_true", help="DLFT's modal seeds (eq. 31) at --omegas instead")
+    ap.add_argument("--method", default=None, choices=("dlft", "rl"),
+                    help="--singular's treatment (default rl), --modal's (default dlft)")
+    ap.add_argument("--modal", action="store_true", help="the modal seeds (eq. 31) at --omegas instead")
     ap.add_argument("--around", default=None, help="A1,A2: with --modal, the seeds around the primary instead")
     ap.add_argument("--all", action="store_true", help="with --modal, a line for every converged seed")
     ap.add_argument("--from-branch", default=None, metavar="METHOD/NNN",
@@ -107,10 +108,11 @@ def main() -> None:
         return sol
 
     if args.modal:
-        res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, "dlft").for_seeds()()
-        known = _known(args.out, "dlft")[0] + [
+        method = args.method or "dlft"
+        res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
+        known = _known(args.out, method)[0] + [
             KnownBranch.of(br.omega, br.x, f"branch {br.name}", br.converged)
-            for br in found.get("dlft", []) if br.subharmonic == 1]
+            for br in found.get(method, []) if br.subharmonic == 1]
         if args.around:
             amps = tuple(float(a) for a in args.around.split(","))
             family = dataclasses.replace(iso, amplitudes=(), primary_amplitudes=amps)
@@ -182,8 +184,9 @@ def singular_values(args, scene) -> None:
     from pipelines.stages.rom import read_rom
 
     lo, hi = (float(w) for w in args.singular.split(","))
-    res = build_residual(read_rom(args.out), scene.casing, scene.contact, scene.hbm, method=args.method)
-    b = load_branch(args.out / nfrc_output(args.method).file).branch
+    method = args.method or "rl"
+    res = build_residual(read_rom(args.out), scene.casing, scene.contact, scene.hbm, method=method)
+    b = load_branch(args.out / nfrc_output(method).file).branch
     print("  Omega      s_min       s_2     s_max  (points in continuation order)")
     for i in np.flatnonzero((b.omega > lo) & (b.omega < hi) & b.converged)[::2]:
         J = res(b.x[i], float(b.omega[i]))[1]

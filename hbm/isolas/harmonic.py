@@ -130,14 +130,18 @@ def modal_seeds(res: HarmonicBalanceResidual, rom, iso: IsolaOptions, omegas: np
     return out
 
 
-def rl_seeds(dlft, options: SearchOptions) -> list[Seed]:
-    """RL's modal seeds from a DLFT search (hbm.isolas.search.IsolaSearch on the same ROM,
-    N_h and options): every distinct converged DLFT solution of a modal seed, on DLFT's
-    primary or not, origin suffixed " via DLFT", of a model (Seed.of_model). Distinct: at
-    one omega, none within options.tolerance of an earlier one in the membership's metric
-    (the search's own test for duplicates, which leaves out the solutions on a known branch:
-    the seeds around the primary land there by the dozen at each speed, one RL seed each
-    otherwise).
+def rl_seeds(dlft, options: SearchOptions, branch_points: int = 0) -> list[Seed]:
+    """RL's seeds from a DLFT search (hbm.isolas.search.IsolaSearch on the same ROM, basis,
+    N_h and options), each of a model (Seed.of_model):
+    - every distinct converged DLFT solution of a modal seed, on DLFT's primary or not,
+      origin suffixed " via DLFT". Distinct: at one omega, none within options.tolerance of
+      an earlier one in the membership's metric (the search's own test for duplicates,
+      which leaves out the solutions on a known branch: the seeds around the primary land
+      there by the dozen at each speed, one RL seed each otherwise);
+    - branch_points converged points of each of DLFT's branches, evenly spaced by index
+      along it ("DLFT branch 004 point 12/39"): a seed solution gives RL one speed of a
+      branch, where RL's Newton may fail or RL's branch may not reach (IsolaOptions.
+      rl_branch_seeds has the measurement).
 
     Why: from eq. (31)'s raw seeds RL's stiff penalty (kappa = 1e9 N/m) makes Newton cost
     3 to 6 s per seed on the coarse rotor 67 ROM at N_h = 40 (GMRES stalls, dense
@@ -160,6 +164,12 @@ def rl_seeds(dlft, options: SearchOptions) -> list[Seed]:
             continue
         here.append(x)
         out.append(Seed(sd.omega, x, f"{sd.origin} via DLFT", of_model=True))
+    for k, b in enumerate(dlft.branches if branch_points else ()):
+        ok = np.flatnonzero(np.asarray(b.converged, bool))
+        for i in np.unique(np.linspace(0, len(ok) - 1, min(branch_points, len(ok))).round().astype(int)):
+            j = int(ok[i])
+            out.append(Seed(float(b.omega[j]), np.array(b.x[j]), f"DLFT branch {k:03d} point {j + 1}/{len(b.omega)}",
+                            of_model=True))
     return out
 
 

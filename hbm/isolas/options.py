@@ -57,6 +57,15 @@ class IsolaOptions:
       kinks can keep Newton's residual from falling tenfold in three iterations. On the
       default rotor 67 scene the rule gave up on such seeds at ||R|| = 1e-3 (RL, 1110
       rad/s, basis Omega / 2); without it they converged in 8 to 47 iterations. Default 60.
+    rl_branch_seeds: RL's seeds from each branch of DLFT's search (hbm.isolas.harmonic.rl_seeds):
+      this many of its converged points, evenly spaced along it, besides DLFT's distinct seed
+      solutions. A seed solution gives RL one speed of the branch, where RL's Newton may fail
+      or RL's branch may not reach; on the default rotor 67 scene RL's patient Newton from
+      every few points of DLFT's branches found RL's counterparts of DLFT's 400-429 and
+      955-971 rad/s branches at most of them (6 of 9 and 8 of 13 points), both missed from
+      the seed solutions. Default 8: with it the stage found three more RL branches on each
+      of the default and coarse scenes, for 72 seeds and 17 s and 82 s more of RL's wall
+      time (Zen 3 host); 0: none.
     ti_seeds: also seed from every periodic time-integration point (ti.h5) whose orbit the
       HBM basis holds: omega = n_l Omega and omega = Omega, and with [hbm] subharmonic = 2
       omega = Omega / 2 as well (hbm.isolas.harmonic.ti_seeds).
@@ -81,6 +90,7 @@ class IsolaOptions:
     crawl_points: int = 30
     newton_iterations: int = 12
     model_seed_iterations: int = 60
+    rl_branch_seeds: int = 8
     ti_seeds: bool = True
     ti_period_doubled: bool = True
     workers: int | None = None
@@ -111,6 +121,7 @@ class IsolaOptions:
         check_option("crawl_points", self.crawl_points, 1, integer=True)
         check_option("newton_iterations", self.newton_iterations, 1, integer=True)
         check_option("model_seed_iterations", self.model_seed_iterations, 1, integer=True)
+        check_option("rl_branch_seeds", self.rl_branch_seeds, 0, integer=True)
         check_flag("ti_seeds", self.ti_seeds)
         check_flag("ti_period_doubled", self.ti_period_doubled)
         if self.workers is not None:

@@ -3,8 +3,8 @@
 Per contact treatment: seeds from eq. (31), from rest and added to the primary NFRC's
 solutions at each grid speed ([isolas] primary_amplitudes), and from the periodic
 time-integration points (ti.h5), corrected by Newton, continued both ways, classified
-(hbm.isolas). With both treatments, RL's modal seeds are DLFT's corrected ones
-(hbm.isolas.harmonic.rl_seeds).
+(hbm.isolas). With both treatments, RL's modal seeds are DLFT's corrected ones and
+[isolas] rl_branch_seeds points along each of DLFT's branches (hbm.isolas.harmonic.rl_seeds).
 Then, with [isolas] ti_period_doubled, a second search in the basis of twice the period
 (Omega / (2 nu), 2 N_h harmonics) from the sweep's orbits of that period only (omega =
 Omega / 2), with the primary and the branches just found known (embedded there): the
@@ -622,7 +622,7 @@ def _compute(ctx: Context, outputs) -> None:
         res, _ = problem()
         known, bif = _known(out, method)
         if method == "rl" and "dlft" in results:
-            seeds = rl_seeds(mains["dlft"], opts)
+            seeds = rl_seeds(mains["dlft"], opts, iso.rl_branch_seeds)
         else:
             seeds = modal_seeds(res, rom, iso, omegas, around=tuple(known))
         if sweep is not None:

@@ -91,6 +91,41 @@ def test_rl_gets_one_seed_per_dlft_solution_at_a_speed_on_the_primary_too():
     assert [(s.omega, s.origin.split()[2]) for s in got] == [(700.0, "k=1"), (700.0, "k=3"), (740.0, "k=5")]
 
 
+def test_rl_gets_points_spread_along_each_dlft_branch():
+    """Besides DLFT's seed solutions, rl_branch_seeds converged points of each DLFT branch,
+    evenly spaced by index among its converged points (its halves' failed ends left out),
+    each point once, as seeds of a model at the point's own speed."""
+    from types import SimpleNamespace
+
+    from hbm.isolas.harmonic import rl_seeds
+    from hbm.isolas.search import Corrections, FoundBranch
+
+    def branch(omega, converged):
+        n = len(omega)
+        return FoundBranch(np.array(omega, float), np.arange(2.0 * n).reshape(n, 2) + omega[0],
+                           np.array(converged), "isola", False, "", 0, (0,))
+
+    # converged points 1..8 of 10: the 1st, the 4.5th rounded to even and the 8th of them
+    a = branch(np.arange(500.0, 510.0), [False] + [True] * 8 + [False])
+    b = branch([700.0, 701.0, 702.0], [True, False, True])  # two converged: each once
+    c = Corrections(np.zeros(0, bool), np.zeros(0, int), np.zeros(0, int), np.zeros(0, int), np.zeros((0, 2)))
+    dlft = SimpleNamespace(corrections=c, seeds=(), branches=(a, b))
+    opts = search_options(HbmOptions(), IsolaOptions())
+    got = rl_seeds(dlft, opts, 3)
+    assert [(s.omega, s.origin) for s in got] == [
+        (501.0, "DLFT branch 000 point 2/10"), (505.0, "DLFT branch 000 point 6/10"),
+        (508.0, "DLFT branch 000 point 9/10"), (700.0, "DLFT branch 001 point 1/3"),
+        (702.0, "DLFT branch 001 point 3/3")]
+    assert all(s.of_model for s in got)
+    np.testing.assert_array_equal(got[1].x, a.x[5])
+    np.testing.assert_array_equal(got[4].x, b.x[2])
+    assert rl_seeds(dlft, opts, 0) == []
+    assert len(rl_seeds(dlft, opts, 100)) == 8 + 2
+    for bad in (-1, 2.5):
+        with pytest.raises(ValueError, match="rl_branch_seeds"):
+            IsolaOptions(rl_branch_seeds=bad)
+
+
 def test_the_stage_options_give_model_seeds_the_patient_newton():
     o = search_options(HbmOptions(), IsolaOptions(model_seed_iterations=45))
     assert o.newton.stall_iterations == 3 and o.newton.max_iter == 12
