@@ -193,7 +193,8 @@ class ValidationOptions:
     stable amplitude (1335 rad/s) for the friction lock and keeps the retry (1647 rad/s); on
     the default scene it leaves DLFT's (1088 rad/s) and keeps the retry (1339 rad/s). A try
     costs one march (~1-2 min there). isola_tries: the same for the isola point, over the
-    stable stretches of all the isola search's branches of kind isola, then detached.
+    stable stretches of all the isola search's branches of kind isola, then detached, and
+    again over its period-doubled search's closed isolas when time integration keeps none.
     Default 3: without harmonic_checks, on the default scene time integration leaves the
     largest stable amplitude of the 3 Omega = omega_1 isola, at its end next to a fold (DLFT
     878 rad/s, RL 883 rad/s), for a state of half its amplitude; DLFT's third try is kept,

@@ -21,7 +21,8 @@ For each treatment of [hbm] methods:
   file exists and holds one (else the reason is recorded); chosen as the primary point is
   (stored verdicts, else analyses near each branch's peak, and when no branch has a stable
   point there, each branch's stability computed along it in turn until one has) and tried
-  again as it is, up to [validation] isola_tries;
+  again as it is, up to [validation] isola_tries; when time integration keeps none of
+  those (or there are none), the same on the closed isolas of the period-doubled search;
 - period doubling: the first period doubling of the NFRC (its bifurcation table, or located
   here by a bounded scan, and from the NFRC's stability computed along it when the scan
   finds none whose branch switch converges), the period-doubled branch switched to there
@@ -253,23 +254,27 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
     isolas = ctx.out / ISOLAS
-    branches = isola_branches(read_branch_set(isolas, method), scene.hbm.subharmonic)
+    groups = [g for g in isola_branches(read_branch_set(isolas, method), scene.hbm.subharmonic) if g]
     if not isolas.is_file():
         isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
-    elif not branches:
+    elif not groups:
         isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind "
                                                          f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}, "
                                                          f"nor an isola of its period-doubled search")
     else:
         update(f"{tag}: a point on an isola")
-        cands = []
-        for br in branches:
-            hbm = _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic)
-            cands.append(Candidate(f"{ISOLAS} {method}/branches/{br.name}",
-                                   build_residual(rom, scene.casing, scene.contact, hbm, method=method),
-                                   br.omega, br.x, br.le_amplitude, br.converged, br.stable,
-                                   monitor=_branch_monitor(hbm)))
-        isola = _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
+
+        def try_group(branches):
+            cands = []
+            for br in branches:
+                hbm = _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic)
+                cands.append(Candidate(f"{ISOLAS} {method}/branches/{br.name}",
+                                       build_residual(rom, scene.casing, scene.contact, hbm, method=method),
+                                       br.omega, br.x, br.le_amplitude, br.converged, br.stable,
+                                       monitor=_branch_monitor(hbm)))
+            return _try_until_kept(ctx, rom, system, "isola", method, cands, opts.isola_tries, update)
+
+        isola = first_kept(groups, try_group)
     # period doubling
     pd, pd_branch = _period_doubling(ctx, rom, system, method, res, b, ex, path, update, nfrc)
     computed = nfrc._stability is not None  # kept for Fig. 8 and the user: 800-1200 analyses on rotor 67
@@ -358,14 +363,30 @@ class Candidate:
 DECISIVE_DECAY = 3.0
 
 
-def isola_branches(branches, nu: int) -> list:
-    """The branches of isolas.h5 (IsolaBranch list) the isola point is taken from, in order of
-    preference: those of the scene's basis (subharmonic nu) of kind "isola", then "detached"
-    (ISOLA_KINDS); without any, the closed isolas of the period-doubled search (subharmonic
-    2 nu), isolas still, whose orbits have twice the period. The search's other doubled
-    branches are born at period doublings: the period-doubling point's."""
+def isola_branches(branches, nu: int) -> tuple[list, list]:
+    """The branches of isolas.h5 (IsolaBranch list) the isola point is taken from, in two
+    groups tried in turn: those of the scene's basis (subharmonic nu) of kind "isola", then
+    "detached" (ISOLA_KINDS); then the closed isolas of the period-doubled search
+    (subharmonic 2 nu), isolas still, whose orbits have twice the period. The search's other
+    doubled branches are born at period doublings: the period-doubling point's."""
     own = [br for kind in ISOLA_KINDS for br in branches if br.subharmonic == nu and br.kind == kind]
-    return own or [br for br in branches if br.subharmonic == 2 * nu and br.kind == "isola"]
+    return own, [br for br in branches if br.subharmonic == 2 * nu and br.kind == "isola"]
+
+
+def first_kept(groups: list, try_group) -> ValidationPoint:
+    """The isola point from groups of branches tried in turn (isola_branches' two):
+    try_group(branches) -> ValidationPoint for each until time integration stays on one. The
+    point kept, else the first found (the scene's basis first: its own isolas are the
+    search's answer), else the first; its reason ends with each other group's try."""
+    tried = []
+    for branches in groups:
+        tried.append(try_group(branches))
+        if tried[-1].ti is not None and tried[-1].ti.stays:
+            break
+    last = tried[-1]
+    point = last if last.ti is not None and last.ti.stays else next((p for p in tried if p.found), tried[0])
+    others = [f"also tried, {p.branch or 'no branch'}: {p.reason}" for p in tried if p is not point]
+    return replace(point, reason="; ".join([point.reason, *others])) if others else point
 
 
 def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, tries: int, update) -> ValidationPoint:

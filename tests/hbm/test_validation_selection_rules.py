@@ -148,10 +148,9 @@ def test_only_the_regularised_law_s_stable_points_are_judged_again_with_more_har
 
 
 def test_the_isola_point_falls_back_on_the_isolas_of_the_doubled_search():
-    """Branches of isolas.h5 by kind and basis (Omega / nu): the scene's isolas first, then
-    its detached branches; only without either, the closed isolas of the period-doubled
-    search (basis Omega / 2 nu), never its branches born at doublings nor those of another
-    basis."""
+    """Branches of isolas.h5 by kind and basis (Omega / nu), in two groups: the scene's
+    isolas, then its detached branches; then the closed isolas of the period-doubled search
+    (basis Omega / 2 nu), never its branches born at doublings nor those of another basis."""
     from pipelines.stages.validation import isola_branches
 
     def br(name, kind, nu):
@@ -161,9 +160,44 @@ def test_the_isola_point_falls_back_on_the_isolas_of_the_doubled_search():
                br("q0", "isola", 4)]
     own = [br("a0", "bifurcated", 1), br("a1", "detached", 1), br("a2", "isola", 1), br("a3", "primary", 1)]
     names = lambda bs: [b.name for b in bs]  # noqa: E731
-    assert names(isola_branches(own + doubled, 1)) == ["a2", "a1"]
-    assert names(isola_branches(own[:1] + own[3:] + doubled, 1)) == ["d1", "d3"]
-    assert names(isola_branches(own[:1] + doubled[:1], 1)) == []
+    groups = lambda bs, nu: [names(g) for g in isola_branches(bs, nu)]  # noqa: E731
+    assert groups(own + doubled, 1) == [["a2", "a1"], ["d1", "d3"]]
+    assert groups(own[:1] + own[3:] + doubled, 1) == [[], ["d1", "d3"]]
+    assert groups(own[:1] + doubled[:1], 1) == [[], []]
     # a scene of basis Omega / 2: its own isolas are the nu = 2 ones, its doubled search's nu = 4
-    assert names(isola_branches(doubled, 2)) == ["d1", "d3", "d2"]
-    assert names(isola_branches(doubled[:1] + doubled[4:], 2)) == ["q0"]
+    assert groups(doubled, 2) == [["d1", "d3", "d2"], ["q0"]]
+    assert groups(doubled[:1] + doubled[4:], 2) == [[], ["q0"]]
+
+
+def test_the_doubled_search_s_isolas_are_tried_when_time_integration_keeps_none_of_the_others():
+    """first_kept: the groups are tried in turn until time integration stays on a point; the
+    one kept, else the first found (the scene's basis' own isola point, time integration
+    leaving it), else the first; the reason names every other try."""
+    from pipelines.stages.validation import ValidationPoint, first_kept
+
+    def point(branch, found=True, stays=None):
+        ti = None if stays is None else SimpleNamespace(stays=stays)
+        return ValidationPoint("isola", "rl", found, f"chosen on {branch}", branch, ti=ti)
+
+    def run(outcomes):
+        calls = []
+
+        def try_group(group):
+            calls.append(group)
+            return outcomes[group]
+        return first_kept(["own", "doubled"], try_group), calls
+
+    own_left, doubled_kept = point("rl/004", stays=False), point("rl/011", stays=True)
+    p, calls = run({"own": own_left, "doubled": doubled_kept})
+    assert calls == ["own", "doubled"] and p.branch == "rl/011" and p.ti.stays
+    assert p.reason == "chosen on rl/011; also tried, rl/004: chosen on rl/004"
+    # kept at once: the doubled search's isolas are not tried
+    p, calls = run({"own": point("rl/004", stays=True), "doubled": doubled_kept})
+    assert calls == ["own"] and p.branch == "rl/004" and p.reason == "chosen on rl/004"
+    # time integration keeps neither: the scene's basis' point, the other try in its reason
+    p, _ = run({"own": own_left, "doubled": point("rl/011", stays=False)})
+    assert p.branch == "rl/004" and p.reason.endswith("also tried, rl/011: chosen on rl/011")
+    # the scene's isolas give no point: the doubled one, even where time integration leaves it
+    none = ValidationPoint("isola", "rl", False, "no stable point left")
+    p, _ = run({"own": none, "doubled": point("rl/011", stays=False)})
+    assert p.branch == "rl/011" and p.found and p.reason.endswith("also tried, no branch: no stable point left")
