@@ -5,7 +5,7 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
 (hbm.isolas.harmonic.rl_seeds).
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT [--scene scenes/rotor67.toml]
-        [--omegas 440,450,460,470,480,660,690,700,1350]
+        [--omegas 440,450,460,470,480,660,690,700,1350] [--no-period]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas 560,560.5
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2] [--method rl]
@@ -33,6 +33,10 @@ primary_amplitudes); with --method rl, RL's primary and RL's branches.
 converged point of that branch of OUT/isolas.h5, one line each as above (the known branches:
 the other treatment's primary and its branches of the same basis): whether the other
 treatment has that branch, or puts its orbits elsewhere.
+
+--no-period: the sweep's points without a period (class 3) at --omegas are seeds too, the
+harmonics of their last revolution (as if of period one revolution): whether such a march
+wanders near a branch (where Newton from it lands).
 
 --singular OMIN,OMAX: instead, at every other converged point of the treatment's primary NFRC
 in that speed range, the smallest two and the largest singular value of its dense Jacobian
@@ -76,6 +80,8 @@ def main() -> None:
     ap.add_argument("--from-branch", default=None, metavar="METHOD/NNN",
                     help="the other treatment's Newton from every --every-th point of this branch of OUT/isolas.h5")
     ap.add_argument("--every", type=int, default=10)
+    ap.add_argument("--no-period", action="store_true",
+                    help="also the sweep's points without a period, from their last revolution")
     args = ap.parse_args()
     scene = load_scene(args.scene)
     if args.singular:
@@ -159,6 +165,10 @@ def main() -> None:
         for i in np.flatnonzero(np.asarray(br.converged, bool))[::args.every]:
             correct(res, solver, br.x[i], float(br.omega[i]), known, f"{other.upper()} from {name}")
         return
+    if args.no_period:  # the points without a period taken as orbits of one revolution: their last one
+        period = np.asarray(sweep.period).copy()
+        period[period < 1] = 1
+        sweep = dataclasses.replace(sweep, period=period)
     dlft = {}
     for method in ("dlft", "rl"):
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
