@@ -21,13 +21,14 @@ at a distance well above the tolerance may still lie on the primary.
 
 --modal: instead, the modal seeds of eq. (31) at those speeds (DLFT's; --method rl: RL's;
 any speed, on the grid or not; `grid`: the scene's [isolas] grid;
-hbm.isolas.harmonic.modal_seeds), with the seeds' Newton rule (SearchOptions.newton), one line per converged seed off every known branch (the
-primary and OUT/isolas.h5's branches in the basis of Omega; --all: every converged seed)
-with the LE's three leading harmonics and the share of odd ones (the primary NFRC of rotor 67
-has none), and per speed the seeds, converged, off every known branch and CPU s: where a
-narrow branch is reached from. --around A1,A2: the seeds around the primary NFRC instead,
-eq. (31)'s shapes with these amplitudes added to its points at each speed ([isolas]
-primary_amplitudes); with --method rl, RL's primary and RL's branches.
+hbm.isolas.harmonic.modal_seeds), with the seeds' Newton rule (SearchOptions.newton), one
+line per converged seed off every known branch (the primary and OUT/isolas.h5's branches
+in the basis of Omega; --all: every converged seed) with the LE's three leading harmonics
+and the share of odd ones (the primary NFRC of rotor 67 has none), and per speed the seeds,
+converged, off every known branch and CPU s: where a narrow branch is reached from.
+--around A1,A2: the seeds around the primary NFRC instead, eq. (31)'s shapes with these
+amplitudes added to its points at each speed ([isolas] primary_amplitudes); with --method
+rl, RL's primary and RL's branches.
 
 --from-branch METHOD/NNN: instead, the other treatment's patient Newton from every --every-th
 converged point of that branch of OUT/isolas.h5, one line each as above (the known branches:
@@ -96,6 +97,11 @@ def main() -> None:
               else {float(w) for w in args.omegas.split(",")})
     found = read_isolas(args.out / "isolas.h5") if (args.out / "isolas.h5").is_file() else {}
 
+    def known_of(method, nu):
+        """The treatment's primary NFRC and its branches of OUT/isolas.h5 in the basis of Omega / nu."""
+        return _known(args.out, method)[0] + [KnownBranch.of(b.omega, b.x, f"branch {b.name}", b.converged)
+                                              for b in found.get(method, []) if b.subharmonic == nu]
+
     def distance(x, w, primary):
         return nearest_on_polyline(x, w, primary, co.x_scale, co.omega_scale)[0]
 
@@ -116,9 +122,7 @@ def main() -> None:
     if args.modal:
         method = args.method or "dlft"
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
-        known = _known(args.out, method)[0] + [
-            KnownBranch.of(br.omega, br.x, f"branch {br.name}", br.converged)
-            for br in found.get(method, []) if br.subharmonic == 1]
+        known = known_of(method, 1)
         if args.around:
             amps = tuple(float(a) for a in args.around.split(","))
             family = dataclasses.replace(iso, amplitudes=(), primary_amplitudes=amps)
@@ -159,9 +163,7 @@ def main() -> None:
             raise SystemExit(f"--from-branch: {args.from_branch} is a branch of Omega / {br.subharmonic}, "
                              f"not of the scene's basis (Omega / {hbm.subharmonic})")
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, other)()
-        known = _known(args.out, other)[0] + [
-            KnownBranch.of(b.omega, b.x, f"branch {b.name}", b.converged)
-            for b in found.get(other, []) if b.subharmonic == br.subharmonic]
+        known = known_of(other, br.subharmonic)
         for i in np.flatnonzero(np.asarray(br.converged, bool))[::args.every]:
             correct(res, solver, br.x[i], float(br.omega[i]), known, f"{other.upper()} from {name}")
         return
@@ -172,9 +174,7 @@ def main() -> None:
     dlft = {}
     for method in ("dlft", "rl"):
         res, solver = HbmProblem(rom, scene.casing, scene.contact, hbm, method).for_seeds()()
-        known = _known(args.out, method)[0] + [
-            KnownBranch.of(br.omega, br.x, f"branch {br.name}", br.converged)
-            for br in found.get(method, []) if br.subharmonic == 1]
+        known = known_of(method, 1)
         for sd in ti_seeds(res, sweep, (lo, hi), scene.casing.n_lobes):
             if sd.omega in omegas:
                 sol = correct(res, solver, sd.x, sd.omega, known, f"{method.upper()} from TI")
