@@ -58,7 +58,7 @@ def refine(coarse, fine, u, omega):
     """(largest |mu| at N_h, solution exists at the finer N_h, moved, largest |mu| there, CPU s):
     check_harmonics with damped_newton's default 40 iterations, then Hill's method on the
     finer solution whatever the treatment."""
-    from hbm.stability.selection import check_harmonics
+    from hbm.stability.convergence import check_harmonics
     from hbm.stability.spectrum import orbit_spectrum
 
     mu0 = np.abs(orbit_spectrum(coarse, u, omega)[0].multipliers).max()
@@ -74,7 +74,7 @@ def branch_points(args, scene, rom) -> None:
     """--branch: every --every-th converged point of one branch of isolas.h5 (METHOD/NAME) or
     of a primary NFRC (nfrc/METHOD: OUT/nfrc_METHOD.h5)."""
     from hbm.harmonic.residual import build_residual
-    from hbm.stability.selection import HARMONIC_MOVE_TOL
+    from hbm.stability.convergence import HARMONIC_MOVE_TOL
     from pipelines.branch_store import load_branch
     from pipelines.stages.validation import read_branch_set
 

@@ -200,7 +200,7 @@ class ValidationOptions:
     878 rad/s, RL 883 rad/s), for a state of half its amplitude; DLFT's third try is kept,
     none of RL's three. With them both are kept at the first march.
     harmonic_checks: most points per primary, isola or period-doubled point (per doubled
-    branch) checked before they are marched (hbm.stability.selection.check_harmonics:
+    branch) checked before they are marched (hbm.stability.convergence.check_harmonics:
     solved again with 2 N_h, and for RL stable there too); a point that fails is not
     marched and its stable stretch is ruled out, as for a march that leaves. 0: none. A
     check costs 2-9 s at N_h = 40 on rotor 67 against ~40 s for a march; default 6: the

@@ -256,6 +256,10 @@ def _stability_runs(stable, converged, n_unstable=None):
     return runs
 
 
+#: opacity of a branch none of whose checked points holds with twice the harmonics (Fig. 8)
+TRUNCATED_ALPHA = 0.3
+
+
 def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0), unit: str = "mm",
                       title: str | None = None, n_lobes: int = 2,
                       max_order: float = TimeIntegrationOptions.max_order) -> Path:
@@ -269,8 +273,10 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     the bifurcation located there, given in marks, is drawn on it.
 
     curves: {treatment label: (lines, marks)}; lines: [(kind, omega (m,) rad/s, amplitude
-    (m,) m, converged (m,) bool, stable (m,) bool or None[, n_unstable (m,) int or None])],
-    kind one of KIND_COLOURS, n_unstable -1 drawn as unknown;
+    (m,) m, converged (m,) bool, stable (m,) bool or None[, n_unstable (m,) int or None[,
+    truncated bool]])], kind one of KIND_COLOURS, n_unstable -1 drawn as unknown; truncated:
+    no point of the branch holds with twice the harmonics (isolas.h5's harmonic_check "not
+    converged"): drawn faded (TRUNCATED_ALPHA), a solution of the truncation only;
     marks: [(bifurcation kind, omega rad/s, amplitude m[, guessed])], guessed (default False):
     the kind is a guess (no multiplier paired across the circle and the parities of the real
     ones do not tell, Bifurcation.kind_from), drawn
@@ -278,14 +284,17 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    handles, seen_styles, seen_marks, seen_guess = [], set(), set(), False
+    handles, seen_styles, seen_marks, seen_guess, seen_faded = [], set(), set(), False, False
     for t, (label, (lines, marks)) in enumerate(curves.items()):
-        for kind, omega, amp, conv, stable, *count in lines:
+        for kind, omega, amp, conv, stable, *rest in lines:
             colour = KIND_COLOURS.get(kind, KIND_COLOURS["detached"])[t % 2]
             omega, amp = np.asarray(omega, float), k * np.asarray(amp, float)
             conv = np.asarray(conv, bool)
-            for a, b, state in _stability_runs(stable, conv, count[0] if count else None):
-                ax.plot(omega[a:b], amp[a:b], STABILITY_STYLES[state], color=colour, lw=1.3)
+            faded = len(rest) > 1 and bool(rest[1])
+            seen_faded = seen_faded or faded
+            for a, b, state in _stability_runs(stable, conv, rest[0] if rest else None):
+                ax.plot(omega[a:b], amp[a:b], STABILITY_STYLES[state], color=colour, lw=1.3,
+                        alpha=TRUNCATED_ALPHA if faded else 1.0)
                 seen_styles.add(state)
             handles.append(Line2D([], [], color=colour, lw=1.3, label=f"{label} {kind}"))
         for kind, w, a, *guessed in marks:
@@ -304,6 +313,9 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
         # a grey patch, not a marker: a guessed mark keeps its kind's marker, so a grey circle
         # here would read as "fold"
         handles.append(Patch(facecolor=GUESSED, edgecolor=GUESSED, label="kind guessed (its marker in grey)"))
+    if seen_faded:
+        handles.append(Line2D([], [], color="0.3", lw=1.3, alpha=TRUNCATED_ALPHA,
+                              label="faded: not converged with 2 N_h"))
     if ti_points is not None:
         o, a, c = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10,

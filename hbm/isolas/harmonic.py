@@ -291,7 +291,72 @@ def doubling_origin(coarse: HarmonicBalanceResidual, fine: HarmonicBalanceResidu
     return None
 
 
-def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0, 1.0), options=None):
+def check_points(omega: np.ndarray, n: int) -> np.ndarray:
+    """Indices of up to n points of a branch (omega (m,) rad/s, in branch order) at which to
+    ask whether it is converged in the number of harmonics: evenly inside its longest stretch
+    of monotone Omega, at fractions 1 / (n + 1), ..., n / (n + 1) of it (rounded down). A fold moves with
+    N_h, so points of a converged branch near one may have no solution with more harmonics
+    next to them (on the default rotor 67 scene, at N_h = 80, the points with none lay near
+    the branches' ends in Omega; benchmarks/README.md, *The harmonic check*); the middle of a
+    monotone stretch is as far from the folds as the branch allows. Returns (k,) int, k <= n,
+    ascending."""
+    w = np.asarray(omega, dtype=float)
+    if n < 1 or not len(w):
+        return np.zeros(0, np.int64)
+    d = np.sign(np.diff(w))
+    best, start = (0, 0), 0  # the longest run of one sign of dOmega, as a range of points
+    for j in range(1, len(d) + 1):
+        if j == len(d) or d[j] != d[start]:
+            if j - start > best[1] - best[0]:
+                best = (start, j)
+            start = j
+    a, b = best
+    return np.unique(np.array([a + (q + 1) * (b - a) // (n + 1) for q in range(n)], dtype=np.int64))
+
+
+def harmonic_checks(res: HarmonicBalanceResidual, omega: np.ndarray, u: np.ndarray, n: int, fine=None) -> dict:
+    """The table "harmonic_checks" of a branch (omega (m,) rad/s, u (m, n_u) res's unknowns):
+    at each of check_points(omega, n), hbm.stability.convergence.check_harmonics without the
+    stability part (twice the harmonics and AFT samples, Newton from the point padded with
+    zeros, 20 iterations): whether a solution with 2 N_h lies next to it, its first N_h
+    harmonics moved by at most HARMONIC_MOVE_TOL. A branch none of whose points pass is not a
+    solution of the blade's equations but of their truncation (the search does not drop it:
+    the file says so). fine: res.refined(2) when the caller has it.
+
+    Returns {column: (array, unit)}: index (k,) (position among the points given), omega (k,)
+    rad/s, passed (k,) bool, moved (k,) 1 (nan without a solution), n_harmonics (k,) (the
+    finer N_h), cpu_time (k,) s, reason (k,) str."""
+    import time
+
+    from hbm.stability.convergence import check_harmonics
+
+    idx = check_points(omega, n)
+    fine = res.refined(2) if fine is None and len(idx) else fine
+    rows = []
+    for i in idx:
+        t = time.process_time()
+        ch = check_harmonics(res, u[i], float(omega[i]), stable=False, fine=fine)
+        rows.append((ch, time.process_time() - t))
+    return {"index": (idx, "-"), "omega": (np.asarray(omega, float)[idx], "rad/s"),
+            "passed": (np.array([c.passed for c, _ in rows], bool), "-"),
+            "moved": (np.array([c.moved for c, _ in rows], float), "1"),
+            "n_harmonics": (np.array([c.n_harmonics for c, _ in rows], np.int64), "-"),
+            "cpu_time": (np.array([t for _, t in rows], float), "s"),
+            "reason": (np.array([c.reason for c, _ in rows], dtype=object), "-")}
+
+
+def harmonic_verdict(table: dict | None) -> str:
+    """A branch's verdict from its harmonic_checks table ({column: array}): "converged" (every
+    point checked passed), "not converged" (none did), "partly converged", or "unchecked"
+    (no table or no row)."""
+    if table is None or not len(table.get("passed", ())):
+        return "unchecked"
+    p = np.asarray(table["passed"], bool)
+    return "converged" if p.all() else "not converged" if not p.any() else "partly converged"
+
+
+def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0, 1.0), options=None,
+             checks: int = 0, fine=None):
     """describe(omega (m,), u (m, n_u)) for hbm.isolas.search: le_amplitude (m,) m and
     harmonics (m, 2 N_h + 1, 3 n_b) m (hbm.harmonic.nfrc.nfrc_extras); with stability, the
     branch's stability as the NFRC gets it (hbm.stability.monitor.monitor_branch: gapped
@@ -301,7 +366,8 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
     (m,) int, and the table "bifurcations" (hbm.stability.bifurcation.bifurcation_arrays,
     its index counting the described points) under "tables". scales: (x_scale,
     omega_scale), the continuation's, in which the monitor measures arc length. options:
-    StabilityOptions (default: the monitor's)."""
+    StabilityOptions (default: the monitor's). checks: with checks > 0, the table
+    "harmonic_checks" (harmonic_checks, at up to that many points; fine: res.refined(2))."""
     def run(omega, u):
         ex = [nfrc_extras(res, x) for x in u]
         out = {"le_amplitude": np.array([e["le_amplitude"] for e in ex]),
@@ -316,13 +382,15 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
                                 refine=mon.refine)
             out.update(st.per_point())
             out["tables"] = {"bifurcations": bifurcation_arrays(st.bifurcations)}
+        if checks:
+            out.setdefault("tables", {})["harmonic_checks"] = harmonic_checks(res, omega, u, checks, fine)
         return out
 
     return run
 
 
-#: residuals built by BranchDescriber in this process, by the describer's token, the most
-#: recently used last; at most _MAX_RESIDUALS are kept (a residual holds its ROM's matrices,
+#: [residual, its refined one or None] built by BranchDescriber in this process, by the
+#: describer's token, the most recently used last; at most _MAX_RESIDUALS are kept (a residual holds its ROM's matrices,
 #: and a long-lived process, a notebook or a test session, describes for many searches)
 _RESIDUALS: dict = {}
 #: one per treatment and search basis of a run (DLFT and RL, Omega and Omega / 2)
@@ -332,24 +400,28 @@ _MAX_RESIDUALS = 4
 @dataclass(frozen=True, eq=False)
 class BranchDescriber:
     """describe (above) for hbm.isolas.search, picklable: the search describes the two halves
-    of a long branch at once in its worker processes. problem: HbmProblem (or any picklable
-    factory() -> (residual, solver)); each process builds the residual once (~1 s on the
-    coarse rotor 67 ROM at N_h = 40), kept under `token`."""
+    of a long branch at once in its worker processes, so a long branch gets up to `checks`
+    harmonic checks in each half. problem: HbmProblem (or any picklable factory() ->
+    (residual, solver)); each process builds the residual once (~1 s on the coarse rotor 67
+    ROM at N_h = 40), and its refined one when first needed, kept under `token`."""
 
     problem: object
     stability: bool = False
     scales: tuple = (1.0, 1.0)
     options: object = None
+    checks: int = 0
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     def __call__(self, omega: np.ndarray, u: np.ndarray) -> dict:
-        res = _RESIDUALS.pop(self.token, None)
-        if res is None:
-            res = self.problem()[0]
+        built = _RESIDUALS.pop(self.token, None)
+        if built is None:
+            built = [self.problem()[0], None]
             while len(_RESIDUALS) >= _MAX_RESIDUALS:
                 del _RESIDUALS[next(iter(_RESIDUALS))]  # the least recently used
-        _RESIDUALS[self.token] = res
-        return describe(res, self.stability, self.scales, self.options)(omega, u)
+        _RESIDUALS[self.token] = built
+        if self.checks and built[1] is None:
+            built[1] = built[0].refined(2)
+        return describe(built[0], self.stability, self.scales, self.options, self.checks, built[1])(omega, u)
 
 
 def dominant_harmonic(harmonics: np.ndarray) -> int:

@@ -66,6 +66,17 @@ class IsolaOptions:
       the seed solutions. Default 8: with it the stage found three more RL branches on each
       of the default and coarse scenes, for 72 seeds and 17 s and 82 s more of RL's wall
       time (Zen 3 host); 0: none.
+    harmonic_checks: points of each branch solved again with twice the harmonics (and AFT
+      samples), in the middle of its longest stretch of monotone Omega
+      (hbm.isolas.harmonic.harmonic_checks): a branch none of whose points has a solution with
+      2 N_h next to it (within 25 %) is marked "not converged", one that holds at some
+      "partly converged". The search keeps such branches (what is a truncation artefact at
+      N_h is a matter of N_h); the file and Fig. 8 say which they are. A branch of 32 points
+      or more is described in two halves on two processes, each checked at this many points.
+      On the default rotor 67 scene (N_h = 40) three points of RL's 960-965 rad/s isola had
+      no solution with N_h = 80 next to them, and time integration leaves its points; a
+      check costs 0.1 to 1.6 s in the basis of Omega, 1 to 5 s in that of Omega / 2. Default
+      3; 0: none.
     ti_seeds: also seed from every periodic time-integration point (ti.h5) whose orbit the
       HBM basis holds: omega = n_l Omega and omega = Omega, and with [hbm] subharmonic = 2
       omega = Omega / 2 as well (hbm.isolas.harmonic.ti_seeds).
@@ -91,6 +102,7 @@ class IsolaOptions:
     newton_iterations: int = 12
     model_seed_iterations: int = 60
     rl_branch_seeds: int = 8
+    harmonic_checks: int = 3
     ti_seeds: bool = True
     ti_period_doubled: bool = True
     workers: int | None = None
@@ -122,6 +134,7 @@ class IsolaOptions:
         check_option("newton_iterations", self.newton_iterations, 1, integer=True)
         check_option("model_seed_iterations", self.model_seed_iterations, 1, integer=True)
         check_option("rl_branch_seeds", self.rl_branch_seeds, 0, integer=True)
+        check_option("harmonic_checks", self.harmonic_checks, 0, integer=True)
         check_flag("ti_seeds", self.ti_seeds)
         check_flag("ti_period_doubled", self.ti_period_doubled)
         if self.workers is not None:

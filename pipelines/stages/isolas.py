@@ -33,9 +33,13 @@ Layout of isolas.h5 (root: the usual provenance attributes):
       (of the analyses at each point: sum it for a branch's stability cost),
       leading_multipliers (m, 4), period_ratio (m,) int, stability_note (m,) text (why
       n_unstable is -1, "" where it is not), and bifurcations/ (the table of hbm.stability.bifurcation.bifurcation_arrays, index
-      counting this branch's points). attrs kind ("primary" |
+      counting this branch's points); with [isolas] harmonic_checks > 0, harmonic_checks/
+      (hbm.isolas.harmonic.harmonic_checks: index, omega rad/s, passed, moved, n_harmonics,
+      cpu_time s, reason; index counting this branch's points). attrs kind ("primary" |
       "isola" | "bifurcated" | "detached"), closed (bool), status (str), subharmonic (nu),
-      seeds (int array), start (seed continued), n_points_computed, cpu_time (s)
+      seeds (int array), start (seed continued), n_points_computed, cpu_time (s),
+      harmonic_check ("converged" | "not converged" | "partly converged" | "unchecked": the
+      points checked with 2 N_h all hold, none, some; hbm.isolas.harmonic.harmonic_verdict)
 """
 from __future__ import annotations
 
@@ -44,6 +48,7 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from hbm.isolas.harmonic import harmonic_verdict
 from pipelines import artifacts as art
 from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
@@ -87,6 +92,8 @@ class IsolaBranch:
     each of its seeds (a sweep point's speed for the seeds from time integration). linked
     (j,) int: the indices of the other records of the same branch (pieces a later branch
     linked, hbm.isolas.search.connected; empty when it is whole), or None in files without it.
+    harmonic_checks: the table {column: array} of the points solved again with 2 N_h
+    (hbm.isolas.harmonic.harmonic_checks; index counts this branch's points), or None.
     """
 
     method: str
@@ -109,6 +116,13 @@ class IsolaBranch:
     bifurcations: dict | None = None
     seed_omega: np.ndarray | None = None
     linked: np.ndarray | None = None
+    harmonic_checks: dict | None = None
+
+    @property
+    def harmonic_verdict(self) -> str:
+        """"converged", "not converged", "partly converged" in the number of harmonics (its
+        harmonic_checks table, hbm.isolas.harmonic.harmonic_verdict), or "unchecked"."""
+        return harmonic_verdict(self.harmonic_checks)
 
     @property
     def name(self) -> str:
@@ -149,7 +163,9 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     bifurcations=({k: v for k, (v, _) in read_table(b["bifurcations"]).items()}
                                   if "bifurcations" in b else None),
                     seed_omega=seed_omega[seeds[(seeds >= 0) & (seeds < len(seed_omega))]],
-                    linked=np.asarray(a["linked"], dtype=np.int64).reshape(-1) if "linked" in a else None))
+                    linked=np.asarray(a["linked"], dtype=np.int64).reshape(-1) if "linked" in a else None,
+                    harmonic_checks=({k: v for k, (v, _) in read_table(b["harmonic_checks"]).items()}
+                                     if "harmonic_checks" in b else None)))
             out[method] = rows
     return out
 
@@ -171,10 +187,17 @@ def _write_branch(group, fb, nu: int, content: dict | None = None, linked=None) 
         write_tables(group, {"modes": {"frequencies": (content["mode_frequencies"], "rad/s")}})
     a = group.attrs
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
+    a["harmonic_check"] = harmonic_verdict(_check_table(fb))
     a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
     a["start"], a["n_points_computed"], a["cpu_time"] = int(fb.start), int(fb.n_points_computed), float(fb.cpu_time)
     if linked is not None:
         a["linked"] = np.asarray(linked, dtype=np.int64)
+
+
+def _check_table(fb) -> dict | None:
+    """{column: array} of a FoundBranch's harmonic_checks table, or None."""
+    t = fb.extras.get("tables", {}).get("harmonic_checks")
+    return None if t is None else {k: v for k, (v, _) in t.items()}
 
 
 def _read_found(group):
@@ -184,8 +207,9 @@ def _read_found(group):
     a = group.attrs
     # per-point datasets read back into the FoundBranch's extras (resume)
     extras = {k: read_column(group[k]) for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
-    if "bifurcations" in group:
-        extras["tables"] = {"bifurcations": read_table(group["bifurcations"])}
+    tables = {name: read_table(group[name]) for name in ("bifurcations", "harmonic_checks") if name in group}
+    if tables:
+        extras["tables"] = tables
     return FoundBranch(omega=group["omega"][()], x=group["x"][()], converged=group["converged"][()].astype(bool),
                        kind=_text(a["kind"]), closed=bool(a["closed"]), status=_text(a["status"]),
                        start=int(a["start"]), seeds=tuple(int(s) for s in np.asarray(a["seeds"]).reshape(-1)),
@@ -593,7 +617,7 @@ def _compute(ctx: Context, outputs) -> None:
                             seed_factory=problem.for_seeds(), branches=done,
                             bifurcation_points=bif, primaries=primaries,
                             describe=BranchDescriber(problem, problem.hbm.stability, (co.x_scale, co.omega_scale),
-                                                     stab),
+                                                     stab, iso.harmonic_checks),
                             on_corrections=lambda c: partial.corrections(key, c, seeds, spent()) if root else None,
                             on_branch=lambda i, fb: partial.branch(key, i, fb, res.nu, spent()) if root else None,
                             on_progress=on_progress)
@@ -612,9 +636,12 @@ def _compute(ctx: Context, outputs) -> None:
                 ok = b.converged
                 h = b.extras.get("harmonics")
                 dom = dominant_harmonic(h[ok]) if h is not None else 0
+                t = _check_table(b)
+                checked = "" if t is None else \
+                    f", {int(np.sum(t['passed']))} of {len(t['passed'])} points hold with 2 N_h ({harmonic_verdict(t)})"
                 ctx.log(f"    branch {k:03d}: {b.kind}{' (closed)' if b.closed else ''}, Omega "
                         f"{b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} rad/s, {int(ok.sum())} points, "
-                        f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds")
+                        f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds{checked}")
         return result, cpu, wall
 
     for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions
@@ -660,9 +687,11 @@ def _compute(ctx: Context, outputs) -> None:
 
 
 def _estimate(scene, out, outputs) -> Estimate:
-    """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega per treatment,
-    a Newton of ~4 to 12 iterations each (a continuation point's cost per iteration, see the
-    hbm stage), over the cores; then a few branches of up to 2 max_points points."""
+    """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega for the first
+    treatment, a Newton of ~4 to 12 iterations each (a continuation point's cost per
+    iteration, see the hbm stage), over the cores (with both treatments RL's seeds are DLFT's
+    distinct solutions and points along its branches, a few hundred on rotor 67: left out);
+    then, per treatment, a few branches of up to 2 max_points points."""
     import os
 
     iso, h = scene.isolas, scene.hbm
@@ -673,7 +702,7 @@ def _estimate(scene, out, outputs) -> Estimate:
     # and the family around the primary: one of its points a speed (more where it folds)
     n_seeds = iso.n_modes * n_kept * (len(iso.amplitudes) + len(iso.primary_amplitudes)) * iso.n_omega
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
-    seconds = len(h.methods) * (n_seeds * 2 * per_point / cores + 5 * 2 * iso.max_points * per_point / 4)
+    seconds = n_seeds * 2 * per_point / cores + len(h.methods) * 5 * 2 * iso.max_points * per_point / 4
     # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,
     # whatever the seeds: the advice names the key that sets their number
     workers = (f"lower [isolas] workers (now {iso.workers}; ~0.3 GB each)" if iso.workers is not None

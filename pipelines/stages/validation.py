@@ -400,7 +400,8 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
     harmonics (check_harmonics, up to [validation] harmonic_checks per point): one that is not
     converged in N_h is not marched, and its stretch is ruled out as a left one's. The first
     try is kept when none stays; the reason lists every try and check that failed."""
-    from hbm.stability.selection import STABILITY_MARGIN, check_harmonics
+    from hbm.stability.convergence import check_harmonics
+    from hbm.stability.selection import STABILITY_MARGIN
 
     opts, tag = ctx.scene.validation, method.upper()
     first, kept, tried, marched, checked = None, None, [], 0, 0
@@ -841,7 +842,8 @@ def draw_solution_set(ctx: Context) -> None:
     """Fig. 8: the solution set of each treatment (solution_set_METHOD.png) and both together
     (solution_set.png), from the files that exist; the bifurcations marked are those where a
     stable stretch begins or ends (_stability_bounds); points without a verdict (n_unstable
-    -1) drawn as unknown."""
+    -1) drawn as unknown; the search's branches none of whose checked points holds with 2 N_h
+    (harmonic_check "not converged") faded."""
     import h5py
 
     from pipelines.branch_store import load_branch, read_table
@@ -867,7 +869,8 @@ def draw_solution_set(ctx: Context) -> None:
         for br in read_branch_set(out / ISOLAS, m):
             if br.kind != "primary":  # the search's branches of twice the period drawn as period-doubled ones
                 kind = "period-doubled" if br.subharmonic > scene.hbm.subharmonic else br.kind
-                lines.append((kind, br.omega, br.le_amplitude, br.converged, br.stable, br.n_unstable))
+                lines.append((kind, br.omega, br.le_amplitude, br.converged, br.stable, br.n_unstable,
+                              br.harmonic_verdict == "not converged"))
                 if br.bifurcations is not None:
                     marks += _stability_bounds(br.bifurcations, br.stable)
         if t is not None:

@@ -563,7 +563,7 @@ def test_the_describers_keep_a_bounded_number_of_residuals(monkeypatch):
     assert describers[0](np.zeros(1), np.zeros((1, 2))) == {"residual": "residual 0"}
     assert built == list(range(6)) + [0] and len(harmonic._RESIDUALS) == 4
     # 0 took the place of the least recently used, 2 (3 and 4 came after it, then 5 again)
-    assert list(harmonic._RESIDUALS.values()) == ["residual 3", "residual 4", "residual 5", "residual 0"]
+    assert [r for r, _ in harmonic._RESIDUALS.values()] == ["residual 3", "residual 4", "residual 5", "residual 0"]
 
 
 def test_the_branches_are_the_same_with_one_worker_and_with_two(primary):

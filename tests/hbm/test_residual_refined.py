@@ -1,5 +1,5 @@
 """HarmonicBalanceResidual.refined(factor): the same problem with factor times the harmonics
-and AFT samples (hbm.stability.selection.check_harmonics asks a solution for its refinement).
+and AFT samples (hbm.stability.convergence.check_harmonics asks a solution for its refinement).
 
 Every attribute that __init__ and the setters establish is the coarse residual's, except
 those that are the finer grid's by design (checked to be that grid's); the casing stays the

@@ -159,7 +159,7 @@ def test_harmonic_check_of_a_doubled_orbit_gives_shootings_multiplier(doubled):
     of shooting over the orbit's period 2 T (scipy's variational equations, another method)."""
     from test_period_doubling import _rhs_var, _state
 
-    from hbm.stability.selection import check_harmonics
+    from hbm.stability.convergence import check_harmonics
 
     _, db, new = doubled
     ch = choose_point(new, db.omega, db.x, db.le_amplitude, np.ones(len(db.omega), bool), db.stable,
@@ -184,7 +184,8 @@ def test_a_doubled_point_that_fails_the_harmonic_check_is_not_marched(oscillator
     import hbm.stability.selection as selection
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
-    from hbm.stability.selection import HarmonicCheck
+    from hbm.stability import convergence
+    from hbm.stability.convergence import HarmonicCheck
 
     res, br, amp, _ = oscillator
     _, db, new = doubled
@@ -199,7 +200,7 @@ def test_a_doubled_point_that_fails_the_harmonic_check_is_not_marched(oscillator
         return HarmonicCheck(len(checked) > 1, "rule", 122)
 
     monkeypatch.setattr(stage, "_validate", _march_that_stays(marched))
-    monkeypatch.setattr(selection, "check_harmonics", fake_check)
+    monkeypatch.setattr(convergence, "check_harmonics", fake_check)
     nfrc = tmp_path / "nfrc_rl.h5"
     h5py.File(nfrc, "w").close()  # no stored stability: the doubling is located by a scan
     ctx = SimpleNamespace(out=tmp_path, scene=SimpleNamespace(
@@ -439,7 +440,7 @@ def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator
     check passes and its multiplier with 60 harmonics is shooting's."""
     from test_period_doubling import _multipliers, _state
 
-    from hbm.stability.selection import check_harmonics
+    from hbm.stability.convergence import check_harmonics
     from hbm.stability.spectrum import orbit_spectrum
 
     res30, br30, _, _ = oscillator
@@ -492,7 +493,8 @@ def test_a_point_that_fails_the_harmonic_check_is_not_marched(long_branch, monke
     import hbm.stability.selection as selection
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
-    from hbm.stability.selection import HarmonicCheck
+    from hbm.stability import convergence
+    from hbm.stability.convergence import HarmonicCheck
 
     res, b, amp = long_branch
     m = len(b.omega)
@@ -506,7 +508,7 @@ def test_a_point_that_fails_the_harmonic_check_is_not_marched(long_branch, monke
         return HarmonicCheck(passes["rule"](omega), "rule", 60)
 
     monkeypatch.setattr(stage, "_validate", _march_that_stays(marched))
-    monkeypatch.setattr(selection, "check_harmonics", fake_check)
+    monkeypatch.setattr(convergence, "check_harmonics", fake_check)
 
     def run(checks):
         marched.clear()
@@ -622,14 +624,15 @@ def test_a_period_doubling_the_scan_misses_is_found_from_the_branch_stability(lo
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
     from hbm.stability.monitor import StabilityOptions
-    from hbm.stability.selection import HarmonicCheck
+    from hbm.stability import convergence
+    from hbm.stability.convergence import HarmonicCheck
 
     res, b, amp = long_branch
     _, db, new = doubled
     switched_at, marched = [], []
     monkeypatch.setattr(selection, "continue_doubled_branch",
                         lambda r, u, w, bif, *a, **k: switched_at.append(bif.omega) or (db, new))
-    monkeypatch.setattr(selection, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
+    monkeypatch.setattr(convergence, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
     monkeypatch.setattr(stage, "_validate", _march_that_stays(marched))
     nfrc = tmp_path / "nfrc_rl.h5"
     h5py.File(nfrc, "w").close()
@@ -661,7 +664,8 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     import hbm.stability.selection as selection
     import pipelines.stages.validation as stage
     from hbm.options import ValidationOptions
-    from hbm.stability.selection import HarmonicCheck
+    from hbm.stability import convergence
+    from hbm.stability.convergence import HarmonicCheck
     from pipelines.stages.isolas import IsolaBranch
 
     res, br, amp, _ = oscillator
@@ -683,7 +687,7 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     monkeypatch.setattr(stage, "read_branch_set", lambda path, method: found)
     monkeypatch.setattr(residual_module, "build_residual", lambda *a, **k: new)
     monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (db, new))
-    monkeypatch.setattr(selection, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
+    monkeypatch.setattr(convergence, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
     marched = []
 
     def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None):

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from hbm.harmonic.fourier import FourierBasis
-from hbm.stability import selection
+from hbm.stability import convergence, selection
 from hbm.stability.selection import _candidates, choose_point, new_content, stable_stretch
 
 
@@ -119,7 +119,7 @@ def test_only_the_regularised_law_s_stable_points_are_judged_again_with_more_har
     """The finer solution (N_h 2 -> 4) moves the first harmonics by 10 % (relative 2-norm, by
     construction) and Hill's method calls it unstable (|mu| 1.3): an RL point called stable
     fails the check; a DLFT one passes on existing alone (its verdict is not re-checked,
-    hbm.stability.selection.check_harmonics), with no analysis made."""
+    hbm.stability.convergence.check_harmonics), with no analysis made."""
     import hbm.harmonic.start as start
 
     res = _Residual(2, 3, method)
@@ -138,8 +138,8 @@ def test_only_the_regularised_law_s_stable_points_are_judged_again_with_more_har
         calls.append(omega)
         return SimpleNamespace(decided=True, stable=False, multipliers=np.array([1.3, 0.5]), note=""), None
 
-    monkeypatch.setattr(selection, "orbit_spectrum", unstable)
-    chk = selection.check_harmonics(res, xr.reshape(-1), 1200.0, stable=True)
+    monkeypatch.setattr(convergence, "orbit_spectrum", unstable)
+    chk = convergence.check_harmonics(res, xr.reshape(-1), 1200.0, stable=True)
     assert chk.n_harmonics == 4 and chk.moved == pytest.approx(0.1, rel=1e-12)
     if method == "rl":
         assert not chk.passed and chk.multiplier == pytest.approx(1.3) and calls == [1200.0]

@@ -57,3 +57,30 @@ def test_segments_match_their_end_points(monkeypatch, tmp_path):
     assert not drawn & {7, 8, 13, 14, 19, 20}  # nothing bridges 8, 14 (NaN) or 20
     assert (24, "stable") in segs and (23, "unstable") in segs
     assert (15, "unstable") in segs and (16, "unknown") in segs and (17, "unknown") in segs
+
+
+def test_a_branch_not_converged_with_twice_the_harmonics_is_faded(monkeypatch, tmp_path):
+    """The seventh member of a line (isolas.h5's harmonic_check "not converged") draws every
+    segment of that branch at TRUNCATED_ALPHA and adds its legend entry; the others stay opaque."""
+    got = {}
+    save = figures._save
+
+    def keep(fig, path):
+        ax = fig.axes[0]
+        got["alpha"] = [(ln.get_xdata()[0], ln.get_alpha()) for ln in ax.get_lines() if ln.get_linestyle() in STYLE]
+        got["legend"] = [t.get_text() for t in ax.get_legend().get_texts()]
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    w = np.linspace(500.0, 600.0, 10)
+    a = np.full(10, 1e-3)
+    ok, stable = np.ones(10, bool), np.r_[np.ones(5, bool), np.zeros(5, bool)]
+    figures.plot_solution_set({"RL": ([("isola", w, a, ok, stable, None, True),
+                                       ("primary", w + 200.0, a, ok, stable, None, False)], [])}, tmp_path / "s.png")
+    faded = [al for x, al in got["alpha"] if x < 650.0]
+    opaque = [al for x, al in got["alpha"] if x >= 650.0]
+    assert len(faded) == len(opaque) == 2  # a stable and an unstable run each
+    assert all(al == figures.TRUNCATED_ALPHA for al in faded) and all(al in (None, 1.0) for al in opaque)
+    assert "faded: not converged with 2 N_h" in got["legend"]
+    figures.plot_solution_set({"RL": ([("primary", w, a, ok, stable)], [])}, tmp_path / "t.png")
+    assert "faded: not converged with 2 N_h" not in got["legend"]

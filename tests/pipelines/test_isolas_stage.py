@@ -118,6 +118,20 @@ def test_branch_layout(searched):
                 assert b["harmonics"].shape[:2] == (m, 11)  # 2 N_h + 1, N_h = 5
                 assert b.attrs["kind"] in ("primary", "isola", "bifurcated", "detached")
                 assert b.attrs["subharmonic"] == 1
+                # [isolas] harmonic_checks (default 3): points of the branch solved again with
+                # 2 N_h = 10, inside its longest monotone stretch; the verdict follows them
+                t = b["harmonic_checks"]
+                k = len(t["index"])
+                assert 1 <= k <= 6 and all(t[c].shape == (k,) for c in
+                                           ("omega", "passed", "moved", "n_harmonics", "cpu_time", "reason"))
+                idx = t["index"][()]
+                np.testing.assert_array_equal(t["omega"][()], b["omega"][()][idx])
+                assert (t["n_harmonics"][()] == 10).all() and b["converged"][()][idx].all()
+                passed = t["passed"][()]
+                verdict = b.attrs["harmonic_check"]
+                assert verdict == ("converged" if passed.all() else "not converged" if not passed.any()
+                                   else "partly converged"), (verdict, passed)
+                assert (t["moved"][()][passed] <= 0.25).all()
 
 
 def test_a_second_run_reuses_it(searched):
@@ -150,7 +164,12 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
                              "period_ratio": np.array([2, 2]),
                              "tables": {"bifurcations": {"kind": (np.array(["period doubling"], dtype=object), "-"),
                                                          "omega": (np.array([1.05]), "rad/s"),
-                                                         "index": (np.array([0]), "-")}}},
+                                                         "index": (np.array([0]), "-")},
+                                        "harmonic_checks": {"index": (np.array([1]), "-"),
+                                                            "omega": (np.array([1.1]), "rad/s"),
+                                                            "passed": (np.array([False]), "-"),
+                                                            "moved": (np.array([np.nan]), "1"),
+                                                            "reason": (np.array(["no solution"], dtype=object), "-")}}},
                      n_points_computed=2, cpu_time=0.5)
     p = _Partial(tmp_path / "isolas.partial.h5", "hash-a")
     assert p.spent("dlft") == 0.0  # nothing on disk: a search that starts now
@@ -184,6 +203,8 @@ def test_the_partial_file_gives_back_what_was_finished(tmp_path):
         _write_branch(h5.create_group("dlft/branches/000"), done[0], 1)
     b = read_isolas(tmp_path / "isolas.h5")["dlft"][0]
     assert list(b.bifurcations["kind"]) == ["period doubling"] and b.bifurcations["omega"][0] == 1.05
+    # and the harmonic check's table, with its verdict (the one point checked failed)
+    assert list(b.harmonic_checks["reason"]) == ["no solution"] and b.harmonic_verdict == "not converged"
     np.testing.assert_array_equal(b.stable, [True, False])
     assert len(p.resume("rl")[1]) == 2
     # an earlier branch saved again with the seeds that joined it keeps the later ones
