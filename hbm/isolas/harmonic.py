@@ -356,7 +356,7 @@ def harmonic_verdict(table: dict | None) -> str:
 
 
 def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0, 1.0), options=None,
-             checks: int = 0, fine=None):
+             checks: int = 0, fine=None, content: bool = False):
     """describe(omega (m,), u (m, n_u)) for hbm.isolas.search: le_amplitude (m,) m and
     harmonics (m, 2 N_h + 1, 3 n_b) m (hbm.harmonic.nfrc.nfrc_extras); with stability, the
     branch's stability as the NFRC gets it (hbm.stability.monitor.monitor_branch: gapped
@@ -367,11 +367,20 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
     its index counting the described points) under "tables". scales: (x_scale,
     omega_scale), the continuation's, in which the monitor measures arc length. options:
     StabilityOptions (default: the monitor's). checks: with checks > 0, the table
-    "harmonic_checks" (harmonic_checks, at up to that many points; fine: res.refined(2))."""
+    "harmonic_checks" (harmonic_checks, at up to that many points; fine: res.refined(2)).
+    content: also modal_contribution (m, n) and harmonic_contribution (m, N_h + 1) m of each
+    point (hbm.harmonic.content.branch_content with the modes of res.rom's K and M): 6 ms a
+    point on the coarse rotor 67 ROM, computed here so that the search's two processes share
+    it rather than the stage's end."""
     def run(omega, u):
         ex = [nfrc_extras(res, x) for x in u]
         out = {"le_amplitude": np.array([e["le_amplitude"] for e in ex]),
                "harmonics": np.array([e["harmonics"] for e in ex])}
+        if content:
+            from hbm.harmonic.content import branch_content
+
+            c = branch_content(res, res.rom, u, omega)
+            out["modal_contribution"], out["harmonic_contribution"] = c["modal_contribution"], c["harmonic_contribution"]
         if stability:
             from hbm.stability.bifurcation import bifurcation_arrays
             from hbm.stability.monitor import StabilityMonitor, StabilityOptions, monitor_branch
@@ -401,7 +410,7 @@ _MAX_RESIDUALS = 4
 class BranchDescriber:
     """describe (above) for hbm.isolas.search, picklable: the search describes the two halves
     of a long branch at once in its worker processes, so a long branch gets up to `checks`
-    harmonic checks in each half. problem: HbmProblem (or any picklable factory() ->
+    harmonic checks in each half. content: the points' modal and harmonic contributions too. problem: HbmProblem (or any picklable factory() ->
     (residual, solver)); each process builds the residual once (~1 s on the coarse rotor 67
     ROM at N_h = 40), and its refined one when first needed, kept under `token`."""
 
@@ -410,6 +419,7 @@ class BranchDescriber:
     scales: tuple = (1.0, 1.0)
     options: object = None
     checks: int = 0
+    content: bool = False
     token: str = field(default_factory=lambda: uuid.uuid4().hex)
 
     def __call__(self, omega: np.ndarray, u: np.ndarray) -> dict:
@@ -421,7 +431,8 @@ class BranchDescriber:
         _RESIDUALS[self.token] = built
         if self.checks and built[1] is None:
             built[1] = built[0].refined(2)
-        return describe(built[0], self.stability, self.scales, self.options, self.checks, built[1])(omega, u)
+        return describe(built[0], self.stability, self.scales, self.options, self.checks, built[1],
+                        self.content)(omega, u)
 
 
 def dominant_harmonic(harmonics: np.ndarray) -> int:

@@ -73,10 +73,10 @@ class IsolaOptions:
       "partly converged". The search keeps such branches (what is a truncation artefact at
       N_h is a matter of N_h); the file and Fig. 8 say which they are. A branch of 32 points
       or more is described in two halves on two processes, each checked at this many points.
-      On the default rotor 67 scene (N_h = 40) three points of RL's 960-965 rad/s isola had
-      no solution with N_h = 80 next to them, and time integration leaves its points; a
-      check costs 0.1 to 1.6 s in the basis of Omega, 1 to 5 s in that of Omega / 2. Default
-      3; 0: none.
+      On the default rotor 67 scene (N_h = 40) none of the six points checked on RL's
+      960-965 rad/s isola holds at N_h = 80, and time integration leaves its points; a check
+      costs 0.1 to 1.9 s in the basis of Omega, 1 to 8 s in that of Omega / 2 (Zen 3 host).
+      Default 3; 0: none.
     ti_seeds: also seed from every periodic time-integration point (ti.h5) whose orbit the
       HBM basis holds: omega = n_l Omega and omega = Omega, and with [hbm] subharmonic = 2
       omega = Omega / 2 as well (hbm.isolas.harmonic.ti_seeds).

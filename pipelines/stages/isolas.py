@@ -27,8 +27,9 @@ Layout of isolas.h5 (root: the usual provenance attributes):
       "unknown" where a resumed search's partial file of an earlier version lacks it);
       the period-doubled search's seeds last, their branches numbered after the first's
   /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
-      le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order; with
-      [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
+      le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order;
+      modal_contribution (m, n) and harmonic_contribution (m, N_h + 1) m (eqs. 32-34, nan at
+      the points not converged) with modes/frequencies (n,) rad/s; with [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
       stability_analysed (m,) bool, stability_widened (m,) bool, stability_cpu_time (m,) s
       (of the analyses at each point: sum it for a branch's stability cost),
       leading_multipliers (m, 4), period_ratio (m,) int, stability_note (m,) text (why
@@ -206,7 +207,8 @@ def _read_found(group):
 
     a = group.attrs
     # per-point datasets read back into the FoundBranch's extras (resume)
-    extras = {k: read_column(group[k]) for k in ("le_amplitude", "harmonics") + PER_POINT if k in group}
+    extras = {k: read_column(group[k]) for k in ("le_amplitude", "harmonics", "modal_contribution",
+                                                 "harmonic_contribution") + PER_POINT if k in group}
     tables = {name: read_table(group[name]) for name in ("bifurcations", "harmonic_checks") if name in group}
     if tables:
         extras["tables"] = tables
@@ -482,8 +484,20 @@ def _embedded(branch, res, target):
     return KnownBranch(branch.omega, x.reshape(len(branch.omega), -1), branch.label)
 
 
+def _content(res, rom, fb, modes) -> dict:
+    """What _write_branch adds to a FoundBranch's own columns: the modes' frequencies, and the
+    modal and harmonic contributions (hbm.harmonic.content.branch_content) where the search's
+    describe did not compute them (a branch resumed from a partial file of an earlier
+    version). modes: rom_modes(rom.K, rom.M)."""
+    from hbm.harmonic.content import branch_content
+
+    if "modal_contribution" in fb.extras:
+        return {"mode_frequencies": modes[0]}
+    return branch_content(res, rom, fb.x, fb.omega, modes)
+
+
 def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
-    """content: {method: [branch_content of each branch]} (hbm.harmonic.content, eqs. 32-34)."""
+    """content: {method: [_content of each branch]} (the modes' frequencies; hbm.harmonic.content, eqs. 32-34)."""
     import h5py
 
     with art.atomic_output(path) as tmp:
@@ -588,7 +602,7 @@ def _compute(ctx: Context, outputs) -> None:
     results = {}  # method -> ([(IsolaSearch, its residual), ...], status, cpu, wall), in hbm.methods' order
     mains = {}  # method -> its search in the scene's basis
     content = {}  # method -> the dynamical content of each branch
-    from hbm.harmonic.content import branch_content, rom_modes
+    from hbm.harmonic.content import rom_modes
 
     modes = rom_modes(rom.K, rom.M)
     def run_part(key, problem, res, seeds, known, bif, label, primaries=None):
@@ -617,7 +631,7 @@ def _compute(ctx: Context, outputs) -> None:
                             seed_factory=problem.for_seeds(), branches=done,
                             bifurcation_points=bif, primaries=primaries,
                             describe=BranchDescriber(problem, problem.hbm.stability, (co.x_scale, co.omega_scale),
-                                                     stab, iso.harmonic_checks),
+                                                     stab, iso.harmonic_checks, content=True),
                             on_corrections=lambda c: partial.corrections(key, c, seeds, spent()) if root else None,
                             on_branch=lambda i, fb: partial.branch(key, i, fb, res.nu, spent()) if root else None,
                             on_progress=on_progress)
@@ -677,7 +691,7 @@ def _compute(ctx: Context, outputs) -> None:
                 cpu, wall = cpu + pd_cpu, wall + pd_wall
         results[method] = (parts, "complete", cpu, wall)
         if root:
-            content[method] = [branch_content(r, rom, b.x, b.omega, modes) for part, r in parts for b in part.branches]
+            content[method] = [_content(r, rom, b, modes) for part, r in parts for b in part.branches]
 
     def write():
         _write_final(final, results, ctx.provenance(ISOLAS, "isolas"), content)

@@ -132,6 +132,13 @@ def test_branch_layout(searched):
                 assert verdict == ("converged" if passed.all() else "not converged" if not passed.any()
                                    else "partly converged"), (verdict, passed)
                 assert (t["moved"][()][passed] <= 0.25).all()
+                # eq. (33)'s contributions, computed with the branch (describe): they sum to 1
+                # at each converged point; a point not converged has none
+                mc, conv = b["modal_contribution"][()], b["converged"][()].astype(bool)
+                assert mc.shape == (m, 39) and b["harmonic_contribution"].shape == (m, 6)
+                np.testing.assert_allclose(mc[conv].sum(axis=1), 1.0, rtol=1e-12)
+                assert np.isnan(mc[~conv]).all() and (mc[conv] >= 0).all()
+                np.testing.assert_array_equal(b["modes/frequencies"].shape, (39,))
 
 
 def test_a_second_run_reuses_it(searched):
