@@ -48,7 +48,10 @@ def code_version() -> str:
         version = "0+unknown"
     try:
         here = Path(__file__).resolve().parent
-        rev = subprocess.run(["git", "describe", "--always", "--dirty"], cwd=here,
+        # --no-optional-locks: `describe --dirty` refreshes the index under .git/index.lock,
+        # which a run interrupted there (Ctrl-C reaches the whole process group) left behind,
+        # blocking the user's next git command
+        rev = subprocess.run(["git", "--no-optional-locks", "describe", "--always", "--dirty"], cwd=here,
                              capture_output=True, text=True, timeout=5).stdout.strip()
     except (OSError, subprocess.SubprocessError):
         rev = ""
