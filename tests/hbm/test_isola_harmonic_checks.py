@@ -8,17 +8,11 @@
   time integration; its superharmonic resonance near W = 0.743 (which needs more than 3
   harmonics) is not, and time integration from the points checked ends 30 % or more away.
 """
-from dataclasses import replace
-
 import numpy as np
 import pytest
-from scipy.integrate import solve_ivp
 
-from hbm.continuation.arclength import ContinuationOptions, continue_branch
-from hbm.continuation.newton import newton_solve
-from hbm.harmonic.residual import build_residual
 from hbm.isolas.harmonic import check_points, describe, harmonic_checks, harmonic_verdict
-from test_period_doubling import C, F, GAMMA, KAPPA, NOPT, obstacle_residual
+from test_period_doubling import low_harmonic_branch, obstacle_residual, ti_distance
 
 
 def test_the_points_checked_lie_inside_the_longest_monotone_stretch():
@@ -40,39 +34,12 @@ def test_the_verdict_counts_the_points_that_hold():
     assert harmonic_verdict(None) == harmonic_verdict({"passed": np.zeros(0, bool)}) == "unchecked"
 
 
-def _rhs(t, y, w):
-    h = 0.5 * KAPPA * y[0]
-    lam = h + np.sqrt(h * h + GAMMA ** 2)
-    return [y[1], -C * y[1] - y[0] - lam + F * np.cos(w * t)]
-
-
 @pytest.fixture(scope="module")
 def low_branch():
     """The oscillator's branch at N_h = 3, continued from W = 4.6 down to 0.3 (~2100 points):
     the main resonance folds near W = 1.55-1.58, the superharmonic one zig-zags through
     small folds at W = 0.742-0.746."""
-    res30, _ = obstacle_residual()
-    low = replace(res30.options, n_harmonics=3, n_time=64)
-    res = build_residual(res30.rom, res30.casing, res30.contact, low, method="rl", forcing=res30.forcing, alpha=1.0,
-                         distance=res30._distance)
-    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
-    br = continue_branch(res, sol.x, 4.6, ContinuationOptions(omega_min=0.3, omega_max=4.6, ds=0.01, ds_max=0.05,
-                                                              direction=-1, newton=NOPT, closed_loop_tol=None,
-                                                              omega_scale=1.0))
-    return res, br
-
-
-def _ti_distance(res, u, w, n=100):
-    """Largest distance of time integration's 100th period from the HBM orbit (u at W = w),
-    over half the orbit's peak-to-peak amplitude."""
-    xr = res.to_coefficients(u)[:, 0]
-    k, T = np.arange(1, 4), 2 * np.pi / w
-    x_at = lambda t: xr[0] + np.sum(xr[1::2] * np.cos(k * w * t) + xr[2::2] * np.sin(k * w * t))  # noqa: E731
-    ts = np.linspace((n - 1) * T, n * T, 65)
-    y = solve_ivp(_rhs, (0, n * T), [x_at(0.0), np.sum(k * w * xr[2::2])], args=(w,), t_eval=ts, rtol=1e-9,
-                  atol=1e-11, method="DOP853").y[0]
-    ref = np.array([x_at(t) for t in ts])
-    return np.abs(y - ref).max() / (0.5 * np.ptp(ref))
+    return low_harmonic_branch(obstacle_residual()[0])
 
 
 def test_a_stretch_needing_more_harmonics_is_not_converged_as_time_integration_says(low_branch):
@@ -93,7 +60,7 @@ def test_a_stretch_needing_more_harmonics_is_not_converged_as_time_integration_s
         for i, ok, moved in zip(t["index"], t["passed"], t["moved"]):
             j = part.start + int(i)
             assert ok == (moved <= 0.25)
-            d = _ti_distance(res, br.x[j], float(w[j]))
+            d = ti_distance(res, br.x[j], float(w[j]))
             assert near(d), (verdict, w[j], moved, d)
     # the table as the search stores it: the same checks called directly
     direct = harmonic_checks(res, w[main], br.x[main], 3)

@@ -8,6 +8,7 @@ from W = 4.6 its W-periodic orbit loses stability near W = 4.27 through a multip
 (the bilinear oscillator's natural frequency is ~1.53, and W ~ 2.8 of it), and a
 2 pi / W * 2 periodic orbit takes over.
 """
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -94,6 +95,31 @@ def obstacle_residual():
                          HbmOptions(n_harmonics=30, n_time=512), method="rl", forcing=HarmonicForcing(np.array([F, 0, 0]), 1),
                          alpha=1.0, distance=lambda tau: np.zeros((len(tau), 1)))
     return res, newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+
+
+def low_harmonic_branch(res30):
+    """The oscillator's branch with N_h = 3 (N_t = 64), continued from W = 4.6 down to 0.3:
+    (residual, branch). Its superharmonic resonances need more harmonics than 3."""
+    low = replace(res30.options, n_harmonics=3, n_time=64)
+    res = build_residual(res30.rom, res30.casing, res30.contact, low, method="rl", forcing=res30.forcing, alpha=1.0,
+                         distance=res30._distance)
+    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
+    return res, continue_branch(res, sol.x, 4.6, ContinuationOptions(omega_min=0.3, omega_max=4.6, ds=0.01,
+                                                                     ds_max=0.05, direction=-1, newton=NOPT,
+                                                                     closed_loop_tol=None, omega_scale=1.0))
+
+
+def ti_distance(res, u, w, n=100):
+    """Largest distance of the n-th period of time integration (scipy's DOP853) from the
+    orbit u of res (N_h = 3) at W = w, started on it, over half its peak-to-peak amplitude."""
+    xr = res.to_coefficients(u)[:, 0]
+    k, T = np.arange(1, 4), 2 * np.pi / w
+    x_at = lambda t: xr[0] + np.sum(xr[1::2] * np.cos(k * w * t) + xr[2::2] * np.sin(k * w * t))  # noqa: E731
+    ts = np.linspace((n - 1) * T, n * T, 65)
+    y = solve_ivp(_rhs, (0, n * T), [x_at(0.0), np.sum(k * w * xr[2::2])], args=(w,), t_eval=ts, rtol=1e-9,
+                  atol=1e-11, method="DOP853").y[0]
+    ref = np.array([x_at(t) for t in ts])
+    return np.abs(y - ref).max() / (0.5 * np.ptp(ref))
 
 
 @pytest.fixture(scope="module")

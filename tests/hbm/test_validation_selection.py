@@ -30,7 +30,7 @@ from hbm.stability.bifurcation import PERIOD_DOUBLING
 from hbm.stability.selection import LocatedDoubling, choose_point, continue_doubled_branch, locate_period_doubling
 from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, compare_with_hbm, march_from_hbm
 from support import coarse_rom
-from test_period_doubling import C, F, GAMMA, KAPPA, NOPT, obstacle_residual
+from test_period_doubling import NOPT, _rhs, low_harmonic_branch, obstacle_residual, ti_distance
 
 
 def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees():
@@ -69,12 +69,6 @@ def test_rotor67_primary_point_is_stable_and_time_integration_stays_and_agrees()
 
 
 # -- period doubling: the forced RL obstacle oscillator of test_period_doubling ----------------
-
-
-def _rhs(t, y, w):
-    h = 0.5 * KAPPA * y[0]
-    lam = h + np.sqrt(h * h + GAMMA ** 2)
-    return [y[1], -C * y[1] - y[0] - lam + F * np.cos(w * t)]
 
 
 @pytest.fixture(scope="module")
@@ -444,24 +438,7 @@ def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator
     from hbm.stability.spectrum import orbit_spectrum
 
     res30, br30, _, _ = oscillator
-    low = replace(res30.options, n_harmonics=3, n_time=64)
-    res = build_residual(res30.rom, res30.casing, res30.contact, low, method="rl", forcing=res30.forcing, alpha=1.0,
-                         distance=res30._distance)
-    sol = newton_solve(res, res.linear_solution(4.6), 4.6, NOPT)
-    br = continue_branch(res, sol.x, 4.6, ContinuationOptions(omega_min=0.3, omega_max=4.6, ds=0.01, ds_max=0.05,
-                                                              direction=-1, newton=NOPT, closed_loop_tol=None,
-                                                              omega_scale=1.0))
-
-    def ti_distance(j, n=100):
-        xr = res.to_coefficients(br.x[j])[:, 0]
-        k, w = np.arange(1, 4), float(br.omega[j])
-        T = 2 * np.pi / w
-        x_at = lambda t: xr[0] + np.sum(xr[1::2] * np.cos(k * w * t) + xr[2::2] * np.sin(k * w * t))  # noqa: E731
-        ts = np.linspace((n - 1) * T, n * T, 65)
-        y = solve_ivp(_rhs, (0, n * T), [x_at(0.0), np.sum(k * w * xr[2::2])], args=(w,), t_eval=ts, rtol=1e-9,
-                      atol=1e-11, method="DOP853").y[0]
-        ref = np.array([x_at(t) for t in ts])
-        return np.abs(y - ref).max() / (0.5 * np.ptp(ref))
+    res, br = low_harmonic_branch(res30)
 
     # the main resonance's upper stretch, then the superharmonic resonances near W = 0.74 and 0.49
     picks = [i for i in (300, 1000, 1500, 1884, 2026, 2033) if i < len(br.omega)]
@@ -471,7 +448,7 @@ def test_harmonic_check_agrees_with_time_integration_at_low_harmonics(oscillator
         sp = orbit_spectrum(res, br.x[j], br.omega[j])[0]
         assert sp.stable or (not sp.decided and "harmonic band" in sp.note), (j, sp.note)
         ch = check_harmonics(res, br.x[j], br.omega[j], stable=False)
-        d = ti_distance(j)
+        d = ti_distance(res, br.x[j], float(br.omega[j]))
         verdicts[j] = ch.passed
         assert (d < 0.2) if ch.passed else (d > 0.6), (j, br.omega[j], ch.reason, d)
     assert sum(verdicts.values()) >= 3 and sum(not v for v in verdicts.values()) >= 3, verdicts
