@@ -294,9 +294,9 @@ def doubling_origin(coarse: HarmonicBalanceResidual, fine: HarmonicBalanceResidu
 def check_points(omega: np.ndarray, n: int) -> np.ndarray:
     """Indices of up to n points of a branch (omega (m,) rad/s, in branch order) at which to
     ask whether it is converged in the number of harmonics: evenly inside its longest stretch
-    of monotone Omega, at fractions 1 / (n + 1), ..., n / (n + 1) of it (rounded down). A fold moves with
-    N_h, so points of a converged branch near one may have no solution with more harmonics
-    next to them (on the default rotor 67 scene, at N_h = 80, the points with none lay near
+    of monotone Omega, at fractions 1 / (n + 1), ..., n / (n + 1) of it (rounded down). A
+    fold moves with N_h, so points of a converged branch near one may have no solution with
+    more harmonics next to them (on the default rotor 67 scene, at N_h = 80, the points with none lay near
     the branches' ends in Omega; benchmarks/README.md, *The harmonic check*); the middle of a
     monotone stretch is as far from the folds as the branch allows. Returns (k,) int, k <= n,
     ascending."""
@@ -380,7 +380,7 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
             from hbm.harmonic.content import branch_content
 
             c = branch_content(res, res.rom, u, omega)
-            out["modal_contribution"], out["harmonic_contribution"] = c["modal_contribution"], c["harmonic_contribution"]
+            out.update({k: c[k] for k in ("modal_contribution", "harmonic_contribution")})
         if stability:
             from hbm.stability.bifurcation import bifurcation_arrays
             from hbm.stability.monitor import StabilityMonitor, StabilityOptions, monitor_branch
@@ -399,8 +399,9 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
 
 
 #: [residual, its refined one or None] built by BranchDescriber in this process, by the
-#: describer's token, the most recently used last; at most _MAX_RESIDUALS are kept (a residual holds its ROM's matrices,
-#: and a long-lived process, a notebook or a test session, describes for many searches)
+#: describer's token, the most recently used last; at most _MAX_RESIDUALS are kept (a
+#: residual holds its ROM's matrices, and a long-lived process, a notebook or a test
+#: session, describes for many searches)
 _RESIDUALS: dict = {}
 #: one per treatment and search basis of a run (DLFT and RL, Omega and Omega / 2)
 _MAX_RESIDUALS = 4
@@ -410,9 +411,10 @@ _MAX_RESIDUALS = 4
 class BranchDescriber:
     """describe (above) for hbm.isolas.search, picklable: the search describes the two halves
     of a long branch at once in its worker processes, so a long branch gets up to `checks`
-    harmonic checks in each half. content: the points' modal and harmonic contributions too. problem: HbmProblem (or any picklable factory() ->
-    (residual, solver)); each process builds the residual once (~1 s on the coarse rotor 67
-    ROM at N_h = 40), and its refined one when first needed, kept under `token`."""
+    harmonic checks in each half. content: the points' modal and harmonic contributions too.
+    problem: HbmProblem (or any picklable factory() -> (residual, solver)); each process
+    builds the residual once (~1 s on the coarse rotor 67 ROM at N_h = 40), and its refined
+    one when first needed, kept under `token`."""
 
     problem: object
     stability: bool = False

@@ -29,7 +29,8 @@ Layout of isolas.h5 (root: the usual provenance attributes):
   /<method>/branches/NNN/ omega (m,) rad/s; x (m, n_u) scaled unknowns; converged (m,) bool;
       le_amplitude (m,) m; harmonics (m, 2 N_h + 1, 3 n_b) m, eq. (5) order;
       modal_contribution (m, n) and harmonic_contribution (m, N_h + 1) m (eqs. 32-34, nan at
-      the points not converged) with modes/frequencies (n,) rad/s; with [hbm] stability, as in the NFRC files: stable (m,) bool, n_unstable (m,) int,
+      the points not converged) with modes/frequencies (n,) rad/s; with [hbm] stability, as
+      in the NFRC files: stable (m,) bool, n_unstable (m,) int,
       stability_analysed (m,) bool, stability_widened (m,) bool, stability_cpu_time (m,) s
       (of the analyses at each point: sum it for a branch's stability cost),
       leading_multipliers (m, 4), period_ratio (m,) int, stability_note (m,) text (why
@@ -497,7 +498,8 @@ def _content(res, rom, fb, modes) -> dict:
 
 
 def _write_final(path, results: dict, provenance: dict, content: dict) -> None:
-    """content: {method: [_content of each branch]} (the modes' frequencies; hbm.harmonic.content, eqs. 32-34)."""
+    """content: {method: [_content of each branch]} (the modes' frequencies, and the
+    contributions where the branch lacks them; hbm.harmonic.content, eqs. 32-34)."""
     import h5py
 
     with art.atomic_output(path) as tmp:
