@@ -50,7 +50,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from hbm.isolas.harmonic import harmonic_verdict
 from pipelines import artifacts as art
 from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
@@ -124,7 +123,7 @@ class IsolaBranch:
     def harmonic_verdict(self) -> str:
         """"converged", "not converged", "partly converged" in the number of harmonics (its
         harmonic_checks table, hbm.isolas.harmonic.harmonic_verdict), or "unchecked"."""
-        return harmonic_verdict(self.harmonic_checks)
+        return _verdict(self.harmonic_checks)
 
     @property
     def name(self) -> str:
@@ -189,7 +188,7 @@ def _write_branch(group, fb, nu: int, content: dict | None = None, linked=None) 
         write_tables(group, {"modes": {"frequencies": (content["mode_frequencies"], "rad/s")}})
     a = group.attrs
     a["kind"], a["closed"], a["status"], a["subharmonic"] = fb.kind, bool(fb.closed), fb.status, int(nu)
-    a["harmonic_check"] = harmonic_verdict(_check_table(fb))
+    a["harmonic_check"] = _verdict(_check_table(fb))
     a["seeds"] = np.asarray(fb.seeds, dtype=np.int64)
     a["start"], a["n_points_computed"], a["cpu_time"] = int(fb.start), int(fb.n_points_computed), float(fb.cpu_time)
     if linked is not None:
@@ -200,6 +199,14 @@ def _check_table(fb) -> dict | None:
     """{column: array} of a FoundBranch's harmonic_checks table, or None."""
     t = fb.extras.get("tables", {}).get("harmonic_checks")
     return None if t is None else {k: v for k, (v, _) in t.items()}
+
+
+def _verdict(table) -> str:
+    """hbm.isolas.harmonic.harmonic_verdict, imported when a branch is written: this module is
+    loaded at every command's start, the isola search's only by the runs that need it."""
+    from hbm.isolas.harmonic import harmonic_verdict
+
+    return harmonic_verdict(table)
 
 
 def _read_found(group):
@@ -654,7 +661,7 @@ def _compute(ctx: Context, outputs) -> None:
                 dom = dominant_harmonic(h[ok]) if h is not None else 0
                 t = _check_table(b)
                 checked = "" if t is None else \
-                    f", {int(np.sum(t['passed']))} of {len(t['passed'])} points hold with 2 N_h ({harmonic_verdict(t)})"
+                    f", {int(np.sum(t['passed']))} of {len(t['passed'])} points hold with 2 N_h ({_verdict(t)})"
                 ctx.log(f"    branch {k:03d}: {b.kind}{' (closed)' if b.closed else ''}, Omega "
                         f"{b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} rad/s, {int(ok.sum())} points, "
                         f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds{checked}")
