@@ -296,21 +296,18 @@ def check_points(omega: np.ndarray, n: int) -> np.ndarray:
     ask whether it is converged in the number of harmonics: evenly inside its longest stretch
     of monotone Omega, at fractions 1 / (n + 1), ..., n / (n + 1) of it (rounded down). A
     fold moves with N_h, so points of a converged branch near one may have no solution with
-    more harmonics next to them (on the default rotor 67 scene, at N_h = 80, the points with none lay near
-    the branches' ends in Omega; benchmarks/README.md, *The harmonic check*); the middle of a
-    monotone stretch is as far from the folds as the branch allows. Returns (k,) int, k <= n,
-    ascending."""
+    more harmonics next to them (on the default rotor 67 scene, at N_h = 80, the points with
+    none lay near the branches' ends in Omega; benchmarks/README.md, *The harmonic check*);
+    the middle of a monotone stretch is as far from the folds as the branch allows. Returns
+    (k,) int, k <= n, ascending."""
     w = np.asarray(omega, dtype=float)
     if n < 1 or not len(w):
         return np.zeros(0, np.int64)
     d = np.sign(np.diff(w))
-    best, start = (0, 0), 0  # the longest run of one sign of dOmega, as a range of points
-    for j in range(1, len(d) + 1):
-        if j == len(d) or d[j] != d[start]:
-            if j - start > best[1] - best[0]:
-                best = (start, j)
-            start = j
-    a, b = best
+    # the runs of one sign of dOmega, as ranges of points; the first longest
+    cuts = np.r_[0, np.flatnonzero(d[1:] != d[:-1]) + 1, len(d)]
+    k = int(np.argmax(np.diff(cuts)))
+    a, b = int(cuts[k]), int(cuts[k + 1])
     return np.unique(np.array([a + (q + 1) * (b - a) // (n + 1) for q in range(n)], dtype=np.int64))
 
 
