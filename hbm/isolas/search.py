@@ -107,8 +107,8 @@ from hbm.continuation.newton import NewtonOptions, newton_solve
 from hbm.isolas.membership import (KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance,
                                      segment_length, segment_polyline_distance)
 from hbm.options import check_option
-from hbm.processes import (gathered, limit_blas_threads, on_root, process_context, reported_deaths, run_flagged,
-                           running, set_start_flags, start_flags)
+from hbm.processes import (gathered, keep_freed_memory, limit_blas_threads, on_root, process_context, reported_deaths,
+                           run_flagged, running, set_start_flags, start_flags)
 
 #: seed verdicts (IsolaSearch.seed_branch): not converged; on a known branch (the primary)
 NOT_CONVERGED = -1
@@ -301,9 +301,11 @@ _WORKER: dict = {}
 
 
 def _init_worker(factory, known, options, started):
-    """Pool initializer: one BLAS thread for the worker's lifetime, its corrector, and the
-    start flags of the pool's tasks (a dead worker's speeds are named)."""
+    """Pool initializer: one BLAS thread for the worker's lifetime, freed memory kept for
+    reuse (keep_freed_memory), its corrector, and the start flags of the pool's tasks (a dead
+    worker's speeds are named)."""
     limit_blas_threads()
+    keep_freed_memory()
     set_start_flags(started)
     _WORKER["corrector"] = _Corrector(factory, known, options)
 
@@ -803,11 +805,12 @@ _HALF_QUEUES: dict = {}
 
 
 def _init_branch_worker(queues: dict) -> None:
-    """Pool initializer of the branch phase: one BLAS thread, and the two queues the halves
-    of a branch talk through (a multiprocessing queue reaches a worker only as it starts).
-    A worker's exit does not wait for what it posted to be read (after a failure the other
-    half reads no more)."""
+    """Pool initializer of the branch phase: one BLAS thread, freed memory kept for reuse
+    (keep_freed_memory), and the two queues the halves of a branch talk through (a
+    multiprocessing queue reaches a worker only as it starts). A worker's exit does not wait
+    for what it posted to be read (after a failure the other half reads no more)."""
     limit_blas_threads()
+    keep_freed_memory()
     for q in queues.values():
         q.cancel_join_thread()
     _HALF_QUEUES.clear()
