@@ -254,13 +254,17 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     primary = _try_until_kept(ctx, rom, system, "primary", method, [nfrc], opts.primary_tries, update)
     # isola
     isolas = ctx.out / ISOLAS
-    groups = [g for g in isola_branches(read_branch_set(isolas, method), scene.hbm.subharmonic) if g]
+    branches = read_branch_set(isolas, method)
+    groups = [g for g in isola_branches(branches, scene.hbm.subharmonic) if g]
     if not isolas.is_file():
         isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
     elif not groups:
+        artefacts = [br.name for g in isola_branches(branches, scene.hbm.subharmonic, artefacts=True) for br in g]
+        left = (f" (left out, none of their points holds with twice the harmonics: {', '.join(artefacts)})"
+                if artefacts else "")
         isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind "
                                                          f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}, "
-                                                         f"nor an isola of its period-doubled search")
+                                                         f"nor an isola of its period-doubled search{left}")
     else:
         update(f"{tag}: a point on an isola")
 
@@ -363,14 +367,20 @@ class Candidate:
 DECISIVE_DECAY = 3.0
 
 
-def isola_branches(branches, nu: int) -> tuple[list, list]:
+def isola_branches(branches, nu: int, artefacts: bool = False) -> tuple[list, list]:
     """The branches of isolas.h5 (IsolaBranch list) the isola point is taken from, in two
     groups tried in turn: those of the scene's basis (subharmonic nu) of kind "isola", then
     "detached" (ISOLA_KINDS); then the closed isolas of the period-doubled search
     (subharmonic 2 nu), isolas still, whose orbits have twice the period. The search's other
-    doubled branches are born at period doublings: the period-doubling point's."""
-    own = [br for kind in ISOLA_KINDS for br in branches if br.subharmonic == nu and br.kind == kind]
-    return own, [br for br in branches if br.subharmonic == 2 * nu and br.kind == "isola"]
+    doubled branches are born at period doublings: the period-doubling point's. A branch none
+    of whose checked points holds with twice the harmonics (harmonic_verdict "not converged")
+    is left out: its orbits are the truncation's, which a march from them would only measure
+    (artefacts=True: those left out instead, in the same two groups)."""
+    def kept(br) -> bool:
+        return (br.harmonic_verdict == "not converged") == artefacts
+
+    own = [br for kind in ISOLA_KINDS for br in branches if br.subharmonic == nu and br.kind == kind and kept(br)]
+    return own, [br for br in branches if br.subharmonic == 2 * nu and br.kind == "isola" and kept(br)]
 
 
 def first_kept(groups: list, try_group) -> ValidationPoint:

@@ -150,11 +150,12 @@ def test_only_the_regularised_law_s_stable_points_are_judged_again_with_more_har
 def test_the_isola_point_falls_back_on_the_isolas_of_the_doubled_search():
     """Branches of isolas.h5 by kind and basis (Omega / nu), in two groups: the scene's
     isolas, then its detached branches; then the closed isolas of the period-doubled search
-    (basis Omega / 2 nu), never its branches born at doublings nor those of another basis."""
+    (basis Omega / 2 nu), never its branches born at doublings nor those of another basis,
+    nor a branch none of whose points holds with 2 N_h."""
     from pipelines.stages.validation import isola_branches
 
-    def br(name, kind, nu):
-        return SimpleNamespace(name=name, kind=kind, subharmonic=nu)
+    def br(name, kind, nu, verdict="converged"):
+        return SimpleNamespace(name=name, kind=kind, subharmonic=nu, harmonic_verdict=verdict)
 
     doubled = [br("d0", "bifurcated", 2), br("d1", "isola", 2), br("d2", "detached", 2), br("d3", "isola", 2),
                br("q0", "isola", 4)]
@@ -167,6 +168,12 @@ def test_the_isola_point_falls_back_on_the_isolas_of_the_doubled_search():
     # a scene of basis Omega / 2: its own isolas are the nu = 2 ones, its doubled search's nu = 4
     assert groups(doubled, 2) == [["d1", "d3", "d2"], ["q0"]]
     assert groups(doubled[:1] + doubled[4:], 2) == [[], ["q0"]]
+    # the truncation's artefacts are left out (and named on request); partly converged and
+    # unchecked branches (files written before the checks) stay
+    checked = [br("c0", "isola", 1, "not converged"), br("c1", "isola", 1, "partly converged"),
+               br("c2", "detached", 1, "unchecked"), br("c3", "isola", 2, "not converged"), br("c4", "isola", 2)]
+    assert groups(checked, 1) == [["c1", "c2"], ["c4"]]
+    assert [names(g) for g in isola_branches(checked, 1, artefacts=True)] == [["c0"], ["c3"]]
 
 
 def test_the_doubled_search_s_isolas_are_tried_when_time_integration_keeps_none_of_the_others():
