@@ -4,7 +4,7 @@ Usage:
   PYTHONPATH=. .venv/bin/python benchmarks/bench_isolas.py [--rom tests/data/rotor67_coarse_rom.h5]
       [--methods dlft rl] [--ti out/coarse/ti.h5] [--nh 40] [--n-omega 41] [--amplitudes ...]
       [--harmonics ...] [--primary-amplitudes [...]] [--n-modes 4] [--workers N] [--max-points 600]
-      [--save branches.npz]
+      [--save branches.npz] [--stage-describe]
 
 The scene defaults ([hbm] N_h = 40, N_t = 1024, Omega in [400, 2000] rad/s; [isolas]
 defaults) unless told otherwise. For each treatment: the primary NFRC (compute_nfrc, timed
@@ -14,6 +14,9 @@ the stage does; the modal seeds include those around the primary NFRC unless
 --ti names one. Prints per treatment: seeds, converged, distinct, branches per class with
 their Omega range, closed, dominant harmonic, and the search's CPU and wall time;
 --save writes the branches to an .npz (keys METHOD_K_omega, _x, _converged, _le_amplitude).
+--stage-describe: each branch described as the isolas stage does ([isolas] harmonic_checks
+points solved again with 2 N_h, modal and harmonic contributions), not only its LE
+amplitude and harmonics.
 """
 from __future__ import annotations
 
@@ -55,6 +58,7 @@ def main():
     ap.add_argument("--rl-branch-seeds", type=int, help="[isolas] rl_branch_seeds")
     ap.add_argument("--max-points", type=int)
     ap.add_argument("--save", help="write each treatment's branches (omega, x, converged, le_amplitude) to this .npz")
+    ap.add_argument("--stage-describe", action="store_true", help="describe the branches as the isolas stage does")
     a = ap.parse_args()
     rom = load_rom(a.rom)
     hbm = HbmOptions(n_harmonics=a.nh, n_time=max(1024, 4 * a.nh))
@@ -111,7 +115,8 @@ def main():
 
         t0 = time.perf_counter()
         r = search(problem, seeds, known, search_options(hbm, iso), seed_factory=problem.for_seeds(),
-                   describe=BranchDescriber(problem),
+                   describe=BranchDescriber(problem, checks=iso.harmonic_checks, content=True) if a.stage_describe
+                   else BranchDescriber(problem),
                    on_progress=on_progress, on_branch=on_branch)
         done[method] = r
         kinds = r.kind_counts()  # linked pieces of one branch counted once
