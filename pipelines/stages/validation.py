@@ -519,8 +519,9 @@ def searched_doubled_branches(branches, nu: int) -> list:
     its second search, seeded from the sweep's omega = Omega / 2 points), those that more sweep
     points landed on first. Why first: time integration from rest ended on them, so they hold
     the doubled orbits a blade is found on, where a doubling of the NFRC may lead into the
-    friction lock (coarse rotor 67 ROM)."""
-    doubled = [br for br in branches if br.subharmonic == 2 * nu]
+    friction lock (coarse rotor 67 ROM). A branch none of whose checked points holds with twice
+    the harmonics is left out (isola_branches)."""
+    doubled = [br for br in branches if br.subharmonic == 2 * nu and br.harmonic_verdict != "not converged"]
     return sorted(doubled, key=lambda br: -len(br.seeds))  # stable: file order among equals
 
 

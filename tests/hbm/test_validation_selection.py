@@ -682,6 +682,11 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
         validation=ValidationOptions(n_candidates=8, pd_tries=3, dt_refinement=1),
         hbm=HbmOptions(omega_min=3.4, omega_max=4.6), contact=SimpleNamespace(mu=0.0), casing=None))
     assert [b.index for b in stage.searched_doubled_branches(found, 1)] == [2, 1]
+    # a doubled branch with the most seeds, none of whose checked points holds with 2 N_h: left out
+    artefact = replace(branch(3, 2, [7, 8, 9], [4.0] * 3), harmonic_checks={"passed": np.array([False, False])})
+    assert [b.index for b in stage.searched_doubled_branches(found + [artefact], 1)] == [2, 1]
+    assert [b.index for b in stage.searched_doubled_branches(
+        found + [replace(artefact, harmonic_checks={"passed": np.array([False, True])})], 1)] == [3, 2, 1]
     p, pd_branch = stage._period_doubling(ctx, None, None, "rl", res, br, {"le_amplitude": amp}, nfrc,
                                           lambda text: None)
     assert [w for w, _ in marched] == [marched[0][0], "isolas.h5 rl/branches/002"]
