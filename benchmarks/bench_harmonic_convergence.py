@@ -5,7 +5,7 @@ samples) by damped Newton at the same Omega from its own harmonics, padded with 
 Hill's method at both resolutions.
 
     PYTHONPATH=. .venv/bin/python benchmarks/bench_harmonic_convergence.py OUT [--scene scenes/rotor67.toml]
-        [--factor 2] [--methods dlft rl] [--branch rl/000 --every 5]
+        [--factor 2] [--methods dlft rl] [--branch rl/000 --every 5 [--no-lanczos]]
 
 Needs OUT/rom.h5, OUT/validation.h5 and the branch files its points come from (nfrc_*.h5,
 isolas.h5; the period-doubled branch is validation.h5's own), e.g. from `bladerub run SCENE
@@ -17,6 +17,9 @@ time of that check. With --branch METHOD/NAME, every --every-th
 converged point of that branch of OUT/isolas.h5 instead (--branch nfrc/METHOD: of the
 primary NFRC OUT/nfrc_METHOD.h5), and a summary: how many have no
 solution next to them with factor x N_h, moved by more than 25 %, or change stability verdict.
+With --no-lanczos (an RL branch), each point is first solved again at N_h without the Lanczos
+filter, whose factors change with N_h, and that orbit is checked, also without it; the line
+adds its distance to the filtered orbit ("none": no unfiltered orbit next to it).
 """
 from __future__ import annotations
 
@@ -70,6 +73,22 @@ def refine(coarse, fine, u, omega):
     return mu0, True, check.moved, mu1, time.process_time() - c0
 
 
+def unfilter(filtered, unfiltered, u, omega):
+    """(u', how far it lies from u): the solution of the RL law without the Lanczos filter at
+    the same N_h and omega, by damped Newton from u (the filtered one), and the relative
+    2-norm of the difference of their harmonics; (None, "none") when Newton finds none."""
+    from hbm.continuation.newton import NewtonOptions
+    from hbm.harmonic.solver import HbmSolver
+    from hbm.harmonic.start import damped_newton
+
+    tol = filtered.options.tolerance
+    sol = damped_newton(unfiltered, u, omega, NewtonOptions(tol_residual=tol), HbmSolver(atol=0.1 * tol))
+    if not sol.converged:
+        return None, "none"
+    a, b = filtered.to_coefficients(u), unfiltered.to_coefficients(sol.x)
+    return sol.x, float(np.linalg.norm(b - a) / np.linalg.norm(a))
+
+
 def branch_points(args, scene, rom) -> None:
     """--branch: every --every-th converged point of one branch of isolas.h5 (METHOD/NAME) or
     of a primary NFRC (nfrc/METHOD: OUT/nfrc_METHOD.h5)."""
@@ -87,23 +106,40 @@ def branch_points(args, scene, rom) -> None:
         br = next(b for b in read_branch_set(args.out / "isolas.h5", method) if b.name == name)
         subharmonic = br.subharmonic
     nh = (br.x.shape[1] // (3 * rom.n_boundary) - 1) // 2
-    coarse = build_residual(rom, scene.casing, scene.contact,
-                            replace(scene.hbm, subharmonic=subharmonic, n_harmonics=nh), method=method)
+    hbm = replace(scene.hbm, subharmonic=subharmonic, n_harmonics=nh)
+    coarse = build_residual(rom, scene.casing, scene.contact, hbm, method=method)
+    if args.no_lanczos:  # the same law without the filter: each point is first solved again at N_h without it
+        if method != "rl":
+            sys.exit(f"--no-lanczos: only RL has the Lanczos filter, not {method}")
+        filtered = coarse
+        coarse = build_residual(rom, scene.casing, replace(scene.contact, lanczos=False), hbm, method=method)
     fine = coarse.refined(args.factor)
-    rows = []
-    print(f"{'point':>5} {'Omega':>8} {'|mu| N_h':>9} {'exists':>7} {'moved':>7} {'|mu|':>7} {'CPU s':>6}")
+    rows, n_none = [], 0
+    unfiltered = f" {'unfiltered':>10}" if args.no_lanczos else ""
+    print(f"{'point':>5} {'Omega':>8}{unfiltered} {'|mu| N_h':>9} {'exists':>7} {'moved':>7} {'|mu|':>7} {'CPU s':>6}")
     for i in np.flatnonzero(br.converged)[:: args.every]:
-        w = float(br.omega[i])
-        mu0, ok, moved, mu1, cpu = refine(coarse, fine, br.x[i], w)
+        w, u = float(br.omega[i]), br.x[i]
+        if args.no_lanczos:
+            u, off = unfilter(filtered, coarse, u, w)
+            if u is None:
+                n_none += 1
+                print(f"{i:5d} {w:8.1f} {off:>10}", flush=True)
+                continue
+            unfiltered = f" {off:10.3f}"
+        mu0, ok, moved, mu1, cpu = refine(coarse, fine, u, w)
         rows.append((mu0, ok, moved, mu1, cpu))
-        print(f"{i:5d} {w:8.1f} {mu0:9.3f} {'yes' if ok else 'no':>7} {moved:7.3f} {mu1:7.3f} {cpu:6.1f}", flush=True)
+        print(f"{i:5d} {w:8.1f}{unfiltered} {mu0:9.3f} {'yes' if ok else 'no':>7} {moved:7.3f} {mu1:7.3f} {cpu:6.1f}",
+              flush=True)
+    if not rows:
+        sys.exit(f"{args.branch}: no point to check ({n_none} without an unfiltered orbit next to them)")
     mu0, ok, moved, mu1, cpu = (np.array(c) for c in zip(*rows))
     same = ok & (moved <= HARMONIC_MOVE_TOL)
     flips = same & ((mu0 < 1.0) != (mu1 < 1.0))
     print(f"{args.branch}: {len(rows)} points checked with N_h = {fine.basis.n_harmonics}: {int((~ok).sum())} without a "
           f"solution next to them, {int((ok & ~same).sum())} moved by more than {HARMONIC_MOVE_TOL:.0%}; of the "
           f"{int(same.sum())} others, {int(flips.sum())} change verdict ({int((flips & (mu0 < 1)).sum())} stable -> "
-          f"unstable); stable at N_h: {int((mu0 < 1).sum())}; median CPU {np.median(cpu):.1f} s")
+          f"unstable); stable at N_h: {int((mu0 < 1).sum())}; median CPU {np.median(cpu):.1f} s"
+          + (f"; {n_none} points without an unfiltered orbit next to them, left out" if args.no_lanczos else ""))
 
 
 def main() -> None:
@@ -121,6 +157,9 @@ def main() -> None:
     ap.add_argument("--branch", help="METHOD/NAME of a branch of OUT/isolas.h5, e.g. rl/000, or nfrc/METHOD "
                                      "for OUT/nfrc_METHOD.h5")
     ap.add_argument("--every", type=int, default=5)
+    ap.add_argument("--no-lanczos", action="store_true",
+                    help="with --branch of RL: solve each point again without the Lanczos filter at N_h, then check "
+                         "that unfiltered solution (does the filter, which changes with N_h, move the branch?)")
     args = ap.parse_args()
     scene = load_scene(args.scene)
     rom = read_rom(args.out)
