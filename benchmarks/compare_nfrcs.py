@@ -14,19 +14,22 @@ reference, the mean and 90th percentile of its size, and the largest.
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 
 import numpy as np
 
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
 
 def crossings(omega: np.ndarray, amplitude: np.ndarray, w: float) -> list[float]:
-    """Amplitudes where the polyline (omega (m,) rad/s, amplitude (m,)) crosses omega = w."""
-    out = []
-    for i in np.flatnonzero((omega[:-1] - w) * (omega[1:] - w) <= 0.0):
-        if omega[i + 1] != omega[i]:
-            t = (w - omega[i]) / (omega[i + 1] - omega[i])
-            out.append(float(amplitude[i] + t * (amplitude[i + 1] - amplitude[i])))
-    return out
+    """Amplitudes where the polyline (omega (m,) rad/s, amplitude (m,)) reaches omega = w: its
+    points there and its chords across w (the isola search's own reading of a branch at a
+    speed, hbm.isolas.membership.points_at)."""
+    from hbm.isolas.membership import KnownBranch, points_at
+
+    return [float(v) for v in points_at(KnownBranch.of(omega, np.asarray(amplitude)[:, None], ""), w)[:, 0]]
 
 
 def read_curve(path: Path) -> tuple[np.ndarray, np.ndarray]:
