@@ -8,6 +8,8 @@ same numbering, for the distributed factorisation.
 """
 from __future__ import annotations
 
+import logging
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -176,7 +178,35 @@ def _restrict(A: sp.csr_matrix, order: np.ndarray) -> sp.csr_matrix:
     return out
 
 
+def _warnings_only(record: logging.LogRecord) -> bool:
+    return record.levelno >= logging.WARNING
+
+
+@contextmanager
+def _quiet_compiler_log():
+    """Keep the compiler's command lines of a first run off the terminal.
+
+    ffcx calls logging.basicConfig() when imported (a handler on the root logger that
+    prints whatever reaches it), and compiles each new element and form with cffi, whose
+    build (setuptools' distutils) raises the root logger's level to INFO and logs every
+    compiler call there: nine lines in the middle of the fem stage's report on a first run
+    (ffcx caches what it compiled). A filter on the root logger for the compile's duration
+    drops what is logged to it below WARNING; warnings, and other loggers, go through.
+    """
+    root = logging.getLogger()
+    root.addFilter(_warnings_only)
+    try:
+        yield
+    finally:
+        root.removeFilter(_warnings_only)
+
+
 def _dolfinx_problem(nodes: np.ndarray, cells: np.ndarray, material: Material, comm):
+    with _quiet_compiler_log():
+        return _compiled_problem(nodes, cells, material, comm)
+
+
+def _compiled_problem(nodes: np.ndarray, cells: np.ndarray, material: Material, comm):
     """dolfinx mesh on `comm` (rank 0 gives all cells, the partitioner distributes them),
     the compiled K and M forms, and (node (k,), block (k,)): the dolfinx global block dof
     of the mesh nodes whose dof this rank owns (repeated once per cell; every node is
