@@ -8,7 +8,9 @@ joined to the primary from one apart), and the peak.
         [--filters all,none,from:24,below:32,band:24-32] [--omega-min 1000] [--at 1130,1200]
 
 A filter is `all` (the scene's RL-HBM), `none`, `from:K` (harmonics k >= K), `below:K`
-(k < K) or `band:K1-K2` (K1 <= k < K2). One BLAS thread, one NFRC after the other.
+(k < K), `band:K1-K2` (K1 <= k < K2), or `strength:S` (every harmonic, with the factors
+1 - S (1 - sigma_k): S = 0 is `none`, S = 1 `all`). One BLAS thread, one NFRC after the
+other.
 """
 from __future__ import annotations
 
@@ -27,22 +29,27 @@ sys.path.insert(0, str(ROOT / "benchmarks"))
 from compare_nfrcs import crossings  # noqa: E402
 
 
-def filtered_orders(spec: str, orders: np.ndarray) -> np.ndarray:
-    """(2 N_h + 1,) bool: the coefficient rows (harmonic orders `orders`) the filter acts on."""
+def filter_factors(spec: str, orders: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """(2 N_h + 1,) the factors on the coefficient rows (harmonic orders `orders`) of the
+    filter `spec`, from the scene's filter factors `sigma` (2 N_h + 1,)."""
     k = np.abs(orders)
     kind, _, arg = spec.partition(":")
+    if kind == "strength":
+        return 1.0 - float(arg) * (1.0 - sigma)
     if kind == "all":
-        return np.ones(k.shape, bool)
-    if kind == "none":
-        return np.zeros(k.shape, bool)
-    if kind == "from":
-        return k >= int(arg)
-    if kind == "below":
-        return k < int(arg)
-    if kind == "band":
+        on = np.ones(k.shape, bool)
+    elif kind == "none":
+        on = np.zeros(k.shape, bool)
+    elif kind == "from":
+        on = k >= int(arg)
+    elif kind == "below":
+        on = k < int(arg)
+    elif kind == "band":
         lo, hi = (int(v) for v in arg.split("-"))
-        return (k >= lo) & (k < hi)
-    raise SystemExit(f"unknown filter {spec!r}: all, none, from:K, below:K or band:K1-K2")
+        on = (k >= lo) & (k < hi)
+    else:
+        raise SystemExit(f"unknown filter {spec!r}: all, none, from:K, below:K, band:K1-K2 or strength:S")
+    return np.where(on, sigma, 1.0)
 
 
 def main() -> None:
@@ -68,8 +75,8 @@ def main() -> None:
     print(f"RL NFRC of {a.out}, N_h = {hbm.n_harmonics}, {hbm.omega_min:g}-{hbm.omega_max:g} rad/s")
     for spec in a.filters.split(","):
         res = build_residual(rom, scene.casing, contact, hbm, method="rl")
-        on = filtered_orders(spec, res.basis.orders)
-        res.sigma = np.where(on, res.sigma, 1.0)  # the residual and its Jacobian read sigma per call
+        # the residual and its Jacobian read sigma per call
+        res.sigma = filter_factors(spec, res.basis.orders, res.sigma)
         c0 = time.process_time()
         with threadpool_limits(limits=1, user_api="blas"):
             r = compute_nfrc(rom, scene.casing, contact, hbm, "rl", residual=res)
