@@ -10,6 +10,7 @@ import argparse
 import importlib.util
 import time
 
+import hbm  # noqa: F401  (before numpy: OpenBLAS's kernels for the host, hbm.openblas)
 import numpy as np
 
 from hbm.harmonic.content import peak_magnitudes

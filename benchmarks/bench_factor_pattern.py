@@ -31,6 +31,7 @@ import sys
 import time
 from pathlib import Path
 
+import hbm  # noqa: F401  (before numpy: OpenBLAS's kernels for the host, hbm.openblas)
 import numpy as np
 import scipy.sparse as sp
 

@@ -36,6 +36,7 @@ from pathlib import Path
 
 from dataclasses import replace
 
+import hbm  # noqa: F401  (before numpy: OpenBLAS's kernels for the host, hbm.openblas)
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -25,6 +25,7 @@ import sys
 import time
 from pathlib import Path
 
+import hbm  # noqa: F401  (before numpy: OpenBLAS's kernels for the host, hbm.openblas)
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]

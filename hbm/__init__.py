@@ -20,8 +20,13 @@ the HBM Jacobian is never factorised densely (hbm.harmonic.jacobian, preconditio
 the corrector's linear solves are inexact Newton steps (hbm.harmonic.solver); the casing law
 exists once for both solvers (hbm.contact.casing); numba's code is tuned for Zen 2 on a
 host LLVM 14 calls Zen 3, whose model unrolls the time-integration kernel into a slower one
-(hbm.jit, done here so that it precedes any compile of a bladerub run).
+(hbm.jit, done here so that it precedes any compile of a bladerub run); OpenBLAS runs its
+AVX2 or AVX-512 kernels on a CPU its tables do not know, where it would run its oldest ones
+(hbm.openblas, done here so that it precedes numpy in a process that imports hbm first: the
+bladerub command and the tests do).
 """
 from hbm.jit import retune_numba
+from hbm.openblas import choose_openblas_core
 
 retune_numba()
+choose_openblas_core()

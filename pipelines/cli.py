@@ -22,6 +22,9 @@ if "--multiprocessing-fork" in sys.orig_argv:  # (spawn restores sys.argv to the
     # it without a traceback of its own, from here on; the run reports for it.
     signal.signal(signal.SIGINT, signal.SIG_DFL)
 
+# numba's CPU model and OpenBLAS's kernels are chosen for the host when hbm is imported, and
+# OpenBLAS's only before numpy is first imported (hbm.openblas): hence here, before any of it
+import hbm  # noqa: E402,F401
 import argparse  # noqa: E402
 import multiprocessing  # noqa: E402
 import os  # noqa: E402

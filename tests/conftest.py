@@ -1,6 +1,7 @@
 import sys
 from pathlib import Path
 
+import hbm  # noqa: F401  (before numpy: OpenBLAS's kernels for the host, hbm.openblas)
 import numpy  # noqa: F401  (loads BLAS before the first test, for _blas_threads_kept)
 import pytest
 from threadpoolctl import threadpool_info
