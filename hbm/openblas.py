@@ -3,9 +3,9 @@
 OpenBLAS (Debian's 0.3.21, built with every x86-64 kernel set) picks its kernels from the
 CPU's family and model, and a CPU newer than its tables gets the oldest x86-64 set,
 Prescott (SSE3). On an Intel Xeon of the Emerald Rapids generation (model 207), which
-0.3.21 does not know, the HBM's dense solves then take 2 to 2.4 times as long as with the
-AVX-512 kernels (the coarse DLFT NFRC: 72.8 s against 29.9 to 33.0 s; benchmarks/README.md,
-*OpenBLAS on a CPU it does not know*). OPENBLAS_CORETYPE names the set to use instead, but
+0.3.21 does not know, the coarse DLFT NFRC then takes 2.2 to 2.4 times as long as with the
+AVX-512 or AVX2 kernels (72.8 s against 29.9 to 33.0 s; benchmarks/README.md, *OpenBLAS on a
+CPU it does not know*). OPENBLAS_CORETYPE names the set to use instead, but
 OpenBLAS reads it once, when the library is loaded: it must be in the environment before the
 process first imports numpy.
 
