@@ -201,12 +201,8 @@ def _quiet_compiler_log():
         root.removeFilter(_warnings_only)
 
 
+@_quiet_compiler_log()
 def _dolfinx_problem(nodes: np.ndarray, cells: np.ndarray, material: Material, comm):
-    with _quiet_compiler_log():
-        return _compiled_problem(nodes, cells, material, comm)
-
-
-def _compiled_problem(nodes: np.ndarray, cells: np.ndarray, material: Material, comm):
     """dolfinx mesh on `comm` (rank 0 gives all cells, the partitioner distributes them),
     the compiled K and M forms, and (node (k,), block (k,)): the dolfinx global block dof
     of the mesh nodes whose dof this rank owns (repeated once per cell; every node is
