@@ -30,7 +30,7 @@ def _kernels(first: str, **env) -> list[str]:
     assert run.returncode == 0, run.stderr
     out = run.stdout.split()
     if len(out) < 2:
-        pytest.skip("numpy's BLAS is not OpenBLAS here")
+        pytest.skip("numpy's BLAS is not OpenBLAS here (MKL, or the reference BLAS): hbm.openblas has no kernels to choose")
     return out
 
 
