@@ -1,10 +1,12 @@
 """Time-integration speed and accuracy (prints markdown tables).
 
     .venv/bin/python benchmarks/bench_ti.py [--rom ROM.h5|standin] [--repeat 3] [--full-sweep]
-        [--schemes carpenter,massless] [--massless-dt 1e-6,2e-6] [--mu 0.1,0.15] [--no-early-stop]
+        [--schemes exponential,carpenter,massless] [--exponential-dt 1e-6,2e-6] [--massless-dt 1e-6,2e-6]
+        [--mu 0.1,0.15] [--no-early-stop] [--sweep SCHEME:DT] [--sweep-against SCHEME:DT]
 
 1. Time per Omega point on one core, per scheme: from rest until settled or 200 revolutions
-   ([ti] defaults; --no-early-stop: always 200), Carpenter at dt = 1e-7 s, massless at
+   ([ti] defaults; --no-early-stop: always 200), Carpenter at dt = 1e-7 s, the exponential
+   scheme at each of --exponential-dt, massless at
    each of --massless-dt (median of --repeat runs, CPU time of this process, so that other
    users' load counts less); ns per step, share of steps in contact, revolutions marched,
    the class and its non-repeat (the Poincare sections' mismatch at the period found,
@@ -14,15 +16,20 @@
    table,law: each point with the casing profile tabulated over a casing period (the
    default, hbm.ti.march.casing_profile) and with eq. (28) evaluated at every step,
    alternated run by run in this process.
-2. Speed against error: LE amplitude at a few Omega for dt in {4e-7, 2e-7, 1e-7, 5e-8}; the
-   error is taken against dt = 5e-8 (responses can be chaotic: a difference there is a
-   different trajectory, not a discretisation error).
+2. Speed against error: LE amplitude at a few Omega, Carpenter for dt in {4e-7, 2e-7, 1e-7,
+   5e-8, 2.5e-8}, the exponential scheme for dt in {1e-6, 5e-7, 2.5e-7, 1.25e-7} (with
+   --schemes ...exponential...); the error is taken against Carpenter's Richardson
+   extrapolation to dt = 0 from 5e-8 and 2.5e-8, 2 A(2.5e-8) - A(5e-8) (its error is O(dt)),
+   where both have the class of 2.5e-8, else against 2.5e-8 (responses can be chaotic: a
+   difference there is a different trajectory, not a discretisation error).
 3. --full-sweep: the whole 161-point sweep with all cores (wall time; per-speed wall time in
    its worker, which is its CPU time when no more processes run than cores); per class, the
    speeds that ran every revolution (no early stop can shorten those) and their CPU share.
    --compare-full: then the same sweep again with stop_when_settled = false (always 200
    revolutions): per class, the revolutions the early stop needed, whether every point kept
-   the class of the full run, and the largest LE amplitude difference.
+   the class of the full run, and the largest LE amplitude difference. --sweep SCHEME:DT:
+   the sweep's scheme and step (default: [ti]'s). --sweep-against SCHEME:DT: then the same
+   sweep with that scheme and step, compared the same way (per class of the second sweep).
 """
 from __future__ import annotations
 
@@ -63,7 +70,11 @@ def main():
     ap.add_argument("--omegas", default="400,1000,2000")
     ap.add_argument("--full-sweep", action="store_true")
     ap.add_argument("--skip-dt", action="store_true")
-    ap.add_argument("--schemes", default="carpenter", help="comma-separated, among carpenter, massless")
+    ap.add_argument("--schemes", default="carpenter", help="comma-separated, among exponential, carpenter, massless")
+    ap.add_argument("--exponential-dt", default="1e-6", help="time steps of the exponential scheme, s, "
+                                                             "comma-separated")
+    ap.add_argument("--sweep", default="", help="--full-sweep with this SCHEME:DT (default: [ti]'s)")
+    ap.add_argument("--sweep-against", default="", help="--full-sweep: then with this SCHEME:DT, and compare")
     ap.add_argument("--massless-dt", default="1e-6", help="time steps of the massless scheme, s, comma-separated")
     ap.add_argument("--mu", default="", help="friction coefficients of the per-speed table, comma-separated "
                                              "(default: [contact] mu)")
@@ -90,7 +101,8 @@ def main():
           "| revolutions | LE amplitude (m) | class | non-repeat |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     mus = [float(m) for m in a.mu.split(",")] if a.mu else [con.mu]
-    runs = [(s, opts.dt) for s in schemes if s != "massless"]
+    runs = [("carpenter", 1e-7)] if "carpenter" in schemes else []
+    runs += [("exponential", float(dt)) for dt in a.exponential_dt.split(",") if "exponential" in schemes]
     runs += [("massless", float(dt)) for dt in a.massless_dt.split(",") if "massless" in schemes]
     revs = [int(n) for n in a.revolutions.split(",")] if a.revolutions else [None]
     for mu, w, (scheme, dt), n in ((m, w, r, n) for m in mus for w in omegas for r in runs for n in revs):
@@ -114,12 +126,14 @@ def main():
                   f"{r.period_class} | {r.mismatch:.1e} |", flush=True)
     print()
     if not a.skip_dt:
-        # error against Carpenter at dt = 5e-8 for every scheme (the massless one is another model)
-        runs = [("carpenter", dt) for dt in (4e-7, 2e-7, 1e-7, 5e-8)]
+        # error against Carpenter extrapolated to dt = 0 for every scheme (the massless one is another model)
+        runs = [("carpenter", dt) for dt in (4e-7, 2e-7, 1e-7, 5e-8, 2.5e-8)]
+        if "exponential" in schemes:
+            runs += [("exponential", dt) for dt in (1e-6, 5e-7, 2.5e-7, 1.25e-7)]
         if "massless" in schemes:
             runs += [("massless", dt) for dt in (5e-6, 2e-6, 1e-6, 1e-7)]
         print("| Omega (rad/s) | scheme | dt (s) | CPU time (s) | revolutions | LE amplitude (m) "
-              "| vs Carpenter dt = 5e-8 | class |")
+              "| vs the reference | class |")
         print("|---|---|---|---|---|---|---|---|")
         for w in omegas:
             res = {}
@@ -127,17 +141,23 @@ def main():
                 t0 = time.process_time()
                 r = simulate(system, cas, con.mu, w, replace(opts, scheme=scheme, dt=dt))
                 res[scheme, dt] = (time.process_time() - t0, r)
-            ref = res["carpenter", 5e-8][1].amplitude
+            fine, half = res["carpenter", 2.5e-8][1], res["carpenter", 5e-8][1]
+            same = fine.period_class == half.period_class
+            ref = 2.0 * fine.amplitude - half.amplitude if same else fine.amplitude
+            print(f"| {w:.0f} | reference: {'Carpenter extrapolated to dt = 0' if same else 'Carpenter 2.5e-8'} "
+                  f"| | | | {ref:.5e} | | {fine.period_class} |")
             for scheme, dt in runs:
                 t, r = res[scheme, dt]
-                print(f"| {w:.0f} | {scheme} | {dt:.0e} | {t:.2f} | {r.revolutions} | {r.amplitude:.5e} | "
+                print(f"| {w:.0f} | {scheme} | {dt:.1e} | {t:.2f} | {r.revolutions} | {r.amplitude:.5e} | "
                       f"{abs(r.amplitude - ref) / ref:.2e} | {r.period_class} |", flush=True)
     if a.full_sweep:
         t0 = time.perf_counter()
         grid = np.linspace(opts.omega_min, opts.omega_max, a.sweep_points or opts.n_omega)
-        s = sweep(system, cas, con, opts, omegas=grid)
+        sopts = _scheme_dt(opts, a.sweep)
+        s = sweep(system, cas, con, sopts, omegas=grid)
         wall = time.perf_counter() - t0
-        print(f"\nFull sweep: {len(s.omega)} points in {wall:.0f} s wall ({wall / 60:.1f} min), "
+        print(f"\nFull sweep ({sopts.scheme}, dt = {sopts.dt:g} s): {len(s.omega)} points in {wall:.0f} s wall "
+              f"({wall / 60:.1f} min), "
               f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
               f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
               f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s")
@@ -149,6 +169,45 @@ def main():
             print(f"Without the early stop: {wall_f:.0f} s wall, per-speed sum {f.cpu_time.sum():.0f} s; "
                   f"ratio {wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
             _compare(s, f)
+        if a.sweep_against:
+            t0 = time.perf_counter()
+            oopts = _scheme_dt(replace(opts, scheme="carpenter", dt=1e-7), a.sweep_against)
+            f = sweep(system, cas, con, oopts, omegas=grid)
+            wall_f = time.perf_counter() - t0
+            print(f"Against {oopts.scheme}, dt = {oopts.dt:g} s: {wall_f:.0f} s wall, per-speed sum "
+                  f"{f.cpu_time.sum():.0f} s, classes {np.bincount(f.period_class, minlength=5).tolist()}; ratio "
+                  f"{wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
+            _compare_schemes(s, f)
+
+
+def _compare_schemes(new, ref):
+    """Per class of the reference sweep: speeds, those the first sweep puts in the same class,
+    and over those the LE amplitude difference (median and largest) and the revolutions."""
+    from hbm.ti.periodicity import PeriodClass
+
+    print("| class (second sweep) | speeds | same class | LE amplitude difference, same class: median, max "
+          "| revolutions, median: first, second |")
+    print("|---|---|---|---|---|")
+    for code in PeriodClass:
+        sel = ref.period_class == code
+        if not sel.any():
+            continue
+        same = sel & (new.period_class == code)
+        rel = np.abs(new.amplitude[same] / ref.amplitude[same] - 1.0)
+        diff = f"{np.median(rel):.1e}, {rel.max():.1e}" if same.any() else "-"
+        print(f"| {code.label()} | {int(sel.sum())} | {int(same.sum())} | {diff} | "
+              f"{np.median(new.revolutions[sel]):.0f}, {np.median(ref.revolutions[sel]):.0f} |")
+    moved = np.flatnonzero(new.period_class != ref.period_class)
+    print("\nclass changed at " + (", ".join(f"{new.omega[i]:.0f} ({ref.period_class[i]} -> "
+                                              f"{new.period_class[i]})" for i in moved) or "no speed"))
+
+
+def _scheme_dt(opts, text: str):
+    """opts with the scheme and time step of "SCHEME:DT" ("" keeps them)."""
+    if not text:
+        return opts
+    scheme, dt = text.split(":")
+    return replace(opts, scheme=scheme, dt=float(dt))
 
 
 @contextmanager

@@ -232,7 +232,7 @@ class ValidationOptions:
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange
 #: multipliers on the full ROM, or the massless-boundary model.
-TI_SCHEMES = ("carpenter", "massless")
+TI_SCHEMES = ("carpenter", "exponential", "massless")
 
 
 @dataclass(frozen=True)
@@ -240,7 +240,8 @@ class TimeIntegrationOptions:
     """Time-integration reference.
 
     scheme: "carpenter" (every ROM mode integrated, forward-increment Lagrange multipliers,
-    the reference) or "massless" (modes above massless_cutoff replaced by their static
+    the reference), "exponential" (the same, each mode's free motion over a step exact: no
+    stability limit) or "massless" (modes above massless_cutoff replaced by their static
     response: a massless boundary, a static contact projection and a step set by the kept
     modes; a different model, see hbm.ti.march.massless_system). Default "carpenter": on the
     rotor 67 ROMs with friction (mu = 0.15, at the contact set's friction-lock limit) the

@@ -1,12 +1,16 @@
-"""Explicit central-difference time integration of the ROM with exact unilateral contact.
+"""Explicit time integration of the ROM with exact unilateral contact.
 
-Two contact schemes share one compiled loop (hbm.ti.kernel):
+Three schemes share one compiled loop (hbm.ti.kernel):
 
-- "carpenter" (the reference): the forward-increment Lagrange multipliers of Carpenter,
-  Taylor and Katona (1991). The multipliers lam_n at t_n are chosen so that the radial
-  constraint r_j <= d_j(Omega t_{n+1}) holds exactly at t_{n+1}; every ROM mode is
-  integrated, so the step is bounded by the highest ROM frequency (the boundary dof's
-  constraint modes) and an impact stops the boundary's mass in one step (restitution 0).
+- "carpenter" (the reference): central differences and the forward-increment Lagrange
+  multipliers of Carpenter, Taylor and Katona (1991). The multipliers lam_n at t_n are
+  chosen so that the radial constraint r_j <= d_j(Omega t_{n+1}) holds exactly at t_{n+1};
+  every ROM mode is integrated, so the step is bounded by the highest ROM frequency (the
+  boundary dof's constraint modes) and an impact stops the boundary's mass in one step
+  (restitution 0).
+- "exponential": the same multipliers, with each mode's free motion over a step exact
+  (recurrence): no stability limit, and no period error on the modes a step resolves
+  coarsely. The step is then set by accuracy alone (benchmarks/README.md, *Time integration*).
 - "massless": a massless boundary in the spirit of Monjaraz Tec, Gross and Krack (Computers &
   Structures 260, 2022, 106698; MacNeal's reduction, which gives a singular mass matrix).
   Here the parent model is the ROM itself: its eigenmodes up to a cut-off are integrated,
@@ -17,7 +21,10 @@ Two contact schemes share one compiled loop (hbm.ti.kernel):
 
 Sliding Coulomb friction (eqs. 29-30 of the reference paper) acts on the (theta, z) dof of
 contacting nodes with magnitude mu lam_j, opposed to the relative velocity
-(v_theta + s rho_j Omega, v_z), s = +1 or -1 the sense of rotation (ModalSystem.rotation).
+(v_theta + s rho_j Omega, v_z), s = +1 or -1 the sense of rotation (ModalSystem.rotation),
+taken at the step's centred velocity after its own contact forces (a fixed point per step,
+hbm.ti.kernel.run_steps): from the prediction's velocity alone the direction misses the
+step's impulses, an O(dt) error that dominated the amplitude's dt-dependence on rotor 67.
 Node j meets the casing at the absolute angle s Omega t + theta_j; eq. (28)'s casing is even
 (its lobe centres pi / n_l + k 2 pi / n_l are symmetric about 0), so d(s tau + theta_j) =
 d(tau + s theta_j), the angle the kernel evaluates (as hbm.harmonic.residual). Convention (as hbm.contact): lam >= 0 is the compressive normal
@@ -178,13 +185,14 @@ def massless_system(system: ModalSystem, cutoff: float) -> ModalSystem:
 
 
 def scheme_system(system: ModalSystem, scheme: str, cutoff: float) -> ModalSystem:
-    """The ModalSystem a scheme integrates: `system` itself ("carpenter") or its massless model."""
+    """The ModalSystem a scheme integrates: `system` itself ("carpenter", "exponential") or its
+    massless model."""
     if scheme not in SCHEMES:
         raise ValueError(f"unknown time-integration scheme '{scheme}'; known: {', '.join(SCHEMES)}")
     if scheme == "massless":
         return system if system.is_massless else massless_system(system, cutoff)
     if system.is_massless:
-        raise ValueError("the Carpenter scheme needs the full modal system, got a massless one")
+        raise ValueError(f"the {scheme} scheme needs the full modal system, got a massless one")
     return system
 
 
@@ -204,31 +212,56 @@ def _static_blocks(system: ModalSystem):
             np.ascontiguousarray(rb[:, 2::3]))
 
 
-def _step_factors(system: ModalSystem, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """(a, s), (n_m,) each: a = xi w dt of each mode's centred damping, and s = dt^2 / (1 + a),
-    s^2/kg: the modal displacement one step of a unit modal impulse-force makes."""
-    a = 0.5 * np.diag(system.damping) * dt
-    return a, dt * dt / (1.0 + a)
+def recurrence(system: ModalSystem, dt: float, exponential: bool = False):
+    """(c1, c2, s), (n_m,) each: the two-step modal recurrence q_{m+1} = c1 q_m - c2 q_{m-1}
+    + s f_m of each mode (w_k, modal damping 2 xi_k w_k), s^2/kg for s.
+
+    Central differences (Carpenter's scheme, the massless one): c1 = (2 - h^2) / (1 + a),
+    c2 = (1 - a) / (1 + a), s = dt^2 / (1 + a), h = w dt, a = xi w dt (centred damping);
+    stable for h < 2. Exponential: the free motion of each mode over a step, exactly,
+    c1 = 2 exp(-xi w dt) cos(w_d dt), c2 = exp(-2 xi w dt), w_d = w sqrt(1 - xi^2) (cosh past
+    critical damping), stable at any dt; s = (1 - c1 + c2) / w^2 makes a constant force
+    exact (the static response is a fixed point) and is >= 0, so the contact compliance
+    Phi_r S Phi^T stays positive. Both tend to dt^2 for w dt -> 0. The exponential
+    recurrence needs modal damping (ValueError otherwise): a coupled C has no per-mode
+    propagator."""
+    w = system.omega
+    sig = 0.5 * np.diag(system.damping)  # xi w
+    if not exponential:
+        a = sig * dt
+        return (2.0 - (w * dt) ** 2) / (1.0 + a), (1.0 - a) / (1.0 + a), dt * dt / (1.0 + a)
+    if not system.is_modally_damped:
+        raise ValueError("the exponential scheme integrates each mode on its own and needs modal damping "
+                         "(phi^T C phi diagonal); this system's damping couples its modes: use scheme = carpenter")
+    wd = np.sqrt((w * w - sig * sig).astype(complex))  # imaginary past critical damping: cos -> cosh
+    decay = np.exp(-sig * dt)
+    c1 = (2.0 * decay * np.cos(wd * dt)).real
+    # 1 - c1 + c2 without its cancellation at small w dt: (1 - e)^2 + 4 e sin^2(w_d dt / 2)
+    gain = (np.expm1(-sig * dt) ** 2 + 4.0 * decay * np.sin(0.5 * wd * dt) ** 2).real
+    return c1, decay * decay, gain / (w * w)
 
 
-def step_compliance(system: ModalSystem, dt: float) -> tuple[np.ndarray, np.ndarray]:
+def step_compliance(system: ModalSystem, dt: float, exponential: bool = False) -> tuple[np.ndarray, np.ndarray]:
     """(A_rr, A_rtheta), (n_b, n_b) each, m/N: the radial displacement of the contact nodes at
     the next step per unit radial and tangential force of the Carpenter scheme's multipliers,
-    Phi_r S Phi_r^T and Phi_r S Phi_theta^T (~ dt^2 times the inverse mass's blocks). With
+    Phi_r S Phi_r^T and Phi_r S Phi_theta^T (~ dt^2 times the inverse mass's blocks; S of the
+    central or exponential recurrence). With
     sliding friction the step's contact problem is r = r_hat - (A_rr + s mu A_rtheta) lam:
     its solution is unique only while that matrix is a P-matrix (rom.friction_lock.lock_table),
     past which the active set can cycle to its cap. Massless boundary: the step's compliance
     adds the static residual flexibility (not covered here: ValueError)."""
     if system.is_massless:
         raise ValueError("step_compliance is the Carpenter scheme's; a massless boundary adds its static flexibility")
-    _, s = _step_factors(system, dt)
+    _, _, s = recurrence(system, dt, exponential)
     pr, pt, _ = _boundary_blocks(system)
     prs = pr * s
     return prs @ pr.T, prs @ pt.T
 
 
-def critical_time_step(system: ModalSystem, mu: float = 0.0) -> float:
-    """Largest stable central-difference time step, s.
+def critical_time_step(system: ModalSystem, mu: float = 0.0, exponential: bool = False) -> float:
+    """Largest stable time step, s: inf for the exponential recurrence (each mode's free motion
+    exact; the forward-increment multipliers only remove the penetration of the step's end).
+    Central differences:
 
     Undamped: dt_crit = 2 / w_max. With modal damping treated implicitly through the centred
     velocity (this integrator), the amplification polynomial of mode k is
@@ -245,6 +278,12 @@ def critical_time_step(system: ModalSystem, mu: float = 0.0) -> float:
     with every node active (more constraints only stiffen, frictionless), and is taken over
     mu = 0 and sliding along +-theta with the given mu (the rotor's sliding direction) as w_max.
     """
+    if exponential:
+        if system.is_massless:
+            raise ValueError("the exponential scheme integrates the full modal system; the massless one "
+                             "keeps central differences")
+        recurrence(system, 1.0, True)  # modal damping, or ValueError
+        return math.inf
     w = system.omega
     if system.is_massless:
         pr, pt, _ = _boundary_blocks(system)
@@ -261,14 +300,15 @@ def critical_time_step(system: ModalSystem, mu: float = 0.0) -> float:
     return float(np.min(2.0 / w * (np.sqrt(1.0 + z * z) - z)))
 
 
-def check_time_step(system: ModalSystem, dt: float, mu: float = 0.0) -> None:
-    """Raise ValueError when dt exceeds the central-difference stability limit."""
-    dt_crit = critical_time_step(system, mu)
+def check_time_step(system: ModalSystem, dt: float, mu: float = 0.0, exponential: bool = False) -> None:
+    """Raise ValueError when dt exceeds the scheme's stability limit (critical_time_step)."""
+    dt_crit = critical_time_step(system, mu, exponential)
     if not 0.0 < dt < dt_crit:
         what = ("the kept modes and the static contact stiffness" if system.is_massless
                 else f"w_max = {system.omega.max():.6e} rad/s")
         raise ValueError(f"time step dt = {dt:.6e} s is not in (0, dt_crit = {dt_crit:.6e} s): central "
-                         f"differences are unstable above 2 / w_max ({what})")
+                         f"differences are unstable above 2 / w_max ({what})"
+                         + ("" if system.is_massless else "; scheme = exponential is stable at any dt"))
 
 
 @dataclass(frozen=True)
@@ -327,7 +367,10 @@ class March:
     bound rules free are left out: -inf when no node ever came near. min_multiplier:
     smallest multiplier of an active node, N (>= 0; +inf when no contact). contact_steps:
     steps with at least one active node. active_set_failures: steps whose active-set
-    iteration hit its cap (should be 0). n_steps: steps marched.
+    iteration hit its cap (should be 0). explicit_direction_steps: contact steps whose
+    friction took the prediction's sliding direction, where the step's own did not settle
+    (a sliding reversal, a node dragged past its friction lock; hbm.ti.kernel.run_steps).
+    n_steps: steps marched.
     x_final, v_final: state at the last step, (n,), m and m/s. dt: the time step, s.
     """
 
@@ -347,6 +390,7 @@ class March:
     v_final: np.ndarray = field(metadata={"unit": "m/s"})
     dt: float = field(metadata={"unit": "s"})
     force_steps: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "1"})
+    explicit_direction_steps: int = field(default=0, metadata={"unit": "1"})
 
     @property
     def radial_max(self) -> np.ndarray:
@@ -363,14 +407,18 @@ class Marcher:
     Same arguments as `march`, with n_steps the most steps it may take: outputs are
     allocated for all of them; `advance` runs the compiled loop on, `result` reads the
     outputs so far (samples beyond the current step read 0). The scheme is the system's:
-    massless when system.residual is set (see massless_system), Carpenter's otherwise.
+    massless when system.residual is set (see massless_system), Carpenter's otherwise, with
+    the free modal motion by central differences or, exponential=True, exactly (recurrence).
+    direction_tol: the change of the friction's unit sliding direction under which a step's
+    direction is settled (default hbm.ti.kernel.DIRECTION_TOL; smaller for a reference).
     """
 
     def __init__(self, system: ModalSystem, casing: CasingOptions, mu: float, omega: float, x0: np.ndarray,
-                 v0: np.ndarray, dt: float, n_steps: int, recording: Recording):
+                 v0: np.ndarray, dt: float, n_steps: int, recording: Recording, exponential: bool = False,
+                 direction_tol: float | None = None):
         from hbm.ti import kernel
 
-        check_time_step(system, dt, mu)
+        check_time_step(system, dt, mu, exponential)
         self._kernel = kernel
         self.system, self.dt, self.n_steps = system, float(dt), int(n_steps)
         self.recording = rec = recording
@@ -379,9 +427,7 @@ class Marcher:
         v0 = np.asarray(v0, dtype=float).reshape(n)
         w = system.omega
         cd = np.diag(system.damping).copy()
-        a, s = _step_factors(system, dt)
-        c1 = (2.0 - (w * dt) ** 2) / (1.0 + a)
-        c2 = (1.0 - a) / (1.0 + a)
+        c1, c2, s = recurrence(system, dt, exponential)
         coff = np.ascontiguousarray(system.damping - np.diag(cd))
         pr, pt, pz = _boundary_blocks(system)
         # Compliance of the modal update: r_{n+1} = r_hat - (A_rr + mu A_rt diag(s_t) + mu A_rz diag(s_z)) lam
@@ -391,6 +437,9 @@ class Marcher:
             comp = comp + _static_blocks(system)
         else:
             comp = comp + tuple(np.zeros((nb, nb)) for _ in range(3))
+        # the theta and z displacements per force (the sliding direction's passes)
+        pts, pzs = pt * s, pz * s
+        comp = comp + (pts @ pr.T, pts @ pt.T, pts @ pz.T, pzs @ pr.T, pzs @ pt.T, pzs @ pz.T)
         self._lin = (c1, c2, s, coff)
         self._bnd = (_padded_columns(pr.T), pr, pt, pz)
         self._comp = comp
@@ -400,12 +449,18 @@ class Marcher:
         self._cas = (float(casing.clearance), float(casing.penetration), float(casing.width), int(casing.n_lobes))
         self._profile = casing_profile(casing, self._geo[1], omega, dt)
         self._mu, self._omega = float(mu), float(omega)
+        self._direction_tol = float(kernel.DIRECTION_TOL if direction_tol is None else direction_tol)
         self._has_coff = not system.is_modally_damped
-        # Start: q_{-1} from a second-order Taylor expansion with the free (contact-less) acceleration.
         q0 = system.phi_t_m @ x0
         qd0 = system.phi_t_m @ v0
-        qdd0 = -w * w * q0 - system.damping @ qd0
-        qm1 = q0 - dt * qd0 + 0.5 * dt * dt * qdd0
+        if exponential:  # q_{-1}: each mode's free motion one step back, exactly
+            sig = 0.5 * cd
+            wd = np.sqrt((w * w - sig * sig).astype(complex))
+            sinc = np.where(wd == 0, dt, np.sin(wd * dt) / np.where(wd == 0, 1.0, wd)).real
+            qm1 = np.exp(sig * dt) * (q0 * np.cos(wd * dt).real - (qd0 + sig * q0) * sinc)
+        else:  # q_{-1} from a second-order Taylor expansion with the free (contact-less) acceleration
+            qdd0 = -w * w * q0 - system.damping @ qd0
+            qm1 = q0 - dt * qd0 + 0.5 * dt * dt * qdd0
         nm = system.n_modes
         self._state = (q0.copy(), qm1, np.zeros(nb), np.zeros(nb), np.zeros(nb), np.zeros(nb, dtype=np.int64),
                        np.zeros(1, dtype=np.int64))
@@ -438,13 +493,14 @@ class Marcher:
         self.out_ext[:, 0] = -np.inf
         self.out_ext[:, 1] = np.inf
         self._stats = np.array([-np.inf, np.inf])
-        self._counts = np.zeros(2, dtype=np.int64)
+        self._counts = np.zeros(3, dtype=np.int64)
 
     def advance(self, n_steps: int) -> "Marcher":
         """March min(n_steps, steps left) more steps."""
         n_steps = min(int(n_steps), self.n_steps - self.step)
         if n_steps > 0:
-            par = (self._mu, self._omega, self.dt, self._has_coff, self.system.is_massless, self.step, n_steps)
+            par = (self._mu, self._omega, self.dt, self._has_coff, self.system.is_massless, self.step, n_steps,
+                   self._direction_tol)
             self._kernel.run_steps(self._lin, self._bnd, self._comp, self._geo, self._cas, self._profile, par,
                                    self._state, self._rec, self._rec_rows, self._rec_frows, self._fnodes, self.out_x,
                                    self.out_f, self.out_sec, self.out_ext, self._stats, self._counts)
@@ -473,13 +529,15 @@ class Marcher:
                      friction_force=self.out_f[:, :, 1:3], section_times=sec_steps * dt, sections=self.out_sec,
                      extremes=self.out_ext, max_penetration=float(self._stats[0]),
                      min_multiplier=float(self._stats[1]), contact_steps=int(self._counts[0]),
-                     active_set_failures=int(self._counts[1]), n_steps=self.step, x_final=x_final,
+                     active_set_failures=int(self._counts[1]), explicit_direction_steps=int(self._counts[2]),
+                     n_steps=self.step, x_final=x_final,
                      v_final=sys_.phi @ ((q - qm) / dt), dt=float(dt), force_steps=self.out_f[:, :, 3])
 
 
 def march(system: ModalSystem, casing: CasingOptions, mu: float, omega: float, x0: np.ndarray,
-          v0: np.ndarray, dt: float, n_steps: int, recording: Recording) -> March:
-    """Integrate n_steps central-difference steps of dt from (x0, v0) at t = 0.
+          v0: np.ndarray, dt: float, n_steps: int, recording: Recording, exponential: bool = False) -> March:
+    """Integrate n_steps steps of dt from (x0, v0) at t = 0 (exponential: each mode's free
+    motion exact over a step, see recurrence; else central differences).
 
     system: the structure (massless_system(...) for the massless-boundary scheme).
     casing: rigid casing of eq. (28) (p = -c gives a flat wall at r = c).
@@ -488,7 +546,8 @@ def march(system: ModalSystem, casing: CasingOptions, mu: float, omega: float, x
     projection on its modes). dt: s (checked against the stability limit). Returns a March;
     raises ValueError on an unstable dt or bad recording.
     """
-    return Marcher(system, casing, mu, omega, x0, v0, dt, n_steps, recording).advance(n_steps).result()
+    return Marcher(system, casing, mu, omega, x0, v0, dt, n_steps, recording,
+                   exponential).advance(n_steps).result()
 
 
 #: Largest casing profile tabulated (entries: steps of a casing period x nodes), 32 MB. The

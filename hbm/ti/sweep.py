@@ -165,7 +165,8 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
                     dofs=np.arange(3 * nb), force_nodes=np.arange(nb),
                     section_stride=sub_stride, extreme_stride=n_rev)
     zero = np.zeros(system.n_dof)
-    marcher = Marcher(system, casing, mu, omega, zero, zero, dt, n_max * n_rev, rec)
+    marcher = Marcher(system, casing, mu, omega, zero, zero, dt, n_max * n_rev, rec,
+                      exponential=options.scheme == "exponential")
     decay_time = system.slowest_decay_time()
     every = max(1, math.ceil(_SETTLE_CHECK_STEPS / n_rev))
     revs = 0
@@ -270,7 +271,7 @@ def _prepared(rom, contact: ContactOptions, ti_options: TimeIntegrationOptions, 
     """(the scheme's ModalSystem, the speeds (n_omega,), rad/s), both checked."""
     system = rom if isinstance(rom, ModalSystem) else rom_modal_system(rom)
     system = scheme_system(system, ti_options.scheme, ti_options.massless_cutoff)
-    check_time_step(system, ti_options.dt, contact.mu)
+    check_time_step(system, ti_options.dt, contact.mu, ti_options.scheme == "exponential")
     if omegas is None:
         omegas = ti_options.omegas
     omegas = np.atleast_1d(np.asarray(omegas, dtype=float))

@@ -33,7 +33,7 @@ def step_lock_warning(scheme: str, mu: float, lock) -> str | None:
     together: its active set can cycle to the cap (ti.h5's active_set_failures counts those
     steps) and the march can blow up. Set by the inverse mass's radial-tangential coupling,
     not by dt; far above the static mu_set on rotor 67 (README)."""
-    if scheme != "carpenter" or lock is None or mu < lock.mu_set:
+    if scheme not in ("carpenter", "exponential") or lock is None or mu < lock.mu_set:
         return None
     return (f"friction mu = {mu:g} >= {lock.mu_set:.3g}, where the time step's contact problem (radial "
             "compliance with the friction columns) stops being a P-matrix: steps in contact may have no "
@@ -198,11 +198,12 @@ def _warn(ctx: Context, rom) -> None:
     line = massless_warning(scene.ti.scheme, scene.contact.mu, rom.friction_lock)
     if line:
         ctx.log("  WARNING: " + line)
-    if scene.ti.scheme == "carpenter":
+    if scene.ti.scheme in ("carpenter", "exponential"):
         from hbm.ti.march import rom_modal_system, step_compliance
         from rom.friction_lock import lock_table
 
-        lock = lock_table(*step_compliance(rom_modal_system(rom), scene.ti.dt), rom.rotation)
+        lock = lock_table(*step_compliance(rom_modal_system(rom), scene.ti.dt, scene.ti.scheme == "exponential"),
+                          rom.rotation)
         ctx.log(f"  contact step (dt = {scene.ti.dt:g} s): unique multipliers up to mu = {lock.mu_set:.3g} "
                 f"(mu = {scene.contact.mu:g})")
         line = step_lock_warning(scene.ti.scheme, scene.contact.mu, lock)
