@@ -205,7 +205,10 @@ class ValidationOptions:
     marched and its stable stretch is ruled out, as for a march that leaves. 0: none. A
     check costs 2-9 s at N_h = 40 on rotor 67 against ~40 s for a march; default 6: the
     default scene's RL isola point is the fifth choice.
-    dt_refinement: when time integration with [ti] dt leaves a stable point for anything but
+    dt: the step of these marches, s (Carpenter's central differences, whatever [ti] scheme:
+    the verdicts, stays or leaves over 100 periods, were measured with it; the exponential
+    scheme's step is chosen on the sweep's classes and amplitudes). Default 1e-7.
+    dt_refinement: when time integration with dt leaves a stable point for anything but
     the friction lock, the point is marched again with dt / dt_refinement before the verdict
     counts (1: never). Default 4: on the default rotor 67 scene time integration leaves the
     DLFT isola point at 823.3 rad/s (|mu| = 0.984 with N_h = 40 and 0.989 with 80, RL stable
@@ -221,6 +224,7 @@ class ValidationOptions:
     primary_tries: int = 3
     isola_tries: int = 3
     harmonic_checks: int = 6
+    dt: float = 1e-7
     dt_refinement: int = 4
 
     def __post_init__(self):
@@ -228,6 +232,7 @@ class ValidationOptions:
                                   ("pd_tries", 1, ""), ("primary_tries", 1, ""), ("isola_tries", 1, ""),
                                   ("harmonic_checks", 0, "0: none"), ("dt_refinement", 1, "1: no second march")):
             check_option(name, getattr(self, name), least, integer=True, note=note)
+        check_option("dt", self.dt, 0, low_open=True, unit="s")
 
 
 #: Contact schemes of the time integration (hbm.ti.march): the forward-increment Lagrange
@@ -239,15 +244,20 @@ TI_SCHEMES = ("carpenter", "exponential", "massless")
 class TimeIntegrationOptions:
     """Time-integration reference.
 
-    scheme: "carpenter" (every ROM mode integrated, forward-increment Lagrange multipliers,
-    the reference), "exponential" (the same, each mode's free motion over a step exact: no
-    stability limit) or "massless" (modes above massless_cutoff replaced by their static
-    response: a massless boundary, a static contact projection and a step set by the kept
-    modes; a different model, see hbm.ti.march.massless_system). Default "carpenter": on the
-    rotor 67 ROMs with friction (mu = 0.15, at the contact set's friction-lock limit) the
-    massless model's static projection wedges the tip into the casing (contact at every
-    step, amplitude growing as dt shrinks: 2 to 10 times Carpenter's at dt = 1e-6); without
-    friction it agrees with Carpenter to 1 to 20 % at 30 times fewer steps.
+    scheme: "exponential" (every ROM mode, its free motion over a step exact, forward-
+    increment Lagrange multipliers: no stability limit), "carpenter" (the same multipliers
+    with central differences: dt below 2 / w_max) or "massless" (modes above
+    massless_cutoff replaced by their static response: a massless boundary, a static contact
+    projection and a step set by the kept modes; a different model, see
+    hbm.ti.march.massless_system). Default "exponential" with dt = 2.5e-7 s: on the default
+    rotor 67 sweep it agrees with Carpenter at dt = 5e-8 as Carpenter at 1e-7 does (156 of
+    161 classes each, the periodic LE amplitudes to a median 4e-5, 95 % of them to 3e-4)
+    for 0.4 times Carpenter's CPU time at 1e-7; at 4e-7 and 1e-6 it moves more classes
+    (155, 146: the tip's constraint modes, up to 2.9e6 rad/s, are then stepped over).
+    Carpenter is the reference; the massless model's static projection wedges the tip into
+    the casing with friction (mu = 0.15, at the contact set's friction-lock limit: contact
+    at every step, amplitude growing as dt shrinks: 2 to 10 times Carpenter's at dt =
+    1e-6); without friction it agrees with Carpenter to 1 to 20 % at 30 times fewer steps.
     dt: time step, s (shrunk so that revolutions, casing periods and samples fall on steps).
     massless_cutoff: highest ROM eigenfrequency kept by the massless scheme, rad/s. Default
     9e4: above what the HBM resolves at N_h = 40 (40 Omega_max = 8e4 rad/s), below the
@@ -272,8 +282,8 @@ class TimeIntegrationOptions:
     still called periodic, -.
     """
 
-    scheme: str = "carpenter"
-    dt: float = 1e-7
+    scheme: str = "exponential"
+    dt: float = 2.5e-7
     massless_cutoff: float = 9.0e4
     n_revolutions: int = 200
     n_keep: int = 20

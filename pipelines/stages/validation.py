@@ -36,7 +36,7 @@ For each treatment of [hbm] methods:
   up to [validation] pd_tries in all, until it stays on one.
 From each point time integration is marched [validation] n_periods periods of the orbit
 (hbm.ti.validation.march_from_hbm); when it leaves a stable point for anything but the
-friction lock, it is marched again with [ti] dt / [validation] dt_refinement, and that march
+friction lock, it is marched again with [validation] dt / dt_refinement, and that march
 is the verdict (the step's error, not the orbit, may be what left). Its last period is
 compared with the orbit itself and
 with the other treatment's orbit at the same Omega, corrected by damped Newton from the
@@ -83,9 +83,9 @@ class ValidationPoint:
     (hbm.stability.selection.ChosenPoint). ti: the march from it; dlft, rl: each treatment's
     orbit at that Omega against the march (hbm.ti.validation.OrbitComparison: the RL force is
     the sigma-filtered one of the RL-HBM equilibrium), absent when not found.
-    refined_from: when the march with [ti] dt left a stable point for anything but the
+    refined_from: when the march with [validation] dt left a stable point for anything but the
     friction lock and the point was marched again with dt / [validation] dt_refinement (ti,
-    dlft and rl are then from that march, ti.dt its step): the first march's verdict and
+    dlft and rl are then from that march, [validation] dt its step): the first march's verdict and
     step, in words; "" otherwise.
     """
 
@@ -185,7 +185,7 @@ def _options_for(hbm, n_u: int, n_r: int, nu: int):
 
 def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: float | None = None,
               previous: ValidationPoint | None = None) -> ValidationPoint:
-    """March from a chosen point with step dt (s; None: [ti] dt) and compare with both
+    """March from a chosen point with step dt (s; None: [validation] dt) and compare with both
     treatments' orbits at its Omega (those of `previous`, the same point's earlier march,
     when given: the orbits do not depend on the step)."""
     from hbm.harmonic.residual import build_residual
@@ -201,7 +201,7 @@ def _validate(ctx, rom, system, kind, method, chosen, residual, branch, dt: floa
     u, omega, nu = chosen.u, chosen.omega, residual.nu
     ti = march_from_hbm(system, scene.casing, scene.contact.mu, residual.expand_harmonics(u, omega), omega,
                         subharmonic=nu, n_periods=scene.validation.n_periods,
-                        dt=scene.ti.dt if dt is None else dt, record_all=True)
+                        dt=scene.validation.dt if dt is None else dt, record_all=True)
     # the distance rule cannot tell the orbit from another solution next to it: the HBM
     # solution through the march's last period can
     ti = confirm_orbit(residual, ti, u, omega)
@@ -459,7 +459,7 @@ def _try_until_kept(ctx, rom, system, kind: str, method: str, candidates: list, 
         p = _validate(ctx, rom, system, kind, method, ch, c.residual, c.where)
         marched += 1
         if _worth_refining(p, rom, ctx.scene.contact.mu, opts.dt_refinement):
-            fine = ctx.scene.ti.dt / opts.dt_refinement
+            fine = opts.dt / opts.dt_refinement
             update(f"{tag} {kind} point at {ch.omega:.1f} rad/s: time integration left it; marched again "
                    f"with dt = {fine:.3g} s")
             first_words = f"{ti_verdict(p.ti, rom, ctx.scene.contact.mu)} with dt = {p.ti.dt:.3g} s"
@@ -1001,6 +1001,6 @@ BRANCH_CONTENT = Figure("branch_content", files=_content_files, depends=("hbm.me
                         inputs=lambda s: tuple(nfrc_output(m).file for m in s.hbm.methods) + (ISOLAS, "rom.h5"),
                         draw=draw_branch_content)
 
-STAGE = Stage("validation", depends=("casing", "contact", "ti.dt", "hbm", "validation"), upstream=UPSTREAM,
+STAGE = Stage("validation", depends=("casing", "contact", "hbm", "validation"), upstream=UPSTREAM,
               outputs=lambda scene: (VALIDATION,) if scene.hbm.methods else (), compute=_compute,
               figures=(SIGNALS, SOLUTION_SET, CONTENT, BRANCH_CONTENT))

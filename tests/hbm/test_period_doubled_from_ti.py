@@ -1,7 +1,7 @@
 """The sweep's period-doubled orbits are HBM solutions in the basis of Omega / 2.
 
 On the coarse rotor 67 ROM (tests/data/rotor67_coarse_rom.h5) time integration from rest at
-1110 rad/s ends, after 200 revolutions, on an orbit of 4 casing periods (omega = Omega / 2,
+1108 rad/s ends, after 125 revolutions, on an orbit of 4 casing periods (omega = Omega / 2,
 two revolutions). The isola search's seed from the sweep point's last two revolutions
 (hbm.isolas.harmonic.ti_seeds, nu = 2) is corrected by the search's own Newton (DLFT, N_h =
 80 harmonics of Omega / 2: the scene's resolution) to an HBM orbit that keeps the time
@@ -22,7 +22,7 @@ from hbm.ti.march import rom_modal_system
 from hbm.ti.sweep import simulate
 from support import coarse_rom
 
-OMEGA = 1110.0
+OMEGA = 1108.0
 
 
 def _odd_share(xr):
@@ -52,13 +52,13 @@ def test_the_seed_of_its_last_two_revolutions_converges_to_a_period_doubled_hbm_
     res, solver = HbmProblem(rom, CasingOptions(), ContactOptions(), hbm, "dlft").for_seeds()()
     (seed,) = ti_seeds(res, sweep, (400.0, 2000.0), CasingOptions().n_lobes)
     seed_share = _odd_share(res.to_coefficients(seed.x))
-    assert seed_share > 0.3  # time integration's own Omega / 2 content (0.48)
+    assert seed_share > 0.3  # time integration's own Omega / 2 content (0.43)
     sol = newton_solve(res, seed.x, OMEGA, search_options(hbm, IsolaOptions()).newton, solver=solver)
     assert sol.converged, sol.reason
-    assert np.linalg.norm(sol.x - seed.x) / np.linalg.norm(seed.x) < 0.15  # measured 0.06
+    assert np.linalg.norm(sol.x - seed.x) / np.linalg.norm(seed.x) < 0.15  # measured 0.09
     assert _odd_share(res.to_coefficients(sol.x)) == pytest.approx(seed_share, abs=0.1)
     le = res.signals(sol.x, OMEGA)["displacement"][:, 0]
-    assert 0.5 * np.ptp(le) == pytest.approx(r.amplitude, rel=0.03)  # measured -1.0 %
+    assert 0.5 * np.ptp(le) == pytest.approx(r.amplitude, rel=0.03)  # measured -0.4 %
 
 
 def test_in_the_basis_of_omega_it_seeds_nothing(point):

@@ -363,7 +363,7 @@ def test_a_point_time_integration_leaves_is_tried_again_outside_its_stretch(long
 def test_a_stable_point_time_integration_leaves_is_marched_again_with_a_finer_step(long_branch, monkeypatch):
     """_try_until_kept with [validation] dt_refinement = 4 and the march replaced by a rule:
     time integration keeps the stable peak (W = 2) only with dt <= 2.5e-8 s. A stable point
-    left with [ti] dt = 1e-7 s is marched again with 2.5e-8 s, which is its verdict (one try,
+    left with [validation] dt = 1e-7 s is marched again with 2.5e-8 s, which is its verdict (one try,
     refined_from says what the first march did); a march that ends in the friction lock, an
     unstable point, or dt_refinement = 1 gives no second march; a second march that leaves
     too rules the stretch out as one march does."""
@@ -377,7 +377,7 @@ def test_a_stable_point_time_integration_leaves_is_marched_again_with_a_finer_st
     rule = {"stays": lambda w, dt: dt <= 2.5e-8, "outcome": "leaves"}
 
     def fake_validate(ctx, rom, system, kind, method, ch, residual, where, dt=None, previous=None):
-        step = ctx.scene.ti.dt if dt is None else dt
+        step = ctx.scene.validation.dt if dt is None else dt
         marched.append((ch.index, step))
         stays = rule["stays"](ch.omega, step)
         outcome = "stays" if stays else rule["outcome"]
@@ -394,7 +394,7 @@ def test_a_stable_point_time_integration_leaves_is_marched_again_with_a_finer_st
         marched.clear()
         ctx = SimpleNamespace(scene=SimpleNamespace(
             validation=ValidationOptions(n_candidates=8, dt_refinement=refinement, harmonic_checks=0),
-            contact=SimpleNamespace(mu=0.15), ti=SimpleNamespace(dt=1e-7)))
+            contact=SimpleNamespace(mu=0.15)))
         cands = [stage.Candidate("nfrc_rl.h5", res, b.omega, b.x, amp, b.converged, flags)]
         return stage._try_until_kept(ctx, lock, None, "primary", "rl", cands, tries, lambda text: None)
 

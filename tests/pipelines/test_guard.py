@@ -174,12 +174,13 @@ def test_the_sweep_waits_for_the_nfrcs_when_the_two_would_not_fit_together(coars
 
 
 def test_a_sweep_that_cannot_start_fails_in_its_turn_and_the_nfrcs_are_kept(coarse_run, tmp_path, capsys):
-    """A time step past the ROM's stability limit (8.9e-7 s on the coarse ROM) is refused by
-    the sweep; started beside the NFRCs it must not take them down: they are computed and
-    kept, and the refusal is the run's error in the ti stage's turn."""
+    """A Carpenter time step past the ROM's stability limit (8.9e-7 s on the coarse ROM) is
+    refused by the sweep; started beside the NFRCs it must not take them down: they are
+    computed and kept, and the refusal is the run's error in the ti stage's turn."""
     scene = clone(coarse_run[1], tmp_path)
     # exit 1, a stage failed while computing: the NFRCs were computed (exit 2 says nothing was)
-    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "ti", "--set", "ti.dt=2e-6"]) == 1
+    assert main(["run", str(scene), "--out", str(tmp_path), "--until", "ti", "--set", "ti.dt=2e-6",
+                 "--set", "ti.scheme=carpenter"]) == 1
     captured = capsys.readouterr()
     assert "[hbm] done -> nfrc_dlft.h5, nfrc_rl.h5" in captured.out and "[ti] running (no artifact) ..." in captured.out
     errors = [x for x in captured.err.splitlines() if x.startswith("bladerub: error:")]
