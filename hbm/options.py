@@ -250,10 +250,10 @@ class TimeIntegrationOptions:
     massless_cutoff replaced by their static response: a massless boundary, a static contact
     projection and a step set by the kept modes; a different model, see
     hbm.ti.march.massless_system). Default "exponential" with dt = 2.5e-7 s: on the default
-    rotor 67 sweep it agrees with Carpenter at dt = 5e-8 as Carpenter at 1e-7 does (156 of
-    161 classes each, the periodic LE amplitudes to a median 4e-5, 95 % of them to 3e-4)
-    for 0.4 times Carpenter's CPU time at 1e-7; at 4e-7 and 1e-6 it moves more classes
-    (155, 146: the tip's constraint modes, up to 2.9e6 rad/s, are then stepped over).
+    rotor 67 sweep it agrees with Carpenter at dt = 5e-8 as Carpenter at 1e-7 does (158 and
+    157 of 161 classes, the periodic LE amplitudes to a median 4e-5 and 3e-5, 95 % of them
+    to 3e-4) for 0.54 times Carpenter's CPU time at 1e-7; at 4e-7 and 1e-6 it moves more
+    classes (155, 146: the tip's constraint modes, up to 2.9e6 rad/s, are then stepped over).
     Carpenter is the reference; the massless model's static projection wedges the tip into
     the casing with friction (mu = 0.15, at the contact set's friction-lock limit: contact
     at every step, amplitude growing as dt shrinks: 2 to 10 times Carpenter's at dt =
