@@ -65,8 +65,8 @@ FAST_NODES = 12
 #: takes 0.7 to 1 pass more per contact step than 1e-3, 1.3 to 1.4 times the march's time.
 DIRECTION_TOL = 1e-3
 #: The most passes of a step (solve, new direction, solve again) before it falls back to the
-#: prediction's direction (run_steps). On rotor 67 at mu = 0.15 a contact step takes 1.06 to
-#: 1.4 passes on average.
+#: prediction's direction (run_steps). On rotor 67 at mu = 0.15 a contact step takes 1.2 to
+#: 1.5 passes on average.
 DIRECTION_PASSES = 8
 
 
@@ -647,8 +647,9 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
             # rotor 67 and a class changed at 400 and 650 rad/s (benchmarks/README.md, *Time
             # integration*). The massless scheme's forces reach the modes one step later: its
             # direction does not depend on them. A node active at the last step starts from
-            # its last direction, which the step's forces seldom move by dir_tol (1.0 to
-            # 2.8 passes more per contact step from the prediction's velocity, rotor 67).
+            # its last direction, which the step's forces seldom move by dir_tol (0.2 to 0.5
+            # passes more per contact step on rotor 67, against 1.0 to 2.8 when every step
+            # started from the prediction's velocity).
             # Where no direction settles (a sliding reversal: _redirect; or DIRECTION_PASSES
             # passes) the step is solved once more with the prediction's direction, the
             # explicit rule (counted in counts[2]). The passes work on the nodes (the step's

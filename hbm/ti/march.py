@@ -348,7 +348,7 @@ class Recording:
 
 @dataclass(frozen=True)
 class March:
-    """Result of one central-difference march.
+    """Result of one march (central differences or the exponential recurrence).
 
     times: sample times, (n_samples,), s. displacement: recorded dof, (n_samples, n_x), m.
     normal_force: lam of the recorded nodes (block means), (n_samples, n_f), N.
@@ -402,7 +402,7 @@ class March:
 
 
 class Marcher:
-    """A central-difference march that can be advanced in chunks (the sweep's early stop).
+    """A march that can be advanced in chunks (the sweep's early stop).
 
     Same arguments as `march`, with n_steps the most steps it may take: outputs are
     allocated for all of them; `advance` runs the compiled loop on, `result` reads the
