@@ -138,8 +138,8 @@ def test_an_optional_text_key_takes_the_command_lines_text_as_it_is(key, tmp_pat
     assert getattr(scene.blade, key) == "2024"
 
 
-@pytest.mark.parametrize("section, key, owner", [("hbm", "dt", "ti"), ("contact", "penetration", "casing"),
-                                                 ("fem", "E", "material")])
+@pytest.mark.parametrize("section, key, owner", [("hbm", "dt", "ti] and [validation"), ("hbm", "n_revolutions", "ti"),
+                                                 ("contact", "penetration", "casing"), ("fem", "E", "material")])
 def test_a_key_in_the_wrong_section_names_its_section(section, key, owner, tmp_path, capsys):
     """A known key written in another section was only an `unknown key 'dt' in [hbm]`, with
     the list of [hbm]'s keys: the line now says where it belongs, in a file and with --set."""
