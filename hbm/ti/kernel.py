@@ -350,6 +350,20 @@ def _apply_forces(qn, rh, lam, st, sz, idx, m, mu, spr, spt, spz, Acol):
 
 
 @njit(cache=True, fastmath=_FAST, _nrt=False)
+def _sliding_direction(dtj, dzj, vscale, rj, om):
+    """(|v|, v_theta / |v|, v_z / |v|) of a node's velocity relative to the casing,
+    v = (dtj vscale + rj Omega, dzj vscale), m/s and -, from its theta and z increments
+    dtj, dzj (m) and its signed radius rj (m); the unit part is (0, 0) under 1e-12 m/s."""
+    vtj = dtj * vscale + rj * om
+    vzj = dzj * vscale
+    nrm = math.sqrt(vtj * vtj + vzj * vzj)
+    if nrm > 1e-12:
+        inv = 1.0 / nrm
+        return nrm, vtj * inv, vzj * inv
+    return nrm, 0.0, 0.0
+
+
+@njit(cache=True, fastmath=_FAST, _nrt=False)
 def _redirect(inc, qn, qb, pt, pz, lam, idx, m, rho, om, vscale, st, sz, mu, rows, mats, p, u, ang, tol):
     """One update of the active nodes' unit sliding directions (st, sz) towards the fixed point
     s = u(s), u the direction of the step's centred velocity with its contact forces lam
@@ -381,15 +395,12 @@ def _redirect(inc, qn, qb, pt, pz, lam, idx, m, rho, om, vscale, st, sz, mu, row
             k = idx[b]
             dtj -= lam[k] * rows[1, k, j]
             dzj -= lam[k] * rows[2, k, j]
-        vtj = dtj * vscale + rho[j] * om
-        vzj = dzj * vscale
-        nrm = math.sqrt(vtj * vtj + vzj * vzj)
+        nrm, a_t, a_z = _sliding_direction(dtj, dzj, vscale, rho[j], om)
         u[0, j] = st[j]
         u[1, j] = sz[j]
         if nrm > 1e-12:
-            inv = 1.0 / nrm
-            u[0, j] = vtj * inv
-            u[1, j] = vzj * inv
+            u[0, j] = a_t
+            u[1, j] = a_z
             if u[0, j] * st[j] + u[1, j] * sz[j] < 0.0:
                 return -1.0
             change = max(change, abs(u[0, j] - st[j]) + abs(u[1, j] - sz[j]))
@@ -684,13 +695,10 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
                                     inc[0, j] = dtj
                                     inc[1, j] = dzj
                                     inc[2, j] = 1.0
-                                    vtj = dtj * vscale + rho[j] * om
-                                    vzj = dzj * vscale
-                                    nrm = math.sqrt(vtj * vtj + vzj * vzj)
+                                    nrm, a_t, a_z = _sliding_direction(dtj, dzj, vscale, rho[j], om)
                                     if nrm > 1e-12:
-                                        inv = 1.0 / nrm
-                                        st[j] = vtj * inv
-                                        sz[j] = vzj * inv
+                                        st[j] = a_t
+                                        sz[j] = a_z
                                 if iterate:
                                     _friction_rows(rows, mats, j, mu * st[j], mu * sz[j])
                                 else:
