@@ -160,7 +160,9 @@ def main():
               f"({wall / 60:.1f} min), "
               f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
               f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
-              f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s")
+              f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s; "
+              f"contact steps capped {int(s.active_set_failures.sum())}, with the prediction's direction "
+              f"{int(s.explicit_direction_steps.sum())} (at {int((s.explicit_direction_steps > 0).sum())} speeds)")
         _split(s, opts.n_revolutions)
         if a.compare_full:
             t0 = time.perf_counter()

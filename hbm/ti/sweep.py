@@ -71,6 +71,7 @@ class SpeedResponse:
     cpu_time: float = field(metadata={"unit": "s"})
     boundary: np.ndarray | None = field(default=None, metadata={"unit": "m"})
     active_set_failures: int | None = field(default=0, metadata={"unit": "1"})
+    explicit_direction_steps: int | None = field(default=0, metadata={"unit": "1"})
 
 
 @dataclass(frozen=True)
@@ -111,6 +112,11 @@ class SweepResult:
         iterate (hbm.ti.march.March), (n_omega,): 0 where the contact was solved exactly at
         every step, -1 where unknown (a speed resumed from a file written before it was
         counted); None in files written before it.
+    explicit_direction_steps: contact steps whose friction direction did not settle (a sliding
+        reversal within the step, or hbm.ti.kernel.DIRECTION_PASSES passes) and which took the
+        prediction's direction instead (March.explicit_direction_steps), (n_omega,): their
+        friction carries the O(dt) error the settled direction removes; -1 where unknown, None
+        in files written before it.
     """
 
     omega: np.ndarray = field(metadata={"unit": "rad/s"})
@@ -132,6 +138,7 @@ class SweepResult:
     cpu_time: np.ndarray = field(metadata={"unit": "s"})
     boundary: np.ndarray | None = field(default=None, metadata={"unit": "m"})
     active_set_failures: np.ndarray | None = field(default=None, metadata={"unit": "1"})
+    explicit_direction_steps: np.ndarray | None = field(default=None, metadata={"unit": "1"})
 
 
 def steps_per_revolution(omega: float, dt: float, multiple: int) -> int:
@@ -212,7 +219,8 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
         normal_force=m.normal_force[samples][:, [0, -1]],
         sections=sections, contact_fraction=m.contact_steps / (revs * n_rev), max_penetration=m.max_penetration,
         revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start,
-        boundary=np.array(m.displacement[last]), active_set_failures=int(m.active_set_failures))
+        boundary=np.array(m.displacement[last]), active_set_failures=int(m.active_set_failures),
+        explicit_direction_steps=int(m.explicit_direction_steps))
 
 
 def sweep(rom, casing: CasingOptions, contact: ContactOptions, ti_options: TimeIntegrationOptions,
@@ -403,7 +411,11 @@ class SweepRun:
         self._pool.shutdown(wait=True, cancel_futures=True)
 
 
+#: Per-speed step counts that a speed resumed from an older partial file may lack (-1: unknown).
+_COUNTS = ("active_set_failures", "explicit_direction_steps")
+
+
 def _stack(rows: list[SpeedResponse]) -> SweepResult:
-    names = [f.name for f in SweepResult.__dataclass_fields__.values() if f.name != "active_set_failures"]
-    failures = np.array([-1 if r.active_set_failures is None else r.active_set_failures for r in rows], dtype=int)
-    return SweepResult(**{k: np.array([getattr(r, k) for r in rows]) for k in names}, active_set_failures=failures)
+    names = [f.name for f in SweepResult.__dataclass_fields__.values() if f.name not in _COUNTS]
+    counts = {k: np.array([-1 if getattr(r, k) is None else getattr(r, k) for r in rows], dtype=int) for k in _COUNTS}
+    return SweepResult(**{k: np.array([getattr(r, k) for r in rows]) for k in names}, **counts)

@@ -166,7 +166,8 @@ class OrbitValidation:
     reached: where the march went in the HBM's unknowns (reached_orbit), None unless asked.
     active_set_failures: steps whose contact solve hit its iteration cap and kept a clipped
     iterate (March.active_set_failures): their contact forces are approximate, and the verdict
-    says so.
+    says so. explicit_direction_steps: contact steps whose friction direction did not settle
+    and took the prediction's (March.explicit_direction_steps); the verdict says so too.
     """
 
     omega: float = field(metadata={"unit": "rad/s"})
@@ -191,6 +192,7 @@ class OrbitValidation:
     last_harmonics: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "m"})
     reached: ReachedOrbit | None = None
     active_set_failures: int = field(default=0, metadata={"unit": "1"})
+    explicit_direction_steps: int = field(default=0, metadata={"unit": "1"})
 
     @property
     def locked_nodes(self) -> np.ndarray:
@@ -209,11 +211,15 @@ class OrbitValidation:
         return bool(np.max(self.drift) <= SETTLED_DRIFT)
 
     def verdict(self) -> str:
-        """The outcome in words (_verdict), followed by the count of steps whose contact solve
-        hit its iteration cap, when there are any: a numerical failure, not a dynamical one."""
+        """The outcome in words (_verdict), followed by the counts of steps whose contact solve
+        hit its iteration cap or whose friction direction did not settle, when there are any:
+        numerical failures, not dynamical ones."""
         text = self._verdict()
         if self.active_set_failures > 0:
             text += f" (the contact solve hit its iteration cap at {self.active_set_failures} steps)"
+        if self.explicit_direction_steps > 0:
+            text += (f" (the friction's direction did not settle at {self.explicit_direction_steps} steps,"
+                     " which took the prediction's)")
         return text
 
     def _verdict(self) -> str:
@@ -443,7 +449,8 @@ def march_from_hbm(rom, casing: CasingOptions, mu: float, coeffs: np.ndarray, om
                            force=grid.to_time(grid.to_freq(force)), force_peak=f[-1].max(axis=0), deviation=dev,
                            drift=drift, growth=growth, stays=stays, max_penetration=float(m.max_penetration),
                            contact_fraction=in_contact, outcome=outcome, repeat=repeat, last_harmonics=last,
-                           active_set_failures=int(m.active_set_failures))
+                           active_set_failures=int(m.active_set_failures),
+                           explicit_direction_steps=int(m.explicit_direction_steps))
 
 
 def reached_orbit(res, ti: OrbitValidation, u: np.ndarray, omega: float) -> ReachedOrbit:

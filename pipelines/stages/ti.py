@@ -222,9 +222,9 @@ def _write(ctx: Context, result, partial: SweepPartial) -> None:
     ctx.log(f"  {len(result.omega)} speeds; classes: "
             + ", ".join(f"{c.label(n_l, scene.ti.classified_order(n_l))} {counts[c]}" for c in PeriodClass if counts[c])
             + f"; median {np.median(result.cpu_time):.1f} s per speed")
-    line = capped_contact_warning(result)
-    if line:
-        ctx.log("  WARNING: " + line)
+    for line in (capped_contact_warning(result), explicit_direction_warning(result)):
+        if line:
+            ctx.log("  WARNING: " + line)
 
 
 def capped_contact_warning(result) -> str:
@@ -241,6 +241,23 @@ def capped_contact_warning(result) -> str:
     return (f"the contact solve hit its iteration cap at {bad.size} speed(s), rad/s: {shown}"
             f"{' ...' if bad.size > 5 else ''}; those steps kept an approximate contact force "
             "(ti.h5: sweep/active_set_failures)")
+
+
+def explicit_direction_warning(result) -> str:
+    """One line naming the speeds where some contact step's friction direction did not settle
+    (SweepResult.explicit_direction_steps > 0: a sliding reversal within the step, or a node
+    dragged past its friction lock): those steps took the prediction's direction, whose error
+    is O(dt); "" when there is none (None: a file written before it was counted)."""
+    steps = result.explicit_direction_steps
+    if steps is None:
+        return ""
+    bad = np.flatnonzero(np.asarray(steps) > 0)
+    if not bad.size:
+        return ""
+    shown = ", ".join(f"{result.omega[i]:.0f} ({int(steps[i])} steps)" for i in bad[:5])
+    return (f"the friction's sliding direction did not settle at {bad.size} speed(s), rad/s: {shown}"
+            f"{' ...' if bad.size > 5 else ''}; those steps took the prediction's direction, an O(dt) error "
+            "(ti.h5: sweep/explicit_direction_steps)")
 
 
 @dataclass(frozen=True)

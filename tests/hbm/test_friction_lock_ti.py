@@ -107,7 +107,46 @@ def test_validation_march_tells_the_lock_apart(s, mu):
     assert ti.locked_nodes.tolist() == dragged.tolist()
     if len(dragged):
         assert ti.outcome == "permanent contact"
-        assert ti.verdict() == f"leaves for permanent contact ({'LE' if dragged[0] == 0 else 'TE'})"
+        # the dragged node's sliding direction has no fixed point within a step (the step's
+        # friction reverses it): those steps take the prediction's, and the verdict says so
+        assert ti.explicit_direction_steps > 0
+        assert ti.verdict() == (f"leaves for permanent contact ({'LE' if dragged[0] == 0 else 'TE'}) (the friction's "
+                                f"direction did not settle at {ti.explicit_direction_steps} steps, which took the "
+                                "prediction's)")
     else:
-        assert ti.outcome == "leaves" and ti.verdict() == "leaves"
+        assert ti.outcome == "leaves" and ti.verdict() == "leaves" and ti.explicit_direction_steps == 0
         assert 0 < ti.contact_fraction.max() < 0.5  # each lobe indents, then lets go
+
+
+def _sweep_row(s: int, mu: float):
+    """The toy's sweep row at OMEGA (hbm.ti.sweep.simulate, Carpenter, three revolutions)."""
+    from hbm.options import TimeIntegrationOptions
+    from hbm.ti.sweep import simulate
+
+    K = np.linalg.inv(G)
+    C, _ = modal_damping(K, 1e-3 * np.eye(6), np.full(6, 0.2))
+    system = modal_system(K, 1e-3 * np.eye(6), C, RHO, THETA, rotation=s)
+    options = TimeIntegrationOptions(dt=0.2 * 2.0 / system.omega.max(), n_revolutions=3, n_keep=1,
+                                     samples_per_revolution=16, stop_when_settled=False, scheme="carpenter")
+    return simulate(system, CASING, mu, OMEGA, options)
+
+
+@pytest.mark.parametrize("s", [1, -1])
+def test_a_sweep_counts_the_steps_whose_direction_did_not_settle_and_names_them(s):
+    """Below every node's lock (mu = 0.3 < 2/3) each contact step's sliding direction settles;
+    at mu = 0.8 a node is dragged onto the casing and most of its contact steps fall back to
+    the prediction's direction. ti.h5 keeps the count per speed and the run's log names the
+    speed; a speed resumed from a file written before the count reads -1 (unknown), not 0."""
+    from hbm.ti.sweep import SpeedResponse, _stack
+    from pipelines.stages.ti import explicit_direction_warning
+
+    free, locked = _sweep_row(s, 0.3), _sweep_row(s, 0.8)
+    assert free.contact_fraction > 0.05 and free.explicit_direction_steps == 0
+    assert locked.explicit_direction_steps > 0.1 * locked.contact_fraction * 3 * 2 * math.pi / OMEGA / locked.dt
+    result = _stack([free, locked])
+    assert result.explicit_direction_steps.tolist() == [0, locked.explicit_direction_steps]
+    assert explicit_direction_warning(_stack([free])) == ""
+    line = explicit_direction_warning(result)
+    assert f"at 1 speed(s), rad/s: {OMEGA:.0f} ({locked.explicit_direction_steps} steps)" in line
+    old = SpeedResponse(**{**free.__dict__, "explicit_direction_steps": None})
+    assert _stack([free, old]).explicit_direction_steps.tolist() == [0, -1]
