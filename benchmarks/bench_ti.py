@@ -2,7 +2,7 @@
 
     .venv/bin/python benchmarks/bench_ti.py [--rom ROM.h5|standin] [--repeat 3] [--full-sweep]
         [--schemes exponential,carpenter,massless] [--exponential-dt 1e-6,2e-6] [--massless-dt 1e-6,2e-6]
-        [--mu 0.1,0.15] [--no-early-stop] [--sweep SCHEME:DT] [--sweep-against SCHEME:DT]
+        [--mu 0.1,0.15] [--no-early-stop] [--sweep SCHEME:DT,...] [--sweep-against SCHEME:DT] [--scene SCENE]
 
 1. Time per Omega point on one core, per scheme: from rest until settled or 200 revolutions
    ([ti] defaults; --no-early-stop: always 200), Carpenter at dt = 1e-7 s, the exponential
@@ -27,9 +27,14 @@
    speeds that ran every revolution (no early stop can shorten those) and their CPU share.
    --compare-full: then the same sweep again with stop_when_settled = false (always 200
    revolutions): per class, the revolutions the early stop needed, whether every point kept
-   the class of the full run, and the largest LE amplitude difference. --sweep SCHEME:DT:
-   the sweep's scheme and step (default: [ti]'s). --sweep-against SCHEME:DT: then the same
-   sweep with that scheme and step, compared the same way (per class of the second sweep).
+   the class of the full run, and the largest LE amplitude difference. --sweep SCHEME:DT,...:
+   the sweeps' schemes and steps (default: [ti]'s; the first one is --compare-full's).
+   --sweep-against SCHEME:DT: then the same sweep with that scheme and step, once, and each
+   --sweep compared with it (per class of this sweep). The line of each sweep also counts
+   its contact steps that hit the active set's cap and those whose friction direction did
+   not settle (hbm.ti.sweep.SweepResult), with each such speed's share of its contact steps.
+4. --scene SCENE: the casing, [contact] and [ti] of a scene instead of the defaults (rotor
+   67's), e.g. scenes/rotor37.toml with its ROM: its lobes, speed range and grid.
 """
 from __future__ import annotations
 
@@ -86,11 +91,19 @@ def main():
                     help="--full-sweep: also run it without the early stop and compare class and amplitude")
     ap.add_argument("--casing", default="table",
                     help="per-speed table: how the march finds the casing, comma-separated among table and law")
+    ap.add_argument("--scene", default="", help="casing, contact and [ti] options of this scene (default: the "
+                                                "defaults, rotor 67's), e.g. scenes/rotor37.toml")
     a = ap.parse_args()
     rom, label = load_rom(a.rom)
     system = rom_modal_system(rom)
     cas, con = CasingOptions(), ContactOptions()
     opts = TimeIntegrationOptions(stop_when_settled=not a.no_early_stop)
+    if a.scene:
+        from pipelines.scene import load_scene
+
+        scene = load_scene(a.scene)
+        cas, con = scene.casing, scene.contact
+        opts = replace(scene.ti, stop_when_settled=not a.no_early_stop)
     schemes = a.schemes.split(",")
     omegas = [float(w) for w in a.omegas.split(",") if w]  # "" for none (e.g. --full-sweep alone)
     simulate(system, cas, con.mu, 2000.0, TimeIntegrationOptions(n_revolutions=2, n_keep=1))  # JIT / cache
@@ -151,22 +164,29 @@ def main():
                 print(f"| {w:.0f} | {scheme} | {dt:.1e} | {t:.2f} | {r.revolutions} | {r.amplitude:.5e} | "
                       f"{abs(r.amplitude - ref) / ref:.2e} | {r.period_class} |", flush=True)
     if a.full_sweep:
-        t0 = time.perf_counter()
         grid = np.linspace(opts.omega_min, opts.omega_max, a.sweep_points or opts.n_omega)
-        sopts = _scheme_dt(opts, a.sweep)
-        s = sweep(system, cas, con, sopts, omegas=grid)
-        wall = time.perf_counter() - t0
-        print(f"\nFull sweep ({sopts.scheme}, dt = {sopts.dt:g} s): {len(s.omega)} points in {wall:.0f} s wall "
-              f"({wall / 60:.1f} min), "
-              f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
-              f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
-              f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s; "
-              f"contact steps capped {int(s.active_set_failures.sum())}, with the prediction's direction "
-              f"{int(s.explicit_direction_steps.sum())} (at {int((s.explicit_direction_steps > 0).sum())} speeds)")
-        _split(s, opts.n_revolutions)
-        if a.compare_full:
+        done = []  # (options, SweepResult, wall s) of each --sweep
+        for text in a.sweep.split(",") if a.sweep else [""]:
             t0 = time.perf_counter()
-            f = sweep(system, cas, con, replace(opts, stop_when_settled=False), omegas=grid)
+            sopts = _scheme_dt(opts, text)
+            s = sweep(system, cas, con, sopts, omegas=grid)
+            wall = time.perf_counter() - t0
+            done.append((sopts, s, wall))
+            print(f"\nFull sweep ({sopts.scheme}, dt = {sopts.dt:g} s): {len(s.omega)} points in {wall:.0f} s wall "
+                  f"({wall / 60:.1f} min), "
+                  f"classes {np.bincount(s.period_class, minlength=5).tolist()} (casing, Omega, sub, none, super); "
+                  f"per speed: median {np.median(s.cpu_time):.2f} s, max {s.cpu_time.max():.2f} s, "
+                  f"{int((s.cpu_time > 5.0).sum())} over 5 s {_over(s, 5.0)}, sum {s.cpu_time.sum():.0f} s; "
+                  f"contact steps capped {int(s.active_set_failures.sum())}, with the prediction's direction "
+                  f"{int(s.explicit_direction_steps.sum())} (at {int((s.explicit_direction_steps > 0).sum())} speeds"
+                  + "".join(f"; {s.omega[i]:.0f} rad/s {s.explicit_direction_steps[i]}, share of its contact steps "
+                            f"{s.explicit_direction_steps[i] / _contact_steps(s, i):.1e}"
+                            for i in np.flatnonzero(s.explicit_direction_steps > 0)) + ")")
+            _split(s, opts.n_revolutions)
+        if a.compare_full:
+            sopts, s, wall = done[0]
+            t0 = time.perf_counter()
+            f = sweep(system, cas, con, replace(sopts, stop_when_settled=False), omegas=grid)
             wall_f = time.perf_counter() - t0
             print(f"Without the early stop: {wall_f:.0f} s wall, per-speed sum {f.cpu_time.sum():.0f} s; "
                   f"ratio {wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
@@ -177,10 +197,11 @@ def main():
             f = sweep(system, cas, con, oopts, omegas=grid)
             wall_f = time.perf_counter() - t0
             print(f"Against {oopts.scheme}, dt = {oopts.dt:g} s: {wall_f:.0f} s wall, per-speed sum "
-                  f"{f.cpu_time.sum():.0f} s, classes {np.bincount(f.period_class, minlength=5).tolist()}; ratio "
-                  f"{wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
-            _compare_schemes(s, f)
-
+                  f"{f.cpu_time.sum():.0f} s, classes {np.bincount(f.period_class, minlength=5).tolist()}")
+            for sopts, s, wall in done:
+                print(f"\n{sopts.scheme}, dt = {sopts.dt:g} s against it: ratio {wall / wall_f:.2f} (wall), "
+                      f"{s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
+                _compare_schemes(s, f)
 
 def _compare_schemes(new, ref):
     """Per class of the reference sweep: speeds, those the first sweep puts in the same class,
@@ -202,6 +223,11 @@ def _compare_schemes(new, ref):
     moved = np.flatnonzero(new.period_class != ref.period_class)
     print("\nclass changed at " + (", ".join(f"{new.omega[i]:.0f} ({ref.period_class[i]} -> "
                                               f"{new.period_class[i]})" for i in moved) or "no speed"))
+
+
+def _contact_steps(s, i) -> float:
+    """Contact steps of speed i of a SweepResult (its contact fraction of the steps marched)."""
+    return s.contact_fraction[i] * s.revolutions[i] * 2.0 * np.pi / (s.omega[i] * s.dt[i])
 
 
 def _scheme_dt(opts, text: str):
