@@ -258,6 +258,16 @@ def step_compliance(system: ModalSystem, dt: float, exponential: bool = False) -
     return prs @ pr.T, prs @ pt.T
 
 
+#: The exponential scheme has no stability limit, but its accuracy has one, set by the same
+#: highest modes (the boundary's constraint modes, which a contact impulse excites): whole
+#: sweeps against Carpenter at 5e-8 s kept the classes Carpenter at 1e-7 s keeps (to one
+#: speed) with a step up to this fraction of the central-difference limit 2 / w_max: rotor 67
+#: 2.5e-7 s (0.37 of 6.8e-7), rotor 37's coarse ROM 1.5e-7 (0.36 of 4.1e-7) and its default
+#: 1.25e-7 (0.35 of 3.6e-7); 3 to 23 more speeds change class at 0.41 to 0.69 of it (README,
+#: *Rotor 37* and *Time integration*). The ti stage warns above it.
+EXPONENTIAL_STEP_FRACTION = 0.37
+
+
 def critical_time_step(system: ModalSystem, mu: float = 0.0, exponential: bool = False) -> float:
     """Largest stable time step, s: inf for the exponential recurrence (each mode's free motion
     exact; the forward-increment multipliers only remove the penetration of the step's end).

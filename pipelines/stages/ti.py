@@ -40,6 +40,26 @@ def step_lock_warning(scheme: str, mu: float, lock) -> str | None:
             "unique multipliers (see active_set_failures in ti.h5)")
 
 
+def exponential_step_warning(scheme: str, dt: float, system) -> str | None:
+    """The warning for an exponential sweep whose step dt (s) exceeds the fraction of the
+    central-difference limit 2 / w_max of the ROM's modal system (hbm.ti.march.ModalSystem)
+    within which that scheme was measured as accurate as Carpenter at 1e-7 s
+    (hbm.ti.march.EXPONENTIAL_STEP_FRACTION), else None. The scheme is stable at any step,
+    so nothing else would tell a user whose blade is stiffer than rotor 67 that the default
+    step (2.5e-7 s) is too coarse for it."""
+    from hbm.ti.march import EXPONENTIAL_STEP_FRACTION, critical_time_step
+
+    if scheme != "exponential":
+        return None
+    limit = critical_time_step(system)
+    if dt <= EXPONENTIAL_STEP_FRACTION * limit:
+        return None
+    return (f"the exponential scheme's step dt = {dt:g} s is {dt / limit:.2f} of this ROM's central-difference "
+            f"limit 2 / w_max = {limit:.3g} s; its sweeps were as accurate as Carpenter at 1e-7 s only up to "
+            f"{EXPONENTIAL_STEP_FRACTION:g} of it (rotor 67 and 37, README): above, contact-heavy speeds can change "
+            f"class; [ti] dt <= {EXPONENTIAL_STEP_FRACTION * limit:.3g} s keeps within it")
+
+
 class SweepPartial:
     """ti.partial.h5: each speed of the sweep as it ends, so that an interrupted sweep goes
     on from the speeds it finished (the NFRCs' and the isola search's partial files do the
@@ -202,8 +222,11 @@ def _warn(ctx: Context, rom) -> None:
         from hbm.ti.march import rom_modal_system, step_compliance
         from rom.friction_lock import lock_table
 
-        lock = lock_table(*step_compliance(rom_modal_system(rom), scene.ti.dt, scene.ti.scheme == "exponential"),
-                          rom.rotation)
+        system = rom_modal_system(rom)
+        line = exponential_step_warning(scene.ti.scheme, scene.ti.dt, system)
+        if line:
+            ctx.log("  WARNING: " + line)
+        lock = lock_table(*step_compliance(system, scene.ti.dt, scene.ti.scheme == "exponential"), rom.rotation)
         ctx.log(f"  contact step (dt = {scene.ti.dt:g} s): unique multipliers up to mu = {lock.mu_set:.3g} "
                 f"(mu = {scene.contact.mu:g})")
         line = step_lock_warning(scene.ti.scheme, scene.contact.mu, lock)

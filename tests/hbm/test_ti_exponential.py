@@ -157,3 +157,23 @@ def test_two_dof_impact_loses_exactly_the_kinetic_energy_of_the_struck_mass():
     after = _free_energy(s, x[free + 1], x[free], dt)
     assert E0 - after == pytest.approx(0.5 * m1 * v1 ** 2, rel=5 * w_max * dt)
     assert x[:, 0].max() <= g * (1 + 1e-15) and lam.min() >= 0.0 and m.min_multiplier >= 0.0
+
+
+def test_the_stage_warns_where_the_step_leaves_the_measured_accurate_range():
+    """The coarse rotor 67 ROM: its central-difference limit 2 / w_max from the generalised
+    eigenproblem of K and M (scipy, not the march's modal system); the ti stage's warning is
+    silent at 0.3 of it and for Carpenter, and above EXPONENTIAL_STEP_FRACTION of it names
+    the ratio, the limit and the largest step within the range."""
+    from hbm.ti.march import EXPONENTIAL_STEP_FRACTION, rom_modal_system
+    from pipelines.stages.ti import exponential_step_warning
+    from support import coarse_rom
+
+    rom = coarse_rom()
+    limit = 2.0 / math.sqrt(scipy.linalg.eigh(rom.K, rom.M, eigvals_only=True).max())
+    assert 8.5e-7 < limit < 9.5e-7  # 8.9e-7 s (README, *Rotor 37*: the limits of the four ROMs)
+    system = rom_modal_system(rom)
+    assert exponential_step_warning("exponential", 0.3 * limit, system) is None
+    assert exponential_step_warning("carpenter", 0.5 * limit, system) is None
+    line = exponential_step_warning("exponential", 0.5 * limit, system)
+    assert f"is 0.50 of this ROM's central-difference limit 2 / w_max = {limit:.3g} s" in line
+    assert f"[ti] dt <= {EXPONENTIAL_STEP_FRACTION * limit:.3g} s" in line
