@@ -136,17 +136,34 @@ def test_a_sweep_counts_the_steps_whose_direction_did_not_settle_and_names_them(
     """Below every node's lock (mu = 0.3 < 2/3) each contact step's sliding direction settles;
     at mu = 0.8 a node is dragged onto the casing and most of its contact steps fall back to
     the prediction's direction. ti.h5 keeps the count per speed and the run's log names the
-    speed; a speed resumed from a file written before the count reads -1 (unknown), not 0."""
+    speed with its share of its contact steps (10 to 100 %); a speed resumed from a file
+    written before the count reads -1 (unknown), not 0."""
     from hbm.ti.sweep import SpeedResponse, _stack
     from pipelines.stages.ti import explicit_direction_warning
 
     free, locked = _sweep_row(s, 0.3), _sweep_row(s, 0.8)
     assert free.contact_fraction > 0.05 and free.explicit_direction_steps == 0
-    assert locked.explicit_direction_steps > 0.1 * locked.contact_fraction * 3 * 2 * math.pi / OMEGA / locked.dt
     result = _stack([free, locked])
     assert result.explicit_direction_steps.tolist() == [0, locked.explicit_direction_steps]
     assert explicit_direction_warning(_stack([free])) == ""
     line = explicit_direction_warning(result)
-    assert f"at 1 speed(s), rad/s: {OMEGA:.0f} ({locked.explicit_direction_steps} steps)" in line
+    share = locked.explicit_direction_steps / (locked.contact_fraction * 3 * 2 * math.pi / OMEGA / locked.dt)
+    assert 0.1 < share <= 1.0
+    assert (f"at 1 speed(s); share of a speed's contact steps, largest first: {OMEGA:.0f} rad/s "
+            f"{100 * share:.2g} % ({locked.explicit_direction_steps} steps)") in line
     old = SpeedResponse(**{**free.__dict__, "explicit_direction_steps": None})
     assert _stack([free, old]).explicit_direction_steps.tolist() == [0, -1]
+
+
+def test_the_warning_names_the_largest_share_first_not_the_largest_count():
+    """Ten fallback steps among a speed's few contact steps come before a thousand among many."""
+    import dataclasses
+
+    from hbm.ti.sweep import _stack
+    from pipelines.stages.ti import explicit_direction_warning
+
+    free = _sweep_row(1, 0.3)
+    many = dataclasses.replace(free, omega=60.0, contact_fraction=1.0, explicit_direction_steps=1000)
+    few = dataclasses.replace(free, omega=70.0, contact_fraction=1e-4, explicit_direction_steps=10)
+    line = explicit_direction_warning(_stack([many, free, few]))
+    assert "at 2 speed(s)" in line and line.index("70 rad/s") < line.index("60 rad/s")
