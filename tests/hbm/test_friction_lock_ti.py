@@ -139,7 +139,7 @@ def test_a_sweep_counts_the_steps_whose_direction_did_not_settle_and_names_them(
     speed with its share of its contact steps (10 to 100 %); a speed resumed from a file
     written before the count reads -1 (unknown), not 0."""
     from hbm.ti.sweep import SpeedResponse, _stack
-    from pipelines.stages.ti import explicit_direction_warning
+    from pipelines.stages.ti import FALLBACK_SHARE_WARNING, explicit_direction_warning, fallback_shares
 
     free, locked = _sweep_row(s, 0.3), _sweep_row(s, 0.8)
     assert free.contact_fraction > 0.05 and free.explicit_direction_steps == 0
@@ -149,6 +149,8 @@ def test_a_sweep_counts_the_steps_whose_direction_did_not_settle_and_names_them(
     line = explicit_direction_warning(result)
     share = locked.explicit_direction_steps / (locked.contact_fraction * 3 * 2 * math.pi / OMEGA / locked.dt)
     assert 0.1 < share <= 1.0
+    np.testing.assert_allclose(fallback_shares(result), [0.0, share], rtol=1e-9)  # a WARNING, not a note:
+    assert share >= FALLBACK_SHARE_WARNING
     assert (f"at 1 speed(s); share of a speed's contact steps, largest first: {OMEGA:.0f} rad/s "
             f"{100 * share:.2g} % ({locked.explicit_direction_steps} steps)") in line
     old = SpeedResponse(**{**free.__dict__, "explicit_direction_steps": None})
