@@ -149,8 +149,8 @@ def test_a_sweep_counts_the_steps_whose_direction_did_not_settle_and_names_them(
     line = explicit_direction_warning(result)
     share = locked.explicit_direction_steps / (locked.contact_fraction * 3 * 2 * math.pi / OMEGA / locked.dt)
     assert 0.1 < share <= 1.0
-    np.testing.assert_allclose(fallback_shares(result), [0.0, share], rtol=1e-9)  # a WARNING, not a note:
-    assert share >= FALLBACK_SHARE_WARNING
+    np.testing.assert_allclose(fallback_shares(result), [0.0, share], rtol=1e-9)
+    assert share >= FALLBACK_SHARE_WARNING  # the log calls it a WARNING, not a note
     assert (f"at 1 speed(s); share of a speed's contact steps, largest first: {OMEGA:.0f} rad/s "
             f"{100 * share:.2g} % ({locked.explicit_direction_steps} steps)") in line
     old = SpeedResponse(**{**free.__dict__, "explicit_direction_steps": None})
