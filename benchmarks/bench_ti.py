@@ -164,6 +164,8 @@ def main():
                 print(f"| {w:.0f} | {scheme} | {dt:.1e} | {t:.2f} | {r.revolutions} | {r.amplitude:.5e} | "
                       f"{abs(r.amplitude - ref) / ref:.2e} | {r.period_class} |", flush=True)
     if a.full_sweep:
+        from pipelines.stages.ti import fallback_shares
+
         grid = np.linspace(opts.omega_min, opts.omega_max, a.sweep_points or opts.n_omega)
         done = []  # (options, SweepResult, wall s) of each --sweep
         for text in a.sweep.split(",") if a.sweep else [""]:
@@ -180,8 +182,8 @@ def main():
                   f"contact steps capped {int(s.active_set_failures.sum())}, with the prediction's direction "
                   f"{int(s.explicit_direction_steps.sum())} (at {int((s.explicit_direction_steps > 0).sum())} speeds"
                   + "".join(f"; {s.omega[i]:.0f} rad/s {s.explicit_direction_steps[i]}, share of its contact steps "
-                            f"{s.explicit_direction_steps[i] / _contact_steps(s, i):.1e}"
-                            for i in np.flatnonzero(s.explicit_direction_steps > 0)) + ")")
+                            f"{fallback_shares(s)[i]:.1e}" for i in np.flatnonzero(s.explicit_direction_steps > 0))
+                  + ")")
             _split(s, opts.n_revolutions)
         if a.compare_full:
             sopts, s, wall = done[0]
@@ -223,11 +225,6 @@ def _compare_schemes(new, ref):
     moved = np.flatnonzero(new.period_class != ref.period_class)
     print("\nclass changed at " + (", ".join(f"{new.omega[i]:.0f} ({ref.period_class[i]} -> "
                                               f"{new.period_class[i]})" for i in moved) or "no speed"))
-
-
-def _contact_steps(s, i) -> float:
-    """Contact steps of speed i of a SweepResult (its contact fraction of the steps marched)."""
-    return s.contact_fraction[i] * s.revolutions[i] * 2.0 * np.pi / (s.omega[i] * s.dt[i])
 
 
 def _scheme_dt(opts, text: str):

@@ -257,9 +257,16 @@ def capped_contact_warning(result) -> str:
     """One line naming the speeds where the contact solve hit its iteration cap at some step
     (SweepResult.active_set_failures > 0: that step kept a clipped iterate, so its contact
     forces, and the response after it, are approximate); "" when there is none."""
-    speeds = _speeds_counted(result, result.active_set_failures)
-    return (f"the contact solve hit its iteration cap at {speeds}; those steps kept an approximate contact force "
-            "(ti.h5: sweep/active_set_failures)") if speeds else ""
+    failures = result.active_set_failures
+    if failures is None:
+        return ""
+    bad = np.flatnonzero(np.asarray(failures) > 0)
+    if not bad.size:
+        return ""
+    shown = ", ".join(f"{result.omega[i]:.0f} ({int(failures[i])} steps)" for i in bad[:5])
+    return (f"the contact solve hit its iteration cap at {bad.size} speed(s), rad/s: {shown}"
+            f"{' ...' if bad.size > 5 else ''}; those steps kept an approximate contact force "
+            "(ti.h5: sweep/active_set_failures)")
 
 
 #: The share of a speed's contact steps taking the prediction's direction from which the log
@@ -299,19 +306,6 @@ def explicit_direction_warning(result) -> str:
     return (f"the friction's sliding direction did not settle at {bad.size} speed(s); share of a speed's contact "
             f"steps, largest first: {shown}{' ...' if bad.size > 5 else ''}; those steps took the prediction's "
             "direction, an O(dt) error (ti.h5: sweep/explicit_direction_steps)")
-
-
-def _speeds_counted(result, steps) -> str:
-    """"N speed(s), rad/s: W (k steps), ..." over the speeds whose count of steps (n_omega,) is
-    positive, the first five named; "" when none is (or steps is None: a file written before
-    that count)."""
-    if steps is None:
-        return ""
-    bad = np.flatnonzero(np.asarray(steps) > 0)
-    if not bad.size:
-        return ""
-    shown = ", ".join(f"{result.omega[i]:.0f} ({int(steps[i])} steps)" for i in bad[:5])
-    return f"{bad.size} speed(s), rad/s: {shown}{' ...' if bad.size > 5 else ''}"
 
 
 @dataclass(frozen=True)
