@@ -41,7 +41,7 @@ from hbm.processes import WorkerDied
 from pipelines import artifacts as art
 from pipelines import folder
 from pipelines.child import ChildDied
-from pipelines.errors import Interrupted, Refused, StageFailed
+from pipelines.errors import Interrupted, Refused, StageFailed, after_ctrl_c
 from pipelines.parallel import is_root, on_all, on_root, world
 from pipelines.progress import Progress
 from pipelines.stages import REGISTRY, STAGES
@@ -510,6 +510,10 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         text = os.strerror(exc.errno) if exc.errno else art.first_line(exc)
         name = f" {exc.filename}" if getattr(exc, "filename", None) else ""
         raise StageFailed(f"{where} failed: {text}{name}; kept: {kept()}") from exc
+    except Exception as exc:
+        if after_ctrl_c(exc):  # a native library's import cut by Ctrl-C (pipelines.errors.deferred_ctrl_c)
+            raise Interrupted(describe()) from None
+        raise
     finally:
         for started in ahead.values():  # the run stopped before their turn
             started.cancel()

@@ -29,8 +29,11 @@ def _compute(ctx: Context, outputs) -> None:
     writes fem.h5, the same file as one process writes."""
     from fem.analysis import analyse_blade
     from fem.options import FemOptions
+    from pipelines.errors import deferred_ctrl_c
     from pipelines.parallel import on_root, world
 
+    with deferred_ctrl_c():  # dolfinx's initialisation (MPI, PETSc) is not to be cut halfway
+        import dolfinx.fem.petsc  # noqa: F401
     comm = world()
     mesh = read_mesh(ctx.out)
     timings: dict = {}
