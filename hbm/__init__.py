@@ -23,10 +23,13 @@ host LLVM 14 calls Zen 3, whose model unrolls the time-integration kernel into a
 (hbm.jit, done here so that it precedes any compile of a bladerub run); OpenBLAS runs its
 AVX2 or AVX-512 kernels on a CPU its tables do not know, where it would run its oldest ones
 (hbm.openblas, done here so that it precedes numpy in a process that imports hbm first: the
-bladerub command and the tests do).
+bladerub command and the tests do); and an MPI singleton, outside mpirun, starts no helper
+daemon (hbm.processes.isolate_mpi_singleton, before dolfinx initialises MPI).
 """
 from hbm.jit import retune_numba
 from hbm.openblas import choose_openblas_core
+from hbm.processes import isolate_mpi_singleton
 
 retune_numba()
 choose_openblas_core()
+isolate_mpi_singleton()

@@ -202,6 +202,25 @@ def keep_freed_memory() -> None:
     mallopt(_M_TRIM_THRESHOLD, 2**31 - 1)
 
 
+#: The launchers' environment variables: a process that has one is a rank of an MPI job.
+_LAUNCHED = ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS")
+
+
+def isolate_mpi_singleton() -> None:
+    """Outside an MPI launcher, MPI starts (when dolfinx initialises it) as a singleton, and
+    Open MPI 4 starts a helper daemon (orted) for every singleton process. Several such
+    processes starting and stopping at once (test runs beside their test processes, runs
+    interrupted by Ctrl-C) now and then crashed: PETSc's SEGV handler and exit 59, "ORTE_ERROR_LOG:
+    Data unpack would read past end of buffer", or a test worker lost (about one run in four
+    of tests/pipelines/test_interrupt.py on two workers; none in 12 with this). An isolated
+    singleton (Open MPI's ess_singleton_isolated) starts no daemon; bladerub never spawns MPI
+    processes, the one thing it would need one for. Set in the environment before any MPI
+    initialisation (hbm/__init__), unless the user set it or a launcher started us; other MPI
+    implementations ignore it."""
+    if not any(k in os.environ for k in _LAUNCHED):
+        os.environ.setdefault("OMPI_MCA_ess_singleton_isolated", "1")
+
+
 def mpi_world():
     """mpi4py COMM_WORLD when this process runs under an MPI launcher with more than one
     rank, else None (mpirun -n 1 and plain runs take the serial path).
@@ -209,7 +228,7 @@ def mpi_world():
     mpi4py is imported only when a launcher's environment is seen (or when it already is),
     so that plain runs never initialise MPI.
     """
-    launched = any(k in os.environ for k in ("OMPI_COMM_WORLD_SIZE", "PMI_SIZE", "PMIX_RANK", "MPI_LOCALNRANKS"))
+    launched = any(k in os.environ for k in _LAUNCHED)
     if not launched and "mpi4py.MPI" not in sys.modules:
         return None
     try:
