@@ -167,6 +167,7 @@ def main():
         from pipelines.stages.ti import fallback_shares
 
         grid = np.linspace(opts.omega_min, opts.omega_max, a.sweep_points or opts.n_omega)
+        labels = dict(n_lobes=cas.n_lobes, max_order=opts.classified_order(cas.n_lobes))  # the classes' names
         done = []  # (options, SweepResult, wall s) of each --sweep
         for text in a.sweep.split(",") if a.sweep else [""]:
             t0 = time.perf_counter()
@@ -184,7 +185,7 @@ def main():
                   + "".join(f"; {s.omega[i]:.0f} rad/s {s.explicit_direction_steps[i]}, share of its contact steps "
                             f"{fallback_shares(s)[i]:.1e}" for i in np.flatnonzero(s.explicit_direction_steps > 0))
                   + ")")
-            _split(s, opts.n_revolutions)
+            _split(s, opts.n_revolutions, labels)
         if a.compare_full:
             sopts, s, wall = done[0]
             t0 = time.perf_counter()
@@ -192,7 +193,7 @@ def main():
             wall_f = time.perf_counter() - t0
             print(f"Without the early stop: {wall_f:.0f} s wall, per-speed sum {f.cpu_time.sum():.0f} s; "
                   f"ratio {wall / wall_f:.2f} (wall), {s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
-            _compare(s, f)
+            _compare(s, f, labels)
         if a.sweep_against:
             t0 = time.perf_counter()
             oopts = _scheme_dt(replace(opts, scheme="carpenter", dt=1e-7), a.sweep_against)
@@ -203,11 +204,12 @@ def main():
             for sopts, s, wall in done:
                 print(f"\n{sopts.scheme}, dt = {sopts.dt:g} s against it: ratio {wall / wall_f:.2f} (wall), "
                       f"{s.cpu_time.sum() / f.cpu_time.sum():.2f} (sum)\n")
-                _compare_schemes(s, f)
+                _compare_schemes(s, f, labels)
 
-def _compare_schemes(new, ref):
+def _compare_schemes(new, ref, labels):
     """Per class of the reference sweep: speeds, those the first sweep puts in the same class,
-    and over those the LE amplitude difference (median and largest) and the revolutions."""
+    and over those the LE amplitude difference (median and largest) and the revolutions; labels:
+    PeriodClass.label's arguments (the casing's lobes name its class)."""
     from hbm.ti.periodicity import PeriodClass
 
     print("| class (second sweep) | speeds | same class | LE amplitude difference, same class: median, max "
@@ -220,7 +222,7 @@ def _compare_schemes(new, ref):
         same = sel & (new.period_class == code)
         rel = np.abs(new.amplitude[same] / ref.amplitude[same] - 1.0)
         diff = f"{np.median(rel):.1e}, {rel.max():.1e}" if same.any() else "-"
-        print(f"| {code.label()} | {int(sel.sum())} | {int(same.sum())} | {diff} | "
+        print(f"| {code.label(**labels)} | {int(sel.sum())} | {int(same.sum())} | {diff} | "
               f"{np.median(new.revolutions[sel]):.0f}, {np.median(ref.revolutions[sel]):.0f} |")
     moved = np.flatnonzero(new.period_class != ref.period_class)
     print("\nclass changed at " + (", ".join(f"{new.omega[i]:.0f} ({ref.period_class[i]} -> "
@@ -251,7 +253,7 @@ def _casing(mode: str):
         march.PROFILE_MAX_ENTRIES = kept
 
 
-def _split(s, n_revolutions: int):
+def _split(s, n_revolutions: int, labels):
     """Per class: speeds, those that ran all n_revolutions, and their share of the
     per-speed CPU sum (a speed with no period never stops early: its cost is a floor)."""
     from hbm.ti.periodicity import PeriodClass
@@ -262,7 +264,7 @@ def _split(s, n_revolutions: int):
     for code in PeriodClass:
         sel = s.period_class == code
         if sel.any():
-            print(f"| {code.label()} | {int(sel.sum())} | {int((sel & full).sum())} | {s.cpu_time[sel].sum():.1f} "
+            print(f"| {code.label(**labels)} | {int(sel.sum())} | {int((sel & full).sum())} | {s.cpu_time[sel].sum():.1f} "
                   f"({s.cpu_time[sel & full].sum():.1f}) | {s.cpu_time[sel].sum() / s.cpu_time.sum():.0%} |")
     print()
 
@@ -271,7 +273,7 @@ def _over(s, limit):
     return "(" + ", ".join(f"{w:.0f} rad/s {t:.1f} s" for w, t in zip(s.omega, s.cpu_time) if t > limit) + ")"
 
 
-def _compare(early, full):
+def _compare(early, full, labels):
     """Per class of the full run: speeds, revolutions of the early stop, class kept, LE amplitude."""
     from hbm.ti.periodicity import PeriodClass
 
@@ -287,7 +289,7 @@ def _compare(early, full):
         kept = int((early.period_class[sel] == code).sum())
         rel = np.abs(early.amplitude[sel] / full.amplitude[sel] - 1.0)
         spread = f"{np.median(revs):.0f} ({revs.min()}-{revs.max()})" if len(revs) else "-"
-        print(f"| {code.label()} | {int(sel.sum())} | {int(stop.sum())} | {spread} | {kept} of {int(sel.sum())} "
+        print(f"| {code.label(**labels)} | {int(sel.sum())} | {int(stop.sum())} | {spread} | {kept} of {int(sel.sum())} "
               f"| {rel.max():.1e} |")
 
 
