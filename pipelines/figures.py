@@ -137,21 +137,32 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
 
 def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 2000.0),
                   unit: str = "mm", title: str | None = None, n_lobes: int = 2,
-                  max_order: float = TimeIntegrationOptions.max_order) -> Path:
+                  max_order: float = TimeIntegrationOptions.max_order, flagged=None,
+                  flagged_label: str = "friction direction not settled") -> Path:
     """Time-integration sweep (paper Fig. 5): one marker per simulated Ω, shaped and
     coloured by periodicity class.
 
     omega: (p,) rad/s; amplitude: (p,) m (LE radial amplitude); classes: (p,) int
     PeriodClass codes (ω = n_l Ω, ω = Ω, Ω < ω < n_l Ω, subharmonic, none or ω < Ω / max_order).
-    n_lobes: n_l, for the class labels. max_order: as in plot_nfrc.
+    n_lobes: n_l, for the class labels. max_order: as in plot_nfrc. flagged: (p,) bool or
+    None, points whose march the reader should not take at face value (the ti stage: those
+    its fallback WARNING names), ringed in black with `flagged_label` in the legend.
     """
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22,
-                               n_lobes=n_lobes, max_order=max_order)
+    amp = _LENGTH[unit] * np.asarray(amplitude, float)
+    handles = _scatter_classes(ax, omega, amp, classes, size=22, n_lobes=n_lobes, max_order=max_order)
+    handles = [Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(), label=h.get_label()[4:])
+               for h in handles]
+    ring = np.zeros(len(amp), bool) if flagged is None else np.asarray(flagged, bool).ravel()
+    if ring.shape != amp.shape:
+        raise ValueError(f"flagged: {ring.shape[0]} flags for {amp.shape[0]} speeds")
+    if ring.any():
+        ax.scatter(np.asarray(omega, float)[ring], amp[ring], s=70, marker="o", facecolors="none",
+                   edgecolors="black", linewidths=0.9, zorder=4)
+        handles.append(Line2D([], [], ls="none", marker="o", markerfacecolor="none", markeredgecolor="black",
+                              label=flagged_label))
     _amplitude_axes(ax, omega_range, unit, title)
-    ax.legend(handles=[Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
-                              label=h.get_label()[4:]) for h in handles],
-              fontsize=8, loc="best", framealpha=0.9)
+    ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
     return _save(fig, out_png)
 
 

@@ -324,9 +324,14 @@ def draw_sweep(ctx: Context) -> None:
     from pipelines.figures import plot_ti_sweep
 
     s = read_sweep(ctx.out)
+    # the speeds the log's fallback WARNING names are ringed: on the coarse rotor 67 scene,
+    # past its ROM's friction lock, they are the speeds whose tip drifts
     plot_ti_sweep(s.omega, s.amplitude, s.period_class, ctx.out / "figures" / "ti_sweep.png",
                   omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max), n_lobes=ctx.scene.casing.n_lobes,
-                  max_order=ctx.scene.ti.classified_order(ctx.scene.casing.n_lobes))
+                  max_order=ctx.scene.ti.classified_order(ctx.scene.casing.n_lobes),
+                  flagged=fallback_shares(s) >= FALLBACK_SHARE_WARNING,
+                  flagged_label=f"friction direction of the prediction in \u2265 {FALLBACK_SHARE_WARNING:.1%} "
+                                "of contact steps")
 
 
 SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),

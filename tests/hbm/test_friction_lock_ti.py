@@ -157,6 +157,27 @@ def test_a_sweep_counts_the_steps_whose_direction_did_not_settle_and_names_them(
     assert _stack([free, old]).explicit_direction_steps.tolist() == [0, -1]
 
 
+def test_the_sweep_figure_rings_the_speed_past_the_lock(monkeypatch, tmp_path):
+    """The ti stage's sweep figure rings the speeds its WARNING names: the toy's speed at
+    mu = 0.8 (a node dragged onto the casing), not the one at mu = 0.3."""
+    from pathlib import Path
+
+    from hbm.ti.sweep import _stack
+    from pipelines import figures
+    from pipelines.scene import load_scene
+    from pipelines.stages import ti as ti_stage
+    from pipelines.stages.base import Context
+
+    result = _stack([_sweep_row(1, 0.3), _sweep_row(1, 0.8)])
+    seen = {}
+    monkeypatch.setattr(ti_stage, "read_sweep", lambda out: result)
+    monkeypatch.setattr(figures, "plot_ti_sweep", lambda *a, **kw: seen.update(kw))
+    scene = load_scene(Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml", [])
+    ti_stage.draw_sweep(Context(scene, tmp_path, None))
+    assert np.asarray(seen["flagged"]).tolist() == [False, True]
+    assert "0.1%" in seen["flagged_label"]
+
+
 def test_the_warning_names_the_largest_share_first_not_the_largest_count():
     """Ten fallback steps among a speed's few contact steps come before a thousand among many."""
     import dataclasses

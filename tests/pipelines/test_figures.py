@@ -46,6 +46,21 @@ def test_ti_sweep(tmp_path, sweep):
     _check(figures.plot_ti_sweep(*sweep, tmp_path / "sub" / "ti.png"))
 
 
+def test_ti_sweep_rings_the_flagged_speeds(tmp_path, sweep):
+    """Flagged points get a ring and a legend entry; no flag draws the plain figure; flags
+    that do not match the speeds are refused, naming both counts."""
+    bare = _check(figures.plot_ti_sweep(*sweep, tmp_path / "bare.png"))
+    none = _check(figures.plot_ti_sweep(*sweep, tmp_path / "none.png", flagged=np.zeros(60, bool)))
+    assert np.array_equal(bare, none)
+    flags = np.zeros(60, bool)
+    flags[::6] = True
+    ringed = _check(figures.plot_ti_sweep(*sweep, tmp_path / "ringed.png", flagged=flags))
+    changed = np.abs(ringed - bare).max(axis=2) > 0.2
+    assert changed.sum() > 10 * 20  # ten rings of ~20 dark pixels at least, and the legend's entry
+    with pytest.raises(ValueError, match="59 flags for 60 speeds"):
+        figures.plot_ti_sweep(*sweep, tmp_path / "bad.png", flagged=flags[1:])
+
+
 def test_time_signals(tmp_path):
     t = np.linspace(0.0, 2 * np.pi / 1500.0, 500)
     le = 1e3 * 1e-3 * np.cos(3000.0 * t)

@@ -83,7 +83,8 @@ def test_the_sweep_figure_names_the_window_s_bound(monkeypatch, tmp_path):
     scene_path = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
     seen = {}
     monkeypatch.setattr(ti_stage, "read_sweep", lambda out: SimpleNamespace(omega=OMEGA, amplitude=AMPLITUDE,
-                                                                               period_class=CLASSES))
+                                                                               period_class=CLASSES,
+                                                                               explicit_direction_steps=None))
     monkeypatch.setattr(figures, "plot_ti_sweep", lambda *a, **kw: seen.update(kw))
     for n_keep, expected in ((20, 10.0), (30, 15.0)):
         scene = load_scene(scene_path, ["ti.max_order=15", f"ti.n_keep={n_keep}"])
