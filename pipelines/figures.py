@@ -52,14 +52,23 @@ def _save(fig, out_png) -> Path:
     return out_png
 
 
+#: legend entry of the ringed TI points (the caller may name its criterion instead)
+FLAGGED_LABEL = "TI: friction direction not settled"
+
+
 def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_lobes=2,
-                     max_order=TimeIntegrationOptions.max_order):
+                     max_order=TimeIntegrationOptions.max_order, flagged=None, flagged_label=FLAGGED_LABEL):
     """Markers per periodicity class; `faded` greys out all but the casing-periodic ones
     (ω = n_l Ω, Fig. 6). Only the classes present get a legend entry, except ω = n_l Ω and
     ω = Ω, always listed (the paper's legend). max_order: the largest order the sweep's
     classifier tried (`[ti] max_order`, or less: TimeIntegrationOptions.classified_order),
-    named in the label of "no periodicity"."""
+    named in the label of "no periodicity". flagged: (p,) bool or None, points ringed in
+    black (points whose march the reader should not take at face value), with one legend
+    entry `flagged_label` when any is."""
     omega, amplitude, classes = (np.asarray(a).ravel() for a in (omega, amplitude, classes))
+    ring = np.zeros(omega.shape, bool) if flagged is None else np.asarray(flagged, bool).ravel()
+    if ring.shape != omega.shape:
+        raise ValueError(f"flagged: {ring.shape[0]} flags for {omega.shape[0]} speeds")
     unknown = set(np.unique(classes).tolist()) - {int(c) for c in PERIODICITY}
     if unknown:
         raise ValueError(f"unknown periodicity class codes {sorted(unknown)}; known: "
@@ -75,6 +84,11 @@ def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_l
                    edgecolors="none", zorder=3)
         handles.append(Line2D([], [], ls="none", marker=marker, color=colour,
                               label=f"TI: {label.format(n=n_lobes, max_order=max_order)}"))
+    if ring.any():
+        ax.scatter(omega[ring], amplitude[ring], s=3.2 * size, marker="o", facecolors="none",
+                   edgecolors="black", linewidths=0.9, zorder=4)
+        handles.append(Line2D([], [], ls="none", marker="o", markerfacecolor="none", markeredgecolor="black",
+                              label=flagged_label))
     return handles
 
 
@@ -96,15 +110,17 @@ def _amplitude_axes(ax, omega_range, unit: str, title: str | None) -> None:
 
 def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0),
               unit: str = "mm", title: str | None = None, fade_other_classes: bool = True,
-              n_lobes: int = 2, max_order: float = TimeIntegrationOptions.max_order) -> Path:
+              n_lobes: int = 2, max_order: float = TimeIntegrationOptions.max_order,
+              flagged_label: str = FLAGGED_LABEL) -> Path:
     """Nonlinear frequency response curves (paper Fig. 6): LE radial amplitude vs Ω.
 
     curves: {label: (omega (m,) rad/s, amplitude (m,) m, converged (m,) bool or None)}, one
     line per method, drawn in the order of the points (a continuation path); points not
     converged break the line and are marked with a small grey cross. Labels containing
     "isola" are dashed. ti_points: optional (omega (p,) rad/s, amplitude (p,) m, classes (p,)
-    int, PeriodClass codes) drawn as markers shaped by class; as in the paper, all but the
-    casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is False.
+    int, PeriodClass codes[, flagged (p,) bool]) drawn as markers shaped by class; as in the
+    paper, all but the casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is
+    False; flagged points are ringed, named flagged_label in the legend.
     unit: "m", "mm" or "um" for the amplitude axis. n_lobes: n_l, for the class labels.
     max_order: the largest subharmonic order the sweep's classifier tried
     (TimeIntegrationOptions.classified_order), for the label of "no periodicity"; the default
@@ -127,9 +143,10 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     if any_failed:
         handles.append(Line2D([], [], ls="none", marker="x", color="0.55", label="not converged"))
     if ti_points is not None:
-        o, a, c = ti_points
+        o, a, c, *flags = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=fade_other_classes,
-                                    n_lobes=n_lobes, max_order=max_order)
+                                    n_lobes=n_lobes, max_order=max_order, flagged=flags[0] if flags else None,
+                                    flagged_label=flagged_label)
     _amplitude_axes(ax, omega_range, unit, title)
     ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
     return _save(fig, out_png)
@@ -138,7 +155,7 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
 def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 2000.0),
                   unit: str = "mm", title: str | None = None, n_lobes: int = 2,
                   max_order: float = TimeIntegrationOptions.max_order, flagged=None,
-                  flagged_label: str = "friction direction not settled") -> Path:
+                  flagged_label: str = FLAGGED_LABEL) -> Path:
     """Time-integration sweep (paper Fig. 5): one marker per simulated Ω, shaped and
     coloured by periodicity class.
 
@@ -149,20 +166,14 @@ def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 200
     its fallback WARNING names), ringed in black with `flagged_label` in the legend.
     """
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    amp = _LENGTH[unit] * np.asarray(amplitude, float)
-    handles = _scatter_classes(ax, omega, amp, classes, size=22, n_lobes=n_lobes, max_order=max_order)
-    handles = [Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(), label=h.get_label()[4:])
-               for h in handles]
-    ring = np.zeros(len(amp), bool) if flagged is None else np.asarray(flagged, bool).ravel()
-    if ring.shape != amp.shape:
-        raise ValueError(f"flagged: {ring.shape[0]} flags for {amp.shape[0]} speeds")
-    if ring.any():
-        ax.scatter(np.asarray(omega, float)[ring], amp[ring], s=70, marker="o", facecolors="none",
-                   edgecolors="black", linewidths=0.9, zorder=4)
-        handles.append(Line2D([], [], ls="none", marker="o", markerfacecolor="none", markeredgecolor="black",
-                              label=flagged_label))
+    handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22,
+                               n_lobes=n_lobes, max_order=max_order, flagged=flagged, flagged_label=flagged_label)
     _amplitude_axes(ax, omega_range, unit, title)
-    ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
+    # every point is a TI point here: the legend drops the "TI: " prefix
+    ax.legend(handles=[Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
+                              markerfacecolor=h.get_markerfacecolor(), markeredgecolor=h.get_markeredgecolor(),
+                              label=h.get_label().removeprefix("TI: ")) for h in handles],
+              fontsize=8, loc="best", framealpha=0.9)
     return _save(fig, out_png)
 
 
@@ -273,7 +284,7 @@ TRUNCATED_ALPHA = 0.3
 
 def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0), unit: str = "mm",
                       title: str | None = None, n_lobes: int = 2,
-                      max_order: float = TimeIntegrationOptions.max_order) -> Path:
+                      max_order: float = TimeIntegrationOptions.max_order, flagged_label: str = FLAGGED_LABEL) -> Path:
     """The solution set (paper Fig. 8): every branch's LE amplitude against Omega, stable parts
     solid, unstable dashed, stability unknown dotted; the bifurcations given marked by kind; the TI
     sweep's points by periodicity class. Each branch is drawn in its points' order; a point not
@@ -291,7 +302,7 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     marks: [(bifurcation kind, omega rad/s, amplitude m[, guessed])], guessed (default False):
     the kind is a guess (no multiplier paired across the circle and the parities of the real
     ones do not tell, Bifurcation.kind_from), drawn
-    grey. ti_points, max_order as in plot_nfrc.
+    grey. ti_points, max_order, flagged_label as in plot_nfrc.
     """
     k = _LENGTH[unit]
     fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
@@ -328,9 +339,10 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
         handles.append(Line2D([], [], color="0.3", lw=1.3, alpha=TRUNCATED_ALPHA,
                               label="faded: not converged with 2 N_h"))
     if ti_points is not None:
-        o, a, c = ti_points
+        o, a, c, *flags = ti_points
         handles += _scatter_classes(ax, o, k * np.asarray(a, float), c, faded=True, n_lobes=n_lobes, size=10,
-                                    max_order=max_order)
+                                    max_order=max_order, flagged=flags[0] if flags else None,
+                                    flagged_label=flagged_label)
     if not curves or not any(lines for lines, _ in curves.values()):
         ax.text(0.5, 0.5, "no branch computed yet", transform=ax.transAxes, ha="center", color="0.4")
     _amplitude_axes(ax, omega_range, unit, title)

@@ -132,11 +132,11 @@ def _nfrc_inputs(scene) -> tuple[str, ...]:
 
 def draw_nfrc(ctx: Context) -> None:
     """The NFRC figure (the paper's Fig. 6): every treatment's curve, and the time-integration
-    sweep's points by periodicity class when ti.h5 exists."""
-    import h5py
-
+    sweep's points by periodicity class when ti.h5 exists (ringed where pipelines.stages.ti's
+    fallback WARNING names the speed)."""
     from pipelines.branch_store import load_branch
     from pipelines.figures import plot_nfrc
+    from pipelines.stages.ti import FLAGGED_LABEL, sweep_points
 
     scene, out = ctx.scene, ctx.out
     curves = {}
@@ -145,15 +145,11 @@ def draw_nfrc(ctx: Context) -> None:
             stored = load_branch(out / o.file)
             curves[f"{o.key.upper()}-HBM"] = (stored.branch.omega, stored.extras["le_amplitude"],
                                              stored.branch.converged)
-    ti = None
-    if (out / "ti.h5").is_file():
-        with h5py.File(out / "ti.h5", "r") as h5:
-            g = h5["sweep"]
-            ti = (g["omega"][()], g["amplitude"][()], g["period_class"][()])
+    ti = sweep_points(out)
     if curves or ti is not None:
         plot_nfrc(curves, out / "figures" / "nfrc.png", ti_points=ti,
                   omega_range=(scene.hbm.omega_min, scene.hbm.omega_max), n_lobes=scene.casing.n_lobes,
-                  max_order=scene.ti.classified_order(scene.casing.n_lobes))
+                  max_order=scene.ti.classified_order(scene.casing.n_lobes), flagged_label=FLAGGED_LABEL)
 
 
 # hbm.methods: the curves' order gives their colours (the set of files alone does not change

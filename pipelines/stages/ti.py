@@ -320,18 +320,29 @@ def read_sweep(out):
     return art.read_artifact(out / TI.file, TiArtifact).sweep
 
 
+#: legend entry of the speeds sweep_points flags
+FLAGGED_LABEL = f"TI: friction direction of the prediction in \u2265 {FALLBACK_SHARE_WARNING:.1%} of contact steps"
+
+
+def sweep_points(out):
+    """The sweep's points for the figures that draw them: (omega (p,) rad/s, LE amplitude (p,)
+    m, period_class (p,) int, flagged (p,) bool), or None without ti.h5. flagged: the speeds
+    the fallback WARNING names (share >= FALLBACK_SHARE_WARNING), ringed in the figures: on the
+    coarse rotor 67 scene, past its ROM's friction lock, they are the speeds whose tip drifts."""
+    if not (out / TI.file).is_file():
+        return None
+    s = read_sweep(out)
+    return s.omega, s.amplitude, s.period_class, fallback_shares(s) >= FALLBACK_SHARE_WARNING
+
+
 def draw_sweep(ctx: Context) -> None:
     from pipelines.figures import plot_ti_sweep
 
-    s = read_sweep(ctx.out)
-    # the speeds the log's fallback WARNING names are ringed: on the coarse rotor 67 scene,
-    # past its ROM's friction lock, they are the speeds whose tip drifts
-    plot_ti_sweep(s.omega, s.amplitude, s.period_class, ctx.out / "figures" / "ti_sweep.png",
+    omega, amplitude, classes, flagged = sweep_points(ctx.out)
+    plot_ti_sweep(omega, amplitude, classes, ctx.out / "figures" / "ti_sweep.png",
                   omega_range=(ctx.scene.ti.omega_min, ctx.scene.ti.omega_max), n_lobes=ctx.scene.casing.n_lobes,
-                  max_order=ctx.scene.ti.classified_order(ctx.scene.casing.n_lobes),
-                  flagged=fallback_shares(s) >= FALLBACK_SHARE_WARNING,
-                  flagged_label=f"friction direction of the prediction in \u2265 {FALLBACK_SHARE_WARNING:.1%} "
-                                "of contact steps")
+                  max_order=ctx.scene.ti.classified_order(ctx.scene.casing.n_lobes), flagged=flagged,
+                  flagged_label=FLAGGED_LABEL)
 
 
 SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),

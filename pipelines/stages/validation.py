@@ -859,6 +859,7 @@ def draw_solution_set(ctx: Context) -> None:
 
     from pipelines.branch_store import load_branch, read_table
     from pipelines.figures import plot_solution_set
+    from pipelines.stages.ti import FLAGGED_LABEL, sweep_points
 
     scene, out = ctx.scene, ctx.out
     validation = read_validation(out) if (out / VALIDATION.file).is_file() else None
@@ -892,19 +893,16 @@ def draw_solution_set(ctx: Context) -> None:
                 lines.append(("period-doubled", d.omega, d.le_amplitude, np.ones(len(d.omega), bool), d.stable,
                               d.n_unstable if len(d.n_unstable) == len(d.omega) else None))
         curves[m.upper()] = (lines, marks)
-    ti = None
-    if (out / "ti.h5").is_file():
-        with h5py.File(out / "ti.h5", "r") as h5:
-            g = h5["sweep"]
-            ti = (g["omega"][()], g["amplitude"][()], g["period_class"][()])
+    ti = sweep_points(out)
     rng = (scene.hbm.omega_min, scene.hbm.omega_max)
+    order = scene.ti.classified_order(scene.casing.n_lobes)
     for m in scene.hbm.methods:
         plot_solution_set({m.upper(): curves[m.upper()]}, out / "figures" / f"solution_set_{m}.png", ti_points=ti,
-                          omega_range=rng, n_lobes=scene.casing.n_lobes, max_order=scene.ti.classified_order(scene.casing.n_lobes),
-                          title=f"{m.upper()}-HBM solution set")
+                          omega_range=rng, n_lobes=scene.casing.n_lobes, max_order=order,
+                          title=f"{m.upper()}-HBM solution set", flagged_label=FLAGGED_LABEL)
     plot_solution_set(curves, out / "figures" / "solution_set.png", ti_points=ti, omega_range=rng,
-                      n_lobes=scene.casing.n_lobes, max_order=scene.ti.classified_order(scene.casing.n_lobes),
-                      title="solution set, both treatments")
+                      n_lobes=scene.casing.n_lobes, max_order=order, title="solution set, both treatments",
+                      flagged_label=FLAGGED_LABEL)
 
 
 def _set_files(scene) -> tuple[str, ...]:

@@ -172,10 +172,12 @@ def test_the_sweep_figure_rings_the_speed_past_the_lock(monkeypatch, tmp_path):
     seen = {}
     monkeypatch.setattr(ti_stage, "read_sweep", lambda out: result)
     monkeypatch.setattr(figures, "plot_ti_sweep", lambda *a, **kw: seen.update(kw))
+    (tmp_path / ti_stage.TI.file).touch()  # read_sweep's stand-in reads nothing
     scene = load_scene(Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml", [])
     ti_stage.draw_sweep(Context(scene, tmp_path, None))
     assert np.asarray(seen["flagged"]).tolist() == [False, True]
     assert "0.1%" in seen["flagged_label"]
+    assert np.asarray(ti_stage.sweep_points(tmp_path)[3]).tolist() == [False, True]  # the NFRC's and Fig. 8's
 
 
 def test_the_warning_names_the_largest_share_first_not_the_largest_count():

@@ -61,6 +61,29 @@ def test_ti_sweep_rings_the_flagged_speeds(tmp_path, sweep):
         figures.plot_ti_sweep(*sweep, tmp_path / "bad.png", flagged=flags[1:])
 
 
+@pytest.mark.parametrize("draw", ["nfrc", "solution_set"])
+def test_the_hbm_figures_ring_the_flagged_ti_points(tmp_path, sweep, monkeypatch, draw):
+    """ti_points may carry a fourth array, the flags: those points are ringed and the legend
+    names them with flagged_label; all flags False draws the figure of the three arrays."""
+    plot = getattr(figures, f"plot_{draw}")
+    legends = []
+    save = figures._save
+
+    def keep(fig, path):
+        legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    flags = np.zeros(60, bool)
+    bare = _check(plot({}, tmp_path / "bare.png", ti_points=sweep))
+    none = _check(plot({}, tmp_path / "none.png", ti_points=(*sweep, flags)))
+    flags[::6] = True
+    ringed = _check(plot({}, tmp_path / "ringed.png", ti_points=(*sweep, flags), flagged_label="TI: suspect"))
+    assert np.array_equal(bare, none)
+    assert (np.abs(ringed - bare).max(axis=2) > 0.2).sum() > 10 * 10
+    assert "TI: suspect" in legends[2] and "TI: suspect" not in legends[0]
+
+
 def test_time_signals(tmp_path):
     t = np.linspace(0.0, 2 * np.pi / 1500.0, 500)
     le = 1e3 * 1e-3 * np.cos(3000.0 * t)

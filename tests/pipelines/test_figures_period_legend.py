@@ -86,6 +86,7 @@ def test_the_sweep_figure_names_the_window_s_bound(monkeypatch, tmp_path):
                                                                                period_class=CLASSES,
                                                                                explicit_direction_steps=None))
     monkeypatch.setattr(figures, "plot_ti_sweep", lambda *a, **kw: seen.update(kw))
+    (tmp_path / ti_stage.TI.file).touch()  # read_sweep's stand-in reads nothing
     for n_keep, expected in ((20, 10.0), (30, 15.0)):
         scene = load_scene(scene_path, ["ti.max_order=15", f"ti.n_keep={n_keep}"])
         ti_stage.draw_sweep(Context(scene, tmp_path, None))
