@@ -368,11 +368,13 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
     content: also modal_contribution (m, n) and harmonic_contribution (m, N_h + 1) m of each
     point (hbm.harmonic.content.branch_content with the modes of res.rom's K and M): 6 ms a
     point on the coarse rotor 67 ROM, computed here so that the search's two processes share
-    it rather than the stage's end."""
+    it rather than the stage's end. Always: contact_fraction (m, n_b), - (contact_fraction below).
+    """
     def run(omega, u):
         ex = [nfrc_extras(res, x) for x in u]
         out = {"le_amplitude": np.array([e["le_amplitude"] for e in ex]),
-               "harmonics": np.array([e["harmonics"] for e in ex])}
+               "harmonics": np.array([e["harmonics"] for e in ex]),
+               "contact_fraction": contact_fraction(res, omega, u)}
         if content:
             from hbm.harmonic.content import branch_content
 
@@ -393,6 +395,17 @@ def describe(res: HarmonicBalanceResidual, stability: bool, scales: tuple = (1.0
         return out
 
     return run
+
+
+def contact_fraction(res: HarmonicBalanceResidual, omega: np.ndarray, u: np.ndarray) -> np.ndarray:
+    """Share of the period in which each contact node is in contact, (m, n_b), -, at the points
+    omega (m,) rad/s, u (m, n_u) (the contact law's own indicator on its AFT grid: the DLFT
+    correction's active set, RL's positive gap). 1 for a node that never leaves the casing:
+    past the ROM's mu_set, the friction lock (the validation stage's "permanent contact")."""
+    out = np.zeros((len(omega), res.n_b))
+    for i, (w, x) in enumerate(zip(omega, u)):
+        out[i] = np.asarray(res.samples(res.to_coefficients(x), float(w)).active, float).mean(axis=0)
+    return out
 
 
 #: [residual, its refined one or None] built by BranchDescriber in this process, by the

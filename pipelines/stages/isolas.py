@@ -62,7 +62,7 @@ ISOLAS = Output("isolas.h5")
 _UNITS = {"omega": "rad/s", "x": "1", "converged": "1", "le_amplitude": "m", "harmonics": "m", "stable": "1",
           "modal_contribution": "1", "harmonic_contribution": "m",
           "n_unstable": "1", "stability_analysed": "1", "stability_widened": "1", "stability_cpu_time": "s",
-          "leading_multipliers": "1", "period_ratio": "1", "stability_note": "-"}
+          "leading_multipliers": "1", "period_ratio": "1", "stability_note": "-", "contact_fraction": "1"}
 
 
 #: What the content columns hold (hbm.harmonic.content), written beside them: a reader of
@@ -73,6 +73,8 @@ _CONTENT_MEANING = {
                           "basis), ascending frequency: modes/frequencies",
     "harmonic_contribution": "eq. (34): |c_k| of the LE radial displacement; column k is harmonic k of the branch's "
                              "basis, frequency k Omega / nu, nu the branch's attribute subharmonic",
+    "contact_fraction": "share of the period each contact node (LE to TE) is in contact, by the contact law on its "
+                        "AFT grid; 1: the node never leaves the casing (with mu >= rom.h5's mu_set, the friction lock)",
 }
 
 
@@ -195,6 +197,26 @@ def _write_branch(group, fb, nu: int, content: dict | None = None, linked=None) 
         a["linked"] = np.asarray(linked, dtype=np.int64)
 
 
+def locked_text(fraction, converged, mu: float, rom) -> str:
+    """", nodes 6, 7 never leave the casing (the friction lock: ...)" for a branch whose converged
+    points all hold those nodes in contact over the whole period (fraction (m, n_b), the points'
+    contact_fraction; converged (m,) bool); the friction lock where mu >= the ROM's mu_set
+    (rom.friction_lock), as the validation stage calls a march's permanent contact. "" when no
+    node is, or the fraction is not known (a branch of an older file)."""
+    if fraction is None or not np.any(converged):
+        return ""
+    f = np.asarray(fraction, float)[np.asarray(converged, bool)]
+    nodes = np.flatnonzero(np.all(f >= 1.0, axis=0))
+    if not len(nodes):
+        return ""
+    lock = getattr(rom, "friction_lock", None)
+    why = f" (the friction lock: mu = {mu:g} >= mu_set = {lock.mu_set:.3g})" if lock is not None and \
+        mu >= lock.mu_set else ""
+    names = ", ".join(str(int(j)) for j in nodes)
+    return (f", nodes {names} never leave the casing" if len(nodes) > 1 else
+            f", node {names} never leaves the casing") + why
+
+
 def _check_table(fb) -> dict | None:
     """{column: array} of a FoundBranch's harmonic_checks table, or None."""
     t = fb.extras.get("tables", {}).get("harmonic_checks")
@@ -216,7 +238,8 @@ def _read_found(group):
     a = group.attrs
     # per-point datasets read back into the FoundBranch's extras (resume)
     extras = {k: read_column(group[k]) for k in ("le_amplitude", "harmonics", "modal_contribution",
-                                                 "harmonic_contribution") + PER_POINT if k in group}
+                                                 "harmonic_contribution", "contact_fraction") + PER_POINT
+              if k in group}
     tables = {name: read_table(group[name]) for name in ("bifurcations", "harmonic_checks") if name in group}
     if tables:
         extras["tables"] = tables
@@ -664,7 +687,8 @@ def _compute(ctx: Context, outputs) -> None:
                     f", {int(np.sum(t['passed']))} of {len(t['passed'])} points hold with 2 N_h ({_verdict(t)})"
                 ctx.log(f"    branch {k:03d}: {b.kind}{' (closed)' if b.closed else ''}, Omega "
                         f"{b.omega[ok].min():.0f}-{b.omega[ok].max():.0f} rad/s, {int(ok.sum())} points, "
-                        f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds{checked}")
+                        f"dominant harmonic {dom} of Omega / {res.nu}, {len(b.seeds)} seeds{checked}"
+                        + locked_text(b.extras.get("contact_fraction"), ok, scene.contact.mu, rom))
         return result, cpu, wall
 
     for method in sorted(hbm.methods):  # DLFT first: RL's modal seeds are its solutions

@@ -159,3 +159,25 @@ def test_lanczos_filter_is_consistent_at_second_order(reference):
     assert filtered[-1] < 5e-4
     # at N_h = 64 the filter's bias, not the truncation, is the error: far above the law's own
     assert filtered[-1] > 20 * unfiltered[-1]
+
+
+@pytest.mark.parametrize("method", ["rl", "dlft"])
+def test_contact_fraction_is_the_exact_orbit_s_time_in_contact(method, reference):
+    """The isola search's contact_fraction of a point (hbm.isolas.harmonic.describe) is the
+    share of the period the exact orbit spends beyond the obstacle (x > d), to the AFT grid's
+    resolution (N_t = 1024: 2 samples); a node that never touches reads 0."""
+    from hbm.isolas.harmonic import describe
+
+    rom, f, fdof = _model(method)
+    contact = ContactOptions(kappa=KAPPA, gamma=0.0, epsilon=3.0, mu=0.0, lanczos=False)
+    nt = 1024
+    for wall, expected in ((D, float(np.mean(reference > D))), (10.0 * D, 0.0)):
+        res = build_residual(rom, CasingOptions(), contact, HbmOptions(n_harmonics=32, n_time=nt), method=method,
+                             forcing=HarmonicForcing(f, 1), alpha=1.0,
+                             distance=lambda tau, wall=wall: np.full((len(tau), 1), wall))
+        sol = newton_solve(res, res.linear_solution(W), W, NewtonOptions(tol_residual=1e-11, max_iter=40))
+        assert sol.converged, sol.reason
+        got = describe(res, False)(np.array([W]), sol.x[None, :])["contact_fraction"]
+        assert got.shape == (1, 1)
+        assert abs(got[0, 0] - expected) <= 2.0 / nt, (method, wall, got, expected)
+    assert 0.05 < float(np.mean(reference > D)) < 0.95  # a real share (8 %), neither none nor all

@@ -139,6 +139,12 @@ def test_branch_layout(searched):
                 np.testing.assert_allclose(mc[conv].sum(axis=1), 1.0, rtol=1e-12)
                 assert np.isnan(mc[~conv]).all() and (mc[conv] >= 0).all()
                 np.testing.assert_array_equal(b["modes/frequencies"].shape, (39,))
+                # each contact node's share of the period in contact (hbm.isolas.harmonic.
+                # contact_fraction), on the AFT grid of N_t = 1024 samples
+                cf = b["contact_fraction"][()]
+                assert cf.shape == (m, 9) and np.isnan(cf[~conv]).all()
+                assert ((cf[conv] >= 0) & (cf[conv] <= 1)).all()
+                np.testing.assert_allclose(cf[conv] * 1024, np.round(cf[conv] * 1024), atol=1e-9)
 
 
 def test_a_second_run_reuses_it(searched):
@@ -309,3 +315,26 @@ def test_seed_failures_follow_the_merged_order():
     np.testing.assert_array_equal(rn[:2], [1e-9, 0.34])
     assert np.isnan(rn[2:]).all()
     assert why == ["", first.reason[1], "unknown", ""]
+
+
+def test_the_log_names_the_nodes_a_branch_never_lets_go():
+    """A branch whose converged points all hold a node in contact over the whole period is
+    named with that node, as the friction lock where mu >= the ROM's mu_set (the validation
+    stage's words for a march's permanent contact); a node in contact at only some points, or
+    at a point that did not converge, is not."""
+    from types import SimpleNamespace
+
+    from pipelines.stages.isolas import locked_text
+
+    f = np.full((3, 9), 0.25)
+    f[:, 6] = 1.0
+    f[:2, 7] = 1.0  # the third point lets node 7 go
+    f[2, 8], f[:2, 8] = 0.5, 1.0  # node 8 held only at the two converged points
+    rom = SimpleNamespace(friction_lock=SimpleNamespace(mu_set=0.123))
+    conv = np.array([True, True, False])
+    assert locked_text(f, conv, 0.15, rom) == \
+        ", nodes 6, 7, 8 never leave the casing (the friction lock: mu = 0.15 >= mu_set = 0.123)"
+    assert locked_text(f, np.ones(3, bool), 0.1, rom) == ", node 6 never leaves the casing"
+    assert locked_text(np.full((3, 9), 0.99), conv, 0.15, rom) == ""
+    assert locked_text(None, conv, 0.15, rom) == "" and locked_text(f, np.zeros(3, bool), 0.15, rom) == ""
+    assert locked_text(f, conv, 0.15, SimpleNamespace()) == ", nodes 6, 7, 8 never leave the casing"
