@@ -245,6 +245,7 @@ KIND_COLOURS = {
     "bifurcated": ("#ff7f0e", "#8c564b"),
     "period-doubled": ("#17becf", "#e377c2"),
     "detached": ("#7f7f7f", "#bcbd22"),
+    "friction lock": ("#000000", "#006400"),  # a node held on the casing past mu_set: the model's, not the blade's
 }
 #: Line style by stability: stable, unstable, unknown.
 STABILITY_STYLES = {"stable": "-", "unstable": "--", "unknown": ":"}

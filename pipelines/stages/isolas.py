@@ -97,6 +97,8 @@ class IsolaBranch:
     linked, hbm.isolas.search.connected; empty when it is whole), or None in files without it.
     harmonic_checks: the table {column: array} of the points solved again with 2 N_h
     (hbm.isolas.harmonic.harmonic_checks; index counts this branch's points), or None.
+    contact_fraction (m, n_b): each contact node's share of the period in contact
+    (hbm.isolas.harmonic.contact_fraction), or None in files without it.
     """
 
     method: str
@@ -120,6 +122,13 @@ class IsolaBranch:
     seed_omega: np.ndarray | None = None
     linked: np.ndarray | None = None
     harmonic_checks: dict | None = None
+    contact_fraction: np.ndarray | None = None
+
+    @property
+    def locked_nodes(self) -> np.ndarray:
+        """The contact nodes every converged point holds in contact over its whole period
+        (locked_nodes below), (j,) int; empty when none is or the fraction is not stored."""
+        return locked_nodes(self.contact_fraction, self.converged)
 
     @property
     def harmonic_verdict(self) -> str:
@@ -168,7 +177,8 @@ def read_isolas(path) -> dict[str, list[IsolaBranch]]:
                     seed_omega=seed_omega[seeds[(seeds >= 0) & (seeds < len(seed_omega))]],
                     linked=np.asarray(a["linked"], dtype=np.int64).reshape(-1) if "linked" in a else None,
                     harmonic_checks=({k: v for k, (v, _) in read_table(b["harmonic_checks"]).items()}
-                                     if "harmonic_checks" in b else None)))
+                                     if "harmonic_checks" in b else None),
+                    contact_fraction=b["contact_fraction"][()] if "contact_fraction" in b else None))
             out[method] = rows
     return out
 
@@ -197,21 +207,34 @@ def _write_branch(group, fb, nu: int, content: dict | None = None, linked=None) 
         a["linked"] = np.asarray(linked, dtype=np.int64)
 
 
+def locked_nodes(fraction, converged) -> np.ndarray:
+    """The contact nodes in contact over the whole period at every converged point, (j,) int:
+    fraction (m, n_b), the points' contact_fraction (None: not known, none); converged (m,)
+    bool."""
+    if fraction is None or not np.any(converged):
+        return np.zeros(0, np.int64)
+    f = np.asarray(fraction, float)[np.asarray(converged, bool)]
+    return np.flatnonzero(np.all(f >= 1.0, axis=0))
+
+
+def past_friction_lock(mu: float, rom) -> bool:
+    """Whether mu is at or above the ROM's contact-set limit mu_set (rom.friction_lock; False
+    without one), where a node held on the casing is the friction lock."""
+    lock = getattr(rom, "friction_lock", None)
+    return lock is not None and mu >= lock.mu_set
+
+
 def locked_text(fraction, converged, mu: float, rom) -> str:
     """", nodes 6, 7 never leave the casing (the friction lock: ...)" for a branch whose converged
-    points all hold those nodes in contact over the whole period (fraction (m, n_b), the points'
-    contact_fraction; converged (m,) bool); the friction lock where mu >= the ROM's mu_set
-    (rom.friction_lock), as the validation stage calls a march's permanent contact. "" when no
-    node is, or the fraction is not known (a branch of an older file)."""
-    if fraction is None or not np.any(converged):
-        return ""
-    f = np.asarray(fraction, float)[np.asarray(converged, bool)]
-    nodes = np.flatnonzero(np.all(f >= 1.0, axis=0))
+    points all hold those nodes in contact over the whole period (locked_nodes); the friction
+    lock where mu >= the ROM's mu_set (rom.friction_lock), as the validation stage calls a
+    march's permanent contact. "" when no node is, or the fraction is not known (a branch of
+    an older file)."""
+    nodes = locked_nodes(fraction, converged)
     if not len(nodes):
         return ""
-    lock = getattr(rom, "friction_lock", None)
-    why = f" (the friction lock: mu = {mu:g} >= mu_set = {lock.mu_set:.3g})" if lock is not None and \
-        mu >= lock.mu_set else ""
+    why = f" (the friction lock: mu = {mu:g} >= mu_set = {rom.friction_lock.mu_set:.3g})" \
+        if past_friction_lock(mu, rom) else ""
     names = ", ".join(str(int(j)) for j in nodes)
     return (f", nodes {names} never leave the casing" if len(nodes) > 1 else
             f", node {names} never leaves the casing") + why

@@ -832,6 +832,18 @@ def _signal_files(scene) -> tuple[str, ...]:
     return tuple(f for m in scene.hbm.methods for f in (f"validation_{m}.png", f"contact_{m}.png"))
 
 
+def drawn_kind(br, nu: int, mu: float, rom) -> str:
+    """The kind Fig. 8 draws an isola-search branch as: "friction lock" where every point holds a
+    node on the casing over its whole period and mu >= the ROM's mu_set (the log's words,
+    pipelines.stages.isolas.locked_text), "period-doubled" for the branches of the search in
+    the basis of twice the scene's period (subharmonic > nu), else its kind."""
+    from pipelines.stages.isolas import past_friction_lock
+
+    if len(br.locked_nodes) and past_friction_lock(mu, rom):
+        return "friction lock"
+    return "period-doubled" if br.subharmonic > nu else br.kind
+
+
 def _stability_bounds(table: dict, stable) -> list:
     """[(kind, omega, le_amplitude, guessed)] of the bifurcations of a branch's table
     ({column: array}) where a stable stretch begins or ends (the stable flag differs between
@@ -863,6 +875,7 @@ def draw_solution_set(ctx: Context) -> None:
 
     scene, out = ctx.scene, ctx.out
     validation = read_validation(out) if (out / VALIDATION.file).is_file() else None
+    rom = read_rom(out) if (out / "rom.h5").is_file() else None  # its mu_set: which branches are the lock
     curves = {}
     for m in scene.hbm.methods:
         lines, marks = [], []
@@ -879,9 +892,9 @@ def draw_solution_set(ctx: Context) -> None:
                     marks += _stability_bounds({k: v for k, (v, _) in read_table(h5["bifurcations"]).items()},
                                                s.extras.get("stable"))
         for br in read_branch_set(out / ISOLAS, m):
-            if br.kind != "primary":  # the search's branches of twice the period drawn as period-doubled ones
-                kind = "period-doubled" if br.subharmonic > scene.hbm.subharmonic else br.kind
-                lines.append((kind, br.omega, br.le_amplitude, br.converged, br.stable, br.n_unstable,
+            if br.kind != "primary":
+                lines.append((drawn_kind(br, scene.hbm.subharmonic, scene.contact.mu, rom), br.omega,
+                              br.le_amplitude, br.converged, br.stable, br.n_unstable,
                               br.harmonic_verdict == "not converged"))
                 if br.bifurcations is not None:
                     marks += _stability_bounds(br.bifurcations, br.stable)
@@ -910,7 +923,7 @@ def _set_files(scene) -> tuple[str, ...]:
 
 
 def _set_inputs(scene) -> tuple[str, ...]:
-    return tuple(nfrc_output(m).file for m in scene.hbm.methods) + (ISOLAS, VALIDATION.file, "ti.h5")
+    return tuple(nfrc_output(m).file for m in scene.hbm.methods) + (ISOLAS, VALIDATION.file, "ti.h5", "rom.h5")
 
 
 def _add_content(modal: dict, harmonic: dict, label: str, omega, converged, nu: int, modal_c, harmonic_c) -> None:
@@ -990,7 +1003,7 @@ SIGNALS = Figure("validation", files=_signal_files, depends=("hbm.methods",),
                  inputs=lambda s: (VALIDATION.file,), draw=draw_time_signals)
 SOLUTION_SET = Figure("solution_set", files=_set_files,
                       depends=("hbm.methods", "hbm.omega_min", "hbm.omega_max", "casing.n_lobes",
-                               "ti.max_order", "ti.n_keep"),
+                               "ti.max_order", "ti.n_keep", "contact.mu"),
                       inputs=_set_inputs, draw=draw_solution_set)
 CONTENT = Figure("isola_content", files=lambda s: ("isola_modal_content.png", "isola_harmonic_content.png"),
                  depends=("hbm.methods",), inputs=lambda s: (ISOLAS, "rom.h5"), draw=draw_content)

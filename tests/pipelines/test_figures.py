@@ -216,3 +216,21 @@ def test_a_figure_replaces_its_file_and_a_failed_one_leaves_the_old(tmp_path, sw
         figures.plot_ti_sweep(omega, 3.0 * amp, cls, png)
     assert png.read_bytes() == new
     assert sorted(p.name for p in tmp_path.iterdir()) == ["copy.png", "ti_sweep.png"]
+
+
+def test_the_solution_set_names_the_friction_lock_in_its_legend(tmp_path, monkeypatch):
+    """A branch of kind "friction lock" gets its own colour per treatment and legend entry."""
+    legends = []
+    save = figures._save
+
+    def keep(fig, path):
+        legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    omega = np.linspace(400.0, 2000.0, 50)
+    line = ("friction lock", omega, np.full(50, 1e-3), np.ones(50, bool), None)
+    _check(figures.plot_solution_set({"DLFT": ([line], []), "RL": ([line], [])}, tmp_path / "set.png"))
+    assert {"DLFT friction lock", "RL friction lock"} <= set(legends[0])
+    assert len(set(figures.KIND_COLOURS["friction lock"]) - {c for k, v in figures.KIND_COLOURS.items()
+                                                              if k != "friction lock" for c in v}) == 2

@@ -338,3 +338,38 @@ def test_the_log_names_the_nodes_a_branch_never_lets_go():
     assert locked_text(np.full((3, 9), 0.99), conv, 0.15, rom) == ""
     assert locked_text(None, conv, 0.15, rom) == "" and locked_text(f, np.zeros(3, bool), 0.15, rom) == ""
     assert locked_text(f, conv, 0.15, SimpleNamespace()) == ", nodes 6, 7, 8 never leave the casing"
+
+
+def test_fig_8_draws_a_branch_the_lock_holds_as_the_friction_lock(searched):
+    """Fig. 8 calls a branch "friction lock" where every converged point holds a node on the
+    casing and mu >= mu_set, as the log does; below mu_set, or with a node let go at one
+    point, the branch keeps its kind (a doubled one: period-doubled). The stored fractions
+    come back with the branches (read_isolas)."""
+    from types import SimpleNamespace
+
+    import h5py
+
+    from pipelines.stages.isolas import IsolaBranch
+    from pipelines.stages.validation import drawn_kind
+
+    _, out = searched
+    with h5py.File(out / "isolas.h5") as h5:
+        for method, branches in read_isolas(out / "isolas.h5").items():
+            for b in branches:
+                np.testing.assert_array_equal(b.contact_fraction,
+                                              h5[f"{method}/branches/{b.name}/contact_fraction"][()])
+    f = np.full((3, 9), 0.3)
+    f[:, 7] = 1.0
+    conv = np.ones(3, bool)
+    common = dict(method="dlft", index=0, closed=False, status="", seeds=np.zeros(0, int), omega=np.ones(3),
+                  x=np.zeros((3, 1)), converged=conv, le_amplitude=np.ones(3), harmonics=np.zeros((3, 1, 1)))
+    held = IsolaBranch(kind="detached", subharmonic=1, contact_fraction=f, **common)
+    doubled = IsolaBranch(kind="isola", subharmonic=2, contact_fraction=f, **common)
+    g = f.copy()
+    g[1, 7] = 0.9
+    let_go = IsolaBranch(kind="detached", subharmonic=1, contact_fraction=g, **common)
+    rom = SimpleNamespace(friction_lock=SimpleNamespace(mu_set=0.123))
+    assert held.locked_nodes.tolist() == [7] and let_go.locked_nodes.tolist() == []
+    assert drawn_kind(held, 1, 0.15, rom) == "friction lock" == drawn_kind(doubled, 1, 0.15, rom)
+    assert drawn_kind(held, 1, 0.1, rom) == "detached" and drawn_kind(doubled, 1, 0.1, rom) == "period-doubled"
+    assert drawn_kind(let_go, 1, 0.15, rom) == "detached" and drawn_kind(held, 1, 0.15, None) == "detached"
