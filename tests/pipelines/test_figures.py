@@ -17,6 +17,19 @@ def _check(path):
     return img
 
 
+def _legends(monkeypatch) -> list:
+    """The legend texts of every figure saved from now on, one list per figure, in order."""
+    legends = []
+    save = figures._save
+
+    def keep(fig, path):
+        legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    return legends
+
+
 def duffing_like(omega, peak, width, height):
     """A resonance-shaped amplitude curve, m."""
     return height / np.sqrt(1.0 + ((omega - peak) / width) ** 2)
@@ -66,14 +79,7 @@ def test_the_hbm_figures_ring_the_flagged_ti_points(tmp_path, sweep, monkeypatch
     """ti_points may carry a fourth array, the flags: those points are ringed and the legend
     names them with flagged_label; all flags False draws the figure of the three arrays."""
     plot = getattr(figures, f"plot_{draw}")
-    legends = []
-    save = figures._save
-
-    def keep(fig, path):
-        legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])
-        return save(fig, path)
-
-    monkeypatch.setattr(figures, "_save", keep)
+    legends = _legends(monkeypatch)
     flags = np.zeros(60, bool)
     bare = _check(plot({}, tmp_path / "bare.png", ti_points=sweep))
     none = _check(plot({}, tmp_path / "none.png", ti_points=(*sweep, flags)))
@@ -220,14 +226,7 @@ def test_a_figure_replaces_its_file_and_a_failed_one_leaves_the_old(tmp_path, sw
 
 def test_the_solution_set_names_the_friction_lock_in_its_legend(tmp_path, monkeypatch):
     """A branch of kind "friction lock" gets its own colour per treatment and legend entry."""
-    legends = []
-    save = figures._save
-
-    def keep(fig, path):
-        legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])
-        return save(fig, path)
-
-    monkeypatch.setattr(figures, "_save", keep)
+    legends = _legends(monkeypatch)
     omega = np.linspace(400.0, 2000.0, 50)
     line = ("friction lock", omega, np.full(50, 1e-3), np.ones(50, bool), None)
     _check(figures.plot_solution_set({"DLFT": ([line], []), "RL": ([line], [])}, tmp_path / "set.png"))
