@@ -662,6 +662,14 @@ def test_the_search_s_doubled_branches_are_tried_after_the_nfrc_s(oscillator, do
     assert abs(whole.omega - w_seed) > stage.SEED_WINDOW * w_seed
     found = [branch(0, 1, [1, 2, 3], [4.0] * 3), branch(1, 2, [4], [4.0]), branch(2, 2, [5, 6], [w_seed, 9.0])]
     monkeypatch.setattr(stage, "read_branch_set", lambda path, method: found)
+    # the modules that bind build_residual when first imported, imported before the stand-in:
+    # one first imported under it would keep it for the rest of the process (a later isolas
+    # stage in this test worker then built the oscillator's residual for rotor 67)
+    import hbm.harmonic.nfrc  # noqa: F401
+    import hbm.harmonic.start  # noqa: F401
+    import hbm.isolas.harmonic  # noqa: F401
+    import hbm.stability.switching  # noqa: F401
+
     monkeypatch.setattr(residual_module, "build_residual", lambda *a, **k: new)
     monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (db, new))
     monkeypatch.setattr(convergence, "check_harmonics", lambda *a, **k: HarmonicCheck(True, "rule", 122))
