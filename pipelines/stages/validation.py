@@ -255,13 +255,16 @@ def _treatment(ctx, rom, system, method: str, update) -> TreatmentValidation:
     # isola
     isolas = ctx.out / ISOLAS
     branches = read_branch_set(isolas, method)
-    groups = [g for g in isola_branches(branches, scene.hbm.subharmonic) if g]
+    lock = lambda br: locked_branch(br, scene.contact.mu, rom)  # noqa: E731
+    groups = [g for g in isola_branches(branches, scene.hbm.subharmonic, locked=lock) if g]
     if not isolas.is_file():
         isola = ValidationPoint("isola", method, False, f"no {ISOLAS} in the output folder (the isolas stage has not run)")
     elif not groups:
-        artefacts = [br.name for g in isola_branches(branches, scene.hbm.subharmonic, artefacts=True) for br in g]
+        artefacts = [br.name for g in isola_branches(branches, scene.hbm.subharmonic, artefacts=True, locked=lock)
+                     for br in g]
+        locks = [br.name for g in isola_branches(branches, scene.hbm.subharmonic) for br in g if lock(br)]
         left = (f" (left out, none of their points holds with twice the harmonics: {', '.join(artefacts)})"
-                if artefacts else "")
+                if artefacts else "") + (f" (left out, the friction lock: {', '.join(locks)})" if locks else "")
         isola = ValidationPoint("isola", method, False, f"{ISOLAS} holds no branch of kind "
                                                          f"{' or '.join(map(repr, ISOLA_KINDS))} for {method}, "
                                                          f"nor an isola of its period-doubled search{left}")
@@ -367,7 +370,7 @@ class Candidate:
 DECISIVE_DECAY = 3.0
 
 
-def isola_branches(branches, nu: int, artefacts: bool = False) -> tuple[list, list]:
+def isola_branches(branches, nu: int, artefacts: bool = False, locked=None) -> tuple[list, list]:
     """The branches of isolas.h5 (IsolaBranch list) the isola point is taken from, in two
     groups tried in turn: those of the scene's basis (subharmonic nu) of kind "isola", then
     "detached" (ISOLA_KINDS); then the closed isolas of the period-doubled search
@@ -375,9 +378,11 @@ def isola_branches(branches, nu: int, artefacts: bool = False) -> tuple[list, li
     doubled branches are born at period doublings: the period-doubling point's. A branch none
     of whose checked points holds with twice the harmonics (harmonic_verdict "not converged")
     is left out: its orbits are the truncation's, which a march from them would only measure
-    (artefacts=True: those left out instead, in the same two groups)."""
+    (artefacts=True: those left out instead, in the same two groups). locked(branch) -> bool:
+    branches left out in either case, the friction lock's (locked_branch): an orbit of the
+    model past its mu_set, not an isola of the blade."""
     def kept(br) -> bool:
-        return (br.harmonic_verdict == "not converged") == artefacts
+        return (br.harmonic_verdict == "not converged") == artefacts and not (locked is not None and locked(br))
 
     own = [br for kind in ISOLA_KINDS for br in branches if br.subharmonic == nu and br.kind == kind and kept(br)]
     return own, [br for br in branches if br.subharmonic == 2 * nu and br.kind == "isola" and kept(br)]
@@ -832,14 +837,21 @@ def _signal_files(scene) -> tuple[str, ...]:
     return tuple(f for m in scene.hbm.methods for f in (f"validation_{m}.png", f"contact_{m}.png"))
 
 
+def locked_branch(br, mu: float, rom) -> bool:
+    """Whether every converged point of an isola-search branch holds a node on the casing
+    over its whole period with mu >= the ROM's mu_set: the friction lock (the stage log's
+    words, pipelines.stages.isolas.locked_text)."""
+    from pipelines.stages.isolas import past_friction_lock
+
+    return bool(len(br.locked_nodes)) and past_friction_lock(mu, rom)
+
+
 def drawn_kind(br, nu: int, mu: float, rom) -> str:
     """The kind Fig. 8 draws an isola-search branch as: "friction lock" where every point holds a
     node on the casing over its whole period and mu >= the ROM's mu_set (the log's words,
     pipelines.stages.isolas.locked_text), "period-doubled" for the branches of the search in
     the basis of twice the scene's period (subharmonic > nu), else its kind."""
-    from pipelines.stages.isolas import past_friction_lock
-
-    if len(br.locked_nodes) and past_friction_lock(mu, rom):
+    if locked_branch(br, mu, rom):
         return "friction lock"
     return "period-doubled" if br.subharmonic > nu else br.kind
 

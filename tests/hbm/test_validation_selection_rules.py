@@ -176,6 +176,27 @@ def test_the_isola_point_falls_back_on_the_isolas_of_the_doubled_search():
     assert [names(g) for g in isola_branches(checked, 1, artefacts=True)] == [["c0"], ["c3"]]
 
 
+def test_the_isola_point_is_never_taken_from_the_friction_lock():
+    """A branch every point of which holds a node on the casing past mu_set (on both rotor 67
+    scenes the 400-2000 rad/s 'detached' one) is no isola of the blade: isola_branches leaves
+    it out of both groups, and out of the artefacts; below mu_set, or with no node held
+    throughout, it stays."""
+    from pipelines.stages.validation import isola_branches, locked_branch
+
+    def br(name, kind, nu, held=()):
+        return SimpleNamespace(name=name, kind=kind, subharmonic=nu, harmonic_verdict="converged",
+                               locked_nodes=np.asarray(held, dtype=int))
+
+    rom = SimpleNamespace(friction_lock=SimpleNamespace(mu_set=0.123))
+    bs = [br("a1", "detached", 1, (6, 7, 8)), br("a2", "isola", 1), br("d1", "isola", 2, (7,)), br("d3", "isola", 2)]
+    names = lambda g: [b.name for b in g]  # noqa: E731
+    for mu, expected in ((0.15, [["a2"], ["d3"]]), (0.1, [["a2", "a1"], ["d1", "d3"]])):
+        got = isola_branches(bs, 1, locked=lambda b, mu=mu: locked_branch(b, mu, rom))
+        assert [names(g) for g in got] == expected
+    assert not locked_branch(bs[0], 0.15, SimpleNamespace())  # a ROM without the check: no lock known
+    assert [names(g) for g in isola_branches(bs, 1, artefacts=True, locked=lambda b: True)] == [[], []]
+
+
 def test_the_doubled_search_s_isolas_are_tried_when_time_integration_keeps_none_of_the_others():
     """first_kept: the groups are tried in turn until time integration stays on a point; the
     one kept, else the first found (the scene's basis' own isola point, time integration
