@@ -54,7 +54,7 @@ from pipelines import artifacts as art
 from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
 from pipelines.stages.hbm import nfrc_output
-from pipelines.stages.rom import read_rom
+from pipelines.stages.rom import past_friction_lock, read_rom
 
 ISOLAS = Output("isolas.h5")
 
@@ -215,13 +215,6 @@ def locked_nodes(fraction, converged) -> np.ndarray:
         return np.zeros(0, np.int64)
     f = np.asarray(fraction, float)[np.asarray(converged, bool)]
     return np.flatnonzero(np.all(f >= 1.0, axis=0))
-
-
-def past_friction_lock(mu: float, rom) -> bool:
-    """Whether mu is at or above the ROM's contact-set limit mu_set (rom.friction_lock; False
-    without one), where a node held on the casing is the friction lock."""
-    lock = getattr(rom, "friction_lock", None)
-    return lock is not None and mu >= lock.mu_set
 
 
 def locked_text(fraction, converged, mu: float, rom) -> str:

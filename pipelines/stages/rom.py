@@ -30,6 +30,14 @@ def warn_friction_lock(ctx: Context, rom) -> None:
             ctx.log("  WARNING: " + line)
 
 
+def past_friction_lock(mu: float, rom) -> bool:
+    """Whether mu is at or above the ROM's contact-set limit mu_set (rom.friction_lock; False
+    without one), where a node held on the casing is the friction lock, a state of the model
+    (the validation stage's marches in permanent contact, the isola search's branches)."""
+    lock = getattr(rom, "friction_lock", None)
+    return lock is not None and mu >= lock.mu_set
+
+
 def _compute(ctx: Context, outputs) -> None:
     from rom.craig_bampton import build_craig_bampton
 

@@ -57,7 +57,7 @@ from hbm.ti.validation import DEVIATION_TOL, GROWTH_TOL, LANDING_TOL, OrbitCompa
 from pipelines import artifacts as art
 from pipelines.stages.base import Context, Figure, Output, Stage
 from pipelines.stages.hbm import nfrc_output
-from pipelines.stages.rom import read_rom
+from pipelines.stages.rom import past_friction_lock, read_rom
 from pipelines.stages.treatments import run_treatments
 
 VALIDATION = Output("validation.h5")
@@ -715,8 +715,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
 def _friction_lock(ti: OrbitValidation, rom, mu: float) -> bool:
     """Whether the march ended in permanent contact with mu at or above the ROM's contact-set
     limit mu_set (rom.friction_lock): the lock, a state of the model, not of the step."""
-    lock = getattr(rom, "friction_lock", None)
-    return ti is not None and ti.outcome == "permanent contact" and lock is not None and mu >= lock.mu_set
+    return ti is not None and ti.outcome == "permanent contact" and past_friction_lock(mu, rom)
 
 
 def _worth_refining(p: ValidationPoint, rom, mu: float, refinement: int) -> bool:
@@ -841,8 +840,6 @@ def locked_branch(br, mu: float, rom) -> bool:
     """Whether every converged point of an isola-search branch holds a node on the casing
     over its whole period with mu >= the ROM's mu_set: the friction lock (the stage log's
     words, pipelines.stages.isolas.locked_text)."""
-    from pipelines.stages.isolas import past_friction_lock
-
     return bool(len(br.locked_nodes)) and past_friction_lock(mu, rom)
 
 
