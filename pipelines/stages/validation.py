@@ -32,8 +32,11 @@ For each treatment of [hbm] methods:
   for the next try and marched only when no try gives a point); when time integration leaves
   that point, the isola search's own branches of
   twice the period (searched_doubled_branches: its second search, seeded from the sweep),
-  then the period doublings that end stable stretches of its branches (doubling_candidates),
-  up to [validation] pd_tries in all, until it stays on one.
+  then the NFRC's other period doublings where a stable stretch begins or ends, the longest
+  stretch first (from its stability, computed here if neither its file nor the primary
+  point's choice holds it), then the period doublings that end stable stretches of the
+  search's branches (doubling_candidates), up to [validation] pd_tries in all, until it stays
+  on one.
 From each point time integration is marched [validation] n_periods periods of the orbit
 (hbm.ti.validation.march_from_hbm); when it leaves a stable point for anything but the
 friction lock, it is marched again with [validation] dt / dt_refinement, and that march
@@ -568,6 +571,19 @@ def _searched_point(ctx, rom, system, method: str, n_r: int, where: str, br, upd
                             n_unstable=np.asarray(n_unstable, int), new_content=content)
 
 
+#: In _period_doubling's list of tries: the NFRC's doublings after the first, whose brackets
+#: may need its stability (hundreds of analyses), computed only when the earlier tries failed.
+_LATER = ("the NFRC's other period doublings",)
+
+
+@dataclass(frozen=True)
+class _Doublings:
+    """A branch's period doublings and stable flags in the shape doubling_candidates reads."""
+
+    bifurcations: dict
+    stable: np.ndarray
+
+
 def _branch_monitor(hbm) -> tuple:
     """Candidate.monitor of a branch computed with `hbm`: the continuation's scales and the
     scene's stability gap."""
@@ -580,7 +596,9 @@ def _branch_monitor(hbm) -> tuple:
 
 def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, update, nfrc: Candidate | None = None):
     """(ValidationPoint, DoubledBranch) of the period-doubling point: the NFRC's first period
-    doubling, then searched_doubled_branches and doubling_candidates of isolas.h5, up to
+    doubling, then searched_doubled_branches of isolas.h5, the NFRC's other doublings (ranked
+    as doubling_candidates ranks a branch's; the NFRC's stability is computed for them only
+    once the earlier tries have failed) and doubling_candidates of isolas.h5, up to
     [validation] pd_tries, until time
     integration stays on the doubled branch's chosen point (the first try marched is kept when
     none does; a switched branch with no stable point is marched only when no other try gives
@@ -610,15 +628,40 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     if opts.pd_tries > 1:
         found = read_branch_set(ctx.out / ISOLAS, method)
         # the search's own doubled branches first (time integration from rest ended on them),
-        # then the doublings of its branches, each switched to here
+        # then the NFRC's other doublings (their brackets once the first try is known: _LATER),
+        # then the doublings of the search's branches, each switched to here
         for br in searched_doubled_branches(found, scene.hbm.subharmonic):
             sources.append((f"{ISOLAS} {method}/branches/{br.name}", br))
+        sources.append(_LATER)
         for br, i in doubling_candidates(found)[: max(0, opts.pd_tries - len(sources))]:
             r_b = build_residual(rom, scene.casing, scene.contact,
                                  _options_for(scene.hbm, br.x.shape[1], res.n_r, br.subharmonic), method=method)
             sources.append((f"{ISOLAS} {method}/branches/{br.name}", r_b, br.omega, br.x, br.le_amplitude,
                             br.converged, [i]))
         del sources[opts.pd_tries:]
+
+    def later_doublings(k: int) -> list:
+        """The NFRC's doublings other than the first try's, as sources, at most the tries left
+        after k: from its file's table, else from its stability (computed here when the stage
+        has not yet: the first try's march left, and these are the next candidates)."""
+        nonlocal nfrc_from
+        brackets = _pd_brackets(path)
+        stable = None if nfrc is None else nfrc.stable
+        if brackets is None:
+            if nfrc is None or nfrc.monitor is None or np.count_nonzero(np.asarray(b.converged, bool)) < 2:
+                return []
+            if nfrc._stability is None:
+                update(f"{tag}: the NFRC's stability along the whole branch, for its other period doublings")
+            brackets, stable, nfrc_from = computed_brackets(), nfrc.stable, nfrc.computed_words()
+        near = [int(i) for i in first_bracket]
+        left = [i for i in brackets if all(abs(int(i) - j) > 1 for j in near)]
+        if stable is not None:
+            ranked = doubling_candidates([_Doublings({"kind": [PERIOD_DOUBLING] * len(left), "index": left},
+                                                     np.asarray(stable, bool))])
+            left = [i for _, i in ranked]
+        return [(f"the NFRC (its period doubling after point {i})", res, b.omega, b.x, ex["le_amplitude"],
+                 b.converged, [i]) for i in left[: max(0, opts.pd_tries - k)]]
+
     def switch(r_s, loc, where, omega, x):
         """(DoubledBranch, its residual) switched to at loc (located on the branch omega, x),
         or None when nothing was located."""
@@ -632,7 +675,16 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
     # the first switched branch without a stable point: (its index in tried, where, the located
     # Omega, its Candidate, its DoubledBranch)
     deferred = None
-    for k, (where, *source) in enumerate(sources):
+    first_bracket: tuple = ()  # the stored points around the NFRC's first try's doubling
+    k = -1
+    while k + 1 < len(sources):
+        k += 1
+        if sources[k] is _LATER:  # replaced by what it stands for, then index k again
+            sources[k: k + 1] = later_doublings(k)
+            del sources[opts.pd_tries:]
+            k -= 1
+            continue
+        where, *source = sources[k]
         if len(source) == 1:  # a doubled branch of the isola search: no switch
             update(f"{tag}: the isola search's period-doubled branch {where}")
             result = _searched_point(ctx, rom, system, method, res.n_r, where, source[0], update)
@@ -646,7 +698,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
         r_s, omega, x, amp, conv, brackets = source
         update(f"{tag}: period doubling of {where}")
         loc = locate_period_doubling(r_s, omega, x, amp, conv, brackets=brackets, n_scan=opts.n_scan,
-                                     **({"brackets_from": nfrc_from} if where == "the NFRC" else {}))
+                                     **({"brackets_from": nfrc_from} if where.startswith("the NFRC") else {}))
         switched = switch(r_s, loc, where, omega, x)
         if monitor_left and where == "the NFRC" and (switched is None or not switched[0].found):
             # the scan of an NFRC stored without stability found nothing to switch to
@@ -658,6 +710,8 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
                                            brackets_from=nfrc.computed_words())
             loc = replace(again, reason=f"the scan found nothing to switch to ({why}); {again.reason}")
             switched = switch(r_s, loc, where, omega, x)
+        if where == "the NFRC":
+            first_bracket = tuple(loc.bracket) or ((loc.index,) if loc.index >= 0 else ())
         if loc.bifurcation is None:
             result = (ValidationPoint("period_doubling", method, False, f"{where}: {loc.reason}"),
                       DoubledBranch(False, f"{where}: {loc.reason}"))
@@ -696,7 +750,9 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
             break
     else:
         result = first
-        if deferred is not None and not first[0].found:  # the last try is never deferred: first is set
+        # first is None only when every try was a deferred branch (the NFRC's other doublings,
+        # counted as a try left, turned out to be none)
+        if deferred is not None and (first is None or not first[0].found):
             # no try gave a point time integration keeps, nor any point: the least unstable
             # point of the first branch without a stable one, rather than none
             i, where, omega_pd, doubled, pd_branch = deferred

@@ -50,8 +50,8 @@ def run(monkeypatch, tmp_path):
 
     def located(*a, **k):
         bf = SimpleNamespace(omega=1351.2)
-        return SimpleNamespace(bifurcation=bf, u=np.zeros(3), omega=1351.2, reason="located",
-                               switch_starts=lambda omega, x: [None])
+        return SimpleNamespace(bifurcation=bf, u=np.zeros(3), omega=1351.2, reason="located", index=4,
+                               bracket=(4, 3), switch_starts=lambda omega, x: [None])
 
     def go(nfrc_stable, searched):
         monkeypatch.setattr(stage, "_pd_brackets", lambda path: [3])
