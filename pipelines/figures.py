@@ -34,6 +34,9 @@ PERIODICITY = {
 }
 _LENGTH = {"m": 1.0, "mm": 1e3, "um": 1e6}
 FIGSIZE = (7.0, 4.5)  # inches
+#: the amplitude-against-speed figures (Figs. 5, 6 and 8), whose legend stands right of the
+#: axes (_legend_outside): the axes keep about FIGSIZE's width
+WIDE_FIGSIZE = (9.5, 4.5)
 DPI = 150
 
 
@@ -105,7 +108,15 @@ def _amplitude_axes(ax, omega_range, unit: str, title: str | None) -> None:
     ax.grid(True, lw=0.4, alpha=0.5)
     if title:
         ax.set_title(title)
-    ax.set_ylim(0.0, 1.12 * ax.get_ylim()[1])  # head room for the legend
+
+
+def _legend_outside(ax, handles, fontsize: float = 7, ncol: int = 1):
+    """The legend right of the axes. Inside, wherever it went, it hid what it names: Fig. 8's
+    primary NFRC of the coarse rotor 67 scene (1.5-1.9 mm at 400-1450 rad/s) under its upper
+    left corner, the default scene's ringed sweep points near 1250 rad/s under Fig. 6's "best"
+    place."""
+    return ax.legend(handles=handles, fontsize=fontsize, loc="upper left", bbox_to_anchor=(1.01, 1.0),
+                     borderaxespad=0.0, framealpha=0.9, ncol=ncol)
 
 
 def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000.0),
@@ -127,7 +138,7 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
     is TimeIntegrationOptions'.
     """
     k = _LENGTH[unit]
-    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    fig, ax = plt.subplots(figsize=WIDE_FIGSIZE, constrained_layout=True)
     handles, any_failed = [], False
     colours = plt.rcParams["axes.prop_cycle"].by_key()["color"]
     for i, (label, curve) in enumerate(curves.items()):
@@ -148,7 +159,7 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
                                     n_lobes=n_lobes, max_order=max_order, flagged=flags[0] if flags else None,
                                     flagged_label=flagged_label)
     _amplitude_axes(ax, omega_range, unit, title)
-    ax.legend(handles=handles, fontsize=8, loc="best", framealpha=0.9)
+    _legend_outside(ax, handles)
     return _save(fig, out_png)
 
 
@@ -165,15 +176,14 @@ def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 200
     None, points whose march the reader should not take at face value (the ti stage: those
     its fallback WARNING names), ringed in black with `flagged_label` in the legend.
     """
-    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    fig, ax = plt.subplots(figsize=WIDE_FIGSIZE, constrained_layout=True)
     handles = _scatter_classes(ax, omega, _LENGTH[unit] * np.asarray(amplitude, float), classes, size=22,
                                n_lobes=n_lobes, max_order=max_order, flagged=flagged, flagged_label=flagged_label)
     _amplitude_axes(ax, omega_range, unit, title)
     # every point is a TI point here: the legend drops the "TI: " prefix
-    ax.legend(handles=[Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
-                              markerfacecolor=h.get_markerfacecolor(), markeredgecolor=h.get_markeredgecolor(),
-                              label=h.get_label().removeprefix("TI: ")) for h in handles],
-              fontsize=8, loc="best", framealpha=0.9)
+    _legend_outside(ax, [Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
+                                markerfacecolor=h.get_markerfacecolor(), markeredgecolor=h.get_markeredgecolor(),
+                                label=h.get_label().removeprefix("TI: ")) for h in handles])
     return _save(fig, out_png)
 
 
@@ -306,7 +316,7 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     grey. ti_points, max_order, flagged_label as in plot_nfrc.
     """
     k = _LENGTH[unit]
-    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
+    fig, ax = plt.subplots(figsize=WIDE_FIGSIZE, constrained_layout=True)
     handles, seen_styles, seen_marks, seen_guess, seen_faded = [], set(), set(), False, False
     for t, (label, (lines, marks)) in enumerate(curves.items()):
         for kind, omega, amp, conv, stable, *rest in lines:
@@ -347,7 +357,7 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
     if not curves or not any(lines for lines, _ in curves.values()):
         ax.text(0.5, 0.5, "no branch computed yet", transform=ax.transAxes, ha="center", color="0.4")
     _amplitude_axes(ax, omega_range, unit, title)
-    ax.legend(handles=handles, fontsize=6, loc="upper left", framealpha=0.9, ncol=2)
+    _legend_outside(ax, handles, fontsize=6)
     return _save(fig, out_png)
 
 

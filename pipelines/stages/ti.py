@@ -321,7 +321,8 @@ def read_sweep(out):
 
 
 #: legend entry of the speeds sweep_points flags
-FLAGGED_LABEL = f"TI: friction direction of the prediction in \u2265 {FALLBACK_SHARE_WARNING:.1%} of contact steps"
+FLAGGED_LABEL = (f"TI: friction direction of the prediction\nin \u2265 {FALLBACK_SHARE_WARNING:.1%} of "
+                 "contact steps")
 
 
 def sweep_points(out):

@@ -8,11 +8,13 @@ from matplotlib.image import imread
 from pipelines import figures
 
 SIZE = (round(figures.FIGSIZE[1] * figures.DPI), round(figures.FIGSIZE[0] * figures.DPI))  # rows, cols
+#: the amplitude-against-speed figures, their legend right of the axes
+WIDE = (round(figures.WIDE_FIGSIZE[1] * figures.DPI), round(figures.WIDE_FIGSIZE[0] * figures.DPI))
 
 
-def _check(path):
+def _check(path, wide: bool = False):
     img = imread(path)[..., :3]
-    assert img.shape[:2] == SIZE
+    assert img.shape[:2] == (WIDE if wide else SIZE)
     assert img.std() > 0.02  # lines and text, not a blank page
     return img
 
@@ -50,24 +52,24 @@ def test_nfrc_draws_lines_and_ti_markers(tmp_path, sweep):
     curves = {"DLFT-HBM": (omega, duffing_like(omega, 1500.0, 50.0, 2.2e-3), ok),
               "RL-HBM": (omega, duffing_like(omega, 1510.0, 50.0, 2.1e-3), None),
               "RL-HBM isolas": (omega[:50] + 1000.0, np.full(50, 1e-3))}
-    bare = _check(figures.plot_nfrc(curves, tmp_path / "bare.png"))
-    with_ti = _check(figures.plot_nfrc(curves, tmp_path / "nfrc.png", ti_points=sweep))
+    bare = _check(figures.plot_nfrc(curves, tmp_path / "bare.png"), wide=True)
+    with_ti = _check(figures.plot_nfrc(curves, tmp_path / "nfrc.png", ti_points=sweep), wide=True)
     assert np.abs(with_ti - bare).max(axis=2).__gt__(0.2).sum() > 200  # the markers are there
 
 
 def test_ti_sweep(tmp_path, sweep):
-    _check(figures.plot_ti_sweep(*sweep, tmp_path / "sub" / "ti.png"))
+    _check(figures.plot_ti_sweep(*sweep, tmp_path / "sub" / "ti.png"), wide=True)
 
 
 def test_ti_sweep_rings_the_flagged_speeds(tmp_path, sweep):
     """Flagged points get a ring and a legend entry; no flag draws the plain figure; flags
     that do not match the speeds are refused, naming both counts."""
-    bare = _check(figures.plot_ti_sweep(*sweep, tmp_path / "bare.png"))
-    none = _check(figures.plot_ti_sweep(*sweep, tmp_path / "none.png", flagged=np.zeros(60, bool)))
+    bare = _check(figures.plot_ti_sweep(*sweep, tmp_path / "bare.png"), wide=True)
+    none = _check(figures.plot_ti_sweep(*sweep, tmp_path / "none.png", flagged=np.zeros(60, bool)), wide=True)
     assert np.array_equal(bare, none)
     flags = np.zeros(60, bool)
     flags[::6] = True
-    ringed = _check(figures.plot_ti_sweep(*sweep, tmp_path / "ringed.png", flagged=flags))
+    ringed = _check(figures.plot_ti_sweep(*sweep, tmp_path / "ringed.png", flagged=flags), wide=True)
     changed = np.abs(ringed - bare).max(axis=2) > 0.2
     assert changed.sum() > 10 * 20  # ten rings of ~20 dark pixels at least, and the legend's entry
     with pytest.raises(ValueError, match="59 flags for 60 speeds"):
@@ -81,10 +83,10 @@ def test_the_hbm_figures_ring_the_flagged_ti_points(tmp_path, sweep, monkeypatch
     plot = getattr(figures, f"plot_{draw}")
     legends = _legends(monkeypatch)
     flags = np.zeros(60, bool)
-    bare = _check(plot({}, tmp_path / "bare.png", ti_points=sweep))
-    none = _check(plot({}, tmp_path / "none.png", ti_points=(*sweep, flags)))
+    bare = _check(plot({}, tmp_path / "bare.png", ti_points=sweep), wide=True)
+    none = _check(plot({}, tmp_path / "none.png", ti_points=(*sweep, flags)), wide=True)
     flags[::6] = True
-    ringed = _check(plot({}, tmp_path / "ringed.png", ti_points=(*sweep, flags), flagged_label="TI: suspect"))
+    ringed = _check(plot({}, tmp_path / "ringed.png", ti_points=(*sweep, flags), flagged_label="TI: suspect"), wide=True)
     assert np.array_equal(bare, none)
     assert (np.abs(ringed - bare).max(axis=2) > 0.2).sum() > 10 * 10
     assert "TI: suspect" in legends[2] and "TI: suspect" not in legends[0]
@@ -159,7 +161,7 @@ def test_sweep_of_one_speed(tmp_path):
 
     with warnings.catch_warnings():
         warnings.simplefilter("error", UserWarning)
-        _check(figures.plot_ti_sweep([1110.0], [1e-3], [0], tmp_path / "one.png", omega_range=(1110.0, 1110.0)))
+        _check(figures.plot_ti_sweep([1110.0], [1e-3], [0], tmp_path / "one.png", omega_range=(1110.0, 1110.0)), wide=True)
 
 
 def test_content_draws_the_dominant_harmonic(tmp_path):
@@ -229,7 +231,40 @@ def test_the_solution_set_names_the_friction_lock_in_its_legend(tmp_path, monkey
     legends = _legends(monkeypatch)
     omega = np.linspace(400.0, 2000.0, 50)
     line = ("friction lock", omega, np.full(50, 1e-3), np.ones(50, bool), None)
-    _check(figures.plot_solution_set({"DLFT": ([line], []), "RL": ([line], [])}, tmp_path / "set.png"))
+    _check(figures.plot_solution_set({"DLFT": ([line], []), "RL": ([line], [])}, tmp_path / "set.png"), wide=True)
     assert {"DLFT friction lock", "RL friction lock"} <= set(legends[0])
     assert len(set(figures.KIND_COLOURS["friction lock"]) - {c for k, v in figures.KIND_COLOURS.items()
                                                               if k != "friction lock" for c in v}) == 2
+
+
+@pytest.mark.parametrize("draw", ["nfrc", "ti_sweep", "solution_set"])
+def test_the_amplitude_figures_keep_their_legend_off_the_data(tmp_path, sweep, monkeypatch, draw):
+    """The legend of Figs. 5, 6 and 8 stands right of the axes: inside, it hid the coarse
+    scene's primary NFRC (Fig. 8) and ringed sweep points of the default one (Fig. 6)."""
+    boxes = []
+    save = figures._save
+
+    def keep(fig, path):
+        fig.canvas.draw()
+        ax = fig.axes[0]
+        boxes.append((ax.get_window_extent(), ax.get_legend().get_window_extent(), fig.bbox))
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    omega = np.linspace(400.0, 2000.0, 200)
+    amp = duffing_like(omega, 900.0, 80.0, 2e-3)
+    flags = np.zeros(60, bool)
+    flags[::6] = True
+    if draw == "nfrc":
+        figures.plot_nfrc({"DLFT-HBM": (omega, amp, None)}, tmp_path / "nfrc.png", ti_points=(*sweep, flags),
+                          flagged_label="TI: friction direction of the prediction\nin \u2265 0.1% of contact steps")
+    elif draw == "ti_sweep":
+        figures.plot_ti_sweep(*sweep, tmp_path / "ti.png", flagged=flags)
+    else:
+        line = ("primary", omega, amp, np.ones(200, bool), omega < 1200.0)
+        figures.plot_solution_set({"DLFT": ([line], []), "RL": ([line], [])}, tmp_path / "set.png",
+                                  ti_points=(*sweep, flags))
+    ax, legend, page = boxes[0]
+    assert legend.x0 >= ax.x1  # beside the axes, not over them
+    assert legend.x1 <= page.x1 + 0.5 and legend.y0 >= page.y0 - 0.5  # and on the page
+    assert ax.width > 0.55 * page.width  # the data keep most of the figure
