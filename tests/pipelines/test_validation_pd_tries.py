@@ -49,10 +49,11 @@ class _Nfrc:
         return "the branch's stability computed here (300 Floquet analyses along it)"
 
 
-def _doubled() -> DoubledBranch:
+def _doubled(stable: bool = True) -> DoubledBranch:
     return DoubledBranch(True, "continued both ways", omega_bifurcation=1400.0, multiplier=-1.0,
                          omega=1400.0 - 0.01 * np.arange(4), x=np.zeros((4, 3)), le_amplitude=np.full(4, 1e-3),
-                         stable=np.ones(4, bool), n_unstable=np.zeros(4, int), new_content=np.full(4, 0.2))
+                         stable=np.full(4, stable), n_unstable=np.full(4, 0 if stable else 1),
+                         new_content=np.full(4, 0.2))
 
 
 @pytest.fixture
@@ -62,7 +63,8 @@ def run(monkeypatch, tmp_path):
     from the `stays_from`-th try on; returns the point, the marches' sources and the NFRC."""
     omega = np.linspace(2000.0, 400.0, N)
 
-    def go(stored: bool, first_stays: bool, stays_from: int = 1, pd_tries: int = 4):
+    def go(stored: bool, first_stays: bool, stays_from: int = 1, pd_tries: int = 4, brackets=BRACKETS,
+           subcritical: bool = False):
         marches = []
 
         def try_until_kept(ctx, rom, system, kind, method, candidates, tries, update):
@@ -79,11 +81,12 @@ def run(monkeypatch, tmp_path):
                                    omega=float(omega[i]), reason=f"after {i}", index=i, bracket=(i, i + 1),
                                    switch_starts=lambda omega, x: [None])
 
-        monkeypatch.setattr(stage, "_pd_brackets", lambda path: list(BRACKETS) if stored else None)
+        monkeypatch.setattr(stage, "_pd_brackets", lambda path: list(brackets) if stored else None)
         monkeypatch.setattr(stage, "read_branch_set", lambda path, method: [])
         monkeypatch.setattr(stage, "_try_until_kept", try_until_kept)
         monkeypatch.setattr(selection, "locate_period_doubling", located)
-        monkeypatch.setattr(selection, "continue_doubled_branch", lambda *a, **k: (_doubled(), SimpleNamespace()))
+        monkeypatch.setattr(selection, "continue_doubled_branch",
+                            lambda *a, **k: (_doubled(not subcritical), SimpleNamespace()))
         monkeypatch.setattr(nfrc_module, "default_continuation", lambda hbm: None)
         ctx = SimpleNamespace(out=tmp_path, scene=SimpleNamespace(
             validation=SimpleNamespace(pd_tries=pd_tries, n_scan=24, pd_points=80),
@@ -128,3 +131,10 @@ def test_without_stored_stability_it_is_computed_once_for_them(run):
 def test_nothing_more_is_computed_when_the_first_march_stays(run):
     p, marches, nfrc = run(stored=False, first_stays=True)
     assert marches == [FIRST] and nfrc.computed == 0 and "tried" not in p.reason
+
+
+def test_a_subcritical_first_doubling_is_marched_when_the_nfrc_has_no_other(run):
+    """The NFRC's other doublings count as a try left, so a first doubled branch without a
+    stable point is passed over for them; when there are none it is still marched."""
+    p, marches, _ = run(stored=True, first_stays=False, brackets=[3], subcritical=True)
+    assert marches == [FIRST] and p.found
