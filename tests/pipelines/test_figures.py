@@ -268,3 +268,25 @@ def test_the_amplitude_figures_keep_their_legend_off_the_data(tmp_path, sweep, m
     assert legend.x0 >= ax.x1  # beside the axes, not over them
     assert legend.x1 <= page.x1 + 0.5 and legend.y0 >= page.y0 - 0.5  # and on the page
     assert ax.width > 0.55 * page.width  # the data keep most of the figure
+
+
+def test_a_long_legend_goes_into_columns_and_stays_on_the_page(tmp_path, monkeypatch):
+    """More entries than one column of the page's height holds (forty NFRCs, at 7 pt about
+    eleven points a row against the page's 324) are set in columns, none cut off below the
+    page."""
+    boxes = []
+    save = figures._save
+
+    def keep(fig, path):
+        fig.canvas.draw()
+        legend = fig.axes[0].get_legend()
+        boxes.append((legend.get_window_extent(), fig.axes[0].get_window_extent(), fig.bbox, len(legend.get_texts())))
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    omega = np.linspace(400.0, 2000.0, 60)
+    figures.plot_nfrc({f"NFRC {i}": (omega, duffing_like(omega, 400.0 + 40.0 * i, 50.0, 1e-3), None)
+                       for i in range(40)}, tmp_path / "nfrc.png")
+    legend, ax, page, n = boxes[0]
+    assert n == 40
+    assert legend.y0 >= page.y0 - 0.5 and legend.x1 <= page.x1 + 0.5 and legend.x0 >= ax.x1
