@@ -621,10 +621,11 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
         brackets = computed_brackets()
         nfrc_from = nfrc.computed_words()
     sources = [("the NFRC", res, b.omega, b.x, ex["le_amplitude"], b.converged, brackets)]
-    # a doubling lies between two converged points: with fewer the scan's reason stands (and
-    # branch_stability would raise on a branch without any, e.g. an NFRC whose start failed)
-    monitor_left = (brackets is None and nfrc is not None and nfrc.monitor is not None
-                    and np.count_nonzero(np.asarray(b.converged, bool)) >= 2)
+    # whether the NFRC's stability can be computed here: a doubling lies between two converged
+    # points, and with fewer branch_stability would raise (e.g. an NFRC whose start failed)
+    computable = (nfrc is not None and nfrc.monitor is not None
+                  and np.count_nonzero(np.asarray(b.converged, bool)) >= 2)
+    monitor_left = brackets is None and computable
     if opts.pd_tries > 1:
         found = read_branch_set(ctx.out / ISOLAS, method)
         # the search's own doubled branches first (time integration from rest ended on them),
@@ -648,7 +649,7 @@ def _period_doubling(ctx, rom, system, method: str, res, b, ex, path: Path, upda
         brackets = _pd_brackets(path)
         stable = None if nfrc is None else nfrc.stable
         if brackets is None:
-            if nfrc is None or nfrc.monitor is None or np.count_nonzero(np.asarray(b.converged, bool)) < 2:
+            if not computable:
                 return []
             if nfrc._stability is None:
                 update(f"{tag}: the NFRC's stability along the whole branch, for its other period doublings")
