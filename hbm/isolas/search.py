@@ -76,8 +76,13 @@ Two phases:
    two branches, as at a crossing, to the first found). Either way the branch is passed
    to on_branch again, so that an interrupted run has them on disk. The caller's
    `describe` (per-point data, e.g. the stability, and per-branch tables) runs on the
-   merged branch, in two chunks when it is long, at once on the two processes when there
-   are two, and the same chunks in one process (_described).
+   merged branch, in two chunks when it is long (_Description): with two workers on two
+   more processes, while the search goes on with the next candidates (what it decides needs
+   a branch's points only; at most _UNDESCRIBED branches wait for their description, and
+   the cores take whichever process runs: a half waiting on the other, a branch's lone
+   half); with one, the same chunks in turn in this process. A branch reaches on_branch
+   once described, in index order: the branches on disk are always whole, a prefix of
+   the found ones.
 
 Resume: `search` takes the corrections and finished branches of an interrupted run of the
 same inputs and only computes what is missing; the result is the uninterrupted one.
@@ -889,50 +894,91 @@ def _merge(first: Branch, second: Branch | None):
 #: fewest points per chunk when a branch is described on two processes
 _MIN_CHUNK = 16
 
+#: most branches being described while the search goes on: their descriptions share the
+#: cores with the next branches' halves, and an interrupt loses them (they are saved once
+#: described)
+_UNDESCRIBED = 2
+
 
 def _run_describe(describe, omega, x):
     t = time.process_time()
     return dict(describe(omega, x)), time.process_time() - t
 
 
-def _described(describe, omega: np.ndarray, x: np.ndarray, pool=None) -> tuple[dict, float]:
-    """(describe's dict, CPU s spent in worker processes). A long branch is described in two
+class _Description:
+    """describe's answer for one branch, computed now or on a pool (_described): result() ->
+    (describe's dict, CPU s spent in worker processes). A long branch is described in two
     chunks sharing one point k, where Omega runs monotonically through k-1, k, k+1: what
     describe finds between two neighbours (e.g. a stability change) lies in one chunk, and
-    no turn in Omega is cut. With a pool the chunks run at once, else one after the other:
-    the same chunks either way, so that the result does not depend on the worker count (a
-    describe that schedules its work along the points, as the stability monitor does,
-    would otherwise analyse other points). The chunks' per-point arrays are joined (k once)
-    and their tables concatenated, the second's `index` shifted by k."""
-    n = len(omega)
-    if n < 2 * _MIN_CHUNK:
-        return dict(describe(omega, x)), 0.0
-    d = np.diff(omega)
-    mid = n // 2
-    k = next((j for r in range(n // 2 - _MIN_CHUNK) for j in (mid - r, mid + r) if d[j - 1] * d[j] > 0), None)
-    if k is None:
-        return dict(describe(omega, x)), 0.0
-    if pool is not None:
-        try:
-            pickle.dumps(describe)
-        except (pickle.PicklingError, AttributeError, TypeError):  # e.g. a closure: described here
-            pool = None
-    if pool is None:
-        (a, _), (b, _) = _run_describe(describe, omega[:k + 1], x[:k + 1]), _run_describe(describe, omega[k:], x[k:])
-        ca = cb = 0.0  # spent in this process: counted by the caller's clock
-    else:
-        fa = pool.submit(_run_describe, describe, omega[:k + 1], x[:k + 1])
-        fb = pool.submit(_run_describe, describe, omega[k:], x[k:])
-        (a, ca), (b, cb) = fa.result(), fb.result()
-    ta, tb = a.pop("tables", {}), _reindexed(b.pop("tables", {}), np.arange(k, n))
-    out = {name: np.concatenate([np.asarray(a[name]), np.asarray(b[name])[1:]]) for name in a}
-    tables = {}
-    for name in list(ta) + [t for t in tb if t not in ta]:
-        parts = [t[name] for t in (ta, tb) if name in t]
-        tables[name] = {c: (np.concatenate([np.asarray(q[c][0]) for q in parts]), parts[0][c][1]) for c in parts[0]}
+    no turn in Omega is cut. With a pool the chunks run there at once, else one after the
+    other here: the same chunks either way, so that the result does not depend on the worker
+    count (a describe that schedules its work along the points, as the stability monitor
+    does, would otherwise analyse other points). The chunks' per-point arrays are joined (k
+    once) and their tables concatenated, the second's `index` shifted by k."""
+
+    def __init__(self, describe, omega: np.ndarray, x: np.ndarray, pool=None):
+        self.n = n = len(omega)
+        self.k = None
+        d = np.diff(omega)
+        mid = n // 2
+        if n >= 2 * _MIN_CHUNK:
+            self.k = next((j for r in range(n // 2 - _MIN_CHUNK) for j in (mid - r, mid + r)
+                           if d[j - 1] * d[j] > 0), None)
+        k = self.k
+        chunks = [slice(None)] if k is None else [slice(None, k + 1), slice(k, None)]
+        if pool is not None:
+            try:
+                pickle.dumps(describe)
+            except (pickle.PicklingError, AttributeError, TypeError):  # e.g. a closure: described here
+                pool = None
+        if pool is None:  # CPU spent in this process: counted by the caller's clock
+            self.parts = [(dict(describe(omega[c], x[c])), 0.0) for c in chunks]
+        else:
+            self.parts = [pool.submit(_run_describe, describe, omega[c], x[c]) for c in chunks]
+
+    def done(self) -> bool:
+        return all(not isinstance(p, concurrent.futures.Future) or p.done() for p in self.parts)
+
+    def result(self) -> tuple[dict, float]:
+        parts = [p.result() if isinstance(p, concurrent.futures.Future) else p for p in self.parts]
+        if len(parts) == 1:
+            return parts[0]
+        (a, ca), (b, cb) = parts
+        a, b = dict(a), dict(b)
+        ta, tb = a.pop("tables", {}), _reindexed(b.pop("tables", {}), np.arange(self.k, self.n))
+        out = {name: np.concatenate([np.asarray(a[name]), np.asarray(b[name])[1:]]) for name in a}
+        tables = {}
+        for name in list(ta) + [t for t in tb if t not in ta]:
+            parts = [t[name] for t in (ta, tb) if name in t]
+            tables[name] = {c: (np.concatenate([np.asarray(q[c][0]) for q in parts]), parts[0][c][1]) for c in parts[0]}
+        if tables:
+            out["tables"] = tables
+        return out, ca + cb
+
+
+def _described(describe, omega: np.ndarray, x: np.ndarray, pool=None) -> tuple[dict, float]:
+    """(describe's dict, CPU s spent in worker processes): _Description, waited for."""
+    return _Description(describe, omega, x, pool).result()
+
+
+def _full_extras(extras: dict, ok: np.ndarray) -> dict:
+    """describe's dict of a branch's converged points (ok: (m,) bool) on all its m points:
+    per-point arrays filled with NOT_DESCRIBED's value where ok is False, the tables'
+    `index` mapped to the branch's points."""
+    extras = dict(extras)
+    tables = _reindexed(extras.pop("tables", {}), np.flatnonzero(ok))
+    full = {}
+    for name, v in extras.items():
+        v = np.asarray(v)
+        shape = (len(ok),) + v.shape[1:]
+        fill = NOT_DESCRIBED.get(v.dtype.kind, np.nan)
+        arr = np.full(shape, fill, dtype=object if v.dtype.kind in "OU" else
+                      v.dtype if v.dtype.kind in "biuc" else float)
+        arr[ok] = v
+        full[name] = arr
     if tables:
-        out["tables"] = tables
-    return out, ca + cb
+        full["tables"] = tables
+    return full
 
 
 def _reindexed(tables: dict, positions: np.ndarray) -> dict:
@@ -1088,7 +1134,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
 
     doing = [""]  # what the phase's pool computes now: named if one of its workers dies
 
-    def branches_phase(pool=None):
+    def branches_phase(pool=None, describing=None):
         t_start = time.process_time()
         cpu_workers = 0.0
         residual, solver = factory()
@@ -1110,7 +1156,37 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
 
         for k in range(len(found)):
             add_polyline(k)
+        # Branches are described (describing: their own pool, or here) while the search goes on:
+        # what it decides needs a branch's points only. A branch is saved once it is described,
+        # in index order, so that an interrupted run's branches on disk are a prefix of the
+        # found ones, each whole; a change to one not yet saved waits for its save.
+        undescribed = {}  # index -> (_Description, converged mask, whence)
+        saved = [len(found)]  # found[:saved[0]] are on disk (or given)
+
+        def save(k):
+            if on_branch is not None and k < saved[0]:
+                on_branch(k, found[k])
+
+        def finish(wait: bool, upto: int | None = None):
+            """Save the described branches in index order, up to `upto` (None: all); wait:
+            for their descriptions, else stop at the first not done."""
+            nonlocal cpu_workers
+            while saved[0] < (len(found) if upto is None else upto):
+                k = saved[0]
+                if k in undescribed:
+                    job, ok, whence = undescribed[k]
+                    if not (wait or job.done()):
+                        return
+                    doing[0] = f"branch being described: {whence}"
+                    extras, cpu_desc = job.result()
+                    del undescribed[k]
+                    cpu_workers += cpu_desc
+                    found[k] = replace(found[k], extras=_full_extras(extras, ok),
+                                       cpu_time=found[k].cpu_time + cpu_desc)
+                saved[0] += 1
+                save(k)
         for c_i, i in enumerate(cand):
+            finish(wait=False)
             progress("branches", c_i, len(cand))
             i = int(i)
             if i in owner:
@@ -1122,8 +1198,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             if k >= 0:
                 owner[i] = k
                 found[k] = replace(found[k], seeds=found[k].seeds + (i,))
-                if on_branch is not None:  # saved again: a resumed search must not continue i
-                    on_branch(k, found[k])
+                save(k)  # saved again: a resumed search must not continue i
                 continue
             t0 = time.process_time()
             others = known_others + [(f"branch {j}", j, p) for j, p in enumerate(polys)]
@@ -1165,8 +1240,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                         through = f" (through branch {k})" if t != k else ""
                         found[t] = replace(old, kind="bifurcated",
                                            status=f"{old.status}; crossed by the branch from seed {i}{through}")
-                        if on_branch is not None:
-                            on_branch(t, found[t])
+                        save(t)
             if merged_into:  # part of a branch found before: its seeds go there, and its other
                 k = merged_into[0]  # end's connection (to the primary, a crossing, the range's bound) too
                 targets = list(dict.fromkeys(merged_into))  # its halves may link two branches found before
@@ -1195,9 +1269,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                 owner[i] = k
                 found[k] = replace(found[k], seeds=found[k].seeds + (i,),
                                    n_points_computed=found[k].n_points_computed + computed)
-                if on_branch is not None:
-                    for t in sorted(set(changed) | {k}):
-                        on_branch(t, found[t])
+                for t in sorted(set(changed) | {k}):
+                    save(t)
                 continue
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
             for d, (br, _), onto in zip((1, -1), halves, back):
@@ -1207,32 +1280,24 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                            else [])
                     status += f"; not a closed loop ({'+' if d > 0 else '-'}): {' and '.join(why)}"
             ok = np.asarray(conv, bool)
-            doing[0] = f"branch being described: from seed {i} at {w0:g} rad/s"
-            extras, cpu_desc = _described(describe, omega[ok], x[ok], pool) if describe is not None and ok.any() \
-                else ({}, 0.0)
-            cpu_workers += cpu_desc
-            tables = _reindexed(extras.pop("tables", {}), np.flatnonzero(ok))
-            if extras:  # per-point data of the converged points; elsewhere NOT_DESCRIBED's value
-                full = {}
-                for name, v in extras.items():
-                    v = np.asarray(v)
-                    shape = (len(omega),) + v.shape[1:]
-                    fill = NOT_DESCRIBED.get(v.dtype.kind, np.nan)
-                    arr = np.full(shape, fill, dtype=object if v.dtype.kind in "OU" else
-                                  v.dtype if v.dtype.kind in "biuc" else float)
-                    arr[ok] = v
-                    full[name] = arr
-                extras = full
-            if tables:
-                extras["tables"] = tables
             fb = FoundBranch(omega=omega, x=x, converged=conv, kind=kind, closed=closed, status=status, start=i,
-                             seeds=(i,), extras=extras, n_points_computed=computed,
-                             cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0) + cpu_desc)
+                             seeds=(i,), extras={}, n_points_computed=computed,
+                             cpu_time=time.process_time() - t0 + (cpu_half if pool is not None else 0.0))
             found.append(fb)
             add_polyline(len(found) - 1)
             owner[i] = len(found) - 1
-            if on_branch is not None:
-                on_branch(len(found) - 1, fb)
+            if describe is not None and ok.any():
+                t1 = time.process_time()
+                job = _Description(describe, omega[ok], x[ok], describing)
+                # described here (no pool, or a short branch): this process's clock
+                cpu_here = time.process_time() - t1
+                found[-1] = replace(found[-1], cpu_time=found[-1].cpu_time + cpu_here)
+                undescribed[len(found) - 1] = (job, ok, f"from seed {i} at {w0:g} rad/s")
+            save(len(found) - 1)
+            finish(wait=False)
+            while len(undescribed) > _UNDESCRIBED:
+                finish(wait=True, upto=min(undescribed) + 1)
+        finish(wait=True)
         progress("branches", len(cand), len(cand))
         return found, owner, n_cont, n_pts, time.process_time() - t_start + cpu_workers
 
@@ -1243,9 +1308,17 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = process_context()
             queues = {+1: ctx.Queue(), -1: ctx.Queue()}
+            # and the branches' descriptions on two more, beside the next branches' halves:
+            # each core takes whichever is running (a half waiting on the other, a branch's end)
             with reported_deaths("the isola search", lambda: doing[0]), concurrent.futures.ProcessPoolExecutor(
-                    2, mp_context=ctx, initializer=_init_branch_worker, initargs=(queues,)) as pool:
-                found, owner, n_cont, n_pts, cpu2 = branches_phase(pool)
+                    2, mp_context=ctx, initializer=_init_branch_worker, initargs=(queues,)) as pool, \
+                    concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=_init_branch_worker,
+                                                           initargs=({},)) as describing:
+                try:
+                    found, owner, n_cont, n_pts, cpu2 = branches_phase(pool, describing)
+                except BaseException:  # an interrupt, an error: the descriptions not started are not wanted
+                    describing.shutdown(wait=False, cancel_futures=True)
+                    raise
     else:  # rank 0 continues, the others wait (idle, not spinning a core) for its branches
         found, owner, n_cont, n_pts, cpu2 = on_root(comm, branches_phase, "the isola search's continuation")
     seed_branch = np.full(len(seeds), NOT_CONVERGED, np.int64)

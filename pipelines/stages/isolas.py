@@ -767,10 +767,12 @@ def _estimate(scene, out, outputs) -> Estimate:
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
     seconds = n_seeds * 2 * per_point / cores + len(h.methods) * 5 * 2 * iso.max_points * per_point / 4
     # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,
-    # whatever the seeds: the advice names the key that sets their number
+    # whatever the seeds: one per core for the seeds, four for the branches (two halves, two
+    # describing) with two workers or more; the advice names the key that sets their number
     workers = (f"lower [isolas] workers (now {iso.workers}; ~0.3 GB each)" if iso.workers is not None
                else f"set [isolas] workers below {cores} (unset: one per core; ~0.3 GB each)")
-    return Estimate(size=f"{n_seeds} seeds per treatment", memory=0.3e9 * cores, seconds=seconds,
+    processes = max(cores, 4) if cores >= 2 else 1
+    return Estimate(size=f"{n_seeds} seeds per treatment", memory=0.3e9 * processes, seconds=seconds,
                     disk=len(h.methods) * 10 * iso.max_points * n_c * 3 * scene.n_contact_nodes * 8.0 * 2,
                     advice=workers)
 

@@ -581,3 +581,81 @@ def test_the_branches_are_the_same_with_one_worker_and_with_two(primary):
         np.testing.assert_array_equal(a.omega, b.omega)
         np.testing.assert_array_equal(a.x, b.x)
     assert serial.n_points_computed == two.n_points_computed
+
+
+def timed_describe(omega, x):
+    """A describe that takes a while and says when it ran (s since the epoch)."""
+    import time
+
+    t0 = time.time()
+    time.sleep(0.6)
+    return {"started": np.full(len(omega), t0), "ended": np.full(len(omega), time.time()),
+            "value": x[:, 0].copy()}
+
+
+def test_branches_are_described_while_the_search_goes_on_and_saved_once_described():
+    """With two workers a branch's description runs on its own processes while the search
+    corrects and continues the next candidates (progress reported meanwhile); each branch
+    reaches on_branch only once described, first in index order; and the branches, their
+    descriptions included, are those of one worker, where everything runs in turn."""
+    import time
+
+    seeds = modal_seeds()
+    serial = search(factory, seeds, [], options(workers=1), describe=timed_describe)
+    progress_at = []
+    calls = []
+    two = search(factory, seeds, [], options(workers=2), describe=timed_describe,
+                 on_branch=lambda i, b: calls.append((i, "value" in b.extras)),
+                 on_progress=lambda phase, d, t: progress_at.append((phase, d, time.time())))
+    assert len(two.branches) == len(serial.branches) == 2
+    for a, b in zip(serial.branches, two.branches):
+        np.testing.assert_array_equal(a.omega, b.omega)
+        np.testing.assert_array_equal(a.extras["value"], b.extras["value"])
+        assert a.seeds == b.seeds and a.kind == b.kind
+    # one worker: the first branch was described before the search went on
+    first = two.branches[0].extras
+    started, ended = np.nanmin(first["started"]), np.nanmax(first["ended"])
+    during = [d for phase, d, t in progress_at if phase == "branches" and started < t < ended]
+    assert during, "no candidate was handled while the first branch was described"
+    assert all(has for _, has in calls)
+    firsts = [i for n, (i, _) in enumerate(calls) if i not in [j for j, _ in calls[:n]]]
+    assert firsts == sorted(firsts) == list(range(len(two.branches)))
+
+
+def isola_slowly(omega, x):
+    """Slow (3 s) on the isola only (amplitudes above 1.3; the primary's stay below 0.6)."""
+    if np.hypot(x[:, 0], x[:, 1]).min() > 1.0:
+        import time
+
+        time.sleep(3.0)
+    return {"value": x[:, 0].copy()}
+
+
+def test_a_search_interrupted_while_describing_resumes_to_the_uninterrupted_result():
+    """An interrupt while a branch is being described (the isola, the second found) keeps on
+    disk the branches described before it, whole, and not it; the resumed search continues
+    and describes it again, and ends with the uninterrupted result."""
+    seeds = modal_seeds()
+    full = search(factory, seeds, [], options(workers=2), describe=isola_slowly)
+    assert [b.kind for b in full.branches] == ["detached", "isola"]
+    after_isola = list(full.corrections.candidates()).index(full.branches[1].start) + 1
+    saved = {"branches": {}}
+
+    def stop(phase, done, total):  # a candidate after the isola's, the first branch saved, the isola being described
+        if phase == "branches" and done >= after_isola and saved["branches"]:
+            raise KeyboardInterrupt
+
+    with pytest.raises(KeyboardInterrupt):
+        search(factory, seeds, [], options(workers=2), describe=isola_slowly,
+               on_corrections=lambda c: saved.update(corrections=c),
+               on_branch=lambda i, b: saved["branches"].__setitem__(i, b), on_progress=stop)
+    assert sorted(saved["branches"]) == [0]
+    done = [saved["branches"][0]]
+    np.testing.assert_array_equal(done[0].extras["value"], full.branches[0].extras["value"])
+    again = search(factory, seeds, [], options(workers=2), corrections=saved["corrections"], branches=done,
+                   describe=isola_slowly)
+    assert again.n_continued == 1
+    np.testing.assert_array_equal(again.seed_branch, full.seed_branch)
+    assert [(b.kind, b.seeds) for b in again.branches] == [(b.kind, b.seeds) for b in full.branches]
+    for a, b in zip(again.branches, full.branches):
+        np.testing.assert_array_equal(a.extras["value"], b.extras["value"])
