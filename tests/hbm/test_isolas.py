@@ -604,9 +604,14 @@ def test_branches_are_described_while_the_search_goes_on_and_saved_once_describe
     serial = search(factory, seeds, [], options(workers=1), describe=timed_describe)
     progress_at = []
     calls = []
+
+    def paced(phase, d, t):  # the candidates at 0.1 s each (they take ~1 ms): the pool's start-up is not raced
+        progress_at.append((phase, d, time.time()))
+        if phase == "branches":
+            time.sleep(0.1)
+
     two = search(factory, seeds, [], options(workers=2), describe=timed_describe,
-                 on_branch=lambda i, b: calls.append((i, "value" in b.extras)),
-                 on_progress=lambda phase, d, t: progress_at.append((phase, d, time.time())))
+                 on_branch=lambda i, b: calls.append((i, "value" in b.extras)), on_progress=paced)
     assert len(two.branches) == len(serial.branches) == 2
     for a, b in zip(serial.branches, two.branches):
         np.testing.assert_array_equal(a.omega, b.omega)
@@ -623,11 +628,11 @@ def test_branches_are_described_while_the_search_goes_on_and_saved_once_describe
 
 
 def isola_slowly(omega, x):
-    """Slow (3 s) on the isola only (amplitudes above 1.3; the primary's stay below 0.6)."""
+    """Slow (4 s) on the isola only (amplitudes above 1.3; the primary's stay below 0.6)."""
     if np.hypot(x[:, 0], x[:, 1]).min() > 1.0:
         import time
 
-        time.sleep(3.0)
+        time.sleep(4.0)
     return {"value": x[:, 0].copy()}
 
 
@@ -635,6 +640,8 @@ def test_a_search_interrupted_while_describing_resumes_to_the_uninterrupted_resu
     """An interrupt while a branch is being described (the isola, the second found) keeps on
     disk the branches described before it, whole, and not it; the resumed search continues
     and describes it again, and ends with the uninterrupted result."""
+    import time
+
     seeds = modal_seeds()
     full = search(factory, seeds, [], options(workers=2), describe=isola_slowly)
     assert [b.kind for b in full.branches] == ["detached", "isola"]
@@ -644,6 +651,8 @@ def test_a_search_interrupted_while_describing_resumes_to_the_uninterrupted_resu
     def stop(phase, done, total):  # a candidate after the isola's, the first branch saved, the isola being described
         if phase == "branches" and done >= after_isola and saved["branches"]:
             raise KeyboardInterrupt
+        if phase == "branches":  # the candidates at 0.1 s each: 2.3 s after the isola's, under its description
+            time.sleep(0.1)
 
     with pytest.raises(KeyboardInterrupt):
         search(factory, seeds, [], options(workers=2), describe=isola_slowly,
