@@ -140,8 +140,12 @@ _FORK_HOOK = False
 
 
 def _silent_forked_child():
-    # A forked worker ends on Ctrl-C without a traceback of its own: the parent reports.
-    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    # A forked worker ends on Ctrl-C without a traceback of its own: the parent reports. A
+    # run that ignores SIGINT (a background job of a non-interactive shell) keeps its workers
+    # ignoring it too: else a SIGINT to the group would end the workers and not the run,
+    # which would then report them dead ("killed, perhaps for lack of memory").
+    if signal.getsignal(signal.SIGINT) is _stop_children:
+        signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 class _CtrlC:

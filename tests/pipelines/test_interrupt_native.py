@@ -91,3 +91,35 @@ def test_a_stage_whose_import_ctrl_c_cut_is_an_interruption(coarse_run, tmp_path
     err = capsys.readouterr().err
     assert "interrupted during stage fem; kept: mesh.h5;" in err and "ImportError" not in err
     assert not (tmp_path / "fem.h5").exists()
+
+
+FORKED = """
+import multiprocessing as mp, os, signal, sys
+from pipelines import cli
+os.register_at_fork(after_in_child=cli._silent_forked_child)
+signal.signal(signal.SIGINT, signal.SIG_IGN if sys.argv[1] == "ignored" else cli._stop_children)
+ctx = mp.get_context("fork")
+q = ctx.Queue()
+names = {signal.SIG_DFL: "default", signal.SIG_IGN: "ignored"}
+p = ctx.Process(target=lambda: q.put(names.get(signal.getsignal(signal.SIGINT), "a handler")))
+p.start()
+print(q.get())
+p.join()
+"""
+
+
+@pytest.mark.parametrize("parent, child", [("answered", "default"), ("ignored", "ignored")])
+def test_a_forked_worker_ignores_ctrl_c_when_the_run_does(parent, child):
+    """A run answering Ctrl-C lets its forked workers die of it (the run reports); a run
+    that ignores it (a background job of a non-interactive shell) keeps them ignoring it:
+    else a SIGINT to its group ended the workers and not the run, which then failed on "a
+    worker process ... ended without an answer (killed, perhaps for lack of memory)"."""
+    import subprocess
+    import sys
+
+    from coarse_runs import ROOT
+
+    r = subprocess.run([sys.executable, "-c", FORKED, parent], cwd=ROOT, capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.strip() == child
