@@ -1289,7 +1289,7 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             if describe is not None and ok.any():
                 t1 = time.process_time()
                 job = _Description(describe, omega[ok], x[ok], describing)
-                # described here (no pool, or a short branch): this process's clock
+                # described here (no pool, or a describe that does not pickle): this process's clock
                 cpu_here = time.process_time() - t1
                 found[-1] = replace(found[-1], cpu_time=found[-1].cpu_time + cpu_here)
                 undescribed[len(found) - 1] = (job, ok, f"from seed {i} at {w0:g} rad/s")
