@@ -78,9 +78,9 @@ Two phases:
    `describe` (per-point data, e.g. the stability, and per-branch tables) runs on the
    merged branch, in two chunks when it is long (_Description): with two workers on two
    more processes, while the search goes on with the next candidates (what it decides needs
-   a branch's points only; at most _UNDESCRIBED branches wait for their description, and
-   the cores take whichever process runs: a half waiting on the other, a branch's lone
-   half); with one, the same chunks in turn in this process. A branch reaches on_branch
+   a branch's points only; at most _UNDESCRIBED branches wait for their description, which
+   fills the time a half waits for the other or runs alone); with one, the same chunks in
+   turn in this process. A branch reaches on_branch
    once described, in index order: the branches on disk are always whole, a prefix of
    the found ones.
 
@@ -906,7 +906,7 @@ def _run_describe(describe, omega, x):
 
 
 class _Description:
-    """describe's answer for one branch, computed now or on a pool (_described): result() ->
+    """describe's answer for one branch, computed here now or submitted to a pool: result() ->
     (describe's dict, CPU s spent in worker processes). A long branch is described in two
     chunks sharing one point k, where Omega runs monotonically through k-1, k, k+1: what
     describe finds between two neighbours (e.g. a stability change) lies in one chunk, and
@@ -954,11 +954,6 @@ class _Description:
         if tables:
             out["tables"] = tables
         return out, ca + cb
-
-
-def _described(describe, omega: np.ndarray, x: np.ndarray, pool=None) -> tuple[dict, float]:
-    """(describe's dict, CPU s spent in worker processes): _Description, waited for."""
-    return _Description(describe, omega, x, pool).result()
 
 
 def _full_extras(extras: dict, ok: np.ndarray) -> dict:
@@ -1308,8 +1303,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
         else:  # the two halves of each branch on two processes (fork or spawn: see correct_seeds)
             ctx = process_context()
             queues = {+1: ctx.Queue(), -1: ctx.Queue()}
-            # and the branches' descriptions on two more, beside the next branches' halves:
-            # each core takes whichever is running (a half waiting on the other, a branch's end)
+            # and the branches' descriptions on two more, beside the next branches' halves: they
+            # fill the time a half waits for the other or runs alone
             with reported_deaths("the isola search", lambda: doing[0]), concurrent.futures.ProcessPoolExecutor(
                     2, mp_context=ctx, initializer=_init_branch_worker, initargs=(queues,)) as pool, \
                     concurrent.futures.ProcessPoolExecutor(2, mp_context=ctx, initializer=_init_branch_worker,

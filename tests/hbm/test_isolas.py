@@ -493,22 +493,22 @@ def test_describe_tables_are_indexed_on_the_branch_points():
 
 
 def test_a_branch_described_in_two_chunks_is_described_as_a_whole():
-    """The search describes long branches on its two processes (hbm.isolas.search._described):
+    """The search describes long branches on its two processes (hbm.isolas.search._Description):
     per-point data and tables (re-indexed) as from one call, even with a turn in Omega at
     the middle of the points (the split moves off it)."""
     import concurrent.futures
 
-    from hbm.isolas.search import _described
+    from hbm.isolas.search import _Description
 
     s = np.linspace(0.0, 1.0, 101)
     omega = 1.0 + 0.2 * np.sin(2 * np.pi * s * 1.5 + np.pi / 2 - 1.5 * np.pi)  # turns at points 33 and 67
     omega[50] = omega[49] + 0.5 * (omega[51] - omega[49])
     omega[51] = omega[50]  # a flat step at the middle: no strict monotony there
     x = np.column_stack([np.cos(7 * s), np.sin(7 * s)])
-    whole, _ = _described(turns, omega, x)
+    whole, _ = _Description(turns, omega, x).result()
     assert len(whole["tables"]["turns"]["index"][0]) >= 2
     with concurrent.futures.ThreadPoolExecutor(2) as pool:
-        parts, _ = _described(turns, omega, x, pool)
+        parts, _ = _Description(turns, omega, x, pool).result()
     np.testing.assert_array_equal(parts["amplitude"], whole["amplitude"])
     for c in ("index", "omega"):
         np.testing.assert_array_equal(parts["tables"]["turns"][c][0], whole["tables"]["turns"][c][0])
@@ -526,13 +526,13 @@ def test_a_branch_is_described_alike_with_any_number_of_workers():
     the same with two processes and with one."""
     import concurrent.futures
 
-    from hbm.isolas.search import _described
+    from hbm.isolas.search import _Description
 
     s = np.linspace(0.0, 1.0, 101)
     omega, x = 1.0 + 0.1 * s, np.column_stack([np.cos(7 * s), np.sin(7 * s)])
-    alone, _ = _described(scheduled, omega, x)
+    alone, _ = _Description(scheduled, omega, x).result()
     with concurrent.futures.ProcessPoolExecutor(2) as pool:
-        two, _ = _described(scheduled, omega, x, pool)
+        two, _ = _Description(scheduled, omega, x, pool).result()
     np.testing.assert_array_equal(two["analysed"], alone["analysed"])
     np.testing.assert_array_equal(two["value"], alone["value"])
     assert not np.array_equal(alone["analysed"], scheduled(omega, x)["analysed"])  # chunked, not whole
