@@ -33,6 +33,9 @@ PERIODICITY = {
     PeriodClass.NONE: ("no periodicity or \u03c9 < \u03a9/{max_order:g}", "D", "#9a9a9a"),
 }
 _LENGTH = {"m": 1.0, "mm": 1e3, "um": 1e6}
+#: smallest area (pt^2) of the ring around a flagged TI point: 10 pt across, twice a fold's
+#: open circle (ms 5), so that the two never read alike
+FLAG_RING_MIN = 100.0
 FIGSIZE = (7.0, 4.5)  # inches
 #: the amplitude-against-speed figures (Figs. 5, 6 and 8), whose legend stands right of the
 #: axes (_legend_outside): the axes keep about FIGSIZE's width
@@ -88,10 +91,13 @@ def _scatter_classes(ax, omega, amplitude, classes, *, faded=False, size=18, n_l
         handles.append(Line2D([], [], ls="none", marker=marker, color=colour,
                               label=f"TI: {label.format(n=n_lobes, max_order=max_order)}"))
     if ring.any():
-        ax.scatter(omega[ring], amplitude[ring], s=3.2 * size, marker="o", facecolors="none",
-                   edgecolors="black", linewidths=0.9, zorder=4)
-        handles.append(Line2D([], [], ls="none", marker="o", markerfacecolor="none", markeredgecolor="black",
-                              label=flagged_label))
+        # dashed and wider than a fold's open circle (Fig. 8 marks folds with ms 5): a solid
+        # ring of 3.2 size read as one there
+        rings = ax.scatter(omega[ring], amplitude[ring], s=max(3.2 * size, FLAG_RING_MIN), marker="o",
+                           facecolors="none", edgecolors="black", linewidths=0.9, linestyles=(0, (2.0, 1.2)),
+                           zorder=4)
+        rings.set_label(flagged_label)
+        handles.append(rings)  # the collection itself: a Line2D marker cannot have a dashed edge
     return handles
 
 
@@ -185,9 +191,9 @@ def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 200
                                n_lobes=n_lobes, max_order=max_order, flagged=flagged, flagged_label=flagged_label)
     _amplitude_axes(ax, omega_range, unit, title)
     # every point is a TI point here: the legend drops the "TI: " prefix
-    _legend_outside(ax, [Line2D([], [], ls="none", marker=h.get_marker(), color=h.get_color(),
-                                markerfacecolor=h.get_markerfacecolor(), markeredgecolor=h.get_markeredgecolor(),
-                                label=h.get_label().removeprefix("TI: ")) for h in handles])
+    for h in handles:
+        h.set_label(h.get_label().removeprefix("TI: "))
+    _legend_outside(ax, handles)
     return _save(fig, out_png)
 
 

@@ -92,6 +92,38 @@ def test_the_hbm_figures_ring_the_flagged_ti_points(tmp_path, sweep, monkeypatch
     assert "TI: suspect" in legends[2] and "TI: suspect" not in legends[0]
 
 
+def test_fig_8_tells_a_flagged_ti_point_from_a_fold(tmp_path, sweep, monkeypatch):
+    """Fig. 8 marks folds with a small open black circle; a flagged TI point's ring is dashed
+    and at least twice as wide, in the figure and in the legend (a solid ring of the TI
+    markers' 3.2 times area was a fold's size there)."""
+    seen = {}
+    save = figures._save
+
+    def keep(fig, path):
+        legend = fig.axes[0].get_legend()
+        seen.update(zip([t.get_text() for t in legend.get_texts()], legend.legend_handles
+                        if hasattr(legend, "legend_handles") else legend.legendHandles))
+        seen["fold in axes"] = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "o"]
+        seen["rings in axes"] = [c for c in fig.axes[0].collections if len(c.get_offsets()) == 10]
+        return save(fig, path)
+
+    monkeypatch.setattr(figures, "_save", keep)
+    omega = np.linspace(400.0, 2000.0, 400)
+    amp = duffing_like(omega, 1500.0, 50.0, 2.2e-3)
+    flags = np.zeros(60, bool)
+    flags[::6] = True
+    lines = [("primary", omega, amp, np.ones(400, bool), omega < 1500.0)]
+    figures.plot_solution_set({"DLFT": (lines, [("fold", 1500.0, 2.2e-3)])}, tmp_path / "s.png",
+                              ti_points=(*sweep, flags), flagged_label="TI: suspect")
+    fold_ms = seen["fold in axes"][0].get_markersize()  # points across
+    (rings,) = seen["rings in axes"]
+    assert np.sqrt(rings.get_sizes()).min() >= 2.0 * fold_ms  # sizes: points squared
+    dash = rings.get_linestyle()[0][1]
+    assert dash is not None and len(dash) >= 2  # dashed, not solid
+    handle = seen["TI: suspect"]
+    assert handle.get_linestyle()[0][1] is not None  # the legend shows the dashed ring too
+
+
 def test_time_signals(tmp_path):
     t = np.linspace(0.0, 2 * np.pi / 1500.0, 500)
     le = 1e3 * 1e-3 * np.cos(3000.0 * t)
