@@ -128,15 +128,62 @@ def _failures() -> tuple:
     return MeshingError, WorkerDied, RenderError
 
 
+#: the main thread's fork in progress (depth of nested before/after hooks), and whether a
+#: SIGINT was answered inside it (see _stop_children)
+_FORKING = {"depth": 0, "missed": False}
+#: delay before a SIGINT missed inside a fork is raised again: long enough for the main
+#: thread to leave the fork's last callback, where the new KeyboardInterrupt would be lost too
+REDELIVERY_DELAY = 0.05
+
+
 def _stop_children(signum, frame):
     """SIGINT: end this run's worker processes (a process pool waits for its running tasks
-    otherwise), then stop where the run is with KeyboardInterrupt."""
+    otherwise), then stop where the run is with KeyboardInterrupt.
+
+    Inside a fork of the main thread (a pool starting a worker) the handler runs in one of
+    the fork's callbacks (logging's releases its lock there), where CPython prints an
+    exception ("Exception ignored in ...") and drops it: the Ctrl-C was lost, and the run
+    went on until the watcher's grace ended it, or finished with exit 0. There it only notes
+    the signal, which _fork_ends raises again once the fork is over."""
     for child in multiprocessing.active_children():
         child.terminate()
+    if _FORKING["depth"]:
+        _FORKING["missed"] = True
+        return
     raise KeyboardInterrupt
 
 
+def _fork_begins():
+    if threading.current_thread() is threading.main_thread():
+        _FORKING["depth"] += 1
+
+
+def _fork_ends():
+    if threading.current_thread() is not threading.main_thread():
+        return
+    _FORKING["depth"] -= 1
+    if not _FORKING["depth"] and _FORKING["missed"]:
+        _FORKING["missed"] = False
+        # from another thread, a little later: raised now it would run in this callback
+        timer = threading.Timer(REDELIVERY_DELAY, os.kill, (os.getpid(), signal.SIGINT))
+        timer.daemon = True
+        timer.start()
+
+
 _FORK_HOOK = False
+
+
+def _install_fork_hooks() -> None:
+    """The at-fork hooks of a run, once per process: SIGINT in a forked child
+    (_silent_forked_child) and a SIGINT that lands inside the parent's fork (_stop_children).
+    Registered after logging's (imported here first): the before hooks run in reverse order
+    and the after ones in order, so _FORKING["depth"] spans every other callback."""
+    global _FORK_HOOK
+    import logging  # noqa: F401  (its hooks first: see above)
+
+    if not _FORK_HOOK:
+        os.register_at_fork(before=_fork_begins, after_in_parent=_fork_ends, after_in_child=_silent_forked_child)
+        _FORK_HOOK = True
 
 
 def _silent_forked_child():
@@ -144,6 +191,7 @@ def _silent_forked_child():
     # run that ignores SIGINT (a background job of a non-interactive shell) keeps its workers
     # ignoring it too: else a SIGINT to the group would end the workers and not the run,
     # which would then report them dead ("killed, perhaps for lack of memory").
+    _FORKING.update(depth=0, missed=False)
     if signal.getsignal(signal.SIGINT) is _stop_children:
         signal.signal(signal.SIGINT, signal.SIG_DFL)
 
@@ -219,7 +267,6 @@ def _modes(text: str) -> int:
 
 
 def main(argv: list[str] | None = None) -> int:
-    global _FORK_HOOK
     from pipelines.stages import STAGES
 
     parser = argparse.ArgumentParser(prog="bladerub", description=__doc__,
@@ -253,12 +300,11 @@ def main(argv: list[str] | None = None) -> int:
                             "--set material.E=110e9 --set contact.mu=0.1 --set hbm.methods=dlft")
     args = parser.parse_args(argv)
     if not _FORK_HOOK:
-        os.register_at_fork(after_in_child=_silent_forked_child)
+        _install_fork_hooks()
         # After Ctrl-C a spawn-context pool (after dolfinx loaded MPI) may be left to the
         # watcher's exit, and multiprocessing's resource tracker, which then unlinks the pool's
         # semaphores as it should, would also warn about them: its flags come from ours.
         sys.warnoptions.append("ignore::UserWarning:multiprocessing.resource_tracker")
-        _FORK_HOOK = True
     interactive = (signal.getsignal(signal.SIGINT) is signal.default_int_handler
                    and threading.current_thread() is threading.main_thread())
     ctrl_c = None

@@ -123,3 +123,45 @@ def test_a_forked_worker_ignores_ctrl_c_when_the_run_does(parent, child):
                        env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == child
+
+
+IN_FORK = """
+import multiprocessing as mp, os, signal, sys, time
+import logging
+# a SIGINT that lands inside the fork's callbacks (as in logging's, which releases its lock there)
+os.register_at_fork(after_in_parent=lambda: os.kill(os.getpid(), signal.SIGINT))
+from pipelines import cli
+cli._install_fork_hooks()
+signal.signal(signal.SIGINT, cli._stop_children)
+p = mp.get_context("fork").Process(target=time.sleep, args=(30,))
+t = time.perf_counter()
+try:
+    p.start()
+    while time.perf_counter() - t < 5.0:
+        time.sleep(0.01)
+    print("not interrupted")
+except KeyboardInterrupt:
+    print(f"interrupted after {time.perf_counter() - t:.2f} s")
+p.join(10)
+print("worker ended" if p.exitcode is not None else "worker alive")
+"""
+
+
+def test_ctrl_c_inside_a_fork_still_interrupts_the_run():
+    """A SIGINT answered inside a fork's callbacks (a pool starting a worker) used to raise
+    its KeyboardInterrupt there, where CPython prints and drops it: the run went on until the
+    watcher's 3-s grace, or ended with exit 0 before it. It now interrupts the run at once
+    (within the re-delivery delay), and the worker being started is ended."""
+    import subprocess
+    import sys
+
+    from coarse_runs import ROOT
+
+    r = subprocess.run([sys.executable, "-c", IN_FORK], cwd=ROOT, capture_output=True, text=True,
+                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    assert r.returncode == 0, r.stderr
+    first, second = r.stdout.split("\n")[:2]
+    assert first.startswith("interrupted after "), r.stdout + r.stderr
+    assert float(first.split()[2]) < 1.0
+    assert second == "worker ended"
+    assert "Exception ignored" not in r.stderr
