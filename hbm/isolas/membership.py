@@ -5,7 +5,7 @@ distance of a point to a polyline is the smallest distance to its segments.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -18,6 +18,21 @@ class KnownBranch:
     omega: np.ndarray
     x: np.ndarray
     label: str
+    _longest: dict = field(default_factory=dict, init=False, repr=False)
+
+    def longest_segment(self, x_scale=1.0, omega_scale: float = 1.0) -> float:
+        """An upper bound (by 1e-9 relative, for round-off) of the scaled length of the
+        branch's longest segment, segment_length's metric; 0.0 below two points. Kept per
+        scales: the isola search asks it of every branch for every candidate."""
+        key = (np.asarray(x_scale, dtype=float).tobytes(), float(omega_scale))
+        if key not in self._longest:
+            if len(self.omega) < 2:
+                self._longest[key] = 0.0
+            else:
+                lengths = np.hypot(np.linalg.norm(np.diff(self.x, axis=0) / x_scale, axis=1),
+                                   np.diff(self.omega) / omega_scale)
+                self._longest[key] = float(lengths.max()) * (1.0 + 1e-9)
+        return self._longest[key]
 
     @classmethod
     def of(cls, omega, x, label: str, converged=None) -> "KnownBranch":

@@ -109,7 +109,7 @@ from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, STATUS_OMEGA_MIN, Branch
 from hbm.continuation.missing import NO_VALUE
 from hbm.continuation.newton import NewtonOptions, newton_solve
-from hbm.isolas.membership import (KnownBranch, nearest_on_polyline, nearest_segment, polyline_distance,
+from hbm.isolas.membership import (KnownBranch, nearest_segment, polyline_distance,
                                      segment_length, segment_polyline_distance)
 from hbm.options import check_option
 from hbm.processes import (gathered, keep_freed_memory, limit_blas_threads, on_root, process_context, reported_deaths,
@@ -442,11 +442,15 @@ def lies_on(residual, x, omega: float, branches, options: SearchOptions, solver=
     for k, b in enumerate(branches):
         if len(b.omega) < 2:
             continue
-        d, xn, wn, near = nearest_on_polyline(x, omega, b, co.x_scale, co.omega_scale)
+        # only the segments within reach of the test below: a point farther than refine_ratio
+        # times the longest chord fails it whichever segment is nearest (the same answer as
+        # the whole polyline's, at a third of the cost on a branch over the whole range)
+        reach = options.refine_ratio * b.longest_segment(co.x_scale, co.omega_scale)
+        d, xn, wn, s, t = nearest_segment(x, omega, b, co.x_scale, co.omega_scale, within=reach)
         if not math.isfinite(d):
             continue
-        if d <= options.refine_ratio * segment_length(b, near, co.x_scale, co.omega_scale):
-            sol = newton_solve(residual, _curve_guess(b, x, omega, co.x_scale, co.omega_scale), omega,
+        if d <= options.refine_ratio * segment_length(b, s + int(t > 0.5), co.x_scale, co.omega_scale):
+            sol = newton_solve(residual, _curve_guess(b, x, omega, co.x_scale, co.omega_scale, (xn, s, t)), omega,
                                options.newton, solver=solver)
             if not sol.converged:  # no curve point from there (e.g. a corner the parabola cuts): the chord's
                 sol = newton_solve(residual, xn, omega, options.newton, solver=solver)
@@ -455,12 +459,16 @@ def lies_on(residual, x, omega: float, branches, options: SearchOptions, solver=
     return -1
 
 
-def _curve_guess(b: KnownBranch, x, omega: float, x_scale, omega_scale: float) -> np.ndarray:
+def _curve_guess(b: KnownBranch, x, omega: float, x_scale, omega_scale: float, nearest=None) -> np.ndarray:
     """The branch's curve at omega near the polyline's point nearest to (x, omega), x part:
     the parabola (in the scaled chord length) through the three vertices around the nearest
     segment, where its omega is omega (nearest to the nearest point's place; that place
-    where it never is, as at a fold); the chord's point for a two-point branch."""
-    _, xn, _, s, t = nearest_segment(x, omega, b, x_scale, omega_scale)
+    where it never is, as at a fold); the chord's point for a two-point branch. nearest:
+    (x_near, s, t) of nearest_segment when already at hand."""
+    if nearest is None:
+        _, xn, _, s, t = nearest_segment(x, omega, b, x_scale, omega_scale)
+    else:
+        xn, s, t = nearest
     m = len(b.omega)
     if m < 3:
         return xn

@@ -104,3 +104,41 @@ def test_degenerate_and_parallel_segments_have_their_distance_by_hand(p0, p1, po
 def test_an_empty_branch_is_infinitely_far():
     d, xn, wn = segment_polyline_distance(np.zeros(2), 0.0, np.ones(2), 1.0, KnownBranch.of([], np.zeros((0, 2)), "b"))
     assert d == np.inf and wn == 1.0 and xn.tolist() == [1.0, 1.0]
+
+
+def test_the_refined_tests_window_gives_the_whole_polylines_nearest_segment():
+    """lies_on's refined test scans only the segments whose omega span comes within
+    refine_ratio times the longest chord (KnownBranch.longest_segment) of the point: wherever
+    the whole polyline's nearest segment passes the test (distance at most refine_ratio times
+    the chords at its nearest vertex), the window gives that segment, bit for bit, and
+    elsewhere nothing that passes. Random wavy polylines with chords of unequal lengths."""
+    from hbm.isolas.membership import nearest_segment, segment_length
+
+    rng = np.random.default_rng(7)
+    ratio, passed = 0.5, 0
+    for trial in range(60):
+        m = int(rng.integers(2, 80))
+        w = np.cumsum(rng.uniform(0.05, 3.0, m))  # rad/s, chords of very different lengths
+        x = np.column_stack([np.sin(w / rng.uniform(1, 20)), rng.normal(0, 0.3, m).cumsum()])
+        b = KnownBranch(w, x, "b")
+        x_scale, w_scale = np.array([0.5, 2.0]), 4.0
+        longest = max(segment_length(b, k, x_scale, w_scale) for k in range(m))
+        assert longest <= b.longest_segment(x_scale, w_scale) <= longest * (1 + 2e-9)
+        reach = ratio * b.longest_segment(x_scale, w_scale)
+        for _ in range(20):
+            k = int(rng.integers(m))
+            q = x[k] + rng.normal(0, 10 ** rng.uniform(-3, 0.5), 2)
+            qw = w[k] + rng.normal(0, 10 ** rng.uniform(-2, 1))
+            whole = nearest_segment(q, qw, b, x_scale, w_scale)
+            window = nearest_segment(q, qw, b, x_scale, w_scale, within=reach)
+
+            def passes(found):
+                d, _, _, s, t = found
+                return bool(np.isfinite(d) and d <= ratio * segment_length(b, s + int(t > 0.5), x_scale, w_scale))
+
+            assert passes(window) == passes(whole)
+            if passes(whole):
+                passed += 1
+                assert window[0] == whole[0] and window[3:] == whole[3:]
+                assert np.array_equal(window[1], whole[1]) and window[2] == whole[2]
+    assert passed > 100  # the test saw points that pass, not only far ones
