@@ -957,8 +957,9 @@ class _Description:
         out = {name: np.concatenate([np.asarray(a[name]), np.asarray(b[name])[1:]]) for name in a}
         tables = {}
         for name in list(ta) + [t for t in tb if t not in ta]:
-            parts = [t[name] for t in (ta, tb) if name in t]
-            tables[name] = {c: (np.concatenate([np.asarray(q[c][0]) for q in parts]), parts[0][c][1]) for c in parts[0]}
+            pieces = [t[name] for t in (ta, tb) if name in t]
+            tables[name] = {c: (np.concatenate([np.asarray(q[c][0]) for q in pieces]), pieces[0][c][1])
+                            for c in pieces[0]}
         if tables:
             out["tables"] = tables
         return out, ca + cb

@@ -93,10 +93,21 @@ def test_a_stage_whose_import_ctrl_c_cut_is_an_interruption(coarse_run, tmp_path
     assert not (tmp_path / "fem.h5").exists()
 
 
+def _run_script(script: str, *args: str):
+    """script run by this interpreter in a fresh process, the project on its path."""
+    import subprocess
+    import sys
+
+    from coarse_runs import ROOT
+
+    return subprocess.run([sys.executable, "-c", script, *args], cwd=ROOT, capture_output=True, text=True,
+                          env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+
+
 FORKED = """
 import multiprocessing as mp, os, signal, sys
 from pipelines import cli
-os.register_at_fork(after_in_child=cli._silent_forked_child)
+cli._install_fork_hooks()
 signal.signal(signal.SIGINT, signal.SIG_IGN if sys.argv[1] == "ignored" else cli._stop_children)
 ctx = mp.get_context("fork")
 q = ctx.Queue()
@@ -114,13 +125,7 @@ def test_a_forked_worker_ignores_ctrl_c_when_the_run_does(parent, child):
     that ignores it (a background job of a non-interactive shell) keeps them ignoring it:
     else a SIGINT to its group ended the workers and not the run, which then failed on "a
     worker process ... ended without an answer (killed, perhaps for lack of memory)"."""
-    import subprocess
-    import sys
-
-    from coarse_runs import ROOT
-
-    r = subprocess.run([sys.executable, "-c", FORKED, parent], cwd=ROOT, capture_output=True, text=True,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    r = _run_script(FORKED, parent)
     assert r.returncode == 0, r.stderr
     assert r.stdout.strip() == child
 
@@ -152,13 +157,7 @@ def test_ctrl_c_inside_a_fork_still_interrupts_the_run():
     its KeyboardInterrupt there, where CPython prints and drops it: the run went on until the
     watcher's 3-s grace, or ended with exit 0 before it. It now interrupts the run at once
     (within the re-delivery delay), and the worker being started is ended."""
-    import subprocess
-    import sys
-
-    from coarse_runs import ROOT
-
-    r = subprocess.run([sys.executable, "-c", IN_FORK], cwd=ROOT, capture_output=True, text=True,
-                       env={**os.environ, "PYTHONPATH": str(ROOT)}, timeout=120)
+    r = _run_script(IN_FORK)
     assert r.returncode == 0, r.stderr
     first, second = r.stdout.split("\n")[:2]
     assert first.startswith("interrupted after "), r.stdout + r.stderr
