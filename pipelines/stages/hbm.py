@@ -265,8 +265,7 @@ def _estimate(scene, out, outputs) -> Estimate:
     n_r = 3 * scene.n_contact_nodes
     n_u = n_c * n_r
     aft = AFT_BYTES * h.n_time * n_r
-    per_point = max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9,
-                    3 * AFT_SECONDS * h.n_time * n_r)
+    per_point = point_seconds(scene)
     points = min(h.max_points, 1500)
     at_once = treatments.treatment_workers(len(outputs))
     from pipelines.guard import count
@@ -281,6 +280,14 @@ def _estimate(scene, out, outputs) -> Estimate:
                     seconds=-(-len(outputs) // at_once) * points * per_point,
                     disk=len(outputs) * h.max_points * (n_u + n_c * 3 * scene.n_contact_nodes + 16) * 8.0,
                     advice=advice)
+
+
+def point_seconds(scene) -> float:
+    """The estimated CPU time of one continuation point of the scene's HBM, s (_estimate)."""
+    h = scene.hbm
+    n_c = 2 * h.n_harmonics + 1
+    return max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9,
+               3 * AFT_SECONDS * h.n_time * 3 * scene.n_contact_nodes)
 
 
 #: Bytes of the AFT's time signals per sample (n_time) and boundary dof (3 n_b), rounded up

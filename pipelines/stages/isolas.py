@@ -751,21 +751,25 @@ def _compute(ctx: Context, outputs) -> None:
 
 def _estimate(scene, out, outputs) -> Estimate:
     """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega for the first
-    treatment, a Newton of ~4 to 12 iterations each (a continuation point's cost per
-    iteration, see the hbm stage), over the cores (with both treatments RL's seeds are DLFT's
-    distinct solutions and points along its branches, a few hundred on rotor 67: left out);
-    then, per treatment, a few branches of up to 2 max_points points."""
+    treatment, a Newton each (3 to 5 iterations on rotor 67: most stall after 3), which costs
+    about one continuation point (pipelines.stages.hbm.point_seconds) and half of one on an
+    Emerald Rapids host (the coarse scene's 6862 DLFT seeds in 166 s on two cores), over the
+    cores (with both treatments RL's seeds are DLFT's distinct solutions and points along
+    its branches, a few hundred on rotor 67: left out); then, per treatment, a few branches
+    of up to 2 max_points points."""
     import os
+
+    from pipelines.stages.hbm import point_seconds
 
     iso, h = scene.isolas, scene.hbm
     n_c = 2 * h.n_harmonics + 1
-    per_point = (1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9
+    per_point = point_seconds(scene)
     # harmonic k of Omega is harmonic k nu of the basis (hbm.isolas.harmonic.modal_seeds)
     n_kept = len([k for k in iso.harmonics if k * h.subharmonic <= h.n_harmonics])
     # and the family around the primary: one of its points a speed (more where it folds)
     n_seeds = iso.n_modes * n_kept * (len(iso.amplitudes) + len(iso.primary_amplitudes)) * iso.n_omega
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
-    seconds = n_seeds * 2 * per_point / cores + len(h.methods) * 5 * 2 * iso.max_points * per_point / 4
+    seconds = n_seeds * per_point / cores + len(h.methods) * 5 * 2 * iso.max_points * per_point / 4
     # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,
     # whatever the seeds: one per core for the seeds, four for the branches (two halves, two
     # describing) with two workers or more; the advice names the key that sets their number
