@@ -53,7 +53,7 @@ import numpy as np
 from pipelines import artifacts as art
 from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
-from pipelines.stages.hbm import nfrc_output
+from pipelines.stages.hbm import nfrc_output, point_seconds
 from pipelines.stages.rom import past_friction_lock, read_rom
 
 ISOLAS = Output("isolas.h5")
@@ -751,15 +751,13 @@ def _compute(ctx: Context, outputs) -> None:
 
 def _estimate(scene, out, outputs) -> Estimate:
     """Seeds: n_modes x harmonics x (amplitudes + primary_amplitudes) x n_omega for the first
-    treatment, a Newton each (3 to 5 iterations on rotor 67: most stall after 3), which costs
-    about one continuation point (pipelines.stages.hbm.point_seconds) and half of one on an
-    Emerald Rapids host (the coarse scene's 6862 DLFT seeds in 166 s on two cores), over the
-    cores (with both treatments RL's seeds are DLFT's distinct solutions and points along
-    its branches, a few hundred on rotor 67: left out); then, per treatment, a few branches
-    of up to 2 max_points points."""
+    treatment, a Newton each (3 to 5 iterations on rotor 67: most stall after 3), costed as
+    one continuation point (pipelines.stages.hbm.point_seconds; measured: half of one on an
+    Emerald Rapids host, the slowest hosts seen take twice as long), over the cores (with
+    both treatments RL's seeds are DLFT's distinct solutions and points along its branches,
+    a few hundred on rotor 67: left out); then, per treatment, a few branches of up to 2
+    max_points points."""
     import os
-
-    from pipelines.stages.hbm import point_seconds
 
     iso, h = scene.isolas, scene.hbm
     n_c = 2 * h.n_harmonics + 1

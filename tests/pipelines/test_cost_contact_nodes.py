@@ -81,3 +81,20 @@ def test_listed_contact_nodes_cost_as_a_table_scene_with_as_many(deck, tmp_path)
     memory = {n_b: 0.2e9 + 10 * (n_c * 3 * n_b) ** 2 * 8.0 + AFT_BYTES * N_TIME * 3 * n_b for n_b in (9, 20)}
     assert got.memory / nine.memory == pytest.approx(memory[20] / memory[9], rel=1e-12)
     assert got.memory / nine.memory > 1.5
+
+
+def test_the_isola_search_costs_its_points_as_the_nfrc_does(deck, tmp_path):
+    """The isola search's seeds and branches are HBM points: its time estimate scales with the
+    hbm stage's cost of a point, the AFT's at a large N_t included (2^20 samples of 27 boundary
+    dof: ~34 s a point, against ~0.03 s at 256). It used to keep the harmonic term alone, and
+    costed an N_t = 2^20 search as one at 256."""
+    from pipelines.stages.hbm import point_seconds
+
+    folder, _ = deck
+    small, large = (parse_scene(f"[hbm]\nn_harmonics = {N_H}\nn_time = {n}\nmax_points = {MAX_POINTS}\n",
+                                folder / "scene.toml") for n in (N_TIME, 2 ** 20))
+    ratio = point_seconds(large) / point_seconds(small)
+    assert ratio > 1000
+    iso = REGISTRY["isolas"]
+    est = [iso.estimate(s, tmp_path, iso.outputs(s)).seconds for s in (small, large)]
+    assert est[1] / est[0] == pytest.approx(ratio, rel=1e-12)
