@@ -19,16 +19,21 @@ def _check(path, wide: bool = False):
     return img
 
 
-def _legends(monkeypatch) -> list:
-    """The legend texts of every figure saved from now on, one list per figure, in order."""
-    legends = []
+def _on_save(monkeypatch, look) -> None:
+    """look(fig) on every figure saved from now on, just before it is saved."""
     save = figures._save
 
     def keep(fig, path):
-        legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])
+        look(fig)
         return save(fig, path)
 
     monkeypatch.setattr(figures, "_save", keep)
+
+
+def _legends(monkeypatch) -> list:
+    """The legend texts of every figure saved from now on, one list per figure, in order."""
+    legends = []
+    _on_save(monkeypatch, lambda fig: legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()]))
     return legends
 
 
@@ -97,17 +102,15 @@ def test_fig_8_tells_a_flagged_ti_point_from_a_fold(tmp_path, sweep, monkeypatch
     and at least twice as wide, in the figure and in the legend (a solid ring of the TI
     markers' 3.2 times area was a fold's size there)."""
     seen = {}
-    save = figures._save
 
-    def keep(fig, path):
+    def look(fig):
         legend = fig.axes[0].get_legend()
         seen.update(zip([t.get_text() for t in legend.get_texts()], legend.legend_handles
                         if hasattr(legend, "legend_handles") else legend.legendHandles))
         seen["fold in axes"] = [ln for ln in fig.axes[0].get_lines() if ln.get_marker() == "o"]
         seen["rings in axes"] = [c for c in fig.axes[0].collections if len(c.get_offsets()) == 10]
-        return save(fig, path)
 
-    monkeypatch.setattr(figures, "_save", keep)
+    _on_save(monkeypatch, look)
     omega = np.linspace(400.0, 2000.0, 400)
     amp = duffing_like(omega, 1500.0, 50.0, 2.2e-3)
     flags = np.zeros(60, bool)
@@ -274,15 +277,13 @@ def test_the_amplitude_figures_keep_their_legend_off_the_data(tmp_path, sweep, m
     """The legend of Figs. 5, 6 and 8 stands right of the axes: inside, it hid the coarse
     scene's primary NFRC (Fig. 8) and ringed sweep points of the default one (Fig. 6)."""
     boxes = []
-    save = figures._save
 
-    def keep(fig, path):
+    def look(fig):
         fig.canvas.draw()
         ax = fig.axes[0]
         boxes.append((ax.get_window_extent(), ax.get_legend().get_window_extent(), fig.bbox))
-        return save(fig, path)
 
-    monkeypatch.setattr(figures, "_save", keep)
+    _on_save(monkeypatch, look)
     omega = np.linspace(400.0, 2000.0, 200)
     amp = duffing_like(omega, 900.0, 80.0, 2e-3)
     flags = np.zeros(60, bool)
@@ -307,15 +308,13 @@ def test_a_long_legend_goes_into_columns_and_stays_on_the_page(tmp_path, monkeyp
     eleven points a row against the page's 324) are set in columns, none cut off below the
     page."""
     boxes = []
-    save = figures._save
 
-    def keep(fig, path):
+    def look(fig):
         fig.canvas.draw()
         legend = fig.axes[0].get_legend()
         boxes.append((legend.get_window_extent(), fig.axes[0].get_window_extent(), fig.bbox, len(legend.get_texts())))
-        return save(fig, path)
 
-    monkeypatch.setattr(figures, "_save", keep)
+    _on_save(monkeypatch, look)
     omega = np.linspace(400.0, 2000.0, 60)
     figures.plot_nfrc({f"NFRC {i}": (omega, duffing_like(omega, 400.0 + 40.0 * i, 50.0, 1e-3), None)
                        for i in range(40)}, tmp_path / "nfrc.png")
