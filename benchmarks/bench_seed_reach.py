@@ -8,7 +8,7 @@ from DLFT's corrected solution of the same seed, as RL's modal seeds are made
         [--omegas 440,450,460,470,480,660,690,700,1350] [--no-period]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --singular 512,528 [--method rl]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas 560,560.5
-    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2] [--method rl]
+    PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --modal --omegas grid [--around 1e-3,1e-2] [--method rl] [--stall-check]
     PYTHONPATH=. .venv/bin/python benchmarks/bench_seed_reach.py OUT --from-branch dlft/005 [--every 10]
 
 Prints, per speed and correction: the start's distance to the treatment's primary NFRC (the
@@ -28,7 +28,10 @@ and the share of odd ones (the primary NFRC of rotor 67 has none), and per speed
 converged, off every known branch and CPU s: where a narrow branch is reached from.
 --around A1,A2: the seeds around the primary NFRC instead, eq. (31)'s shapes with these
 amplitudes added to its points at each speed ([isolas] primary_amplitudes); with --method
-rl, RL's primary and RL's branches.
+rl, RL's primary and RL's branches. --stall-check: then, replayed on the seeds' Newton
+histories, what the seeds' stall rule (hbm.isolas.harmonic.search_options: given up once
+three iterations fail to lower ||R|| tenfold) would have done with one or two iterations:
+converged seeds it would have lost, and the failing seeds' residual evaluations.
 
 --from-branch METHOD/NNN: instead, the other treatment's patient Newton from every --every-th
 converged point of that branch of OUT/isolas.h5, one line each as above (the known branches:
@@ -46,6 +49,7 @@ in that speed range, the smallest two and the largest singular value of its dens
 from __future__ import annotations
 
 import argparse
+import contextlib
 import copy
 import dataclasses
 import sys
@@ -79,6 +83,8 @@ def main() -> None:
     ap.add_argument("--modal", action="store_true", help="the modal seeds (eq. 31) at --omegas instead")
     ap.add_argument("--around", default=None, help="A1,A2: with --modal, the seeds around the primary instead")
     ap.add_argument("--all", action="store_true", help="with --modal, a line for every converged seed")
+    ap.add_argument("--stall-check", action="store_true",
+                    help="with --modal, what a stall rule of fewer iterations would have cut")
     ap.add_argument("--from-branch", default=None, metavar="METHOD/NNN",
                     help="the other treatment's Newton from every --every-th point of this branch of OUT/isolas.h5")
     ap.add_argument("--every", type=int, default=10)
@@ -131,12 +137,14 @@ def main() -> None:
             family = dataclasses.replace(iso, primary_amplitudes=())
         print("  Omega  seed                    its  LE harmonics (leading)  odd share  lies on")
         total = [0, 0, 0, 0.0]
+        histories = []  # (||R|| at each iterate, converged) of every seed's Newton, with --stall-check
         for w in sorted(omegas):
             seeds = modal_seeds(res, rom, family, np.array([w]), around=tuple(known[:1]))
             conv = off = 0
             t = time.process_time()
             for sd in seeds:
-                sol = newton_solve(res, sd.x, w, opts.newton, solver=copy.deepcopy(solver))
+                with _recorded(histories if args.stall_check else None):
+                    sol = newton_solve(res, sd.x, w, opts.newton, solver=copy.deepcopy(solver))
                 if not sol.converged:
                     continue
                 conv += 1
@@ -152,6 +160,8 @@ def main() -> None:
             total = [total[0] + len(seeds), total[1] + conv, total[2] + off, total[3] + cpu]
         print(f"all: {total[0]} seeds, {total[1]} converged, {total[2]} off every known branch, CPU {total[3]:.0f} s, "
               f"at {sum(1 for _ in omegas)} speeds", flush=True)
+        if args.stall_check:
+            _stall_report(histories, opts.newton)
         return
     print(f"tolerance {iso.tolerance:g} (scaled)")
     print("  Omega  correction      start-d  converged   its      ||R||  solution-d  CPU s  lies on")
@@ -184,6 +194,59 @@ def main() -> None:
         if method == "rl":
             for w in sorted(dlft):
                 correct(res, solver, dlft[w], w, known, "RL from DLFT")
+
+
+@contextlib.contextmanager
+def _recorded(histories):
+    """Within: each hbm.continuation.newton.newton_iterate call appends (its ||R|| at every
+    iterate, converged) to histories (None: nothing recorded)."""
+    import hbm.continuation.newton as nw
+
+    if histories is None:
+        yield
+        return
+    plain = nw.newton_iterate
+
+    def recording(y0, linearise, options, **kw):
+        norms = []
+
+        def lin(y):
+            out = linearise(y)
+            norms.append(float(out[0]))
+            return out
+
+        result = plain(y0, lin, options, **kw)
+        histories.append((norms, bool(result.converged)))
+        return result
+
+    nw.newton_iterate = recording
+    try:
+        yield
+    finally:
+        nw.newton_iterate = plain
+
+
+def _stall_report(histories, newton) -> None:
+    """What the seeds' stall rule (give up once k iterations in a row fail to lower the best
+    ||R|| by newton.stall_factor) would have done with k = 1, 2 and the scene's k, replayed on
+    the histories of the scene's rule: converged runs it would have cut, and the residual
+    evaluations of the runs that did not converge (for k below the scene's, a lower bound: a
+    run the shorter rule lets go on beyond the recorded history is counted to its end)."""
+    def stop(norms, k):
+        for it in range(len(norms)):
+            h = norms[:it + 1]
+            if len(h) > k and min(h[-k:]) > newton.stall_factor * min(h[:-k]):
+                return it
+        return None
+
+    converged = [h for h, c in histories if c]
+    failed = [h for h, c in histories if not c]
+    print(f"stall rule: {len(converged)} converged runs ({sum(map(len, converged))} evaluations), "
+          f"{len(failed)} not")
+    for k in range(1, newton.stall_iterations + 1):
+        cut = sum(1 for h in converged if stop(h, k) is not None and stop(h, k) < len(h) - 1)
+        evals = sum(stop(h, k) + 1 if stop(h, k) is not None else len(h) for h in failed)
+        print(f"  k = {k}: cuts {cut} converged runs; the others' evaluations {evals}")
 
 
 def singular_values(args, scene) -> None:
