@@ -104,6 +104,12 @@ class NewtonResult(NamedTuple):
     reason: str
 
 
+def stalled(history: list[float], k: int, factor: float) -> bool:
+    """The stall rule: whether the last k residual norms of history all stay above factor
+    times the best one before them (a Newton run that has stopped making progress)."""
+    return len(history) > k and min(history[-k:]) > factor * min(history[:-k])
+
+
 def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: float | np.ndarray = 1.0,
                    merit=None, where: str = "") -> NewtonResult:
     """The Newton loop.
@@ -135,7 +141,7 @@ def newton_iterate(y0: np.ndarray, linearise, options: NewtonOptions, *, scale: 
         if rn <= options.tol_residual and step_ok:
             return NewtonResult(y, True, rn, it, "")
         history.append(rn)
-        if k is not None and len(history) > k and min(history[-k:]) > options.stall_factor * min(history[:-k]):
+        if k is not None and stalled(history, k, options.stall_factor):
             return NewtonResult(y, False, rn, it, f"stalled{where}: ||R|| {min(history[-k:]):.3e} after {k} more "
                                                   f"iterations, not below {options.stall_factor:g} x "
                                                   f"{min(history[:-k]):.3e}")
