@@ -31,7 +31,7 @@ amplitudes added to its points at each speed ([isolas] primary_amplitudes); with
 rl, RL's primary and RL's branches. --stall-check: then, replayed on the seeds' Newton
 histories, what the seeds' stall rule (hbm.isolas.harmonic.search_options: given up once
 three iterations fail to lower ||R|| tenfold) would have done with one or two iterations:
-converged seeds it would have lost, and the failing seeds' residual evaluations.
+converged seeds it would have lost, and the residual evaluations of all seeds.
 
 --from-branch METHOD/NNN: instead, the other treatment's patient Newton from every --every-th
 converged point of that branch of OUT/isolas.h5, one line each as above (the known branches:
@@ -227,26 +227,26 @@ def _recorded(histories):
 
 
 def _stall_report(histories, newton) -> None:
-    """What the seeds' stall rule (give up once k iterations in a row fail to lower the best
-    ||R|| by newton.stall_factor) would have done with k = 1, 2 and the scene's k, replayed on
-    the histories of the scene's rule: converged runs it would have cut, and the residual
-    evaluations of the runs that did not converge (for k below the scene's, a lower bound: a
-    run the shorter rule lets go on beyond the recorded history is counted to its end)."""
-    def stop(norms, k):
-        for it in range(len(norms)):
-            h = norms[:it + 1]
-            if len(h) > k and min(h[-k:]) > newton.stall_factor * min(h[:-k]):
-                return it
-        return None
+    """What the seeds' stall rule (hbm.continuation.newton.stalled) would have done with k = 1,
+    2 and the scene's k, replayed on the histories of the scene's rule: converged runs it would
+    have cut, and the residual evaluations of all runs. Exact: a rule with fewer iterations
+    stops a run where the scene's does or before."""
+    from hbm.continuation.newton import stalled
 
-    converged = [h for h, c in histories if c]
-    failed = [h for h, c in histories if not c]
-    print(f"stall rule: {len(converged)} converged runs ({sum(map(len, converged))} evaluations), "
-          f"{len(failed)} not")
+    def evaluations(norms, k, converged):
+        """(evaluations, cut): where the rule with k stops the run, and whether it does (a
+        converged run's last norm passed the tolerance, which Newton tests first)."""
+        last = len(norms) - 1 if converged else len(norms)
+        it = next((i for i in range(last) if stalled(norms[:i + 1], k, newton.stall_factor)), None)
+        return (len(norms), False) if it is None else (it + 1, True)
+
+    n_conv = sum(1 for _, c in histories if c)
+    print(f"stall rule: {n_conv} converged runs, {len(histories) - n_conv} not")
     for k in range(1, newton.stall_iterations + 1):
-        cut = sum(1 for h in converged if stop(h, k) is not None and stop(h, k) < len(h) - 1)
-        evals = sum(stop(h, k) + 1 if stop(h, k) is not None else len(h) for h in failed)
-        print(f"  k = {k}: cuts {cut} converged runs; the others' evaluations {evals}")
+        runs = [(evaluations(h, k, c), c) for h, c in histories]
+        cut = sum(1 for (n, stopped), c in runs if c and stopped)
+        total = sum(n for (n, _), _ in runs)
+        print(f"  k = {k}: cuts {cut} converged runs; residual evaluations {total}")
 
 
 def singular_values(args, scene) -> None:
