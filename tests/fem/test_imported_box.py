@@ -13,7 +13,9 @@ Why the bounds hold:
   converging from above. The first five modes are bending (1F, 1E, 2F, 2E, 3F): on this
   deck each code lies within 0.1 % of its converged value there (CalculiX on 120 x 8 x 4:
   89.21 Hz against 89.27 Hz here for 1F), so they differ by less than 0.2 % (measured:
-  <= 0.034 %); 0.5 % is the bound asked. The sixth is the first torsion, where the split's
+  <= 0.034 %), and the test holds them to that 0.2 %, not to 0.5 %, which a Lame lambda
+  10 % low passes (E 1 % low through Poisson's ratio: -0.43 to -0.47 % on these five modes,
+  measured). The sixth is the first torsion, where the split's
   P2 tetrahedra, two across the thickness, are still 0.6 % stiff (converged 1883 Hz,
   1895 Hz here; C3D20: 1887 Hz): measured +0.03 % (wedge deck) and +0.40 % (hex deck)
   against CalculiX, so 1 % there (benchmarks/bench_mesh_import.py --boxes prints all).
@@ -81,7 +83,7 @@ def test_frequencies_against_calculix(run):
     kind, _, _, reference, fem, _ = run
     f = fem.frequencies_hz[:6]
     assert len(reference) == 6
-    np.testing.assert_allclose(f[:5], reference[:5], rtol=5e-3)  # bending (module doc)
+    np.testing.assert_allclose(f[:5], reference[:5], rtol=2e-3)  # bending (module doc)
     assert f[5] == pytest.approx(reference[5], rel=1e-2)  # first torsion
 
 
