@@ -17,6 +17,7 @@ import os
 import re
 import subprocess
 import sys
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -26,6 +27,7 @@ import scipy.integrate as si
 from hbm.continuation.arclength import ContinuationOptions, continue_branch
 from hbm.continuation.newton import NewtonOptions
 from hbm.isolas.membership import KnownBranch
+from hbm.isolas.options import IsolaOptions
 from hbm.isolas.search import ON_KNOWN, SearchOptions, Seed, search
 from hbm.linalg.dense import DirectSolver
 from support import mpirun_command, needs_mpirun
@@ -35,9 +37,14 @@ W_MIN, W_MAX = 0.8, 1.2
 
 
 class Oscillator:
-    """The one-harmonic HB residual R(x, omega), x = (a, b). Picklable (module level)."""
+    """The one-harmonic HB residual R(x, omega), x = (a, b), forcing amplitude `force`.
+    Picklable (module level)."""
+
+    def __init__(self, force: float = F):
+        self.force = force
 
     def __call__(self, x, w, jacobian=True):
+        F = self.force
         a, b = x
         A2 = a * a + b * b
         c = C1 - C3 * A2 / 4 + C5 * A2 * A2 / 8
@@ -56,7 +63,7 @@ def factory():
     return Oscillator(), DirectSolver()
 
 
-def amplitudes(w: float) -> np.ndarray:
+def amplitudes(w: float, F: float = F) -> np.ndarray:
     """Every amplitude A > 0 of the one-harmonic balance at omega: real positive roots u =
     A^2 of the quintic u [(1 - w^2)^2 + w^2 c_eq(u)^2] - F^2 (c_eq(u) = C1 - C3 u / 4 + C5 u^2 / 8)."""
     ceq = np.polynomial.Polynomial([C1, -C3 / 4, C5 / 8])
@@ -66,10 +73,10 @@ def amplitudes(w: float) -> np.ndarray:
     return np.sqrt(u)
 
 
-def isola_range(n=4001):
+def isola_range(n=4001, F: float = F):
     """Omega range of the large-amplitude family (more than one root), from a fine grid."""
     w = np.linspace(W_MIN, W_MAX, n)
-    multi = np.array([len(amplitudes(x)) > 1 for x in w])
+    multi = np.array([len(amplitudes(x, F)) > 1 for x in w])
     return w[multi].min(), w[multi].max()
 
 
@@ -150,6 +157,54 @@ def test_the_search_finds_the_isola_once(primary):
     idx = res.branches.index(b)
     assert (res.seed_branch == idx).sum() >= 2
     assert set(res.seed_branch) <= {-1, ON_KNOWN, idx}
+
+
+#: Just below the force at which the isola merges with the primary (between 0.0607 and
+#: 0.06075 on a 5e-5 grid of F): the isola's lower half passes 0.047 from the primary.
+F_NEAR = 0.0607
+
+
+def near_factory():
+    return Oscillator(F_NEAR), DirectSolver()
+
+
+def solutions(w: float, F: float = F) -> np.ndarray:
+    """(a, b) of every one-harmonic solution at omega w, (m, 2): each amplitude of
+    `amplitudes` fixes c_eq, and the balance is then linear in (a, b)."""
+    out = []
+    for A in amplitudes(w, F):
+        c, s = C1 - C3 * A * A / 4 + C5 * A ** 4 / 8, 1.0 - w * w
+        out.append(np.linalg.solve([[s, w * c], [-w * c, s]], [F, 0.0]))
+    return np.array(out)
+
+
+def test_an_isola_just_apart_from_the_primary_stays_an_isola_at_the_default_tolerance():
+    """The search's resolution: with the scene's membership tolerance ([isolas] tolerance,
+    1e-2 in the scaled unknowns), an isola 0.047 from the primary is found as a closed
+    isola, where a tolerance of twice that gap makes it meet the primary. The steps
+    (ds_max = 0.01) stay under the gap: with this module's ds_max = 0.1 the primary's own
+    continuation jumps onto the isola there."""
+    gap = min(np.linalg.norm(x[1] - x[0]) for w in np.linspace(0.98, 1.02, 4001)
+              if len(x := solutions(w, F_NEAR)) == 3)  # primary to the isola's lower half, same Omega
+    assert gap == pytest.approx(0.0468, abs=1e-3)
+    fine = replace(continuation(), ds=0.005, ds_max=0.01, max_points=20000)
+    br = continue_branch(Oscillator(F_NEAR), np.array([F_NEAR / (1 - W_MIN ** 2), 0.0]), W_MIN, fine)
+    assert br.status.startswith("reached omega_max") and np.all(np.diff(br.omega) > 0)  # no turn: the primary only
+    known = [KnownBranch.of(br.omega, br.x, "primary", br.converged)]
+
+    def run(tolerance):
+        return search(near_factory, modal_seeds(), known,
+                      SearchOptions(tolerance=tolerance, continuation=fine,
+                                    newton=NewtonOptions(tol_residual=1e-10, max_iter=20, line_search=True), workers=1))
+
+    res = run(IsolaOptions().tolerance)
+    assert [(b.kind, b.closed) for b in res.branches] == [("isola", True)], [b.status for b in res.branches]
+    lo, hi = isola_range(F=F_NEAR)
+    ok = res.branches[0].converged
+    assert res.branches[0].omega[ok].min() == pytest.approx(lo, abs=2e-4)
+    assert res.branches[0].omega[ok].max() == pytest.approx(hi, abs=2e-4)
+    wide = run(2 * gap)  # the isola's lower half is "on" the primary
+    assert [(b.kind, b.closed) for b in wide.branches] == [("bifurcated", False)], [b.status for b in wide.branches]
 
 
 class Pair:
@@ -235,7 +290,6 @@ def test_a_search_interrupted_after_merges_resumes_to_the_uninterrupted_result(t
     """Short halves (15 points) make later seeds merge into branches found before, or lie on
     them: those seeds are saved with their branch as they join it, so a search interrupted
     after them continues none of them again and ends with the uninterrupted result."""
-    from dataclasses import replace
 
     opts = options()
     opts = replace(opts, continuation=replace(opts.continuation, max_points=15))
@@ -274,7 +328,6 @@ def test_a_branch_merging_into_a_known_branch_other_than_the_primary_is_bifurcat
     """Known: the primary and a piece of the isola (as the period-doubled search knows the
     first search's branches); a seed on the isola's lower sheet runs into the piece at both
     ends. With only the first known branch the primary, it is not called primary."""
-    from dataclasses import replace
 
     a = amplitudes(1.0)
     piece = continue_branch(Oscillator(), np.array([0.0, a[2]]), 1.0, replace(continuation(), max_points=25))
@@ -290,7 +343,6 @@ def test_a_branch_found_before_becomes_primary_when_a_later_one_links_it_to_the_
     """The known primary is cut at 0.95; seed A (1.15) continues a piece of the primary curve
     that ends on the step cap short of it; seed B (1.0) runs into the known primary one way
     and into A's branch the other: A's branch is then connected to the primary."""
-    from dataclasses import replace
 
     prim = continue_branch(Oscillator(), np.array([F / (1 - W_MIN ** 2), 0.0]), W_MIN, continuation())
     keep = prim.converged & (prim.omega <= 0.95)
