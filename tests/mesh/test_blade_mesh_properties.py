@@ -2,8 +2,9 @@
 an independent reference: the tet10 shape functions written out from their definition
 (barycentric products) and a curved cell whose volume is known in closed form; the caps
 found again from the cells' boundary faces and the streamsurfaces of the table; the
-contact nodes by brute-force nearest search, and their angles on the same blade turned
-across the atan2 cut; node orders checked as permutations on graphs built by hand.
+contact nodes by brute-force nearest search, their camber targets evenly spaced in arc
+length by projection on the camber line, and their angles on the same blade turned across
+the atan2 cut; node orders checked as permutations on graphs built by hand.
 """
 import dataclasses
 
@@ -112,6 +113,23 @@ def test_contact_nodes_are_the_nearest_tip_nodes_and_keep_their_angles_across_th
         np.testing.assert_allclose(b.frames[:, 0, :2], b.xyz[:, :2] / rho[:, None], atol=1e-15)
         np.testing.assert_allclose(np.cross(b.frames[:, 0], b.frames[:, 1]), b.frames[:, 2], atol=1e-15)
         np.testing.assert_allclose(b.frames[:, 2], np.tile([0.0, 0.0, 1.0], (9, 1)))
+
+
+def test_contact_targets_are_evenly_spaced_along_the_tip_camber_from_le_to_te(geometry):
+    # each target's arc length along the camber polyline, by projection on its segments
+    tip = geometry.section(13)
+    c = tip.camber_xyz()
+    seg = np.diff(c, axis=0)
+    start = np.concatenate([[0.0], np.cumsum(np.linalg.norm(seg, axis=1))])
+    targets = camber_points(tip, 9)
+    arc = []
+    for p in targets:
+        t = np.clip(np.einsum("ij,ij->i", p - c[:-1], seg) / np.einsum("ij,ij->i", seg, seg), 0.0, 1.0)
+        d = np.linalg.norm(c[:-1] + t[:, None] * seg - p, axis=1)
+        k = int(d.argmin())
+        assert d[k] < 1e-12  # on the camber line
+        arc.append(start[k] + t[k] * np.linalg.norm(seg[k]))
+    np.testing.assert_allclose(arc, np.linspace(0.0, start[-1], 9), rtol=0.0, atol=1e-12 * start[-1])
 
 
 def test_node_orders_are_permutations_of_every_node():
