@@ -250,7 +250,7 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
     N_h = 2), so that lam - i omega is not conj(lam) any more; conj(lam), an eigenvalue of
     the real problem to round-off, is the member merged then.
     Otherwise (the Arnoldi window): eigenpair i joins the family of representative j when
-    lam_i = lam_j + i m omega for an integer m, to 1e-2 omega in the imaginary part and
+    lam_i = lam_j + i m omega for an integer m != 0, to 1e-2 omega in the imaginary part and
     _real_tolerance in the real part, and p_i is parallel to p_j shifted by m harmonics
     (|cos| > 0.9). The truncation moves the members' real parts with the shift
     (MEMBER_DRIFT says by how much on rotor 67): a tolerance that ignores the shift keeps
@@ -284,7 +284,11 @@ def _families(lam: np.ndarray, P: np.ndarray, omega: float, max_edge: float, den
             for j in reps:
                 d = lam[i] - lam[j]
                 m = int(np.round(d.imag / omega))
-                if abs(d.imag - m * omega) <= 1e-2 * omega and abs(d.real) <= _real_tolerance(lam[i], lam[j], m, omega):
+                # m = 0 is never one family: it has one member per shift, and two real
+                # exponents of parallel eigenvectors (a saddle's pair beside a fold, +-1e-3 omega)
+                # are two multipliers, one of them unstable
+                if m != 0 and abs(d.imag - m * omega) <= 1e-2 * omega \
+                        and abs(d.real) <= _real_tolerance(lam[i], lam[j], m, omega):
                     b = shift_member(P[j], m).reshape(-1)
                     same = abs(np.vdot(a, b)) > 0.9 * np.linalg.norm(a) * np.linalg.norm(b)
                 if same:

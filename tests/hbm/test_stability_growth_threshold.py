@@ -16,7 +16,7 @@ import pytest
 
 from hbm.harmonic.fourier import FourierBasis
 from hbm.stability.hill import HillOperator
-from hbm.stability.spectrum import dense_spectrum
+from hbm.stability.spectrum import arnoldi_spectrum, dense_spectrum
 
 NH, NT = 5, 16
 
@@ -47,3 +47,20 @@ def test_a_growth_per_period_above_1e_6_is_unstable_at_any_time_scale(scale, gro
     assert sp.decided
     assert sp.n_unstable == unstable
     assert sp.stable == (unstable == 0)
+
+
+@pytest.mark.parametrize("r", [1e-3, 3e-3, 1e-2])
+def test_a_saddles_two_real_multipliers_are_two_in_the_arnoldi_window_too(r):
+    """x'' - k x = 0 with k = (r omega)^2: exponents +-r omega exactly, both eigenvectors on
+    dof 0's mean (parallel). A saddle's pair beside a fold looks so (one multiplier just
+    outside the circle, its partner just inside). They differ by no harmonic shift, so they
+    are two families however close their real parts: grouped as one (within MEMBER_DRIFT
+    omega = 4e-3 omega, as members of one family are) the window keeps the stable one."""
+    omega = 1.7
+    H = HillOperator(K=np.diag([-(r * omega) ** 2, 100.0, 100.0]), M=np.eye(3), C=np.diag([0.0, 101.0, 101.0]),
+                     omega=omega, basis=FourierBasis(NH, NT), nodes=np.array([0]), weights=np.zeros((1, 1, NT)),
+                     sigma=np.ones(2 * NH + 1), g_eps=1.0, g_z=0.0, nl=np.arange(3))
+    growth = 2.0 * np.pi * r  # log|mu| = +-r omega T
+    for sp in (dense_spectrum(H), arnoldi_spectrum(H, n_eig=16)):
+        assert sp.decided and sp.n_unstable == 1, sp.method
+        np.testing.assert_allclose(np.log(np.abs(sp.multipliers[:2])), [growth, -growth], rtol=1e-9)
