@@ -21,17 +21,20 @@ from hbm.stability.spectrum import arnoldi_spectrum, dense_spectrum
 NH, NT = 5, 16
 
 
+def oscillator(k: float, c: float, omega: float, w0: float) -> HillOperator:
+    """Hill's operator of x'' + c x' + k x = 0 (dof 0) in the basis of omega, without contact;
+    dofs 1, 2 (the 'theta, z' of the one node Hill's operator needs) are decoupled and
+    overdamped (exponents -w0 and -100 w0)."""
+    return HillOperator(K=np.diag([k, 100.0 * w0 * w0, 100.0 * w0 * w0]), M=np.eye(3),
+                        C=np.diag([c, 101.0 * w0, 101.0 * w0]), omega=omega, basis=FourierBasis(NH, NT),
+                        nodes=np.array([0]), weights=np.zeros((1, 1, NT)), sigma=np.ones(2 * NH + 1),
+                        g_eps=1.0, g_z=0.0, nl=np.arange(3))
+
+
 def spectrum(growth: float, omega: float, w0: float):
-    """Dense Hill spectrum of the oscillator (dof 0) whose multipliers grow by `growth` per
-    period 2 pi / omega; dofs 1, 2 (the 'theta, z' of the one node Hill's operator needs)
-    are decoupled and overdamped (exponents -w0 and -100 w0)."""
-    T = 2.0 * np.pi / omega
-    c = -2.0 * growth / T
-    H = HillOperator(K=np.diag([w0 * w0, 100.0 * w0 * w0, 100.0 * w0 * w0]), M=np.eye(3),
-                     C=np.diag([c, 101.0 * w0, 101.0 * w0]), omega=omega, basis=FourierBasis(NH, NT),
-                     nodes=np.array([0]), weights=np.zeros((1, 1, NT)), sigma=np.ones(2 * NH + 1),
-                     g_eps=1.0, g_z=0.0, nl=np.arange(3))
-    return dense_spectrum(H)
+    """Dense Hill spectrum of the oscillator of natural frequency w0 whose multipliers grow by
+    `growth` per period 2 pi / omega."""
+    return dense_spectrum(oscillator(w0 * w0, -2.0 * growth * omega / (2.0 * np.pi), omega, w0))
 
 
 SCALES = {"test system (T = 3.7 s)": (1.7, 1.0), "rotor (T = 4.2 ms)": (1500.0, 1000.0)}
@@ -57,9 +60,7 @@ def test_a_saddles_two_real_multipliers_are_two_in_the_arnoldi_window_too(r):
     are two families however close their real parts: grouped as one (within MEMBER_DRIFT
     omega = 4e-3 omega, as members of one family are) the window keeps the stable one."""
     omega = 1.7
-    H = HillOperator(K=np.diag([-(r * omega) ** 2, 100.0, 100.0]), M=np.eye(3), C=np.diag([0.0, 101.0, 101.0]),
-                     omega=omega, basis=FourierBasis(NH, NT), nodes=np.array([0]), weights=np.zeros((1, 1, NT)),
-                     sigma=np.ones(2 * NH + 1), g_eps=1.0, g_z=0.0, nl=np.arange(3))
+    H = oscillator(-(r * omega) ** 2, 0.0, omega, 1.0)
     growth = 2.0 * np.pi * r  # log|mu| = +-r omega T
     for sp in (dense_spectrum(H), arnoldi_spectrum(H, n_eig=16)):
         assert sp.decided and sp.n_unstable == 1, sp.method
