@@ -67,3 +67,47 @@ def test_crossing_near_the_start_at_another_angle_is_not_a_loop(direction):
     assert expected(np.pi) < D_MIN
     assert 2 * np.pi <= t[-1] <= 2 * np.pi + 0.05
     assert float(b.detail.split("=")[1].split()[0]) == pytest.approx(expected(2 * np.pi), rel=0.05)
+
+
+class Helix:
+    """x1 = c + r cos t, omega = wc + a sin t, x2 = h t: a helix that never closes, drawn along
+    x2 and parameterised by t = x2 / h; a = 100 r rad/s makes its turns circles of radius r in
+    the continuation's metric (omega / 100 rad/s). Each turn crosses the start's omega with the
+    start's tangent, at d_int = 2 pi h k / |x| after k turns (eq. (27)): a near return as far
+    from the start as h says. The chords' interpolation adds ~r dt^2 / 8 at a crossing (dt the
+    turn of a step, ~0.5 rad), 1.5e-4 of |x| here."""
+
+    def __init__(self, h, c=20.0, r=0.1, wc=1000.0):
+        self.h, self.c, self.r, self.wc, self.a = h, c, r, wc, 100.0 * r
+
+    def __call__(self, x, w):
+        x1, x2 = x
+        t = x2 / self.h
+        R = np.array([(x1 - self.c) / self.r - np.cos(t), (w - self.wc) / self.a - np.sin(t)])
+        J = np.array([[1.0 / self.r, np.sin(t) / self.h], [0.0, -np.cos(t) / self.h]])
+        return R, J, np.array([0.0, 1.0 / self.a])
+
+
+@pytest.mark.parametrize("d_first, closes", [(4e-3, False), (3e-4, True)])
+def test_the_products_continuation_calls_a_return_a_loop_only_within_its_tolerance(d_first, closes):
+    """The NFRC's and the isola search's settings (hbm.harmonic.nfrc.default_continuation: u and
+    omega / 100 rad/s, d_min = 1e-3) on a helix in (x1, omega) drawn along x2: its first return
+    to the start's omega, with the start's tangent, passes d_first from the start in eq. (27)'s
+    metric. 4e-3 is a near-miss (the branch goes round again, up to its point cap); 3e-4 is
+    within d_min, a closed loop after one turn."""
+    from dataclasses import replace
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.options import HbmOptions
+
+    x0 = np.array([20.0 + 0.1, 0.0])
+    e = Helix(h=d_first * np.linalg.norm(x0) / (2 * np.pi))
+    o = replace(default_continuation(HbmOptions()), direction=1, max_points=120)
+    b = continue_branch(e, x0, e.wc, o)
+    t = b.x[:, 1] / e.h
+    assert b.converged.all()
+    np.testing.assert_allclose(b.x[:, 0], e.c + e.r * np.cos(t), atol=1e-9)
+    np.testing.assert_allclose(b.omega, e.wc + e.a * np.sin(t), atol=1e-6)
+    if closes:
+        assert b.status == STATUS_CLOSED_LOOP and 2 * np.pi <= t[-1] < 2 * np.pi + 1.0
+    else:
+        assert b.status != STATUS_CLOSED_LOOP and t[-1] > 4 * np.pi  # past the first two returns
