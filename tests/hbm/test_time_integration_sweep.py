@@ -172,12 +172,12 @@ def test_a_transient_at_the_assumed_decay_is_within_settle_rtol_when_the_sweep_s
 
     The node follows the casing (as in following_system) and is tied by a spring to an
     interior dof q (w_q = 10 Omega, xi 4e-4, the slowest free mode: tau = 40 revolutions; the
-    other modes decay 2.5 to 7.5 times faster). From rest q rings down at that rate, seen only
+    other modes decay 3.75 to 7.5 times faster). From rest q rings down at that rate, seen only
     in the contact force. Its damped frequency is a multiple of the casing's (2 Omega), so the
     transient repeats with the orbit and shrinks by exactly rho per period: the settle test's
     bound is the transient itself, and the march stops when it has fallen to the tolerance.
     The reference is the same march run 400 revolutions (the transient left there is
-    e^-10 of the stop's). Measured: stopped after 93 revolutions with 0.94e-3 of the range left
+    e^-7.7 of the stop's). Measured: stopped after 93 revolutions with 0.94e-3 of the range left
     (5e-3 as the tolerance: 31 revolutions, 4.5e-3 left). 1.1: between the compared instants
     a transient at exactly rho can exceed the bound by about a tenth (hbm.ti.settle)."""
     omega, w_q, k_frac = 100.0, 1000.0, 0.02
