@@ -75,8 +75,8 @@ class ContinuationOptions:
       closed_loop_tol is None: then it goes round again). The two sheets of a fold are never
       taken for each other: at the same omega they lie about twice the arc length from the
       fold's tip apart, and a step away from the tip that is far more than rejoin_tol ds.
-    closed_loop_tol: d_min of eq. (27), relative to |x| (1e-3: the product's, that of
-      hbm.harmonic.nfrc.default_continuation); None disables the test. The test is armed only
+    closed_loop_tol: d_min of eq. (27), relative to |x| (1e-3, what the NFRC and the isola
+      search run with); None disables the test. The test is armed only
       once some point x_j has been farther than d_min from the start in the same metric,
       ||x_j - x_0|| / ||x_j|| > d_min: "back within d_min" presupposes having left, and
       a fold next to the start (whose sheets cross omega_0 within d_min) is no loop. The

@@ -127,7 +127,7 @@ def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
                                ds_max=hbm.ds_max, direction=-1 if hbm.start == "omega_max" else 1,
                                max_points=hbm.max_points, x_scale=1.0, omega_scale=100.0,
                                newton=NewtonOptions(tol_residual=hbm.tolerance, max_iter=12), iter_grow=3,
-                               iter_shrink=6, iter_reject=8, closed_loop_tol=1e-3, predictor="quadratic")
+                               iter_shrink=6, iter_reject=8, predictor="quadratic")
 
 
 def nfrc_extras(res: HarmonicBalanceResidual, u: np.ndarray) -> dict:
