@@ -136,6 +136,40 @@ def test_amplitude_is_half_the_peak_to_peak_of_the_le_radial_displacement():
     assert abs(res.max_abs[0] - CAS.penetration) <= 1e-12 * CAS.penetration
 
 
+def test_the_te_signal_and_the_contact_share_are_the_last_nodes_radial_and_every_step():
+    """Two independent nodes, the TE (last node) started where the casing is farthest out.
+    Wide lobes (w = 0.6) and a clearance c = p G_e / (1 - G_e), G_e = exp(-(pi / (2 w))^2) the
+    lobe's value half-way between lobes, put that farthest point at d = 0 and every other
+    point inside (d < 0); the TE (theta = 0) starts there, at rest. Following the casing
+    needs lam = -(m d'' + c d' + k d) > 0 at every instant (k's term inside the lobes, m's
+    near the corner between them: 7e5 against 5e3 times (c + p) G at 100 rad/s), and the
+    corner asks an inward impulse: the TE is on the casing at every step, r = d to round-off,
+    and every step has a node in contact (share exactly 1, counted over the revolutions
+    marched). The LE (theta = 0.3) starts 1 um inside the casing: the multiplier of the
+    first step puts it on the casing (a plastic impact) and it follows from then on, its
+    signal the casing 0.3 rad further on, not the TE's."""
+    w, p = 0.6, 1e-4
+    g_e = math.exp(-(math.pi / (2 * w)) ** 2)
+    cas = CasingOptions(clearance=p * g_e / (1 - g_e), penetration=p, width=w, n_lobes=2)
+    K = np.diag([W_R ** 2, W_T ** 2, W_Z ** 2] * 2)
+    M = np.eye(6)
+    C, _ = modal_damping(K, M, np.full(6, XI))
+    theta = np.array([0.3, 0.0])
+    system = modal_system(K, M, C, [RHO, RHO], theta)
+    assert casing_distance(np.array([0.0]), theta[1:], cas)[0, 0] == pytest.approx(0.0, abs=1e-20)
+    opts = TimeIntegrationOptions(dt=2e-6, n_revolutions=8, n_keep=4, samples_per_revolution=256,
+                                  stop_when_settled=False)
+    omega = 100.0
+    res = sweep(system, cas, ContactOptions(mu=MU), opts, omegas=np.array([omega]), workers=1)
+    d = casing_distance(omega * res.times[0], theta, cas)  # (n_samples, 2)
+    te = res.displacement[0, :, 1]
+    np.testing.assert_allclose(te, d[:, 1], rtol=0, atol=1e-12 * p)
+    assert np.ptp(te) > 0.5 * p  # it rides the lobes: a signal, not a dof at rest
+    np.testing.assert_allclose(res.displacement[0, :, 0], d[:, 0], rtol=0, atol=1e-12 * p)
+    assert np.abs(d[:, 0] - d[:, 1]).max() > 0.1 * p  # the two columns tell the nodes apart
+    assert res.contact_fraction[0] == 1.0 and res.revolutions[0] == 8
+
+
 def impact_system(xi=0.01):
     """One node on stiff springs (w_r = 2000 rad/s) under lobes that dip below it (c = p =
     1e-4 m): every lobe knocks it inward, it rings down until the next. A periodic orbit of
