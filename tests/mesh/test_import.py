@@ -238,6 +238,32 @@ def test_inverted_element_is_named(decks, tmp_path):
         _import(_bad(tmp_path, bad))
 
 
+@pytest.mark.parametrize("kind", KINDS)
+def test_an_element_inverted_only_near_one_corner_is_named(decks, tmp_path, kind):
+    # A mid-edge node slid along its straight edge to a fraction a of it from corner A: the
+    # edge's map x(xi) = quadratic through 0, a, 1 has dx/dxi = 4a - 1 at A (times the edge's
+    # length), negative for a < 1/4 (the quarter-point limit) and positive from the edge's
+    # middle on. So det J < 0 at A's check point only, and every element holding the node is
+    # refused; at a = 0.3 (dx/dxi >= 0.2 everywhere on the edge) the same mesh is accepted.
+    bx, _ = decks[kind, "plain"]
+    first_mid = {"wedge15": 6, "hexahedron20": 8}[kind]  # the mid node of corners 0-1
+    cell = bx.cells[7]
+    node, a, b = cell[first_mid], cell[0], cell[1]
+    owners = 1 + np.flatnonzero((bx.cells == node).any(axis=1))  # deck element ids (1-based)
+    for frac, refused in ((0.2, True), (0.3, False)):
+        pts = bx.points.copy()
+        pts[node] = pts[a] + frac * (pts[b] - pts[a])
+        moved = type(bx)(bx.kind, pts, bx.cells, bx.R0, bx.L, bx.b, bx.t)
+        deck = _bad(tmp_path, moved)
+        if refused:
+            n = len(owners)
+            ids = ", ".join(str(i) for i in owners)
+            with pytest.raises(MeshImportError, match=rf"{n} inverted or degenerate elements? .*element ids \[{ids}\]"):
+                _import(deck, n_boundary=3)
+        else:
+            assert len(_import(deck, n_boundary=3).cells) > 0
+
+
 def test_contact_node_on_the_root_is_refused(decks, tmp_path):
     bx, _ = decks["wedge15", "plain"]
     deck = tmp_path / "box.inp"
