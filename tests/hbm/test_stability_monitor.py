@@ -63,6 +63,37 @@ def test_a_short_unstable_stretch_is_found_where_it_is(name, log_mod):
     assert mon.causes.get("bisection", 0) + mon.causes.get("next point", 0) >= 2
 
 
+def appearing(s: float) -> FloquetSpectrum:
+    """The spectrum of spectrum(-0.3) plus, from s = 50 on, a pair exp(l(s) +- 2 i) that
+    no earlier analysis listed (a family the window had not caught, or one born from two real
+    multipliers): l = -0.015 + 0.0015 (s - 50) up to s = 62, then 0.003 - 0.02 (s - 62).
+    Unstable at s = 61 and 62 only."""
+    base = spectrum(-0.3)
+    if s < 50:
+        return base
+    lm = -0.015 + 0.0015 * (s - 50) if s <= 62 else 0.003 - 0.02 * (s - 62)
+    mu = np.concatenate([[np.exp(lm + 2j), np.exp(lm - 2j)], base.multipliers])
+    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
+                           centred=np.ones(6, bool), edge_energy=np.zeros(6),
+                           eigenvectors=np.zeros((6, 3, 2), complex), modulus_floor=0.05, method="arnoldi")
+
+
+def test_a_multiplier_that_appears_next_to_the_circle_is_watched_from_the_next_point():
+    """A pair that no earlier analysis listed appears within 2 % of the unit circle
+    (StabilityOptions.margin), creeps out for two points and falls back in. Its first
+    analysis has nothing to pair it with, so no speed and no reach: only the margin rule
+    brings the next analysis to the next point, from which its speed is known. Without it
+    the gap stays at its cap (8 points: the other multipliers sit still, far inside), the
+    next analysis finds it inside again, and the unstable stretch is never seen."""
+    n = 90
+    mon = StabilityMonitor(analyse=lambda x, w: (appearing(float(x[0])), 1), options=StabilityOptions())
+    flags = {i: ex["stable"] for i, ex in _feed(mon, OMEGA - np.arange(n)).items()}
+    exact = {i: i not in (61, 62) for i in range(n)}
+    assert flags == exact
+    assert [(b.kind, b.index, b.direction) for b in mon.bifurcations] == [(NEIMARK_SACKER, 60, 1),
+                                                                         (NEIMARK_SACKER, 62, -1)]
+
+
 def test_a_fold_far_along_a_branch_is_placed_at_the_parabola_s_vertex():
     """parabola_vertex on three points 1e-5 apart in arc length at s ~ 2e3 (a fold reached
     crawling, far along a long branch): the vertex of Omega(s) = 1500 - 3e8 (s - s_v)^2 and

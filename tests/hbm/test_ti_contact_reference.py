@@ -41,6 +41,10 @@ CASES = {
     # slow rotation (rho Omega = 7 m/s) shaken at 10 m/s: the sliding velocity turns,
     # its theta part changes sign at some contact steps, its z part dominates at others
     "slow_sliding_reversal": (4, 30.0, 10.0, CasingOptions(), 50000, 600),
+    # slower still (rho Omega = 2.3 m/s): the sliding direction swings through every angle, and
+    # an update can turn it by 90 to 120 degrees: a reversal by the scheme's rule (6 steps
+    # fall back at s = 1, 4 at s = -1), 3 of which a rule of 120 degrees iterates on and settles
+    "slow_sliding_turns": (4, 10.0, 10.0, CasingOptions(), 50000, 300),
     # pressed onto the lobe and shaken gently: up to three nodes at once, many releases
     "three_nodes_coupled": (8, 30.0, 0.3, CasingOptions(), 50000, 600),
     # rotor speed (rho Omega = 364 m/s): lobes 0.3 rad wide pass, impacts and rubbing
