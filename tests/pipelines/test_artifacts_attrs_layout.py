@@ -93,3 +93,27 @@ def test_the_rename_is_synced_to_the_folder(tmp_path, monkeypatch):
     with art.atomic_output(tmp_path / "x.bin") as tmp:
         tmp.write_bytes(b"done")
     assert synced == [(os.stat(tmp_path).st_ino, True)]
+
+
+def _rewrite_omega(path, convert):
+    """Dataset 'omega' written again as convert(its array), attributes kept: the same bytes
+    under another shape or dtype leave the layout (names and attributes) as it was."""
+    with h5py.File(path, "r+") as h5:
+        old = h5["omega"]
+        data, attrs = convert(old[()]), dict(old.attrs)
+        del h5["omega"]
+        h5["omega"] = data
+        h5["omega"].attrs.update(attrs)
+
+
+@pytest.mark.parametrize("convert", [
+    lambda a: a.reshape(-1, 1),   # (11,) -> (11, 1): the same bytes, another shape
+    lambda a: a.view(np.int64),   # the same bytes read as integers
+])
+def test_the_same_bytes_under_another_shape_or_dtype_are_damage(tmp_path, convert):
+    path = _write(tmp_path / "a.h5")
+    before = np.array(h5py.File(path, "r")["omega"][()]).tobytes()
+    _rewrite_omega(path, convert)
+    with h5py.File(path, "r") as h5:
+        assert np.array(h5["omega"][()]).tobytes() == before  # what the damage keeps
+    assert art.verify(path) == "damaged: dataset 'omega' changed on disk (checksum mismatch)"
