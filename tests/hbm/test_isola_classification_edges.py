@@ -254,3 +254,27 @@ def test_an_isola_touching_the_primary_within_the_tolerance_joins_it_and_beyond_
         np.testing.assert_allclose((b.x[:, 0] - 2.0) ** 2 + (b.omega - 1.5) ** 2, 0.25, atol=1e-9)
         assert (b.kind, b.closed) == (kind, closed), (gap, b.status)
         assert b.x[:, 0].min() < 1.5 + 2e-3  # down to the touch, both ways
+
+
+def test_a_loop_back_on_its_start_whose_other_half_reached_the_bound_is_not_closed():
+    """The rule behind the coil's verdict, where the return test alone cannot decide: a half
+    that truly came back onto its start (back = True) beside a half that reached omega_max.
+    A loop through the seed cannot leave the range, so the second half followed another sheet
+    (a corrector's jump): not closed, and, with an end on the bound, detached. Both halves
+    inside the range give a closed isola."""
+    from hbm.continuation.branch import STATUS_CLOSED_LOOP, STATUS_OMEGA_MAX, Branch
+    from hbm.isolas.search import _classify
+
+    def half(omegas, status):
+        n = len(omegas)
+        return Branch(np.asarray(omegas, float), np.zeros((n, 2)), np.ones(n, bool), np.zeros(n),
+                      np.zeros(n, int), np.ones(n), np.zeros(n), status)
+
+    loop = half([1.0, 1.2, 1.1, 1.0], STATUS_CLOSED_LOOP)
+    w = np.array([1.0, 1.2, 1.1])
+    x = np.zeros((3, 2))
+    opts = _options()
+    assert _classify([(loop, None), (half([1.0, 2.0, 3.0], STATUS_OMEGA_MAX), None)], w, x, None, opts, 0,
+                     back=[True, False]) == ("detached", False)
+    assert _classify([(loop, None), (half([1.0, 0.9], STATUS_CLOSED_LOOP), None)], w, x, None, opts, 0,
+                     back=[True, True]) == ("isola", True)
