@@ -51,8 +51,10 @@ def test_a_claim_of_convergence_on_an_ill_conditioned_system_is_true():
     n = 40), a preconditioner 1e-6 off the exact inverse, rtol = 1e-10: the products' round-off
     (eps ||A|| ||x||, ||x|| up to 1e8 ||b||) is about what rtol asks, so the Arnoldi estimate
     can read converged where the true residual misses rtol. Whatever GMRES returns, a
-    converged=True must hold for the true residual computed here; trusting the estimate
-    whenever its round-off bound is within 100 rtol made 2 false claims over these 20 systems."""
+    converged=True must hold for the true residual computed here, to the 1 % the trust rule
+    itself allows (it keeps the estimate when round-off bounds it at 0.01 rtol; 5 % asserted).
+    Trusting the estimate whenever that bound is within 100 rtol made 2 false claims over
+    these 20 systems, 1.43 and 3.1 times rtol."""
     n, rtol = 40, 1e-10
     for seed in range(20):
         rng = np.random.default_rng(seed)
@@ -63,7 +65,7 @@ def test_a_claim_of_convergence_on_an_ill_conditioned_system_is_true():
         P = (V @ np.diag(1.0 / s) @ U.T) @ (np.eye(n) + 1e-6 * rng.standard_normal((n, n)))
         b = rng.standard_normal(n)
         x, it, ok = gmres(lambda v: A @ v, lambda v: P @ v, b, np.zeros(n), rtol, 60, anorm=1.0)
-        assert not ok or np.linalg.norm(b - A @ x) <= rtol * np.linalg.norm(b), seed
+        assert not ok or np.linalg.norm(b - A @ x) <= 1.05 * rtol * np.linalg.norm(b), seed
 
 
 def test_stale_preconditioner_is_not_trusted_on_a_singular_jacobian():
