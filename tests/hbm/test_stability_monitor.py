@@ -13,12 +13,20 @@ from hbm.stability.spectrum import FloquetSpectrum
 OMEGA = 1000.0
 
 
+def listed(mu, omega: float = OMEGA, floor: float = 0.05) -> FloquetSpectrum:
+    """The Arnoldi spectrum that lists the multipliers mu (k,) at omega (rad/s), modulus floor
+    `floor`, every family centred (placeholder eigenvectors)."""
+    mu = np.asarray(mu, complex)
+    k = len(mu)
+    return FloquetSpectrum(omega=omega, exponents=np.log(mu) * omega / (2 * np.pi), multipliers=mu,
+                           centred=np.ones(k, bool), edge_energy=np.zeros(k),
+                           eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=floor, method="arnoldi")
+
+
 def spectrum(log_mod: float) -> FloquetSpectrum:
     """A complex pair exp(log_mod +- 1.1 i) and two real stable multipliers (0.5, 0.3)."""
     mu = np.array([np.exp(log_mod + 1.1j), np.exp(log_mod - 1.1j), 0.5 + 0j, 0.3 + 0j])
-    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
-                           centred=np.ones(4, bool), edge_energy=np.zeros(4),
-                           eigenvectors=np.zeros((4, 3, 2), complex), modulus_floor=0.05, method="arnoldi")
+    return listed(mu)
 
 
 def _feed(mon, omegas, step=1.0):
@@ -73,9 +81,7 @@ def appearing(s: float) -> FloquetSpectrum:
         return base
     lm = -0.015 + 0.0015 * (s - 50) if s <= 62 else 0.003 - 0.02 * (s - 62)
     mu = np.concatenate([[np.exp(lm + 2j), np.exp(lm - 2j)], base.multipliers])
-    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
-                           centred=np.ones(6, bool), edge_energy=np.zeros(6),
-                           eigenvectors=np.zeros((6, 3, 2), complex), modulus_floor=0.05, method="arnoldi")
+    return listed(mu)
 
 
 def test_a_multiplier_that_appears_next_to_the_circle_is_watched_from_the_next_point():
@@ -121,10 +127,7 @@ def windowed(log_mod: float, n_eig: int) -> FloquetSpectrum:
     ceiling = 2.5 if n_eig <= 40 else 5.0
     mu = np.array([-np.exp(log_mod) + 0j, 0.5 + 0j, 0.3 + 0j])
     mu = mu[np.log(np.abs(mu)) < ceiling]
-    return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
-                           centred=np.ones(len(mu), bool), edge_energy=np.zeros(len(mu)),
-                           eigenvectors=np.zeros((len(mu), 3, 2), complex), modulus_floor=float(np.exp(-ceiling)),
-                           method="arnoldi")
+    return listed(mu, floor=float(np.exp(-ceiling)))
 
 
 @pytest.mark.parametrize("widen", [True, False])
@@ -202,10 +205,7 @@ def test_a_multiplier_leaving_the_window_of_an_unstable_orbit_is_neither_widened
         ceiling = 2.5 if n_eig <= 40 else 5.0
         mu = np.array([np.exp(0.3 + 1.1j), np.exp(0.3 - 1.1j), -np.exp(log_mod(s)) + 0j, 0.5 + 0j])
         mu = mu[np.log(np.abs(mu)) < ceiling]
-        return FloquetSpectrum(omega=OMEGA, exponents=np.log(mu) * OMEGA / (2 * np.pi), multipliers=mu,
-                               centred=np.ones(len(mu), bool), edge_energy=np.zeros(len(mu)),
-                               eigenvectors=np.zeros((len(mu), 3, 2), complex),
-                               modulus_floor=float(np.exp(-ceiling)), method="arnoldi")
+        return listed(mu, floor=float(np.exp(-ceiling)))
 
     widened, analysed = [], []
 
@@ -249,9 +249,7 @@ def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
 
     def analyse(x, w):
         mu = np.array([0.5 + 0.2j, 0.5 - 0.2j, 0.3 + 0j])
-        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
-                               centred=np.ones(3, bool), edge_energy=np.zeros(3),
-                               eigenvectors=np.zeros((3, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+        return listed(mu, w), 1
 
     mon = StabilityMonitor(analyse=analyse, options=StabilityOptions())
     got = _feed(mon, [omega(i) for i in range(n)])
@@ -268,11 +266,7 @@ def test_a_fold_followed_by_a_long_gap_is_recorded_at_the_turn():
 def _spectra(before, after, at: int = 40):
     """analyse(x, w) for the monitor: the multipliers `before` up to point `at`, `after` past it."""
     def analyse(x, w):
-        mu = np.array(before if x[0] <= at else after, dtype=complex)
-        k = len(mu)
-        return FloquetSpectrum(omega=w, exponents=np.log(mu) * w / (2 * np.pi), multipliers=mu,
-                               centred=np.ones(k, bool), edge_energy=np.zeros(k),
-                               eigenvectors=np.zeros((k, 3, 2), complex), modulus_floor=0.05, method="arnoldi"), 1
+        return listed(before if x[0] <= at else after, w), 1
     return analyse
 
 
