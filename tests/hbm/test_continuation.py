@@ -409,3 +409,18 @@ def test_a_start_on_the_bound_heading_out_adds_no_point():
     assert len(b) == 1 and b.status.startswith("reached omega_max")
     b = continue_branch(line, [0.5], 0.5, ContinuationOptions(0.5, 2.0, direction=-1))
     assert len(b) == 1 and b.status.startswith("reached omega_min")
+
+
+def test_a_branch_point_taken_from_the_end_carries_its_position():
+    """Branch.point(-1) is the last point, with index m - 1 (what a monitor fed from it
+    stores); an index past either end is an IndexError, not another point."""
+    from hbm.continuation.branch import Branch, ContinuationPoint
+
+    pts = [ContinuationPoint(i, 100.0 + i, np.full(2, float(i)), True, 1e-9, 2, 0.1 * i, 0.01) for i in range(3)]
+    br = Branch.from_points(pts, 2, status=STATUS_OMEGA_MAX)
+    last = br.point(-1)
+    assert last.index == 2 and last.omega == 102.0 and np.array_equal(last.x, [2.0, 2.0])
+    assert br.point(-3).index == 0
+    for i in (3, -4):
+        with pytest.raises(IndexError):
+            br.point(i)

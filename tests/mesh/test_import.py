@@ -217,6 +217,8 @@ def test_bad_meshes_are_named(decks, tmp_path):
          r"unsupported element type 'C3D13'"),
         (dict(boundary=False), {}, r"fixes no node"),
         (dict(boundary=False, extra="*BOUNDARY\nROOT, 1, 1"), {}, r"fixes only some translations"),
+        # a blank last dof is the first (CalculiX): x alone, not x to z
+        (dict(boundary=False, extra="*BOUNDARY\nROOT, 1,, 0"), {}, r"fixes only some translations"),
         (dict(extra="*BOUNDARY\nROOT, 1, 3, 0.5"), {}, r"non-zero displacement"),
         (dict(extra="*NSET, NSET=EMPTY"), {"root": "nset:EMPTY"}, r"root node set 'EMPTY' is empty"),
         ({}, {"root": "nset:HUB"}, r"root node set 'HUB' not found; the file's node sets: NALL, ROOT"),
@@ -404,3 +406,49 @@ def test_clamped_node_on_no_complete_face_is_kept(decks, tmp_path):
     rows = m.root_facets[np.any(m.root_facets == k, axis=1)]
     np.testing.assert_array_equal(rows, np.full((1, 6), k))
     assert set(m.source_node_ids[np.unique(m.root_facets)].tolist()) - {-1} == set(ids[np.append(root_nodes(bx), side)].tolist())
+
+
+def test_a_node_set_keeps_its_nodes_beside_a_cell_set_of_the_same_name(tmp_path, monkeypatch):
+    """A file read through meshio with a node set and a cell set both named ROOT (a MED
+    node group and a face group, say): root = "nset:ROOT" means the node set's nodes, not
+    the faces' (a cell set becomes a node set only under a name no node set has); a
+    cell set of its own name gives its cells' nodes."""
+    import meshio
+
+    from mesh.source import read_source
+
+    points = np.array([[0, 0, 0], [1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]], dtype=float)
+    tets = meshio.CellBlock("tetra", np.array([[0, 1, 2, 3], [1, 2, 3, 4]]))
+    tris = meshio.CellBlock("triangle", np.array([[0, 1, 2], [1, 2, 4]]))
+    fake = meshio.Mesh(points, [tets, tris], point_sets={"ROOT": np.array([0, 3])},
+                       cell_sets={"ROOT": [None, np.array([1])], "TIP": [None, np.array([0])]})
+    monkeypatch.setattr(meshio, "read", lambda path, *a, **k: fake)
+    (tmp_path / "blade.vtu").write_bytes(b"")
+    src = read_source(tmp_path / "blade.vtu")
+    assert src.node_sets["ROOT"].tolist() == [0, 3]
+    assert src.node_sets["TIP"].tolist() == [0, 1, 2]
+    assert src.ignored == {"triangle": 2} and [b.type for b in src.blocks] == ["tetra"]
+
+
+def test_unmerged_mid_nodes_and_a_solid_in_two_parts_are_named(decks, tmp_path):
+    """Two hex20 elements that share a face's corners but each have their own copy of one of
+    its mid-edge nodes (an exporter that merged the corners only), and a deck of two boxes
+    side by side that share no node: each refused by name, where the FEM would otherwise
+    take a crack through the blade, or a free-floating part, for the blade."""
+    bx, _ = decks["hexahedron20", "plain"]
+    # element 1's mid-edge nodes on the face it shares with element 2: a copy for element 1
+    shared = np.intersect1d(bx.cells[0], bx.cells[1])
+    mid = [k for k in range(8, 20) if bx.cells[0][k] in shared]
+    assert len(shared) == 8 and mid  # 4 corners and 4 mid nodes of a shared quadrilateral face
+    cells = bx.cells.copy()
+    cells[0][mid[0]] = len(bx.points)
+    points = np.vstack([bx.points, bx.points[bx.cells[0][mid[0]]]])
+    cracked = type(bx)(bx.kind, points, cells, bx.R0, bx.L, bx.b, bx.t)
+    with pytest.raises(MeshImportError, match=r"non-conforming mesh: two cells share a face's corners but not its "
+                                              r"mid-edge nodes"):
+        _import(_bad(tmp_path, cracked))
+    n = len(bx.points)
+    two = type(bx)(bx.kind, np.vstack([bx.points, bx.points + [0.0, 3.0 * bx.b, 0.0]]),
+                   np.vstack([bx.cells, bx.cells + n]), bx.R0, bx.L, bx.b, bx.t)
+    with pytest.raises(MeshImportError, match=r"the solid falls into 2 disconnected parts"):
+        _import(_bad(tmp_path, two))

@@ -20,7 +20,8 @@ def test_only_temporary_files_of_dead_processes_are_removed(tmp_path):
     live = subprocess.Popen([sys.executable, "-c", "import time; time.sleep(30)"])
     try:
         dead = _dead_pid()
-        users = [".notes.tmp", ".tmp", ".bashrc.tmpl", ".draft.tmp12a", ".x.tmp.bak"]
+        # the user's, the last one named as a temporary file but for its leading dot
+        users = [".notes.tmp", ".tmp", ".bashrc.tmpl", ".draft.tmp12a", ".x.tmp.bak", f"rom.h5.tmp{dead}"]
         for name in users:
             (tmp_path / name).write_text("the user's")
         (tmp_path / f".bladerub-probe.tmp{live.pid}").write_bytes(b"")  # a second run's probe, in flight
@@ -53,3 +54,22 @@ def test_a_run_that_opened_a_lock_file_shared_by_three_folders_late_is_refused(t
             with folder.hold(b, "run B in b"):
                 pass
         assert os.stat(b / folder.LOCK).st_ino == lock_a
+
+
+def test_a_failed_run_puts_the_lock_file_back_as_it_found_it(tmp_path):
+    """The last finished run's record stays after a failed run (the folder tells who computed
+    its files), and a folder that had no lock file has none after a failed run."""
+    record = b'{"pid": 4242, "host": "h", "command": "bladerub run s.toml", "started": "2026-12-01T10:00:00+00:00"}'
+    (tmp_path / "kept").mkdir()
+    (tmp_path / "kept" / folder.LOCK).write_bytes(record)
+    (tmp_path / "new").mkdir()
+    for name in ("kept", "new"):
+        with pytest.raises(RuntimeError, match="the stage failed"):
+            with folder.hold(tmp_path / name, "bladerub run other.toml"):
+                assert b"other.toml" in (tmp_path / name / folder.LOCK).read_bytes()  # held: it names this run
+                raise RuntimeError("the stage failed")
+    assert (tmp_path / "kept" / folder.LOCK).read_bytes() == record
+    assert not (tmp_path / "new" / folder.LOCK).exists()
+    with folder.hold(tmp_path / "kept", "bladerub run third.toml"):
+        pass
+    assert b"third.toml" in (tmp_path / "kept" / folder.LOCK).read_bytes()  # a finished run's record stays

@@ -189,3 +189,34 @@ def test_a_sweep_that_cannot_start_fails_in_its_turn_and_the_nfrcs_are_kept(coar
     for name in ("nfrc_dlft.h5", "nfrc_rl.h5"):
         assert art.verify(tmp_path / name) is None
     assert not (tmp_path / "ti.h5").exists()
+
+
+def test_the_disk_a_run_needs_is_the_sum_of_its_stages(tmp_path, monkeypatch, machine_24gb):
+    """Three stages that write 40, 30 and 20 MB each fit a folder with 50 MB free, together
+    they do not: refused before anything runs, naming the total and the largest stage; with
+    60 MB of the 90 planned by an earlier call of the same run already counted, 40 MB of
+    its own is refused too."""
+    from collections import namedtuple
+    from types import SimpleNamespace
+
+    from pipelines.errors import FolderError
+    from pipelines.stages.base import Estimate
+
+    def step(name, mb):
+        est = Estimate(size="~1 000 nodes", memory=1e6, seconds=1.0, disk=mb * 1e6, advice="")
+        return SimpleNamespace(todo=("x",), stage=SimpleNamespace(name=name, estimate=lambda *a: est))
+
+    scene = SimpleNamespace(limits=SimpleNamespace(memory_gb=0.0))
+    usage = namedtuple("usage", "total used free")
+    real = guard.shutil.disk_usage
+    monkeypatch.setattr(guard.shutil, "disk_usage",
+                        lambda p: usage(1e12, 1e12 - 50e6, 50e6) if str(p) == str(tmp_path) else real(p))
+    log = SimpleNamespace(log=lambda text: None)
+    for mb in (40, 30, 20):
+        assert guard.check_run(scene, tmp_path, [step("a", mb)], log) == pytest.approx(mb * 1e6)
+    with pytest.raises(FolderError, match=r"this run writes ~90 MB \(stage fem: ~40 MB\), 50 MB free"):
+        guard.check_run(scene, tmp_path, [step("mesh", 20), step("fem", 40), step("rom", 30)], log)
+    with pytest.raises(FolderError, match=r"this run writes ~100 MB \(stage rom: ~40 MB\), 50 MB free"):
+        guard.check_run(scene, tmp_path, [step("rom", 40)], log, disk=60e6)
+    assert guard.check_run(scene, tmp_path, [step("mesh", 20), step("fem", 40), step("rom", 30)], log,
+                           yes=True) == pytest.approx(90e6)

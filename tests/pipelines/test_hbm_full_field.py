@@ -30,3 +30,25 @@ def test_full_field_instants_span_the_period_of_a_subharmonic_basis(nu):
     np.testing.assert_allclose(t, sig["t"], rtol=1e-12, atol=0)
     field = (np.asarray(rom.recovery, dtype=np.float64) @ sig["displacement"].T).T.reshape(n, -1, 3)
     np.testing.assert_allclose(disp, field, rtol=1e-9, atol=1e-12 * np.abs(field).max())
+
+
+def test_the_point_written_is_a_converged_one():
+    """The NFRC point of the ParaView files: the converged point of largest LE amplitude, or
+    the converged point nearest [render] hbm_omega; a failed last point (the one that ended
+    the branch, its amplitude that of a diverged iterate) is never it; none converged: the
+    artifact error that names it."""
+    from types import SimpleNamespace
+
+    from pipelines.artifacts import ArtifactError
+    from pipelines.stages.hbm import chosen_point
+
+    def stored(converged):
+        branch = SimpleNamespace(omega=np.array([2000.0, 1990.0, 1980.0, 1975.0]), converged=np.array(converged))
+        return SimpleNamespace(branch=branch, extras={"le_amplitude": np.array([1e-4, 3e-4, 2e-4, 9e-3])})
+
+    s = stored([True, True, True, False])
+    assert chosen_point(s, None) == 1
+    assert chosen_point(s, 1976.0) == 2
+    assert chosen_point(stored([True, False, True, True]), None) == 3
+    with pytest.raises(ArtifactError, match="no converged point"):
+        chosen_point(stored([False] * 4), None)

@@ -6,6 +6,8 @@ stops with a clear error without touching good artifacts, and the ROM built from
 files agrees with the full model it came from.
 """
 
+import shutil
+
 import numpy as np
 import pytest
 
@@ -105,7 +107,7 @@ def _hbm_scene(scene, out, name):
     return path
 
 
-def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, monkeypatch):
+def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, monkeypatch, capsys):
     from pipelines import branch_store
 
     scene, out = coarse_run
@@ -140,6 +142,18 @@ def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, mo
     partial = branch_store.load_branch(d / "nfrc_dlft.partial.h5", allow_partial=True)
     assert len(partial.branch) == 5  # ... but every point computed so far is on disk
     monkeypatch.setattr(branch_store.BranchStore, "append", real_append)
+    # the same partial file under other inputs (another mu) is not resumed from: it starts over
+    other = tmp_path / "other"
+    other.mkdir()
+    for name in ("mesh.h5", "fem.h5", "rom.h5"):
+        (other / name).symlink_to(out / name)
+    shutil.copy2(d / "nfrc_dlft.partial.h5", other / "nfrc_dlft.partial.h5")
+    capsys.readouterr()
+    assert main(["run", str(runs["interrupted"]), "--out", str(other), "--until", "hbm",
+                 "--set", "contact.mu=0.1"]) == 0
+    assert "resuming" not in capsys.readouterr().out
+    fresh = branch_store.load_branch(other / "nfrc_dlft.h5")
+    assert fresh.complete and np.abs(fresh.branch.x[0] - partial.branch.x[0]).max() > 1e-3 * np.abs(partial.branch.x[0]).max()
     assert main(["run", str(runs["interrupted"]), "--out", str(d), "--until", "hbm"]) == 0
     resumed = branch_store.load_branch(d / "nfrc_dlft.h5")
     assert resumed.complete and resumed.attrs["status"] == ref.attrs["status"]

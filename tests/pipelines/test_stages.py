@@ -567,6 +567,10 @@ def test_a_changed_input_file_is_named_as_a_file():
 @pytest.mark.parametrize("stage, file, override", [
     ("fem", "fem.h5", 'material.name="Ti-6246"'),  # a label: no number of the FEM reads it
     ("isolas", "isolas.h5", "isolas.workers=1"),  # the search's result does not depend on it
+    # how the FEM is computed, not what (runner.HOW_NOT_WHAT: the same modes to 1.1e-10)
+    ("fem", "fem.h5", 'fem.solver="mumps"'),
+    ("fem", "fem.h5", 'fem.ordering="amd"'),
+    ("fem", "fem.h5", "fem.out_of_core=true"),
 ])
 def test_settings_no_result_reads_leave_the_artifact_current(tmp_path, stage, file, override):
     base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
