@@ -147,7 +147,8 @@ def test_the_te_signal_and_the_contact_share_are_the_last_nodes_radial_and_every
     and every step has a node in contact (share exactly 1, counted over the revolutions
     marched). The LE (theta = 0.3) starts 1 um inside the casing: the multiplier of the
     first step puts it on the casing (a plastic impact) and it follows from then on, its
-    signal the casing 0.3 rad further on, not the TE's."""
+    signal the casing 0.3 rad further on, not the TE's. The Poincare sections of both, at
+    the casing periods, are d at the casing angle of a whole revolution."""
     w, p = 0.6, 1e-4
     g_e = math.exp(-(math.pi / (2 * w)) ** 2)
     cas = CasingOptions(clearance=p * g_e / (1 - g_e), penetration=p, width=w, n_lobes=2)
@@ -168,6 +169,12 @@ def test_the_te_signal_and_the_contact_share_are_the_last_nodes_radial_and_every
     np.testing.assert_allclose(res.displacement[0, :, 0], d[:, 0], rtol=0, atol=1e-12 * p)
     assert np.abs(d[:, 0] - d[:, 1]).max() > 0.1 * p  # the two columns tell the nodes apart
     assert res.contact_fraction[0] == 1.0 and res.revolutions[0] == 8
+    # the Poincare sections: every node at each casing period of the window, which ends on a
+    # whole revolution (casing angle 0 mod pi): on the casing there, r_j = d(0, theta_j)
+    sec = res.sections[0]
+    assert sec.shape == (opts.n_keep * cas.n_lobes + 1, 2)
+    np.testing.assert_allclose(sec, np.broadcast_to(casing_distance(np.zeros(1), theta, cas), sec.shape),
+                               rtol=0, atol=1e-12 * p)
 
 
 def impact_system(xi=0.01):

@@ -55,21 +55,3 @@ def test_a_run_that_opened_a_lock_file_shared_by_three_folders_late_is_refused(t
                 pass
         assert os.stat(b / folder.LOCK).st_ino == lock_a
 
-
-def test_a_failed_run_puts_the_lock_file_back_as_it_found_it(tmp_path):
-    """The last finished run's record stays after a failed run (the folder tells who computed
-    its files), and a folder that had no lock file has none after a failed run."""
-    record = b'{"pid": 4242, "host": "h", "command": "bladerub run s.toml", "started": "2026-12-01T10:00:00+00:00"}'
-    (tmp_path / "kept").mkdir()
-    (tmp_path / "kept" / folder.LOCK).write_bytes(record)
-    (tmp_path / "new").mkdir()
-    for name in ("kept", "new"):
-        with pytest.raises(RuntimeError, match="the stage failed"):
-            with folder.hold(tmp_path / name, "bladerub run other.toml"):
-                assert b"other.toml" in (tmp_path / name / folder.LOCK).read_bytes()  # held: it names this run
-                raise RuntimeError("the stage failed")
-    assert (tmp_path / "kept" / folder.LOCK).read_bytes() == record
-    assert not (tmp_path / "new" / folder.LOCK).exists()
-    with folder.hold(tmp_path / "kept", "bladerub run third.toml"):
-        pass
-    assert b"third.toml" in (tmp_path / "kept" / folder.LOCK).read_bytes()  # a finished run's record stays

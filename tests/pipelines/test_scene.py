@@ -30,6 +30,11 @@ def test_int_accepted_for_float_but_not_reverse():
     assert parse_scene("[material]\nrho = 4500\n").material.rho == 4500.0
     with pytest.raises(SceneError, match=r"\[hbm\] n_harmonics must be an integer"):
         parse_scene("[hbm]\nn_harmonics = 40.5\n")
+    # TOML's true and false are Python ints too: not 1 and 0 harmonics or workers
+    with pytest.raises(SceneError, match=r"\[hbm\] n_harmonics must be an integer, got True"):
+        parse_scene("[hbm]\nn_harmonics = true\n")
+    with pytest.raises(SceneError, match=r"\[isolas\] workers must be an integer, got False"):
+        parse_scene("", overrides=["isolas.workers=false"])
 
 
 def test_a_string_key_takes_the_command_lines_text_as_it_is():
