@@ -278,3 +278,21 @@ def test_a_loop_back_on_its_start_whose_other_half_reached_the_bound_is_not_clos
                      back=[True, False]) == ("detached", False)
     assert _classify([(loop, None), (half([1.0, 0.9], STATUS_CLOSED_LOOP), None)], w, x, None, opts, 0,
                      back=[True, True]) == ("isola", True)
+
+
+def test_pieces_linked_through_a_shared_piece_are_one_branch():
+    """Branch 3 was met by two later branches, one linking it to branch 0 and one to branch 1
+    (each piece's status names the other, the words the search writes): 0, 1 and 3 are one
+    branch, through 3, and 2 stays alone, also when the links are read in another order."""
+    from types import SimpleNamespace
+
+    from hbm.isolas.search import _LINKED, connected
+
+    def link(other, seed):
+        return _LINKED.format(other=other, seed=seed)
+
+    statuses = [f"closed loop; {link(3, 12)}", f"reached omega_min; {link(3, 40)}", "reached omega_max",
+                f"{link(0, 12)}; {link(1, 40)}"]
+    assert connected([SimpleNamespace(status=s) for s in statuses]) == [(0, 1, 3), (2,)]
+    statuses[3] = f"{link(1, 40)}; {link(0, 12)}"
+    assert connected([SimpleNamespace(status=s) for s in statuses]) == [(0, 1, 3), (2,)]
