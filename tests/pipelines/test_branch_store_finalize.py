@@ -29,6 +29,8 @@ def test_a_run_killed_between_the_complete_flag_and_the_rename_resumes_from_its_
 
     again = bs.BranchStore.reopen(tmp_path / "nfrc.h5")
     assert again.n_points == 3
+    # the file says what it is again: not complete, no checksums (those of three points)
+    assert int(again._h5.attrs["complete"]) == 0 and bs.CHECKSUMS not in again._h5.attrs
     again.append(_point(3), {"a": 3.0})
     path = again.finalize("reached omega_max")
     s = bs.load_branch(path)
