@@ -193,9 +193,10 @@ def test_a_sweep_that_cannot_start_fails_in_its_turn_and_the_nfrcs_are_kept(coar
 
 def test_the_disk_a_run_needs_is_the_sum_of_its_stages(tmp_path, monkeypatch, machine_24gb):
     """Three stages that write 40, 30 and 20 MB each fit a folder with 50 MB free, together
-    they do not: refused before anything runs, naming the total and the largest stage; with
-    60 MB of the 90 planned by an earlier call of the same run already counted, 40 MB of
-    its own is refused too."""
+    they do not: refused before anything runs, naming the total and the largest stage. With
+    60 MB already planned by an earlier call for the same run (`disk`: the runner's second
+    call, for the outputs the checksums found damaged), 40 MB more is refused too; --yes
+    runs it all."""
     from collections import namedtuple
     from types import SimpleNamespace
 
