@@ -117,3 +117,16 @@ def test_a_value_error_after_a_file_was_written_is_a_stage_failure_and_before_it
     assert run(scene, tmp_path) == 1
     assert one_line(capsys.readouterr().err) == ("bladerub: error: stage mesh failed: dR_dx has NaN or inf entries; "
                                                  "kept: nothing new")
+
+
+def test_the_command_to_go_on_keeps_the_runs_settings(scene, tmp_path, monkeypatch, capsys):
+    """The line of a failed run says the command that goes on from what was kept: the same
+    --set items (quoted as a shell needs them), so that the next run reads the same scene and
+    finds the kept artifacts current; without them it would compute another scene."""
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: call_in_child(os._exit, 3))
+    argv = ["run", str(scene), "--out", str(tmp_path), "--until", "mesh", "--quiet",
+            "--set", "mesh.element_size=0.009", "--set", "name=two words"]
+    assert main(argv) == 1
+    line = one_line(capsys.readouterr().err)
+    assert line.endswith(f"run `bladerub run {scene} --out {tmp_path} --set mesh.element_size=0.009 "
+                         f"--set 'name=two words' --until mesh` again to go on from there"), line
