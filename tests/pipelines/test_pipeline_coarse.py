@@ -153,7 +153,9 @@ def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, mo
                  "--set", "contact.mu=0.1"]) == 0
     assert "resuming" not in capsys.readouterr().out
     fresh = branch_store.load_branch(other / "nfrc_dlft.h5")
-    assert fresh.complete and np.abs(fresh.branch.x[0] - partial.branch.x[0]).max() > 1e-3 * np.abs(partial.branch.x[0]).max()
+    # its first point is mu = 0.1's: 0.30 of the partial file's largest unknown away (measured)
+    moved = np.abs(fresh.branch.x[0] - partial.branch.x[0]).max()
+    assert fresh.complete and moved > 0.03 * np.abs(partial.branch.x[0]).max()
     assert main(["run", str(runs["interrupted"]), "--out", str(d), "--until", "hbm"]) == 0
     resumed = branch_store.load_branch(d / "nfrc_dlft.h5")
     assert resumed.complete and resumed.attrs["status"] == ref.attrs["status"]
