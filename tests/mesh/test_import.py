@@ -4,6 +4,7 @@ The references are independent of the code under test: exact volumes of boxes (L
 the analytic map that made a curved deck, the deck's own *BOUNDARY set written by the
 test, and the table-built rotor 67 mesh exported as a deck.
 """
+import dataclasses
 from pathlib import Path
 
 import numpy as np
@@ -235,7 +236,7 @@ def test_inverted_element_is_named(decks, tmp_path):
     cells = bx.cells.copy()
     # element 8 upside down: corners 0-3 <-> 4-7 and the mid nodes with them
     cells[7] = cells[7][[4, 5, 6, 7, 0, 1, 2, 3, 12, 13, 14, 15, 8, 9, 10, 11, 16, 17, 18, 19]]
-    bad = type(bx)(bx.kind, bx.points, cells, bx.R0, bx.L, bx.b, bx.t)
+    bad = dataclasses.replace(bx, cells=cells)
     with pytest.raises(MeshImportError, match=r"1 inverted or degenerate element .*element ids \[8\]"):
         _import(_bad(tmp_path, bad))
 
@@ -255,7 +256,7 @@ def test_an_element_inverted_only_near_one_corner_is_named(decks, tmp_path, kind
     for frac, refused in ((0.2, True), (0.3, False)):
         pts = bx.points.copy()
         pts[node] = pts[a] + frac * (pts[b] - pts[a])
-        moved = type(bx)(bx.kind, pts, bx.cells, bx.R0, bx.L, bx.b, bx.t)
+        moved = dataclasses.replace(bx, points=pts)
         deck = _bad(tmp_path, moved)
         if refused:
             n = len(owners)
@@ -443,12 +444,12 @@ def test_unmerged_mid_nodes_and_a_solid_in_two_parts_are_named(decks, tmp_path):
     cells = bx.cells.copy()
     cells[0][mid[0]] = len(bx.points)
     points = np.vstack([bx.points, bx.points[bx.cells[0][mid[0]]]])
-    cracked = type(bx)(bx.kind, points, cells, bx.R0, bx.L, bx.b, bx.t)
+    cracked = dataclasses.replace(bx, points=points, cells=cells)
     with pytest.raises(MeshImportError, match=r"non-conforming mesh: two cells share a face's corners but not its "
                                               r"mid-edge nodes"):
         _import(_bad(tmp_path, cracked))
     n = len(bx.points)
-    two = type(bx)(bx.kind, np.vstack([bx.points, bx.points + [0.0, 3.0 * bx.b, 0.0]]),
-                   np.vstack([bx.cells, bx.cells + n]), bx.R0, bx.L, bx.b, bx.t)
+    two = dataclasses.replace(bx, points=np.vstack([bx.points, bx.points + [0.0, 3.0 * bx.b, 0.0]]),
+                              cells=np.vstack([bx.cells, bx.cells + n]))
     with pytest.raises(MeshImportError, match=r"the solid falls into 2 disconnected parts"):
         _import(_bad(tmp_path, two))

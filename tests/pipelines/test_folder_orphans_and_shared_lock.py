@@ -54,4 +54,3 @@ def test_a_run_that_opened_a_lock_file_shared_by_three_folders_late_is_refused(t
             with folder.hold(b, "run B in b"):
                 pass
         assert os.stat(b / folder.LOCK).st_ino == lock_a
-

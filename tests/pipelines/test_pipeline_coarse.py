@@ -111,9 +111,10 @@ def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, mo
     from pipelines import branch_store
 
     scene, out = coarse_run
-    # two output folders sharing the ROM: one run straight through, one interrupted then resumed
+    # output folders sharing the ROM: one run straight through, one interrupted then resumed,
+    # one given the interrupted run's partial file under other inputs
     runs = {}
-    for label in ("straight", "interrupted"):
+    for label in ("straight", "interrupted", "other"):
         d = tmp_path / label
         d.mkdir()
         for name in ("mesh.h5", "fem.h5", "rom.h5"):
@@ -143,13 +144,10 @@ def test_hbm_stage_writes_points_as_it_goes_and_resumes(coarse_run, tmp_path, mo
     assert len(partial.branch) == 5  # ... but every point computed so far is on disk
     monkeypatch.setattr(branch_store.BranchStore, "append", real_append)
     # the same partial file under other inputs (another mu) is not resumed from: it starts over
-    other = tmp_path / "other"
-    other.mkdir()
-    for name in ("mesh.h5", "fem.h5", "rom.h5"):
-        (other / name).symlink_to(out / name)
+    other = runs["other"].parent
     shutil.copy2(d / "nfrc_dlft.partial.h5", other / "nfrc_dlft.partial.h5")
     capsys.readouterr()
-    assert main(["run", str(runs["interrupted"]), "--out", str(other), "--until", "hbm",
+    assert main(["run", str(runs["other"]), "--out", str(other), "--until", "hbm",
                  "--set", "contact.mu=0.1"]) == 0
     assert "resuming" not in capsys.readouterr().out
     fresh = branch_store.load_branch(other / "nfrc_dlft.h5")
