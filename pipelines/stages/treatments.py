@@ -51,11 +51,16 @@ def run_treatments(ctx: Context, items: dict, work: Callable, stage: str, noun: 
     workers = min(treatment_workers(len(items)) if workers is None else workers, len(items))
     if workers <= 1:
         ctx.lend_cores(len(os.sched_getaffinity(0)) - 1)  # this process computes on one (Stage.busy_cores)
-        out = {}
+        out, failed = {}, None
         for key, item in items.items():
             # one BLAS thread, as in a process of its own: the same numbers on any number of cores
             with ctx.progress.step(f"{stage} {key}", None) as update, threadpool_limits(limits=1, user_api="blas"):
-                out[key] = work(ctx, item, Reporter(ctx.log, ctx.progress.warn, update))
+                try:
+                    out[key] = work(ctx, item, Reporter(ctx.log, ctx.progress.warn, update))
+                except Exception as exc:  # the next treatments still run, as in processes of their own; Ctrl-C stops all
+                    failed = failed or exc
+        if failed is not None:
+            raise failed
         return out
     return _run_at_once(ctx, items, work, stage, noun)
 
