@@ -3,12 +3,13 @@ imported (hbm.processes.isolate_mpi_singleton): the process initialising MPI has
 child. The same process without hbm first does have one on Open MPI 4 (the control: on an
 MPI that never starts a daemon there is nothing to check)."""
 import os
+import shutil
 import subprocess
 import sys
 
 import pytest
 
-from support import shell_env
+from support import mpirun_command, shell_env
 
 ROOT = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
 
@@ -39,3 +40,22 @@ def test_a_user_setting_and_a_launcher_are_left_alone(monkeypatch):
     monkeypatch.setenv("OMPI_COMM_WORLD_SIZE", "2")
     isolate_mpi_singleton()
     assert "OMPI_MCA_ess_singleton_isolated" not in os.environ
+
+
+WORLD = "import hbm; from mpi4py import MPI; from hbm.processes import mpi_world; print(MPI.COMM_WORLD.Get_size(), mpi_world())"
+
+
+def test_one_rank_is_the_serial_path():
+    """MPI initialised in the process (the fem stage's dolfinx does it, and the main command's
+    later stages run in that process) or `mpirun -n 1`: one rank, so no MPI world (the stages
+    then spread their work over the cores with processes, not over a lone rank)."""
+    out = subprocess.run([sys.executable, "-c", WORLD], cwd=ROOT, env=shell_env(), capture_output=True, text=True,
+                         timeout=120, check=True).stdout
+    assert out.split()[-2:] == ["1", "None"]
+    if shutil.which("mpirun") is None:
+        return
+    mpirun, env = mpirun_command(ROOT)
+    mpirun[mpirun.index("2")] = "1"
+    out = subprocess.run(mpirun + [sys.executable, "-c", WORLD], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=120, check=True).stdout
+    assert out.split()[-2:] == ["1", "None"]
