@@ -70,6 +70,8 @@ nu = {NU}
 rho = {RHO}
 [fem]
 n_modes = 6
+[rom]
+n_fixed_modes = 14
 [render]
 n_modes = 0
 """)
@@ -85,6 +87,13 @@ def test_frequencies_against_calculix(run):
     assert len(reference) == 6
     np.testing.assert_allclose(f[:5], reference[:5], rtol=2e-3)  # bending (module doc)
     assert f[5] == pytest.approx(reference[5], rel=1e-2)  # first torsion
+
+
+def test_the_fem_stage_computes_the_fixed_interface_modes_the_rom_asks_for(run):
+    # [rom] n_fixed_modes = 14 above [fem] n_fixed_interface_modes = 12: fem.h5 holds 14, so that
+    # the rom stage takes them instead of factorising K again (rom.craig_bampton)
+    fem = run[4]
+    assert fem.fixed_interface_modes.shape[1] == len(fem.fixed_interface_frequencies) == 14
 
 
 def test_bending_frequencies_against_beam_theory(run):
