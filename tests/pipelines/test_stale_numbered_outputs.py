@@ -65,6 +65,25 @@ def test_fewer_mode_pictures_leave_only_the_scene_modes_and_the_manifest_lists_t
     assert all((figures / name).read_text() == "mine" for name in mine)
 
 
+def test_mode_pictures_beyond_the_count_go_without_a_manifest(tmp_path):
+    """Pictures of a longer drawing that no manifest lists (a run killed between the drawing
+    and the manifest's write, a folder of an older version) go too: the stage's own removal,
+    not the manifest's, takes every number past the scene's count."""
+    nodes, cells = plate_tet10(4, 2, 1)
+    with h5py.File(tmp_path / "mesh.h5", "w") as h5:
+        h5["nodes"], h5["cells"] = nodes, cells
+    with h5py.File(tmp_path / "fem.h5", "w") as h5:
+        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    for i in range(1, 5):
+        (figures / f"mode_{i:02d}.png").write_text("earlier")
+    scene = load_scene(SCENE, ["render.n_modes=1", "render.window=[64, 48]"])
+    assert update_figures(scene, tmp_path, (SimpleNamespace(figures=(MODES,)),), Progress(quiet=True)) == ["modes"]
+    assert _listing(figures) == {"mode_01.png", MANIFEST}
+    assert (figures / "mode_01.png").read_bytes()[:4] == b"\x89PNG"
+
+
 def test_no_files_declared_any_more_removes_the_last_drawing(tmp_path):
     """render.n_modes = 0 declares no mode picture: those of the last drawing went on reading
     as this scene's (the figure was skipped, its files and manifest entry kept)."""
