@@ -103,3 +103,18 @@ def test_rotor67_repeated_station_inside_the_blade_is_named(tmp_path):
     lines[k + 4] = " " + " ".join(vals)
     with pytest.raises(GeometryError, match=r"surface 3, block 'Axial Distance': .* at point J=18"):
         read_geometry(_write(tmp_path, lines), "rotor67", "ft")
+
+
+def test_contact_points_on_too_few_tip_nodes_are_refused():
+    """The nine camber points of rotor 67's tip section snapped onto a tip face of six nodes
+    (one tri6, its nodes six points of the camber line itself): two points land on one node,
+    which would be one contact node counted twice, and the mesh is refused by name."""
+    from mesh.blade import MeshingError, boundary_nodes, camber_points
+
+    tip = read_geometry(R67, "rotor67", "ft").section(13)
+    nodes = camber_points(tip, 6)
+    with pytest.raises(MeshingError, match=r"9 boundary nodes snap onto fewer distinct tip nodes; refine the mesh"):
+        boundary_nodes(nodes, np.arange(6)[None, :], tip, 9)
+    # as many points as nodes: each node is the nearest to one point
+    b = boundary_nodes(nodes, np.arange(6)[None, :], tip, 6)
+    assert b.index.tolist() == list(range(6))
