@@ -631,3 +631,27 @@ def test_an_artifact_made_when_the_stage_read_other_keys_says_so(tmp_path):
     assert _reason(path, made, "fem") == "made by an earlier version, which read other scene keys"
     assert _reason(path, parse_scene(base.read_text(), base, ["fem.tol=1e-9"]), "fem") == \
         "inputs changed: fem except n_fixed_interface_modes"
+
+
+def test_an_imported_mesh_follows_n_boundary_and_its_include_files(tmp_path):
+    """A deck whose nodes sit in an *INCLUDE file, imported without listed contact nodes:
+    [mesh] n_boundary places them, so changing it makes mesh.h5 stale; so does an edit of
+    the included file (its content is hashed like the deck's). With the contact nodes listed,
+    n_boundary is not read and leaves mesh.h5 current."""
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    (tmp_path / "blade.inp").write_text("*INCLUDE, INPUT=nodes.inp\n*ELEMENT, TYPE=C3D10\n")
+    (tmp_path / "nodes.inp").write_text("*NODE\n1, 0, 0, 0\n")
+    lines = [line for line in base.read_text().splitlines()
+             if not line.startswith(("geometry", "format", "units", "hub_section", "tip_section"))]
+    text = "\n".join(lines).replace("[blade]", f'[blade]\nmesh = "{tmp_path / "blade.inp"}"\nunits = "m"')
+    made = parse_scene(text, base)
+    path = _fake_artifact(tmp_path, made, "mesh", "mesh.h5", made.text)
+    assert _reason(path, parse_scene(text, base), "mesh") is None
+    assert _reason(path, parse_scene(text, base, ["mesh.n_boundary=5"]), "mesh") == \
+        "inputs changed: mesh.n_boundary 9 -> 5"
+    (tmp_path / "nodes.inp").write_text("*NODE\n1, 0, 0, 0.001\n")
+    assert _reason(path, parse_scene(text, base), "mesh") == "inputs changed: mesh include 1 file"
+    listed = text.replace('units = "m"', 'units = "m"\ncontact_nodes = [1, 2]')
+    made = parse_scene(listed, base)
+    path = _fake_artifact(tmp_path, made, "mesh", "mesh.h5", made.text)
+    assert _reason(path, parse_scene(listed, base, ["mesh.n_boundary=5"]), "mesh") is None
