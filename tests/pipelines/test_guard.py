@@ -49,6 +49,21 @@ def test_estimates_against_the_coarse_run(coarse_run):
     assert fem_bytes(scene, nodes) == pytest.approx((out / "fem.h5").stat().st_size, rel=0.02)
 
 
+def test_the_guard_counts_the_nodes_of_the_current_mesh_only(tmp_path):
+    """node_count: the nodes of mesh.h5 when it is this scene's (exact), the estimate from the
+    table when mesh.h5 was made from other inputs (a coarser element size: the next run
+    meshes again, and the later stages' costs follow the new mesh)."""
+    from pipelines.runner import expected_inputs
+
+    scene = parse_scene(coarse_scene_text(), R67_TABLE.parent / "scene.toml")
+    h = expected_inputs(scene, ("mesh",))["mesh.h5"][1]
+    for recorded, expected in ((h, (1234.0, True)), ("another scene's", (mesh_stage._estimated_nodes(scene), False))):
+        with h5py.File(tmp_path / "mesh.h5", "w") as h5:
+            h5.attrs["inputs_hash"] = recorded
+            h5["nodes"] = np.zeros((1234, 3))
+        assert mesh_stage.node_count(scene, tmp_path) == expected
+
+
 def test_absurd_element_size_is_refused_within_a_second(tmp_path, capsys, machine_24gb):
     scene = tmp_path / "scene.toml"
     scene.write_text(coarse_scene_text().replace("element_size = 0.008", "element_size = 1e-6"))
