@@ -46,6 +46,7 @@ def test_two_solutions_at_one_omega_are_told_apart_in_the_membership_metric():
         np.testing.assert_allclose(res.corrections.x[:, 0], [0.0, G], atol=1e-12)
         assert list(res.corrections.same_as) == [-1, -1]
         assert len(res.branches) == 2 and list(res.seed_branch) == [0, 1]
+        assert res.n_converged == res.n_distinct == 2
         for b, line in zip(res.branches, (0.0, G)):
             np.testing.assert_allclose(b.x[:, 0], line, atol=1e-12)
             assert b.omega.min() == 0.0 and b.omega.max() == 1.0
@@ -56,6 +57,7 @@ def test_with_unit_scale_the_two_lines_are_one_within_the_tolerance():
     seeds = [Seed(0.5, np.array([-0.001]), "near 0"), Seed(0.5, np.array([0.0062]), "near G")]
     res = search(two_lines, seeds, [], _options(1.0))
     assert list(res.corrections.same_as) == [-1, 0] and len(res.branches) == 1
+    assert (res.n_converged, res.n_distinct) == (2, 1)  # two seeds converged, onto one solution
 
 
 class Cross:
@@ -141,3 +143,28 @@ def test_a_point_that_did_not_converge_has_no_description():
     assert not ex["stable"][bad].any() and ex["stable"][~bad].all()
     assert np.isnan(ex["le_amplitude"][bad]).all()
     np.testing.assert_allclose(ex["le_amplitude"][~bad], 0.01, atol=1e-12)
+
+
+def _half(omega, x, status="closed loop"):
+    from hbm.continuation.branch import Branch
+
+    m = len(omega)
+    return Branch(np.asarray(omega, float), np.asarray(x, float).reshape(m, -1), np.ones(m, bool), np.zeros(m),
+                  np.zeros(m, int), np.zeros(m), np.zeros(m), status)
+
+
+def test_a_half_is_back_at_its_start_only_travelling_the_way_it_left():
+    """_back_at_start on exact polylines (no Newton needed: the start lies on them): a circle
+    in (x, Omega) that comes round onto its start is a closed loop; a half that went out along
+    a line and came back along it, past its start the other way (a branch retraced after a
+    cusp), is not, though its last points pass through the start just as closely."""
+    from hbm.isolas.search import _back_at_start
+
+    options = _options(1.0)
+    t = np.linspace(0.0, 2 * np.pi, 41)[:-1]
+    w, x = 0.5 + 0.2 * np.sin(t), 0.2 * (1.0 - np.cos(t))
+    loop = _half(np.append(w, [w[0], w[1]]), np.append(x, [x[0], x[1]]))
+    assert _back_at_start(None, loop, options, None)
+    out = 0.5 + 0.02 * np.arange(8)
+    back = np.concatenate([out, out[-2::-1], [out[0] - 0.02]])
+    assert not _back_at_start(None, _half(back, 0.1 + 0.3 * (back - 0.5)), options, None)
