@@ -87,13 +87,16 @@ def test_interrupted_write_leaves_previous_good_file(tmp_path, monkeypatch):
 
 
 def test_killed_process_leaves_no_valid_file(tmp_path):
-    """A process killed mid-write (no Python cleanup) leaves only a hidden temporary name."""
+    """A process killed mid-write (no Python cleanup) leaves only a hidden temporary name,
+    which carries the writer's pid: the next run's orphan sweep removes it (its writer is
+    gone), where a file of a live writer would be kept."""
     import subprocess
     import sys
     code = f"""
 import os, numpy as np, sys
 sys.path.insert(0, {str(os.getcwd())!r})
 import pipelines.artifacts as art
+print(os.getpid(), flush=True)
 real = art._write_fields
 def die(group, obj):
     group.create_dataset('partial', data=np.zeros(10))
@@ -106,10 +109,15 @@ class A:
     x: object
 art.write_artifact({str(tmp_path / 'mesh.h5')!r}, A(np.zeros(3)), stage='mesh', inputs_hash='h')
 """
-    r = subprocess.run([sys.executable, "-c", code], cwd=os.getcwd())
+    r = subprocess.run([sys.executable, "-c", code], cwd=os.getcwd(), capture_output=True, text=True)
     assert r.returncode == 9
     assert not (tmp_path / "mesh.h5").exists()
     assert not art.is_current(tmp_path / "mesh.h5", "h")
+    from pipelines.folder import remove_orphans
+
+    left = [p.name for p in tmp_path.iterdir()]
+    assert left == [f".mesh.h5{art.TEMP_MARK}{int(r.stdout)}"]
+    assert [name for name, _ in remove_orphans(tmp_path)] == left and not any(tmp_path.iterdir())
 
 
 def test_missing_artifact_error_names_path(tmp_path):
@@ -129,3 +137,22 @@ def test_text_datasets_verify_across_reads_and_changes_are_caught(tmp_path):
     with h5py.File(path, "r+") as h5:
         h5["kind"][1] = "neimark-sacker"
     assert "kind" in art.verify(path)
+
+
+def test_a_file_started_over_in_place_leaves_its_hard_links_alone(tmp_path):
+    """open_in_place(path, "w") on a partial file hard-linked into another folder (`cp -al`):
+    the run starts its own file over, the other folder's keeps its bytes (h5py's "w" alone
+    truncates the shared inode)."""
+    import h5py
+
+    (tmp_path / "a").mkdir()
+    (tmp_path / "b").mkdir()
+    with h5py.File(tmp_path / "a" / "nfrc.partial.h5", "w") as h5:
+        h5["omega"] = np.arange(5.0)
+    os.link(tmp_path / "a" / "nfrc.partial.h5", tmp_path / "b" / "nfrc.partial.h5")
+    kept = (tmp_path / "a" / "nfrc.partial.h5").read_bytes()
+    with art.open_in_place(tmp_path / "b" / "nfrc.partial.h5", "w") as h5:
+        h5["omega"] = np.zeros(2)
+    assert (tmp_path / "a" / "nfrc.partial.h5").read_bytes() == kept
+    with h5py.File(tmp_path / "b" / "nfrc.partial.h5", "r") as h5:
+        assert h5["omega"].shape == (2,)
