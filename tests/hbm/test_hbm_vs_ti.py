@@ -147,8 +147,25 @@ def test_departure_from_an_orbit_is_judged_against_the_first_periods():
     assert not departure(te)[1]
     # a short march: the baseline is its first tenth
     assert departure(np.full((20, 2), 0.3))[1]
+    # never near the orbit: as far at the end as at the start (no growth), beyond DEVIATION_TOL
+    assert departure(np.full((100, 2), 1.2 * DEVIATION_TOL)) == (1.0, False)
     with pytest.raises(ValueError, match="n_periods"):
         departure(np.zeros(10))
+
+
+def test_the_validation_grid_holds_every_harmonic_of_the_orbit():
+    """grid_size: a power of two, at least 1024, and enough samples for 2 N_h + 1 coefficients
+    (the Fourier basis refuses an aliasing grid), up to N_h = 1500."""
+    from hbm.harmonic.fourier import FourierBasis
+    from hbm.ti.validation import grid_size
+
+    rng = np.random.default_rng(0)
+    for nh in (3, 40, 511, 600, 1500):
+        n = grid_size(nh)
+        assert n & (n - 1) == 0 and max(1024, 2 * nh + 2) <= n < 2 * max(1024, 2 * nh + 2)
+        basis = FourierBasis(nh, n)
+        c = rng.standard_normal(2 * nh + 1)
+        np.testing.assert_allclose(basis.to_freq(basis.to_time(c)), c, atol=1e-12)
 
 
 def test_a_march_that_repeats_every_few_periods_is_told_apart():
