@@ -84,6 +84,35 @@ def test_mode_pictures_beyond_the_count_go_without_a_manifest(tmp_path):
     assert (figures / "mode_01.png").read_bytes()[:4] == b"\x89PNG"
 
 
+def test_a_hand_edited_manifest_never_removes_files_outside_figures(tmp_path):
+    """A manifest entry whose recorded names leave figures/ ("../", an absolute path): when
+    the figure is drawn again, or declares no file any more, those files stay; only names
+    inside figures/ that the figure no longer declares go."""
+    nodes, cells = plate_tet10(4, 2, 1)
+    with h5py.File(tmp_path / "mesh.h5", "w") as h5:
+        h5["nodes"], h5["cells"] = nodes, cells
+    with h5py.File(tmp_path / "fem.h5", "w") as h5:
+        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
+    figures = tmp_path / "figures"
+    figures.mkdir()
+    outside = tmp_path / "elsewhere"
+    outside.mkdir()
+    mine = [tmp_path / "notes.png", outside / "mode_09.png"]
+    for p in mine + [figures / "mode_09.png"]:
+        p.write_text("mine")
+    recorded = {"../notes.png": "x", str(outside / "mode_09.png"): "x", "mode_09.png": "x"}
+    (figures / MANIFEST).write_text(json.dumps({"modes": {"inputs": "an older drawing's", "files": recorded}}))
+    stage = SimpleNamespace(figures=(MODES,))
+    scene = load_scene(SCENE, ["render.n_modes=1", "render.window=[64, 48]"])
+    assert update_figures(scene, tmp_path, (stage,), Progress(quiet=True)) == ["modes"]
+    assert _listing(figures) == {"mode_01.png", MANIFEST}
+    assert all(p.read_text() == "mine" for p in mine)
+    (figures / MANIFEST).write_text(json.dumps({"modes": {"inputs": "x", "files": recorded}}))
+    scene = load_scene(SCENE, ["render.n_modes=0"])
+    assert update_figures(scene, tmp_path, (stage,), Progress(quiet=True)) == []
+    assert all(p.read_text() == "mine" for p in mine)
+
+
 def test_no_files_declared_any_more_removes_the_last_drawing(tmp_path):
     """render.n_modes = 0 declares no mode picture: those of the last drawing went on reading
     as this scene's (the figure was skipped, its files and manifest entry kept)."""
