@@ -127,6 +127,26 @@ def test_start_from_the_other_end(monkeypatch):
     np.testing.assert_allclose(np.interp(ref.omega, r.omega, r.le_amplitude), ref.le_amplitude, rtol=1e-6)
 
 
+def test_no_start_at_either_end_is_reported_at_the_scene_s_end(monkeypatch):
+    """No start converges at either end: the NFRC is the failed start at the end the scene
+    names (omega_max here), with its reason; it does not move to the other end, where
+    nothing converged either."""
+    dist = lambda tau: np.full((len(tau), 1), t.D)  # noqa: E731
+    hbm = replace(HBM, omega_min=0.45, omega_max=0.55)
+    cont = replace(default_continuation(hbm), omega_scale=0.1, ds_max=0.2)
+    rom, f, _ = t._model("rl")
+
+    def fail(res, omega, opts, solver):
+        return res.linear_solution(omega) + 1.0, f"made to fail at {omega:g}"
+
+    monkeypatch.setattr(nfrc_module, "solve_start", fail)
+    r = compute_nfrc(rom, residual=_residual("dlft", 4.0, dist, hbm), hbm=hbm, method="dlft", continuation=cont,
+                     solver=DirectSolver())
+    assert r.start == "made to fail at 0.55"
+    assert r.omega.tolist() == [pytest.approx(hbm.omega_max)] and not r.converged.any()
+    assert r.status.startswith("start point did not converge") and r.reason[0] == r.status
+
+
 @pytest.mark.parametrize("method", ["rl", "dlft"])
 def test_static_forcing_against_the_obstacle(method):
     """A static force (harmonic k = 0) pushing the oscillator into the obstacle: the exact
