@@ -13,8 +13,8 @@ change, a tuning no test should pin); any other survivor is a test that cannot f
     .venv/bin/python tests/mutants.py ID [ID ...]   # those entries
     .venv/bin/python tests/mutants.py --all-tests ID  # against the whole suite instead
 
-Exit status 0 when every entry is killed or survives as expected, 1 otherwise. 1 to 90 s
-an entry on a 2-core host (the kernels compile once in the copy), about 40 minutes in all.
+Exit status 0 when every entry is killed or survives as expected, 1 otherwise. 1 to 120 s
+an entry on a 2-core host (the kernels compile once in the copy), about an hour in all.
 """
 from __future__ import annotations
 
