@@ -26,6 +26,18 @@ def _listing(folder: Path) -> set[str]:
     return {p.relative_to(folder).as_posix() for p in folder.rglob("*") if p.is_file()}
 
 
+def _plate_artifacts(folder: Path) -> Path:
+    """mesh.h5 and fem.h5 of a small plate with two bending modes in `folder`, for the mode
+    pictures; returns the (new, empty) figures folder."""
+    nodes, cells = plate_tet10(4, 2, 1)
+    with h5py.File(folder / "mesh.h5", "w") as h5:
+        h5["nodes"], h5["cells"] = nodes, cells
+    with h5py.File(folder / "fem.h5", "w") as h5:
+        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
+    (folder / "figures").mkdir()
+    return folder / "figures"
+
+
 def test_a_shorter_hbm_series_leaves_only_its_own_snapshots(tmp_path):
     nodes, cells = plate_tet10(1, 1, 1)
     figures = tmp_path / "figures"
@@ -69,13 +81,7 @@ def test_mode_pictures_beyond_the_count_go_without_a_manifest(tmp_path):
     """Pictures of a longer drawing that no manifest lists (a run killed between the drawing
     and the manifest's write, a folder of an older version) go too: the stage's own removal,
     not the manifest's, takes every number past the scene's count."""
-    nodes, cells = plate_tet10(4, 2, 1)
-    with h5py.File(tmp_path / "mesh.h5", "w") as h5:
-        h5["nodes"], h5["cells"] = nodes, cells
-    with h5py.File(tmp_path / "fem.h5", "w") as h5:
-        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
-    figures = tmp_path / "figures"
-    figures.mkdir()
+    figures = _plate_artifacts(tmp_path)
     for i in range(1, 5):
         (figures / f"mode_{i:02d}.png").write_text("earlier")
     scene = load_scene(SCENE, ["render.n_modes=1", "render.window=[64, 48]"])
@@ -88,13 +94,7 @@ def test_a_hand_edited_manifest_never_removes_files_outside_figures(tmp_path):
     """A manifest entry whose recorded names leave figures/ ("../", an absolute path): when
     the figure is drawn again, or declares no file any more, those files stay; only names
     inside figures/ that the figure no longer declares go."""
-    nodes, cells = plate_tet10(4, 2, 1)
-    with h5py.File(tmp_path / "mesh.h5", "w") as h5:
-        h5["nodes"], h5["cells"] = nodes, cells
-    with h5py.File(tmp_path / "fem.h5", "w") as h5:
-        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
-    figures = tmp_path / "figures"
-    figures.mkdir()
+    figures = _plate_artifacts(tmp_path)
     outside = tmp_path / "elsewhere"
     outside.mkdir()
     mine = [tmp_path / "notes.png", outside / "mode_09.png"]
@@ -116,13 +116,7 @@ def test_a_hand_edited_manifest_never_removes_files_outside_figures(tmp_path):
 def test_no_files_declared_any_more_removes_the_last_drawing(tmp_path):
     """render.n_modes = 0 declares no mode picture: those of the last drawing went on reading
     as this scene's (the figure was skipped, its files and manifest entry kept)."""
-    nodes, cells = plate_tet10(4, 2, 1)
-    with h5py.File(tmp_path / "mesh.h5", "w") as h5:
-        h5["nodes"], h5["cells"] = nodes, cells
-    with h5py.File(tmp_path / "fem.h5", "w") as h5:
-        h5["modes"], h5["frequencies_hz"] = bending_modes(nodes), [100.0, 200.0]
-    figures = tmp_path / "figures"
-    figures.mkdir()
+    figures = _plate_artifacts(tmp_path)
     (figures / "mode_shapes.png").write_text("mine")
     stage = SimpleNamespace(figures=(MODES,))
     scene = load_scene(SCENE, ["render.n_modes=2", "render.window=[64, 48]"])
