@@ -120,13 +120,13 @@ needs_mpirun = pytest.mark.skipif(shutil.which("mpirun") is None,
                                   reason="mpirun not found (Debian: openmpi-bin, installed by .ci/install)")
 
 
-def mpirun_command(root) -> tuple[list, dict]:
-    """(`mpirun -n 2` words, environment with the checkout `root` and tests/ on the path); as
-    root, with the flags Open MPI needs to run there and on two slots of a smaller machine.
+def mpirun_command(root, n: int = 2) -> tuple[list, dict]:
+    """(`mpirun -n N` words, environment with the checkout `root` and tests/ on the path); as
+    root, with the flags Open MPI needs to run there and on N slots of a smaller machine.
     The environment is shell_env()'s: mpirun must start a job of its own, not join this
     process's singleton one."""
     env = dict(shell_env(), PYTHONPATH=f"{root}{os.pathsep}{os.path.join(root, 'tests')}")
-    return ["mpirun", "-n", "2"] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else []), env
+    return ["mpirun", "-n", str(n)] + (["--allow-run-as-root", "--oversubscribe"] if os.geteuid() == 0 else []), env
 
 
 def unit_search_options(*, max_points: int, ds_max: float, newton_tol: float = 1e-12, seed_iterations: int = 30,

@@ -13,9 +13,12 @@ MB = 1e6
 
 
 def test_each_stage_reports_its_own_peak():
-    clear = Path("/proc/self/clear_refs")
-    if not clear.exists():
-        pytest.skip("no /proc/self/clear_refs: the high-water mark cannot be reset here")
+    try:  # what pipelines.progress does at each stage's start
+        Path("/proc/self/clear_refs").write_text("5")
+    except OSError:
+        pytest.skip("this kernel lets no process reset its memory high-water mark (/proc/self/clear_refs, "
+                    "Linux): the summary then shows each stage the run's peak so far, by design, and there is "
+                    "no per-stage peak to check")
     p = Progress(quiet=True)
     with p.stage("big"):
         a = np.ones(int(300 * MB) // 8)  # every page written
