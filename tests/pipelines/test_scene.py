@@ -143,10 +143,64 @@ def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_pat
     ("[isolas]\nomega_min = 2500\n", r"\[isolas\] omega_min = 2500 is not below \[hbm\] omega_max = 2000: the isola "),
     ("[isolas]\nomega_max = 300\n", r"\[hbm\] omega_min = 400 is not below \[isolas\] omega_max = 300"),
     ("[validation]\nisola_tries = 0\n", r"^\[validation\] isola_tries must be >= 1, got 0$"),
+    ("[mesh]\nelement_size = 0\n", r"^\[mesh\] element_size must be > 0 m, got 0.0$"),
+    ("[mesh]\nn_boundary = 1\n", r"^\[mesh\] n_boundary must be >= 2, got 1$"),
+    ("[mesh]\nedge_layers = 0\n", r"^\[mesh\] edge_layers must be >= 1, got 0$"),
+    ("[mesh]\nsize_growth = 0\n", r"^\[mesh\] size_growth must be > 0, got 0.0$"),
+    ("[blade]\nformat = \"stl\"\n", r"^\[blade\] unknown geometry format 'stl'; known: rotor67, rotor37$"),
+    ("[blade]\nrotation = \"up\"\n", r"^\[blade\] unknown rotation 'up'; known: '\+', '-', 'le-leads' "),
+    ("[blade]\nhub_section = 5\ntip_section = 5\n", r"^\[blade\] need 1 <= hub_section < tip_section, got 5, 5$"),
+    ("[blade]\nhub_section = 0\n", r"^\[blade\] need 1 <= hub_section < tip_section, got 0, "),
+    ("[blade]\nmesh = \"  \"\n", r"^\[blade\] mesh must name a mesh file$"),
+    ("[casing]\nwidth = 0\n", r"^\[casing\] width must be in \(0, 2 pi\) rad, got 0.0$"),
+    ("[casing]\nwidth = 6.3\n", r"^\[casing\] width must be in \(0, 2 pi\) rad, got 6.3$"),
+    ("[hbm]\nmethods = [\"dlft\", \"dlft\"]\n", r"^\[hbm\] methods \['dlft', 'dlft'\] names a method twice$"),
+    ("[hbm]\nomega_min = 900\nomega_max = 900\n", r"^\[hbm\] need 0 < omega_min < omega_max, got 900.0, 900.0$"),
+    ("[hbm]\nstart = \"middle\"\n", r"^\[hbm\] start must be 'omega_min' or 'omega_max', got 'middle'$"),
+    ("[ti]\nscheme = \"rk4\"\n", r"^\[ti\] unknown time-integration scheme 'rk4'; known: carpenter, exponential, massless$"),
+    ("[ti]\nn_keep = 200\n", r"^\[ti\] need 0 < n_keep < n_revolutions \(the first revolution from rest is never "
+                             r"steady\), got n_keep = 200, n_revolutions = 200$"),
+    ("[ti]\nomega_min = 901\nomega_max = 900\n", r"^\[ti\] need 0 < omega_min <= omega_max, got 901.0, 900.0$"),
+    ("[ti]\nperiodicity_rtol = 1\n", r"^\[ti\] periodicity_rtol must be in \(0, 1\), got 1.0$"),
+    ("[ti]\nsettle_rtol = 0.01\n", r"^\[ti\] settle_rtol must be in \(0, periodicity_rtol = 0.01\), got 0.01"),
+    ("[render]\nn_modes = -1\n", r"^\[render\] n_modes must be >= 0, got -1$"),
+    ("[render]\nhbm_instants = -1\n", r"^\[render\] hbm_instants must be >= 0, got -1$"),
+    ("[render]\nhbm_omega = 0\n", r"^\[render\] hbm_omega must be > 0 rad/s, got 0.0$"),
+    ("[render]\nwindow = [15, 600]\n", r"^\[render\] window must be \[width, height\] in pixels, got \[15, 600\]$"),
+    ("[render]\nwindow = [800]\n", r"^\[render\] window must be \[width, height\] in pixels, got \[800\]$"),
+    ("[fem]\nn_fixed_interface_modes = -1\n", r"^\[fem\] n_fixed_interface_modes must be >= 0, got -1$"),
+    ("[fem]\ntol = 0.01\n", r"^\[fem\] tol must be in \(0, 1e-2\), got 0.01$"),
+    ("[rom]\nn_fixed_modes = -1\n", r"^\[rom\] n_fixed_modes must be >= 0, got -1$"),
+    ("[isolas]\nomega_min = 900\nomega_max = 900\n", r"^\[isolas\] need 0 < omega_min < omega_max, got 900.0, 900.0$"),
+    ("material = 3\n", r"^\[material\] must be a table$"),
+    ("[hbm]\nomega_start = 400\n", r"^\[hbm\] omega_start was renamed to omega_min$"),
+    ("[ti]\nomega_end = 400\n", r"^\[ti\] omega_end was renamed to omega_max$"),
 ])
 def test_value_out_of_range_is_named_with_its_reason(text, message):
     with pytest.raises(SceneError, match=message):
         parse_scene(text)
+
+
+@pytest.mark.parametrize("text", [
+    "[mesh]\nn_boundary = 2\nedge_layers = 1\n", "[blade]\nhub_section = 1\ntip_section = 2\n",
+    "[casing]\nwidth = 6.28\n", "[ti]\nomega_min = 900\nomega_max = 900\n", "[ti]\nn_keep = 199\n",
+    "[ti]\nperiodicity_rtol = 0.999\nsettle_rtol = 0.998\n", "[render]\nwindow = [16, 16]\nn_modes = 0\nhbm_instants = 0\n",
+    "[fem]\nn_fixed_interface_modes = 0\ntol = 0.0099\n", "[rom]\nn_fixed_modes = 0\n", "[hbm]\nstart = \"omega_max\"\n",
+])
+def test_values_at_the_edge_of_their_range_are_taken(text):
+    # the other side of each bound above: a check one step too eager would refuse these
+    parse_scene(text)
+
+
+@pytest.mark.parametrize("item, message", [
+    ("material.E", r"^--set 'material.E': expected SECTION.KEY=VALUE, e.g. material.E=110e9$"),
+    ("material.E=", r"^--set 'material.E=': no value after '='$"),
+    ("hbm.n_time=8", r"^\[hbm\] n_time = 8 cannot resolve 40 harmonics \(need n_time >= 2 n_harmonics \+ 2 = 82\) "
+                     r"\(command line: --set hbm.n_time=8\)$"),
+])
+def test_a_bad_command_line_value_is_named_as_typed(item, message):
+    with pytest.raises(SceneError, match=message):
+        parse_scene("", overrides=[item])
 
 
 def test_pointless_casing_is_warned():
