@@ -231,6 +231,68 @@ def test_bad_meshes_are_named(decks, tmp_path):
             _import(_bad(tmp_path, bx, **deck_kw), **blade_kw)
 
 
+def test_more_bad_meshes_are_named(decks, tmp_path):
+    bx, _ = decks["hexahedron20", "plain"]
+    loose = "*NODE, NSET=LOOSE\n99990, 0.21, 0.0, 0.0"  # a node of no element
+    cases = [
+        (dict(extra=loose), {"root": "nset:LOOSE"}, r"the root set 'nset:LOOSE' holds no node of the solid elements"),
+        (dict(extra=loose), {"contact_nodes": [99990, 1001]}, r"contact_nodes \[99990\] belong to no solid element"),
+        # the tip face has 5 x 3 corner and mid nodes across its 0.02 m chord: 60 cannot be distinct
+        ({}, {"n_boundary": 60}, r"60 contact nodes \(\[mesh\] n_boundary\) snap onto fewer distinct nodes of the tip"),
+        # one element written twice under another id: its split tetrahedra overlap
+        (dict(extra="*ELEMENT, TYPE=C3D20, ELSET=EALL\n999, " + ", ".join(map(str, deck_ids(len(bx.points))[bx.cells[0]][:15]))
+              + ",\n" + ", ".join(map(str, deck_ids(len(bx.points))[bx.cells[0]][15:]))), {},
+         r"a triangular face is shared by 4 cells \(overlapping elements\)"),
+    ]
+    for deck_kw, blade_kw, message in cases:
+        n_boundary = blade_kw.pop("n_boundary", 5)
+        with pytest.raises(MeshImportError, match=message):
+            _import(_bad(tmp_path, bx, **deck_kw), n_boundary=n_boundary, **blade_kw)
+    shell = tmp_path / "shell.inp"
+    shell.write_text("*NODE\n1, 0, 0, 0\n2, 1, 0, 0\n3, 1, 1, 0\n4, 0, 1, 0\n*ELEMENT, TYPE=S4\n1, 1, 2, 3, 4\n")
+    with pytest.raises(MeshImportError, match=r"shell.inp: no solid elements \(other elements: S4 x 1\)$"):
+        _import(shell)
+
+
+def test_a_tip_sloped_past_60_degrees_is_no_tip_face(decks, tmp_path):
+    # x += s z shears the box: its tip plane's normal turns atan(s) from the radial direction
+    # (26.6 deg at s = 0.5, 71.6 deg at 3), and the facet farthest from the axis, on the
+    # sheared tip's far edge, is a side facet (normal along z) once the tip slopes past 60 deg
+    bx, _ = decks["hexahedron20", "plain"]
+    for s, refused in ((0.5, False), (3.0, True)):
+        pts = bx.points.copy()
+        pts[:, 0] += s * pts[:, 2]
+        deck = _bad(tmp_path, dataclasses.replace(bx, points=pts))
+        if refused:
+            with pytest.raises(MeshImportError, match=r"no tip face along axis 'z': the boundary facet farthest from "
+                                                      r"the axis faces 90 deg away from the outward radial direction"):
+                _import(deck)
+        else:
+            m = _import(deck)
+            tip = m.nodes[np.unique(m.tip_facets)]
+            # the tip face found is the sheared plane x = R0 + L + s z, whole (5 x 3 nodes per column)
+            np.testing.assert_allclose(tip[:, 0], bx.R0 + bx.L + s * tip[:, 2], atol=1e-12)
+
+
+def test_tetrahedra_glued_onto_a_hexahedron_face_are_refused(decks, tmp_path):
+    # a tet10 cap on three corners of a tip quadrilateral: conforming would need a pyramid
+    bx, _ = decks["hexahedron20", "plain"]
+    ids = deck_ids(len(bx.points))
+    cell = bx.cells[-1]
+    a, b, c = cell[4], cell[5], cell[6]  # corners 5-7 of the last hex: on the tip face x = R0 + L
+    assert np.allclose(bx.points[[a, b, c], 0], bx.R0 + bx.L)
+    pa, pb, pc = bx.points[[a, b, c]]
+    apex = (pa + pb + pc) / 3 + [0.005, 0.0, 0.0]
+    new = [apex, (pa + pb) / 2, (pb + pc) / 2, (pc + pa) / 2, (pa + apex) / 2, (pb + apex) / 2, (pc + apex) / 2]
+    lines = ["*NODE"] + [f"{99900 + i}, {p[0]!r}, {p[1]!r}, {p[2]!r}" for i, p in enumerate(new)]
+    conn = [ids[a], ids[b], ids[c]] + [99900 + i for i in range(7)]
+    lines += ["*ELEMENT, TYPE=C3D10, ELSET=CAP", "999, " + ", ".join(map(str, conn))]
+    named = ", ".join(map(str, sorted(ids[[a, b, c]])))
+    with pytest.raises(MeshImportError, match=rf"tetrahedra meet a quadrilateral face of a wedge or hexahedron "
+                                              rf"\(nodes \[{named}\] \.\.\.\); such a junction needs pyramids"):
+        _import(_bad(tmp_path, bx, extra="\n".join(lines)))
+
+
 def test_inverted_element_is_named(decks, tmp_path):
     bx, _ = decks["hexahedron20", "plain"]
     cells = bx.cells.copy()
