@@ -117,3 +117,49 @@ def test_the_same_bytes_under_another_shape_or_dtype_are_damage(tmp_path, conver
     with h5py.File(path, "r") as h5:
         assert np.array(h5["omega"][()]).tobytes() == before  # what the damage keeps
     assert art.verify(path) == "damaged: dataset 'omega' changed on disk (checksum mismatch)"
+
+
+def _set_checksums(path, text):
+    with h5py.File(path, "r+") as h5:
+        if text is None:
+            del h5.attrs[art.CHECKSUMS]
+        else:
+            h5.attrs[art.CHECKSUMS] = text
+
+
+def _two_sums_of_another_algorithm(path):
+    with h5py.File(path, "r") as h5:
+        sums = json.loads(h5.attrs[art.CHECKSUMS])
+    return json.dumps({k: "sha1:" + v.split(":", 1)[1] if k == "omega" else v for k, v in sums.items()})
+
+
+def _delete(path, *names):
+    with h5py.File(path, "r+") as h5:
+        for name in names:
+            del h5[name]
+
+
+@pytest.mark.parametrize("damage, verdict", [
+    (lambda p: _set_checksums(p, None), "no checksums to verify it by (written by an older version)"),
+    (lambda p: _set_checksums(p, "{omega: 1"), "damaged: its checksum list is unreadable"),
+    (lambda p: _set_checksums(p, _two_sums_of_another_algorithm(p)),
+     "no checksums this version can verify (written by another version)"),
+    (lambda p: _delete(p, "omega"), "damaged: dataset 'omega' is missing"),
+    (lambda p: _delete(p, "omega", "K/indptr"), "damaged: dataset 'K/indptr' is missing (and 1 more)"),
+    (lambda p: p.write_bytes(p.read_bytes()[:400]), "damaged: unreadable ("),
+])
+def test_each_reason_a_file_cannot_be_trusted_is_its_own(tmp_path, damage, verdict):
+    path = _write(tmp_path / "a.h5")
+    assert art.verify(path) is None
+    damage(path)
+    got = art.verify(path)
+    # a cut file: HDF5's own words follow in the parenthesis
+    assert got.startswith(verdict) if verdict.endswith("(") else got == verdict
+
+
+def test_two_changed_datasets_are_counted(tmp_path):
+    path = _write(tmp_path / "a.h5")
+    with h5py.File(path, "r+") as h5:
+        h5["omega"][0] += 1.0
+        h5["K/data"][0] += 1.0
+    assert art.verify(path) == "damaged: dataset 'K/data' changed on disk (checksum mismatch) (and 1 more)"
