@@ -1,0 +1,69 @@
+"""The off-screen route's choice and its failure report (pipelines.render.ensure_offscreen),
+each in a fresh process: VTK's window class and the cached choice are per process.
+
+Where no route works, the error must list every route tried, in order, with what each gave
+and how to fix it, and leave VTK_DEFAULT_OPENGL_WINDOW as the user had it.
+"""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+from support import shell_env
+
+ROOT = Path(__file__).resolve().parents[2]
+
+_SCRIPT = """
+import json, os, sys
+import pipelines.render as r
+case = sys.argv[1]
+if case != "unknown":
+    os.environ.pop("DISPLAY", None)
+    r.shutil.which = lambda name: None  # no Xvfb
+    loadable = {"none": (), "x only": ("libGL.so.1",)}[case]
+    r._loadable = lambda names: names[0] in loadable
+try:
+    chosen, error = r.ensure_offscreen(), None
+except r.RenderError as exc:
+    chosen, error = None, str(exc)
+print(json.dumps({"chosen": chosen, "error": error, "env": os.environ.get(r._ENV)}))
+"""
+
+
+def _run(case: str, user_class: str | None = None) -> dict:
+    env = shell_env()
+    env.pop("VTK_DEFAULT_OPENGL_WINDOW", None)
+    if user_class:
+        env["VTK_DEFAULT_OPENGL_WINDOW"] = user_class
+    out = subprocess.run([sys.executable, "-c", _SCRIPT, case], cwd=ROOT, env=env, capture_output=True, text=True,
+                         timeout=120)
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout.strip().splitlines()[-1])
+
+
+def test_no_route_names_each_one_tried_and_the_fix():
+    got = _run("none")
+    assert got["chosen"] is None and got["env"] is None  # nothing of the probe left behind
+    assert got["error"].splitlines() == [
+        "no off-screen OpenGL route works for VTK:",
+        "  vtkOSOpenGLRenderWindow: library libOSMesa.so.8 not found",
+        "  vtkEGLRenderWindow: library libEGL.so.1 not found",
+        "  vtkXOpenGLRenderWindow: library libGL.so.1 not found",
+        "Install Mesa's software renderer (`apt-get install libosmesa6`, done by .ci/install) with a VTK "
+        "wheel >= 9.4, or install xvfb."]
+
+
+def test_x_without_a_display_or_xvfb_says_so_and_the_users_class_is_kept():
+    got = _run("x only", user_class="vtkEGLRenderWindow")
+    assert got["chosen"] is None and got["env"] == "vtkEGLRenderWindow"
+    assert got["error"].splitlines()[1:4] == [
+        "  vtkEGLRenderWindow: library libEGL.so.1 not found",  # the user's, tried first
+        "  vtkOSOpenGLRenderWindow: library libOSMesa.so.8 not found",
+        "  vtkXOpenGLRenderWindow: no Xvfb on PATH (Debian package xvfb)"]
+
+
+def test_a_users_class_that_vtk_does_not_make_gives_way_to_one_that_draws():
+    got = _run("unknown", user_class="vtkNoSuchWindow")
+    assert got["error"] is None
+    assert got["chosen"] in ("vtkOSOpenGLRenderWindow", "vtkEGLRenderWindow", "vtkXOpenGLRenderWindow")
+    assert got["env"] == got["chosen"]  # what VTK's next window reads
