@@ -55,6 +55,39 @@ def test_nan_jacobian_is_named_not_called_singular():
     assert "non-finite Jacobian" in r.reason and "singular" not in r.reason
 
 
+class _InfiniteStep:
+    """A linear solver whose solve overflows without raising (a pivot of 1e-320)."""
+
+    def factorize(self, J):
+        return self
+
+    def solve(self, b):
+        return np.full_like(b, np.inf)
+
+
+def test_a_non_finite_newton_step_is_named_singular():
+    r = newton_solve(Parabola("pole", w_bad=9.0), np.array([1.2]), 1.0, NewtonOptions(tol_residual=TOL),
+                     solver=_InfiniteStep())
+    assert not r.converged and r.reason == "singular Jacobian at omega=1: non-finite step"
+    np.testing.assert_array_equal(r.x, [1.2])  # the last finite iterate, not the overflow
+
+
+def _arctan(x, w):
+    """R = arctan(x - 1), undefined (a pole, as the condensation raises) for x < 0: Newton's
+    full step from x = 2.5 lands on 2.5 - atan(1.5) (1 + 1.5^2) = -0.694."""
+    if x[0] < 0.0:
+        raise SingularMatrixError("pole at x < 0")
+    d = x[0] - 1.0
+    return np.array([np.arctan(d)]), np.array([[1.0 / (1.0 + d * d)]]), np.array([0.0])
+
+
+def test_the_line_search_shortens_a_step_into_an_undefined_residual():
+    no_search = newton_solve(_arctan, np.array([2.5]), 1.0, NewtonOptions(tol_residual=TOL))
+    assert not no_search.converged and no_search.reason.startswith("residual not defined at omega=1: pole")
+    r = newton_solve(_arctan, np.array([2.5]), 1.0, NewtonOptions(tol_residual=TOL, line_search=True))
+    assert r.converged and abs(r.x[0] - 1.0) < 1e-10
+
+
 @pytest.mark.parametrize("bad, name", [("J", "non-finite Jacobian"), ("w", "non-finite dR_domega"),
                                        ("pole", "residual not defined")])
 def test_nan_derivative_along_the_branch_is_named(bad, name):
