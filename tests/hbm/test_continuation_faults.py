@@ -88,6 +88,29 @@ def test_the_line_search_shortens_a_step_into_an_undefined_residual():
     assert r.converged and abs(r.x[0] - 1.0) < 1e-10
 
 
+def _stored(converged):
+    """A stored branch x = w^2 of len(converged) points with these flags (as a branch file holds)."""
+    w = np.linspace(1.0, 1.1, len(converged))
+    return Branch(omega=w, x=(w * w)[:, None], converged=np.array(converged), residual_norm=np.zeros(len(w)),
+                  iterations=np.ones(len(w), dtype=int), step=np.full(len(w), 0.05), time=np.zeros(len(w)),
+                  status=STATUS_MAX_POINTS, detail="")
+
+
+@pytest.mark.parametrize("flags, message", [
+    ([False, True, True], "resume: the branch to continue has no converged start point"),
+    ([False, False], "resume: the branch to continue has no converged start point"),
+    ([True, False, True], "resume: unconverged point inside the branch"),
+])
+def test_a_branch_that_cannot_be_resumed_is_refused_by_name(flags, message):
+    with pytest.raises(ValueError, match=f"^{message}$"):
+        continue_branch(Parabola("pole", w_bad=9.0), None, None, opts(0.5, 2.0), resume=_stored(flags))
+
+
+def test_a_start_outside_the_range_is_refused():
+    with pytest.raises(ValueError, match=r"^omega0 = 2.5 outside \[0.5, 2.0\]$"):
+        continue_branch(Parabola("pole", w_bad=9.0), np.array([6.25]), 2.5, opts(0.5, 2.0))
+
+
 @pytest.mark.parametrize("bad, name", [("J", "non-finite Jacobian"), ("w", "non-finite dR_domega"),
                                        ("pole", "residual not defined")])
 def test_nan_derivative_along_the_branch_is_named(bad, name):

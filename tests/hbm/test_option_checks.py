@@ -66,6 +66,15 @@ BAD = [
     (ContinuationOptions, RANGE, "closed_loop_tol", -1.0, "closed_loop_tol must be > 0 (or None), got -1.0"),
     (ContinuationOptions, RANGE, "crawl_ratio", -1.0, "crawl_ratio must be > 1, got -1.0"),
     (ContinuationOptions, RANGE, "rejoin_check", None, "rejoin_check must be true or false, got None"),
+    (ContinuationOptions, RANGE, "ds", 1e-7, "need 0 < ds_min <= ds <= ds_max, got 1e-06, 1e-07, "),
+    (ContinuationOptions, RANGE, "ds", 1e9, "need 0 < ds_min <= ds <= ds_max, got 1e-06, 1000000000.0, "),
+    (ContinuationOptions, RANGE, "direction", 0, "direction must be +1 or -1, got 0"),
+    (ContinuationOptions, RANGE, "predictor", "cubic", "predictor must be 'secant' or 'quadratic', got 'cubic'"),
+    (ContinuationOptions, RANGE, "max_turn_deg", 181.0, "max_turn_deg must be in (0, 180], got 181.0"),
+    (ContinuationOptions, RANGE, "max_turn_deg", 0.0, "max_turn_deg must be in (0, 180], got 0.0"),
+    (ContinuationOptions, RANGE, "turn_shrink_deg", 0.0, "turn_shrink_deg must be in (0, 180], got 0.0"),
+    (ContinuationOptions, RANGE, "crawl_points", 0, "crawl_points must be >= 1 (or None), got 0"),
+    (ContinuationOptions, RANGE, "corner_turns", 0, "corner_turns must be >= 1 (or None), got 0"),
     (NewtonOptions, {}, "max_iter", 2.5, "max_iter must be an integer >= 1, got 2.5"),
     (NewtonOptions, {}, "tol_step", INF, "tol_step must be a finite number > 0 (or None), got inf"),
     (NewtonOptions, {}, "stall_factor", NAN, "stall_factor must be a finite number in (0, 1], got nan"),
@@ -86,6 +95,12 @@ def test_bad_option_value_is_refused_with_its_name_value_and_range(cls, required
     with pytest.raises(ValueError) as info:
         cls(**required, **{name: value})
     assert message in str(info.value)
+
+
+def test_an_empty_continuation_range_is_refused():
+    with pytest.raises(ValueError, match=r"^need omega_min < omega_max, got 1.0, 1.0$"):
+        ContinuationOptions(1.0, 1.0)
+    ContinuationOptions(1.0, 1.0 + 1e-9, max_turn_deg=180.0, turn_shrink_deg=180.0, ds=1e-6, ds_min=1e-6, ds_max=1e-6)
 
 
 def test_numpy_scalars_are_accepted_as_numbers_and_counts():
