@@ -139,3 +139,29 @@ def test_scene_refine_bifurcations_locates_the_crossings_between_the_points(run)
             assert sol.converged, sol.reason
             counts.append(orbit_spectrum(res, sol.x, w)[0].n_unstable)
         assert np.sign(counts[1] - counts[0]) == b.direction, (b, counts)
+
+
+def test_a_failed_final_point_is_marked_not_analysed_not_unstable():
+    """A branch that stops on a failed correction (here one Newton iteration for a fixed step of
+    3: the first step fails at 1997 rad/s) hands on its failed point with stability unknown:
+    n_unstable -1, no multipliers, the note saying why, in on_point's extras and the arrays
+    alike; the converged start keeps its analysis."""
+    from dataclasses import replace
+
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.stability.monitor import NOT_CONVERGED
+
+    rom = coarse_rom()
+    c = default_continuation(OPTS)
+    c = replace(c, ds=3.0, ds_min=3.0, ds_max=3.0, newton=replace(c.newton, max_iter=1), max_points=50)
+    seen = []
+    r = compute_nfrc(rom, CasingOptions(), ContactOptions(), OPTS, "dlft", continuation=c,
+                     on_point=lambda p, ex: seen.append((p, ex)), stability=StabilityOptions(max_gap=4))
+    assert r.status.startswith("step below floor") and r.converged.tolist() == [True, False]
+    assert r.n_unstable.tolist()[1] == -1 and not r.stable[1] and not r.stability_analysed[1]
+    assert r.n_unstable[0] >= 0 and r.stability_analysed[0]
+    assert r.stability_note.tolist() == ["", NOT_CONVERGED] and NOT_CONVERGED.startswith("not analysed")
+    (p0, ex0), (p1, ex1) = seen
+    assert not p1.converged and ex1["n_unstable"] == -1 and ex1["stability_note"] == NOT_CONVERGED
+    assert np.isnan(ex1["leading_multipliers"]).all() and np.isfinite(ex0["leading_multipliers"]).all()
+    assert ex1["period_ratio"] == 2  # from its harmonics: even ones only (2-lobe casing)
