@@ -655,3 +655,28 @@ def test_an_imported_mesh_follows_n_boundary_and_its_include_files(tmp_path):
     made = parse_scene(listed, base)
     path = _fake_artifact(tmp_path, made, "mesh", "mesh.h5", made.text)
     assert _reason(path, parse_scene(listed, base, ["mesh.n_boundary=5"]), "mesh") is None
+
+
+def test_each_reason_to_recompute_an_artifact_is_its_own(tmp_path):
+    """why_stale's reasons where the file cannot be read as made from these inputs, and the
+    list of changed keys: an unset value is called so, five changed keys name three and
+    count the rest."""
+    base = Path(__file__).resolve().parents[2] / "scenes" / "rotor67_coarse.toml"
+    made = parse_scene(base.read_text(), base)
+    path = _fake_artifact(tmp_path, made, "isolas", "isolas.h5", made.text)
+    assert _reason(path, made, "isolas") is None
+    assert _reason(path, parse_scene(base.read_text(), base, ["isolas.omega_min=500"]), "isolas") == \
+        "inputs changed: isolas.omega_min unset -> 500"
+    five = ["isolas.omega_min=500", "isolas.omega_max=1900", "isolas.n_omega=11", "isolas.n_modes=3",
+            "isolas.tolerance=0.02"]
+    got = _reason(path, parse_scene(base.read_text(), base, five), "isolas")
+    assert got.startswith("inputs changed: isolas.") and got.endswith(", 2 more") and got.count(" -> ") == 3, got
+    with h5py.File(path, "r+") as h5:
+        h5.attrs["inputs"] = "{not json"
+    assert _reason(path, parse_scene(base.read_text(), base, five), "isolas") == "made from other inputs"
+    link = tmp_path / "link.h5"
+    link.symlink_to(tmp_path / "gone.h5")
+    from pipelines.runner import expected_inputs, why_stale
+
+    comp, h = expected_inputs(made, ("isolas",))["isolas.h5"]
+    assert why_stale(link, comp, h, verify=False, scene=made) == "broken link"
