@@ -89,18 +89,6 @@ class HillOperator:
         return self.weights.shape[1] == 6
 
     # -- products ---------------------------------------------------------------------------
-    def _to_time(self, X: np.ndarray) -> np.ndarray:
-        b = self.basis
-        if np.iscomplexobj(X):
-            return b.to_time(X.real) + 1j * b.to_time(X.imag)
-        return b.to_time(X)
-
-    def _to_freq(self, x: np.ndarray) -> np.ndarray:
-        b = self.basis
-        if np.iscomplexobj(x):
-            return b.to_freq(x.real) + 1j * b.to_freq(x.imag)
-        return b.to_freq(x)
-
     def apply(self, lam: complex, P: np.ndarray) -> np.ndarray:
         """H(lam) P for coefficients P (n_c, n) complex (or flat (n_c n,)), N; same shape."""
         Y0, Y1, Y2 = self.terms(P)
