@@ -111,17 +111,12 @@ class CondensedOperator:
         Y[2::2] = P @ b - Q @ a
         return Y.reshape(X.shape)
 
-    def dense(self, derivative: bool = False, out: np.ndarray | None = None) -> np.ndarray:
-        """Dense matrix in the unknown ordering (eq. 5), (n_c n_r, n_c n_r); written into
-        `out` (same shape, overwritten) when given."""
+    def dense(self, derivative: bool = False) -> np.ndarray:
+        """Dense matrix in the unknown ordering (eq. 5), (n_c n_r, n_c n_r)."""
         P, Q = (self.dP, self.dQ) if derivative else (self.P, self.Q)
         nh, nr = P.shape[0], self.Z0.shape[0]
         nc = 2 * nh + 1
-        if out is None:
-            Z = np.zeros((nc, nr, nc, nr))
-        else:
-            Z = out.reshape(nc, nr, nc, nr)
-            Z.fill(0.0)
+        Z = np.zeros((nc, nr, nc, nr))
         if not derivative:
             Z[0, :, 0, :] = self.Z0
         k = np.arange(nh)

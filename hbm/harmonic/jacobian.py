@@ -148,10 +148,10 @@ class HbmJacobian:
             Y[:, cols] += F.T
         return self.scale * Y.reshape(-1)
 
-    def toarray(self, out: np.ndarray | None = None) -> np.ndarray:
-        """Dense J, (n_u, n_u), written into `out` when given."""
+    def toarray(self) -> np.ndarray:
+        """Dense J, (n_u, n_u)."""
         op, nc, nr = self.op, self.n_c, self.n_r
-        J = op.dense(out=out)
+        J = op.dense()
         J4 = J.reshape(nc, nr, nc, nr)
         J3 = J.reshape(nc, nr, nc * nr)
         for i, j in enumerate(self.nodes):

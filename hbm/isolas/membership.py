@@ -134,15 +134,6 @@ def _near_in_omega(wa: np.ndarray, wb: np.ndarray, w_lo: float, w_hi: float, wit
     return (lo - within <= w_hi) & (w_lo <= hi + within)
 
 
-def nearest_branch(x: np.ndarray, omega: float, branches, x_scale=1.0, omega_scale: float = 1.0):
-    """(index, distance, x_near, omega_near) of the branch nearest to (x, omega), index -1
-    when there is none."""
-    best = (-1, np.inf, x, omega)
-    for i, b in enumerate(branches):
-        d, xn, wn = polyline_distance(x, omega, b, x_scale, omega_scale)
-        if d < best[1]:
-            best = (i, d, xn, wn)
-    return best
 
 
 def segment_polyline_distance(x0: np.ndarray, omega0: float, x1: np.ndarray, omega1: float, branch: KnownBranch,
