@@ -362,8 +362,3 @@ def assemble_distributed(nodes: np.ndarray, cells: np.ndarray, root_facets: np.n
     index.destroy()
     K, M = mats
     return DistributedSystem(K=K, M=M, node_dofs=node_dofs, layout=layout)
-
-
-def assemble_blade(mesh, material: Material) -> FemSystem:
-    """`assemble_system` on a mesh.model.BladeMesh."""
-    return assemble_system(mesh.nodes, mesh.cells, mesh.root_facets, material)

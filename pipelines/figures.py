@@ -197,64 +197,6 @@ def plot_ti_sweep(omega, amplitude, classes, out_png, *, omega_range=(400.0, 200
     return _save(fig, out_png)
 
 
-def plot_time_signals(t, signals: dict, out_png, ylabel: str, *, casing=None,
-                      title: str | None = None) -> Path:
-    """Time signals for HBM vs TI validation (paper Fig. 9).
-
-    t: (m,) s, drawn in ms. signals: {label: (m,) array, or (t_i (m_i,) s, y (m_i,))
-    for a signal on its own time grid}, in the unit that `ylabel` states (e.g.
-    "radial displacement (mm)": scale before calling). Labels containing "TE" are
-    dashed. casing: optional (m,) array or scalar, the casing position, drawn grey.
-    """
-    t = np.asarray(t, float)
-    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    for label, y in signals.items():
-        ti, yi = (np.asarray(y[0], float), np.asarray(y[1], float)) if isinstance(y, tuple) else (t, np.asarray(y, float))
-        ax.plot(1e3 * ti, yi, "--" if "TE" in label else "-", lw=1.2, label=label)
-    if casing is not None:
-        ax.plot(1e3 * t, np.broadcast_to(np.asarray(casing, float), t.shape), color="0.5", lw=2.5,
-                alpha=0.6, label="casing", zorder=1)
-    ax.set_xlim(1e3 * t.min(), 1e3 * t.max())
-    ax.set_xlabel("time (ms)")
-    ax.set_ylabel(ylabel)
-    ax.grid(True, lw=0.4, alpha=0.5)
-    if title:
-        ax.set_title(title)
-    ax.legend(fontsize=8, loc="best", framealpha=0.9)
-    return _save(fig, out_png)
-
-
-def plot_frequencies(omega, frequencies, out_png, *, labels=None, engine_orders=(1, 2, 4, 8),
-                     omega_range=(400.0, 2000.0), title: str | None = None) -> Path:
-    """Campbell diagram: blade natural frequencies vs Ω with engine-order lines ω = nΩ.
-
-    omega: (m,) rad/s; frequencies: (m, k) rad/s, mode j along the speed range (a (k,)
-    array is drawn as speed-independent horizontal lines). labels: optional k names
-    ("1B", "1T", ...). engine_orders: the n of the straight lines ω = nΩ.
-    """
-    omega = np.asarray(omega, float)
-    f = np.asarray(frequencies, float)
-    f = np.broadcast_to(f, (omega.size, f.size)) if f.ndim == 1 else f
-    fig, ax = plt.subplots(figsize=FIGSIZE, constrained_layout=True)
-    for j in range(f.shape[1]):
-        ax.plot(omega, f[:, j], lw=1.6, label=labels[j] if labels is not None else f"mode {j + 1}")
-    top = 1.1 * float(np.nanmax(f))
-    span = np.array(omega_range, float)
-    for n in engine_orders:
-        ax.plot(span, n * span, color="0.6", lw=0.8, ls=":")
-        x = min(span[1], top / n)
-        ax.annotate(f"{n}\u03a9", (x, n * x), fontsize=8, color="0.35", ha="right", va="bottom")
-    ax.set_xlim(*omega_range)
-    ax.set_ylim(0.0, top)
-    ax.set_xlabel("angular speed \u03a9 (rad/s)")
-    ax.set_ylabel("natural angular frequency \u03c9 (rad/s)")
-    ax.grid(True, lw=0.4, alpha=0.5)
-    if title:
-        ax.set_title(title)
-    ax.legend(fontsize=8, loc="upper left", framealpha=0.9)
-    return _save(fig, out_png)
-
-
 # -- the solution set and the validation points (Figs. 8 to 12) -------------------------------
 #: Pixel size of the multi-panel figures (Figs. 9 and 10), inches at DPI.
 GRID_FIGSIZE = (11.0, 9.0)

@@ -404,14 +404,6 @@ class March:
     force_steps: np.ndarray = field(default_factory=lambda: np.zeros((0, 0)), metadata={"unit": "1"})
     explicit_direction_steps: int = field(default=0, metadata={"unit": "1"})
 
-    @property
-    def radial_max(self) -> np.ndarray:
-        return self.extremes[:, 0].max(axis=0)
-
-    @property
-    def radial_min(self) -> np.ndarray:
-        return self.extremes[:, 1].min(axis=0)
-
 
 class Marcher:
     """A march that can be advanced in chunks (the sweep's early stop).

@@ -127,20 +127,6 @@ def test_fig_8_tells_a_flagged_ti_point_from_a_fold(tmp_path, sweep, monkeypatch
     assert handle.get_linestyle()[0][1] is not None  # the legend shows the dashed ring too
 
 
-def test_time_signals(tmp_path):
-    t = np.linspace(0.0, 2 * np.pi / 1500.0, 500)
-    le = 1e3 * 1e-3 * np.cos(3000.0 * t)
-    signals = {"DLFT-HBM LE": le, "RL-HBM TE": 0.8 * le, "TI LE": (t[::5], le[::5] * 1.02)}
-    _check(figures.plot_time_signals(t, signals, tmp_path / "sig.png", "radial displacement (mm)",
-                                     casing=0.9))
-
-
-def test_frequencies(tmp_path):
-    omega = np.linspace(400.0, 2000.0, 9)
-    f = np.array([3400.0, 9800.0, 14500.0]) * (1 + 1e-8 * omega[:, None] ** 2)
-    _check(figures.plot_frequencies(omega, f, tmp_path / "campbell.png", labels=["1B", "2B", "1T"]))
-
-
 def _ink(path):
     """Pixels that are not background (white or the light grid)."""
     img = imread(path)[..., :3]
