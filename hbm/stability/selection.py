@@ -343,6 +343,9 @@ def locate_period_doubling(residual, omega, x, amplitude, converged, *, brackets
                 return LocatedDoubling(bif, side, why, len(cache), w_s, np.asarray(u_s, float),
                                        (side, a if side == b else b))
     except _Budget:
+        if not pairs:  # out of analyses in the scan itself: no stability change examined yet
+            return LocatedDoubling(None, -1, f"the scan of the branch needs more than the {max_analyses} Floquet "
+                                             "analyses allowed; no stability change examined", len(cache))
         return LocatedDoubling(None, -1, f"no period doubling among the {max(checked - 1, 0)} of {len(pairs)} stability "
                                          f"change(s) examined within {max_analyses} Floquet analyses", len(cache))
     return LocatedDoubling(None, -1, f"none of the {len(pairs)} stability change(s) is a period doubling "

@@ -12,6 +12,7 @@ from them (hbm.ti.validation), checked against independent references:
   stability, the stability the validation stage computes along it gives shooting's verdict
   at every point, and the period doubling a scan misses.
 """
+import re
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -97,6 +98,24 @@ def test_period_doubling_is_located_without_stored_stability(oscillator):
     # a bracket without a period doubling (a stretch of the stable branch) is reported
     none = locate_period_doubling(res, br.omega, br.x, amp, br.converged, brackets=[1])
     assert none.bifurcation is None and "period doubling" in none.reason
+
+
+def test_a_search_out_of_analyses_says_how_far_it_got(oscillator):
+    """The scan takes 12 analyses: a budget of 5 stops it, one of 13 stops the bisection after
+    it, and each reason says how far it got instead of calling the branch free of period
+    doublings; one converged point is no branch."""
+    res, br, amp, _ = oscillator
+    short = locate_period_doubling(res, br.omega, br.x, amp, br.converged, n_scan=12, max_analyses=5)
+    assert short.bifurcation is None and short.n_analyses == 5
+    assert short.reason == ("the scan of the branch needs more than the 5 Floquet analyses allowed; no stability "
+                            "change examined"), short.reason
+    # a budget that the scan fits in but the bisection does not: the changes examined are counted
+    mid = locate_period_doubling(res, br.omega, br.x, amp, br.converged, n_scan=12, max_analyses=13)
+    assert mid.bifurcation is None and mid.n_analyses == 13
+    assert re.fullmatch(r"no period doubling among the 0 of \d+ stability change\(s\) examined within 13 Floquet "
+                        r"analyses", mid.reason), mid.reason
+    one = locate_period_doubling(res, br.omega[:1], br.x[:1], amp[:1], br.converged[:1])
+    assert one.bifurcation is None and one.reason == "fewer than two converged points" and one.n_analyses == 0
 
 
 @pytest.fixture(scope="module")
