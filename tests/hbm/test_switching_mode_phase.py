@@ -67,3 +67,28 @@ def test_period_doubling_direction_matches_shooting_for_any_eigenvector_phase(ph
     state = np.array([x0, dx0])
     cos = abs(state @ v) / (np.linalg.norm(state) * np.linalg.norm(v))
     assert cos > 1 - 1e-9, (state, v)
+
+
+def test_a_mode_off_the_target_harmonics_or_not_a_doubling_is_refused():
+    """Im lam = 0.37 omega: (k omega + beta) / (omega / 2) = 2 k + 0.74 lies 0.26 from a
+    harmonic of omega / 2, past the quarter mode_coefficients allows; at 0.1 omega (2 k + 0.2)
+    each coefficient is put on the nearest one. A fold has no mode to switch along."""
+    from hbm.stability.bifurcation import FOLD
+    from hbm.stability.switching import switch_branch
+
+    nh = 3
+    P = np.zeros((2 * nh + 1, 1), complex)
+    P[1] = 1.0  # eq. (5) order: the cosine of harmonic 1 of omega
+    common = dict(omega=W, le_amplitude=0.0, index=0, fraction=0.0, omega_bracket=(W, W), multiplier=-1.0 + 0j,
+                  direction=1, period_ratio=1, mode_omega=W, eigenvector=P)
+    off = Bifurcation(kind=PERIOD_DOUBLING, exponent=0.37j * W, **common)
+    with pytest.raises(ValueError, match=r"^the mode's frequencies are not harmonics of 1 rad/s \(Im lam = 0.74 1/s, "
+                                         r"basis 2 rad/s\)$"):
+        mode_coefficients(off, 8, W / 2)
+    near = Bifurcation(kind=PERIOD_DOUBLING, exponent=0.1j * W, **common)
+    y = mode_coefficients(near, 8, W / 2)[:, 0]
+    # harmonic 1 of omega, 0.2 of a harmonic off harmonic 2 of omega / 2, lands there (rows 3, 4)
+    assert np.linalg.norm(y[3:5]) == pytest.approx(1.0, abs=1e-12)
+    fold = Bifurcation(kind=FOLD, exponent=0j, **common)
+    with pytest.raises(ValueError, match=r"^switch_branch needs a period doubling with its mode, got 'fold'$"):
+        switch_branch(None, np.zeros(3), W, fold)
