@@ -5,6 +5,8 @@ by Brent's method on the crossing multiplier's log|mu|.
 References: shooting's multiplier -1 (solve_ivp's variational equations, independent of
 the HBM and of Hill's method) on the period-doubling oscillator of test_period_doubling,
 and closed-form test functions for the root finding."""
+import re
+
 import numpy as np
 import pytest
 from scipy.optimize import brentq
@@ -195,3 +197,52 @@ def test_the_monitor_refines_closed_form_crossings_and_reports_a_failed_analysis
     for b in mon.bifurcations:
         assert b.refine_steps == 1 and b.refine_note.startswith("no analysis at omega=")
         assert "singular condensed matrix" in b.refine_note and b.bracket == b.omega_bracket
+
+
+def test_each_way_a_refinement_can_fail_is_its_own_note():
+    """The bump of the test above, refined with 12 steps: the first solved point of each
+    crossing fails in one of the ways a real branch can (the solve finds no point there, the
+    analysis gives no verdict, or the crossing's multiplier is not among those listed: here
+    the pair is gone and only real multipliers remain). Each refinement stops at that point
+    with its own reason and the crossing keeps its interpolated place."""
+    from dataclasses import replace
+
+    from hbm.stability.bifurcation import NEIMARK_SACKER
+    from test_stability_monitor import OMEGA, _feed, listed, spectrum
+
+    def log_mod(s):
+        return -0.3 + 0.4 * np.exp(-((s - 100) / 6) ** 2)
+
+    def solved(x):
+        return float(x[0]) != round(float(x[0]))  # a point between two stored ones
+
+    def branch(xa, wa, xb, wb, f):
+        s = float(xa[0] + f * (xb[0] - xa[0]))
+        return np.array([s]), OMEGA - s, 1e-4 * s
+
+    def unsolved(xa, wa, xb, wb, f):
+        return "no convergence in 12 iterations near omega=904 (||R||=1e-3 > 1e-8)"
+
+    def undecided(x, w):
+        sp = spectrum(log_mod(float(x[0])))
+        return (replace(sp, complete=False, note="ARPACK converged 3 of 40 eigenvalues") if solved(x) else sp), 1
+
+    def pair_gone(x, w):
+        return (listed([0.9 + 0j, 0.5 + 0j, 0.3 + 0j]) if solved(x) else spectrum(log_mod(float(x[0])))), 1
+
+    plain = StabilityMonitor(analyse=lambda x, w: (spectrum(log_mod(float(x[0]))), 1), refine=branch,
+                             options=StabilityOptions(refine_steps=0))
+    _feed(plain, OMEGA - np.arange(160))
+    interpolated = [b.omega for b in plain.bifurcations]
+    for refine, analyse, note in [
+        (unsolved, lambda x, w: (spectrum(log_mod(float(x[0]))), 1), r"no convergence in 12 iterations near omega=904"),
+        (branch, undecided, r"no verdict at omega=\d+\.\d+: ARPACK converged 3 of 40 eigenvalues$"),
+        (branch, pair_gone, rf"no {NEIMARK_SACKER} multiplier at omega=\d+\.\d+$"),
+    ]:
+        mon = StabilityMonitor(analyse=analyse, refine=refine, options=StabilityOptions(refine_steps=12))
+        _feed(mon, OMEGA - np.arange(160))
+        assert [b.kind for b in mon.bifurcations] == [NEIMARK_SACKER] * 2
+        assert [b.omega for b in mon.bifurcations] == interpolated
+        for b in mon.bifurcations:
+            assert re.search(note, b.refine_note), b.refine_note
+            assert b.bracket == b.omega_bracket
