@@ -134,8 +134,6 @@ def _near_in_omega(wa: np.ndarray, wb: np.ndarray, w_lo: float, w_hi: float, wit
     return (lo - within <= w_hi) & (w_lo <= hi + within)
 
 
-
-
 def segment_polyline_distance(x0: np.ndarray, omega0: float, x1: np.ndarray, omega1: float, branch: KnownBranch,
                               x_scale=1.0, omega_scale: float = 1.0,
                               within: float | None = None) -> tuple[float, np.ndarray, float]:
