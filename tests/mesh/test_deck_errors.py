@@ -12,15 +12,12 @@ import pytest
 
 from mesh.abaqus import read_deck
 from mesh.source import MeshImportError
-from test_deck_defects import PLAIN_ROOT, _column
+from test_deck_defects import PLAIN_ROOT, _deck
 
 
-def _write(path: Path, extra=(), root=PLAIN_ROOT, nodes=None) -> Path:
-    head, elements = _column()
-    head = nodes(head) if nodes else head
-    path.write_text("\n".join(head + ["*ELEMENT, TYPE=C3D20, ELSET=EALL"] + elements + list(extra) + list(root))
-                    + "\n")
-    return path
+def _write(path: Path, extra=()) -> Path:
+    """The column with its plain root, `extra` lines after its elements."""
+    return _deck(path, PLAIN_ROOT, extra)
 
 
 def _line_of(path: Path, text: str) -> int:
@@ -96,13 +93,16 @@ def test_an_element_on_a_missing_node_is_named(tmp_path):
 
 
 def test_a_deck_without_nodes_is_named(tmp_path):
-    deck = _write(tmp_path / "bad.inp", nodes=lambda head: head[:2])
+    deck = _write(tmp_path / "bad.inp")
+    text = deck.read_text()
+    deck.write_text(text[:text.index("*NODE")] + text[text.index("*ELEMENT"):])
     with pytest.raises(MeshImportError, match=r"bad.inp: no \*NODE lines$"):
         read_deck(deck)
 
 
 def test_a_node_id_that_is_not_an_integer_is_named(tmp_path):
-    deck = _write(tmp_path / "bad.inp", nodes=lambda head: head + ["9001.5, 1.0, 0.0, 0.0"])
+    deck = _write(tmp_path / "bad.inp")
+    deck.write_text(deck.read_text().replace("*NODE, NSET=NALL\n", "*NODE, NSET=NALL\n9001.5, 1.0, 0.0, 0.0\n"))
     with pytest.raises(MeshImportError, match=r"bad.inp: node ids must be integers$"):
         read_deck(deck)
 
