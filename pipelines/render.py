@@ -41,7 +41,13 @@ _xvfb: subprocess.Popen | None = None
 
 
 class RenderError(RuntimeError):
-    """No off-screen OpenGL route works on this machine."""
+    """No off-screen OpenGL route works on this machine (or the process drawing the modes
+    ended without its pictures)."""
+
+
+#: exit code of the drawing process (`python -m pipelines.render`) when no route works: its
+#: standard error then holds RenderError's report alone, which the parent raises again
+NO_ROUTE_EXIT = 3
 
 
 def _loadable(names) -> bool:
@@ -290,6 +296,8 @@ def render_artifacts(mesh_h5: Path, fem_h5: Path, out_dir: Path, *, n_modes: int
                        "scale": scale, "window": list(window), "title_prefix": title_prefix})
     proc = subprocess.run([sys.executable, "-m", "pipelines.render", args], capture_output=True, text=True,
                           timeout=timeout)
+    if proc.returncode == NO_ROUTE_EXIT and proc.stderr.strip():
+        raise RenderError(proc.stderr.strip())  # the report, not the child's traceback
     if proc.returncode != 0:
         raise RenderError(f"mode-shape rendering failed (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
     return [Path(line) for line in proc.stdout.splitlines() if line.endswith(".png")]
@@ -297,6 +305,7 @@ def render_artifacts(mesh_h5: Path, fem_h5: Path, out_dir: Path, *, n_modes: int
 
 def _main(argv) -> int:
     import json
+    import sys
 
     import h5py
 
@@ -305,9 +314,13 @@ def _main(argv) -> int:
         nodes, cells = h5["nodes"][()], h5["cells"][()]
     with h5py.File(a["fem"], "r") as h5:
         modes, freqs = h5["modes"][()], h5["frequencies_hz"][()]
-    for p in render_mode_shapes(nodes, cells, modes, freqs, Path(a["out"]), n_modes=a["n_modes"],
-                                scale=a["scale"], window=tuple(a["window"]), title_prefix=a["title_prefix"]):
-        print(p)
+    try:
+        for p in render_mode_shapes(nodes, cells, modes, freqs, Path(a["out"]), n_modes=a["n_modes"],
+                                    scale=a["scale"], window=tuple(a["window"]), title_prefix=a["title_prefix"]):
+            print(p)
+    except RenderError as exc:
+        print(exc, file=sys.stderr)
+        return NO_ROUTE_EXIT
     return 0
 
 

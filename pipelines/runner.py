@@ -493,7 +493,8 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
     except KeyboardInterrupt:
         raise Interrupted(describe()) from None
     except _FigureFailed as exc:  # after the stages: not "nothing was computed" (a ValueError's exit 2)
-        raise StageFailed(f"figure {exc.figure} failed: {art.first_line(exc.__cause__)}; kept: {kept()}") from exc
+        said = "; ".join(f"figure {name} failed: {art.first_line(why).rstrip(':')}" for name, why in exc.failures)
+        raise StageFailed(f"{said}; kept: {kept()}") from exc.failures[0][1]
     except ChildDied as exc:  # a stage's own process that ended without a word (killed): a rerun resumes
         raise StageFailed(f"{where} failed: {exc}; {resumable()}") from exc
     except WorkerDied as exc:  # a pool's worker killed (OOM): the speeds or branches its pool ended are on disk
@@ -521,11 +522,11 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
 
 
 class _FigureFailed(ValueError):
-    """A figure's drawing raised a ValueError (its __cause__); figure: its name."""
+    """Figures whose drawing failed (update_figures); failures: [(name, the exception)]."""
 
-    def __init__(self, figure: str):
-        super().__init__(f"figure {figure} failed")
-        self.figure = figure
+    def __init__(self, failures: list):
+        super().__init__(f"figure(s) {', '.join(name for name, _ in failures)} failed")
+        self.failures = failures
 
 
 def figure_components(scene, out: Path, fig: Figure) -> dict:
@@ -589,7 +590,15 @@ def _remove_recorded(folder_: Path, entry: dict, keep) -> None:
 
 
 def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
-    """Draw the figures of `stages` that are missing, damaged or outdated; returns their names."""
+    """Draw the figures of `stages` that are missing, damaged or outdated; returns their names.
+
+    A figure whose drawing fails on its data (ValueError) or on the machine (no off-screen
+    OpenGL for the mode pictures: RenderError) keeps its previous files and no manifest
+    entry of this drawing; the others are drawn all the same (the NFRC plots need no OpenGL),
+    and _FigureFailed names every failed one at the end. A report longer than a line (the
+    routes tried and how to fix them) is printed whole as a warning when it happens."""
+    from pipelines.render import RenderError
+
     folder_ = out / "figures"
     path = folder_ / MANIFEST
     try:
@@ -597,7 +606,7 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
         manifest = manifest if isinstance(manifest, dict) else {}
     except (OSError, ValueError):
         manifest = {}
-    drawn = []
+    drawn, failed = [], []
     for stage in stages:
         for fig in stage.figures:
             files = fig.files(scene)
@@ -625,8 +634,12 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
                     record.why = "file missing or damaged"
                 try:
                     fig.draw(Context(scene, out, progress))
-                except ValueError as exc:
-                    raise _FigureFailed(fig.name) from exc
+                except (ValueError, RenderError) as exc:
+                    record.action = "failed"
+                    if len(str(exc).strip().splitlines()) > 1:
+                        progress.warn(f"figure {fig.name} not drawn: {str(exc).strip()}")
+                    failed.append((fig.name, exc))
+                    continue
             if isinstance(entry, dict):  # e.g. another stem (the first of hbm.methods changed)
                 _remove_recorded(folder_, entry, files)
             manifest[fig.name] = {"inputs": h, "components": comp,
@@ -637,6 +650,8 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
             drawn.append(fig.name)
     if drawn:
         progress.log(f"[figures] drawn: {', '.join(drawn)} -> {folder_}")
+    if failed:
+        raise _FigureFailed(failed)
     return drawn
 
 

@@ -138,8 +138,18 @@ def render_modes(ctx: Context, n_modes: int | None = None) -> list:
     return paths
 
 
+def _draw_modes(ctx: Context) -> None:
+    """The run's mode pictures (render_modes), with the run's way out where they cannot be drawn."""
+    from pipelines.render import RenderError
+
+    try:
+        render_modes(ctx)
+    except RenderError as exc:
+        raise RenderError(f"{exc}\nOr draw no mode pictures in runs: [render] n_modes = 0.") from None
+
+
 MODES = Figure("modes", files=mode_files, depends=("render.n_modes", "render.scale", "render.window", "name"),
-               inputs=lambda s: (MESH.file, FEM.file), draw=render_modes)
+               inputs=lambda s: (MESH.file, FEM.file), draw=_draw_modes)
 
 
 def write_modes_vtu(ctx: Context) -> None:

@@ -8,6 +8,7 @@ meshed, a run takes well under a second (a spawned child: about one more).
 from __future__ import annotations
 
 import dataclasses
+import json
 import os
 import sys
 
@@ -83,6 +84,31 @@ def test_a_figure_raising_a_value_error_fails_the_run_with_exit_1_naming_the_fig
     assert one_line(capsys.readouterr().err) == (
         "bladerub: error: figure bad failed: x and y must have same first dimension, but have shapes (3,) and (4,); "
         "kept: mesh.h5")
+
+
+def test_the_figures_after_a_failed_one_are_drawn_and_every_failure_named(scene, tmp_path, monkeypatch, capsys):
+    """A figure that fails does not keep the later ones from being drawn (a run used to stop
+    at the first): here the second of three is drawn and recorded, and the line names both
+    failures in the order met."""
+    def bad(message):
+        def draw(ctx):
+            raise ValueError(message)
+        return draw
+
+    def good(ctx):
+        (ctx.out / "figures").mkdir(exist_ok=True)
+        (ctx.out / "figures" / "good.png").write_bytes(b"drawn")
+
+    figs = (Figure("first", lambda s: ("first.png",), (), lambda s: ("scene.toml",), bad("no data to plot")),
+            Figure("good", lambda s: ("good.png",), (), lambda s: ("scene.toml",), good),
+            Figure("third", lambda s: ("third.png",), (), lambda s: ("scene.toml",), bad("shapes (3,) and (4,)")))
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: None, figures=figs)
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == ("bladerub: error: figure first failed: no data to plot; "
+                                                 "figure third failed: shapes (3,) and (4,); kept: mesh.h5")
+    assert (tmp_path / "figures" / "good.png").read_bytes() == b"drawn"
+    manifest = json.loads((tmp_path / "figures" / "manifest.json").read_text())
+    assert set(manifest) == {"good"}  # the failed ones are drawn again by the next run
 
 
 def test_a_partial_file_of_other_inputs_is_not_said_kept(scene, tmp_path, monkeypatch, capsys):
