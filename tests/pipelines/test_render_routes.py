@@ -5,9 +5,14 @@ Where no route works, the error must list every route tried, in order, with what
 and how to fix it, and leave VTK_DEFAULT_OPENGL_WINDOW as the user had it.
 """
 import json
+import re
+import shutil
 import subprocess
 import sys
+import time
 from pathlib import Path
+
+import pytest
 
 from support import shell_env
 
@@ -19,14 +24,23 @@ import pipelines.render as r
 case = sys.argv[1]
 if case != "unknown":
     os.environ.pop("DISPLAY", None)
-    r.shutil.which = lambda name: None  # no Xvfb
-    loadable = {"none": (), "x only": ("libGL.so.1",)}[case]
+    if case != "x and xvfb":
+        r.shutil.which = lambda name: None  # no Xvfb
+    loadable = {"none": (), "x only": ("libGL.so.1",), "x and xvfb": ("libGL.so.1",)}[case]
     r._loadable = lambda names: names[0] in loadable
 try:
     chosen, error = r.ensure_offscreen(), None
 except r.RenderError as exc:
     chosen, error = None, str(exc)
-print(json.dumps({"chosen": chosen, "error": error, "env": os.environ.get(r._ENV)}))
+drawn = None
+if chosen:  # a picture through the chosen route: its spread of grey levels
+    import numpy as np, pyvista as pv
+    p = pv.Plotter(off_screen=True, window_size=(80, 60))
+    p.add_mesh(pv.Cube(), color="white")
+    drawn = float(np.std(p.screenshot(return_img=True)))
+    p.close()
+print(json.dumps({"chosen": chosen, "error": error, "env": os.environ.get(r._ENV), "drawn": drawn,
+                  "display": os.environ.get("DISPLAY"), "xvfb": r._xvfb.pid if r._xvfb else None}))
 """
 
 
@@ -67,3 +81,23 @@ def test_a_users_class_that_vtk_does_not_make_gives_way_to_one_that_draws():
     assert got["error"] is None
     assert got["chosen"] in ("vtkOSOpenGLRenderWindow", "vtkEGLRenderWindow", "vtkXOpenGLRenderWindow")
     assert got["env"] == got["chosen"]  # what VTK's next window reads
+
+
+@pytest.mark.skipif(shutil.which("Xvfb") is None, reason="no Xvfb on PATH (Debian package xvfb, which .ci/install "
+                    "installs)")
+def test_x_without_a_display_starts_a_private_xvfb_that_draws_and_ends_with_the_process():
+    """The last route (GL through X, no $DISPLAY): a private Xvfb on the display number it picks,
+    a picture that is not blank, and the server gone once the process has ended."""
+    got = _run("x and xvfb")
+    assert got["error"] is None and got["chosen"] == got["env"] == "vtkXOpenGLRenderWindow"
+    assert re.fullmatch(r":\d+", got["display"]) and got["drawn"] > 1.0, got
+    for _ in range(100):  # terminated at the process's exit (atexit); reaped or a zombie: gone
+        try:
+            state = Path(f"/proc/{got['xvfb']}/status").read_text()
+        except FileNotFoundError:
+            break
+        if "\nState:\tZ" in state:
+            break
+        time.sleep(0.05)
+    else:
+        pytest.fail(f"Xvfb (pid {got['xvfb']}) still runs after its process ended")
