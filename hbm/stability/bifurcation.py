@@ -55,7 +55,8 @@ class Bifurcation:
     the interpolation error is a fraction of this bracket (see `locate`).
     multiplier: the crossing multiplier of the minimal period at the point on its unstable
     side (where a period doubling's is real), -.
-    direction: +1 when the orbit loses stability going along the branch, -1 when it gains it.
+    direction: +1 when the orbit loses stability going along the branch, -1 when it gains it,
+    0 where that is not known (a fold beside a point whose analysis gave no verdict).
     period_ratio: g, the orbit's minimal period is T / g (T of the HBM basis).
     exponent: the crossing Floquet exponent (centred member, see FloquetSpectrum) there, 1/s.
     mode_omega: fundamental of the basis the mode was computed in (that of the minimal
@@ -241,7 +242,7 @@ def bifurcation_arrays(bifurcations) -> dict:
 
     kind (k,) str; omega (k,) rad/s; le_amplitude (k,) m; index (k,) int; fraction (k,) -;
     omega_low, omega_high (k,) rad/s (the bracketing points); multiplier_real,
-    multiplier_imag (k,) -; direction (k,) int (+1 loses stability along the branch);
+    multiplier_imag (k,) -; direction (k,) int (+1 loses stability along the branch, -1 gains it, 0 not known);
     period_ratio (k,) int; kind_from (k,) str (crossing, parity or guess: see Bifurcation);
     refine_steps (k,) int, located_low, located_high (k,) rad/s (Bifurcation.bracket),
     refine_note (k,) str.

@@ -13,7 +13,7 @@ import scipy.sparse.linalg as spla
 
 from hbm.stability import selection
 from hbm.stability import spectrum as spm
-from hbm.stability.bifurcation import PERIOD_DOUBLING
+from hbm.stability.bifurcation import FOLD, PERIOD_DOUBLING
 from hbm.stability.monitor import NOT_INFERRED, StabilityMonitor, StabilityOptions, monitor_branch
 from test_stability_defects import OMEGA, mathieu, spec_of
 
@@ -169,6 +169,26 @@ def test_a_long_stretch_without_verdicts_is_cut_and_handed_on_as_unknown():
     notes = [got[i]["stability_note"] for i in range(n)]
     assert notes == [""] * 2 + [NOT_INFERRED] * 7 + [BAND] * 4 + [""] * 27
     assert (mon.causes["after undecided"], mon.causes["first"]) == (2, 3)
+
+
+def test_a_fold_beside_a_point_without_a_verdict_has_no_direction():
+    # Omega falls to point 10 and rises after it (a fold between 10 and 11); every orbit is
+    # stable but point 11's analysis gives no verdict. The fold is recorded once, at the
+    # parabola's vertex, with direction 0 (not known); read as a count, the -1 of point 11
+    # would say that the orbit gains stability there
+    n = 16
+    omega = OMEGA - np.abs(np.arange(n) - 10.3)
+    mon = StabilityMonitor(analyse=lambda x, w: (empty() if int(x[0]) == 11 else spec_of([0.5, 0.3]), 1),
+                           options=StabilityOptions(max_gap=1))
+    got = []
+    for i in range(n):
+        got += mon.push(SimpleNamespace(index=i, omega=float(omega[i]), step=1.0, x=np.array([float(i)])),
+                        {"le_amplitude": 1e-4 * i})
+    got += mon.finish()
+    assert [ex["n_unstable"] for _, ex in sorted(got, key=lambda g: g[0].index)] == [0] * 11 + [-1] + [0] * 4
+    assert [(b.kind, b.index, b.direction) for b in mon.bifurcations] == [(FOLD, 10, 0)]
+    # the vertex of the parabola through points 9, 10 and 11 (unit arc length apart): beyond both
+    assert mon.bifurcations[0].omega > max(omega[10], omega[11])
 
 
 # -- the choice of a point ------------------------------------------------------------------
