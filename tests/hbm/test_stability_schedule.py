@@ -58,6 +58,26 @@ def test_a_crossing_inside_a_gap_is_bisected():
     assert [got[i]["stable"] for i in range(60)] == [i <= 44 for i in range(60)]
 
 
+def test_a_bisection_passes_a_midpoint_without_a_verdict_by():
+    """The change of the test above, but the bisection's first midpoint (45) gives no verdict:
+    the bisection takes the next one (46) instead and goes on around 45, the change is located
+    between the neighbours with a verdict, 44 and 46, and 45 keeps -1 with its reason."""
+    base = _stable_then(44)
+
+    def analyse(x, w):
+        sp, g = base(x, w)
+        if int(x[0]) == 45:
+            sp = replace(sp, complete=False, note="ARPACK converged 1 of 40 eigenvalues")
+        return sp, g
+
+    mon = StabilityMonitor(analyse=analyse, options=OPTIONS)
+    got = _feed(mon, OMEGA - np.arange(60))
+    assert {41, 43, 44, 45, 46, 49} <= set(_analysed(got)) and mon.causes["bisection"] == 4
+    assert [(b.index, b.omega_bracket) for b in mon.bifurcations] == [(44, (OMEGA - 44, OMEGA - 46))]
+    assert [got[i]["n_unstable"] for i in range(60)] == [0] * 45 + [-1] + [1] * 14
+    assert "ARPACK converged 1 of 40" in got[45]["stability_note"]
+
+
 def test_an_analysis_without_a_verdict_is_followed_at_the_next_point():
     """The creeping pair of the first test, whose analyses come at 0, 1, 8, 13, 17, ...; the
     analysis at 13 gives no verdict (ARPACK stopped short): 14 is analysed next (not 16,
