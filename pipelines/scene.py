@@ -428,7 +428,9 @@ def load_scene(path: Path | str, overrides=()) -> Scene:
         column = exc.start - (raw.rfind(b"\n", 0, exc.start) + 1) + 1
         raise SceneError(f"{path}: not valid TOML: byte 0x{raw[exc.start]:02x} at line {line}, column {column} "
                          "is not UTF-8 (save the file as UTF-8)") from None
-    return parse_scene(text, path, overrides)
+    # a byte-order mark, which Windows editors put before UTF-8 text: not TOML, but not the
+    # user's content either (tomllib called it "Invalid statement (at line 1, column 1)")
+    return parse_scene(text.removeprefix("\ufeff"), path, overrides)
 
 
 def _toml_value(v) -> str:

@@ -64,6 +64,22 @@ def test_a_scene_file_not_in_utf8_is_named_with_the_place(tmp_path, capsys):
                     "(save the file as UTF-8)")
 
 
+def test_a_scene_saved_with_a_byte_order_mark_reads_as_without(tmp_path, capsys):
+    """Windows editors may save UTF-8 with a byte-order mark: the run was refused with "not
+    valid TOML: Invalid statement (at line 1, column 1)", a line that names nothing the user
+    wrote."""
+    text = COARSE.read_text()
+    plain, marked = tmp_path / "plain.toml", tmp_path / "marked.toml"
+    plain.write_text(text, encoding="utf-8")
+    marked.write_text(text, encoding="utf-8-sig")
+    assert marked.read_bytes()[:3] == b"\xef\xbb\xbf"
+    shown = []
+    for path in (plain, marked):
+        assert main(["show", str(path)]) == 0
+        shown.append(capsys.readouterr().out.splitlines()[1:])  # after the line naming the file
+    assert shown[0] == shown[1] and any(line.startswith("name = ") for line in shown[0])
+
+
 def test_a_set_value_that_is_not_utf8_is_named_before_the_folder_is_made(tmp_path, capsys):
     """Command-line bytes that are not UTF-8 (surrogate escapes in Python) used to pass the
     scene, create the folder and its lock, then fail with `'utf-8' codec can't encode
