@@ -136,10 +136,10 @@ def ensure_offscreen() -> str:
         os.environ[_ENV] = user
     else:
         os.environ.pop(_ENV, None)
+    # one line, as every failure the command line reports (pipelines.cli)
     raise RenderError(
-        "no off-screen OpenGL route works for VTK:\n  " + "\n  ".join(failures)
-        + "\nInstall Mesa's software renderer (`apt-get install libosmesa6`, done by .ci/install)"
-          " with a VTK wheel >= 9.4, or install xvfb.")
+        "no off-screen OpenGL route works for VTK (" + "; ".join(failures) + "): install Mesa's software "
+        "renderer (`apt-get install libosmesa6`, done by .ci/install) with a VTK wheel >= 9.4, or install xvfb")
 
 
 def boundary_triangles(cells: np.ndarray) -> np.ndarray:
@@ -296,10 +296,12 @@ def render_artifacts(mesh_h5: Path, fem_h5: Path, out_dir: Path, *, n_modes: int
                        "scale": scale, "window": list(window), "title_prefix": title_prefix})
     proc = subprocess.run([sys.executable, "-m", "pipelines.render", args], capture_output=True, text=True,
                           timeout=timeout)
-    if proc.returncode == NO_ROUTE_EXIT and proc.stderr.strip():
-        raise RenderError(proc.stderr.strip())  # the report, not the child's traceback
-    if proc.returncode != 0:
-        raise RenderError(f"mode-shape rendering failed (exit {proc.returncode}):\n{proc.stderr[-3000:]}")
+    said = [line.strip() for line in proc.stderr.splitlines() if line.strip()]
+    if proc.returncode == NO_ROUTE_EXIT and said:
+        raise RenderError(said[-1])  # the report, not the child's traceback
+    if proc.returncode != 0:  # a crash: its last word (a traceback's exception line)
+        raise RenderError(f"mode-shape rendering failed (exit {proc.returncode})"
+                          + (f": {said[-1]}" if said else ""))
     return [Path(line) for line in proc.stdout.splitlines() if line.endswith(".png")]
 
 

@@ -493,7 +493,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
     except KeyboardInterrupt:
         raise Interrupted(describe()) from None
     except _FigureFailed as exc:  # after the stages: not "nothing was computed" (a ValueError's exit 2)
-        said = "; ".join(f"figure {name} failed: {art.first_line(why).rstrip(':')}" for name, why in exc.failures)
+        said = "; ".join(f"figure {name} failed: {art.first_line(why)}" for name, why in exc.failures)
         raise StageFailed(f"{said}; kept: {kept()}") from exc.failures[0][1]
     except ChildDied as exc:  # a stage's own process that ended without a word (killed): a rerun resumes
         raise StageFailed(f"{where} failed: {exc}; {resumable()}") from exc
@@ -595,8 +595,7 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
     A figure whose drawing fails on its data (ValueError) or on the machine (no off-screen
     OpenGL for the mode pictures: RenderError) keeps its previous files and no manifest
     entry of this drawing; the others are drawn all the same (the NFRC plots need no OpenGL),
-    and _FigureFailed names every failed one at the end. A report longer than a line (the
-    routes tried and how to fix them) is printed whole as a warning when it happens."""
+    and _FigureFailed names every failed one at the end."""
     from pipelines.render import RenderError
 
     folder_ = out / "figures"
@@ -636,8 +635,6 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
                     fig.draw(Context(scene, out, progress))
                 except (ValueError, RenderError) as exc:
                     record.action = "failed"
-                    if len(str(exc).strip().splitlines()) > 1:
-                        progress.warn(f"figure {fig.name} not drawn: {str(exc).strip()}")
                     failed.append((fig.name, exc))
                     continue
             if isinstance(entry, dict):  # e.g. another stem (the first of hbm.methods changed)

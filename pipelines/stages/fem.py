@@ -145,7 +145,7 @@ def _draw_modes(ctx: Context) -> None:
     try:
         render_modes(ctx)
     except RenderError as exc:
-        raise RenderError(f"{exc}\nOr draw no mode pictures in runs: [render] n_modes = 0.") from None
+        raise RenderError(f"{exc}; or draw no mode pictures in runs: [render] n_modes = 0") from None
 
 
 MODES = Figure("modes", files=mode_files, depends=("render.n_modes", "render.scale", "render.window", "name"),
