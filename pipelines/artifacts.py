@@ -472,6 +472,19 @@ def read_attrs(path: Path | str) -> dict:
         return {}
 
 
+def read_failure(path: Path | str) -> str:
+    """Why HDF5 cannot open `path` ("" when it can, or when there is no such file): a partial
+    file that a run killed while writing it left cut, which the stage then starts over from
+    scratch (read_attrs alone reads it as a file of other inputs, without a word)."""
+    try:
+        with h5py.File(path, "r"):
+            return ""
+    except FileNotFoundError:
+        return ""
+    except (OSError, RuntimeError, ValueError, KeyError) as exc:
+        return first_line(exc)
+
+
 def is_current(path: Path | str, inputs_hash: str) -> bool:
     """True if `path` is a complete artifact made from exactly these inputs."""
     return Path(path).is_file() and read_attrs(path).get("inputs_hash") == inputs_hash

@@ -58,7 +58,10 @@ def _run_method(ctx: Context, rom, output: Output, say: Reporter) -> None:
     part = partial_path(final)
     attrs = {**ctx.attrs(output, "hbm"), "method": method}
     resume, store, resumed_bifurcations = None, None, ()
-    if part.is_file() and art.read_attrs(part).get("inputs_hash") == ctx.hashes[output.file]:
+    unreadable = art.read_failure(part) if part.is_file() else ""
+    if unreadable:
+        say.warn(f"{part.name} cannot be read ({unreadable}): the {method} NFRC starts over")
+    elif part.is_file() and art.read_attrs(part).get("inputs_hash") == ctx.hashes[output.file]:
         # an interrupted run of exactly these inputs: keep its points and go on from them
         try:
             resume = load_branch(part, allow_partial=True)

@@ -647,6 +647,9 @@ def _compute(ctx: Context, outputs) -> None:
         stab = StabilityOptions.of(hbm)
     final = out / ISOLAS.file
     partial = _Partial(partial_path(final), ctx.hashes[ISOLAS.file])
+    unreadable = art.read_failure(partial.path) if root else ""
+    if unreadable:
+        ctx.progress.warn(f"{partial.path.name} cannot be read ({unreadable}): the search starts over")
     results = {}  # method -> ([(IsolaSearch, its residual), ...], status, cpu, wall), in hbm.methods' order
     mains = {}  # method -> its search in the scene's basis
     content = {}  # method -> the dynamical content of each branch

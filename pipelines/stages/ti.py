@@ -148,6 +148,10 @@ def _partial(ctx: Context, rank: int = 0) -> SweepPartial:
 
 def _resumed(ctx: Context, partial: SweepPartial) -> dict:
     t = ctx.scene.ti
+    for path in partial.files():
+        unreadable = art.read_failure(path)
+        if unreadable:
+            ctx.progress.warn(f"{path.name} cannot be read ({unreadable}): its speeds are marched again")
     done = partial.resume(t.omegas)
     if done:
         ctx.log(f"  resuming from {len(done)} of {t.n_omega} speeds on disk "
