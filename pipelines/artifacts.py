@@ -463,26 +463,28 @@ def read_artifact(path: Path | str, cls):
         raise ArtifactError(f"cannot read artifact {path}: {exc}") from exc
 
 
-def read_attrs(path: Path | str) -> dict:
-    """Root attributes of an artifact (empty dict if the file is missing or unreadable)."""
+def _root_attrs(path: Path | str) -> tuple[dict, str]:
+    """(root attributes, "") of an HDF5 file; ({}, why) where HDF5 cannot read it (not HDF5,
+    damaged, cut short); ({}, "") where there is no such file."""
     try:
         with h5py.File(path, "r") as h5:
-            return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}
-    except (OSError, RuntimeError, ValueError, KeyError):  # not HDF5, damaged, cut short
-        return {}
+            return {k: (v.decode() if isinstance(v, bytes) else v) for k, v in h5.attrs.items()}, ""
+    except FileNotFoundError:
+        return {}, ""
+    except (OSError, RuntimeError, ValueError, KeyError) as exc:
+        return {}, first_line(exc)
+
+
+def read_attrs(path: Path | str) -> dict:
+    """Root attributes of an artifact (empty dict if the file is missing or unreadable)."""
+    return _root_attrs(path)[0]
 
 
 def read_failure(path: Path | str) -> str:
     """Why HDF5 cannot open `path` ("" when it can, or when there is no such file): a partial
     file that a run killed while writing it left cut, which the stage then starts over from
     scratch (read_attrs alone reads it as a file of other inputs, without a word)."""
-    try:
-        with h5py.File(path, "r"):
-            return ""
-    except FileNotFoundError:
-        return ""
-    except (OSError, RuntimeError, ValueError, KeyError) as exc:
-        return first_line(exc)
+    return _root_attrs(path)[1]
 
 
 def is_current(path: Path | str, inputs_hash: str) -> bool:
