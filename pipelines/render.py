@@ -88,9 +88,12 @@ def _start_xvfb() -> str | None:
     if exe is None:
         return "no Xvfb on PATH (Debian package xvfb)"
     r, w = os.pipe()
-    # -displayfd: the server picks a free display number and writes it to us.
+    # -displayfd: the server picks a free display number and writes it to us. -noreset: by
+    # default the server resets when its last client leaves and refuses connections meanwhile;
+    # VTK connects and leaves several times while making one window, and on a loaded host a
+    # connection fell in a reset: VTK then made another window class (a failed route).
     proc = subprocess.Popen([exe, "-displayfd", str(w), "-screen", "0", "1920x1080x24",
-                             "-nolisten", "tcp"], pass_fds=(w,),
+                             "-nolisten", "tcp", "-noreset"], pass_fds=(w,),
                             stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
     os.close(w)
     with os.fdopen(r) as f:
