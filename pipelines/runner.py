@@ -592,10 +592,11 @@ def _remove_recorded(folder_: Path, entry: dict, keep) -> None:
 def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
     """Draw the figures of `stages` that are missing, damaged or outdated; returns their names.
 
-    A figure whose drawing fails on its data (ValueError) or on the machine (no off-screen
-    OpenGL for the mode pictures: RenderError) keeps its previous files and no manifest
-    entry of this drawing; the others are drawn all the same (the NFRC plots need no OpenGL),
-    and _FigureFailed names every failed one at the end."""
+    A figure whose drawing fails on its data (ValueError: an NFRC without a converged point),
+    on an input it finds unusable (ArtifactError: a ROM without its recovery matrix) or on the
+    machine (no off-screen OpenGL for the mode pictures: RenderError) keeps its previous files
+    and no manifest entry of this drawing; the others are drawn all the same (the NFRC plots
+    need no OpenGL), and _FigureFailed names every failed one at the end."""
     from pipelines.render import RenderError
 
     folder_ = out / "figures"
@@ -633,7 +634,7 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
                     record.why = "file missing or damaged"
                 try:
                     fig.draw(Context(scene, out, progress))
-                except (ValueError, RenderError) as exc:
+                except (ValueError, RenderError, art.ArtifactError) as exc:
                     record.action = "failed"
                     failed.append((fig.name, exc))
                     continue

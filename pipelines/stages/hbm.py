@@ -176,13 +176,15 @@ def _instants_files(scene) -> tuple[str, ...]:
 
 def chosen_point(stored, omega: float | None) -> int:
     """Index of the NFRC point written: the converged point nearest to omega, or the one of
-    largest LE amplitude when omega is None. Raises ArtifactError without a converged point."""
+    largest LE amplitude when omega is None. Raises ValueError without a converged point
+    (its reason: the branch's status, e.g. a start point that did not converge)."""
     import numpy as np
 
     b = stored.branch
     ok = np.asarray(b.converged, bool)
     if not ok.any():
-        raise art.ArtifactError("the NFRC has no converged point to write")
+        status = getattr(b, "status", "")
+        raise ValueError("the NFRC has no converged point to write" + (f" (its status: {status})" if status else ""))
     if omega is None:
         return int(np.argmax(np.where(ok, stored.extras["le_amplitude"], -np.inf)))
     return int(np.argmin(np.where(ok, np.abs(b.omega - omega), np.inf)))
@@ -223,7 +225,11 @@ def write_hbm_vtu(ctx: Context) -> None:
     if not (out / nfrc_output(method).file).is_file():
         return  # no NFRC yet (its stage failed or was not run): drawn once it exists
     stored = load_branch(out / nfrc_output(method).file)
-    i = chosen_point(stored, scene.render.hbm_omega)
+    try:
+        i = chosen_point(stored, scene.render.hbm_omega)
+    except ValueError as exc:  # the run's way out: a scene whose NFRC never starts (a friction lock)
+        raise ValueError(f"{nfrc_output(method).file}: {exc}; or write no NFRC point for ParaView in runs: "
+                         "[render] hbm_instants = 0") from None
     u, omega = stored.branch.x[i], float(stored.branch.omega[i])
     rom = read_rom(out, with_recovery=True)
     if rom.recovery is None:

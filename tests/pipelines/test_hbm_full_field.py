@@ -36,11 +36,10 @@ def test_full_field_instants_span_the_period_of_a_subharmonic_basis(nu, n):
 def test_the_point_written_is_a_converged_one():
     """The NFRC point of the ParaView files: the converged point of largest LE amplitude, or
     the converged point nearest [render] hbm_omega; a failed last point (the one that ended
-    the branch, its amplitude that of a diverged iterate) is never it; none converged: the
-    artifact error that names it."""
+    the branch, its amplitude that of a diverged iterate) is never it; none converged: an
+    error that says so."""
     from types import SimpleNamespace
 
-    from pipelines.artifacts import ArtifactError
     from pipelines.stages.hbm import chosen_point
 
     def stored(converged):
@@ -51,5 +50,39 @@ def test_the_point_written_is_a_converged_one():
     assert chosen_point(s, None) == 1
     assert chosen_point(s, 1976.0) == 2
     assert chosen_point(stored([True, False, True, True]), None) == 3
-    with pytest.raises(ArtifactError, match="no converged point"):
+    with pytest.raises(ValueError, match="no converged point"):
         chosen_point(stored([False] * 4), None)
+
+
+
+def test_an_nfrc_that_never_starts_fails_its_paraview_figure_alone(coarse_nfrc, tmp_path, monkeypatch, capsys):
+    """An NFRC whose start point converges at neither end of the range holds that one failed
+    point (on the coarse scene, N_h = 40 and mu = 0.25 do that; here the stored NFRC reads
+    so). The ParaView instants of "an NFRC point" cannot be written: the run used to end
+    there with exit 2 ("nothing was computed") and the bare "the NFRC has no converged point
+    to write", the figures after it undrawn. Now that figure alone fails, named with the
+    NFRC's status and the scene's way out, exit 1, and the way out ends the run."""
+    import dataclasses
+
+    from coarse_runs import clone
+    from pipelines import branch_store
+    from pipelines.cli import main
+
+    real = branch_store.load_branch
+    status = "start point did not converge: no convergence in 12 iterations at omega=2000 (||R||=1.1e+01 > 1.0e-08)"
+
+    def never_started(path, **kw):
+        s = real(path, **kw)
+        return s._replace(branch=dataclasses.replace(s.branch, converged=np.zeros_like(s.branch.converged),
+                                                     status=status))
+
+    out = tmp_path / "out"
+    scene = clone(coarse_nfrc[1], out)
+    monkeypatch.setattr(branch_store, "load_branch", never_started)
+    run = ["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", "--set", "render.hbm_omega=1950"]
+    assert main(run) == 1  # hbm current: only the ParaView instants (a new hbm_omega) are drawn
+    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("bladerub: error: ")]
+    assert err == [f"bladerub: error: figure hbm_vtu failed: nfrc_dlft.h5: the NFRC has no converged point to write "
+                   f"(its status: {status}); or write no NFRC point for ParaView in runs: [render] hbm_instants = 0; "
+                   f"kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5"]
+    assert main(run + ["--set", "render.hbm_instants=0"]) == 0

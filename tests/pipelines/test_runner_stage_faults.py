@@ -15,6 +15,7 @@ import sys
 import h5py
 import pytest
 
+from pipelines.artifacts import ArtifactError
 from pipelines.child import call_in_child
 from pipelines.cli import main
 from pipelines.runner import expected_inputs
@@ -88,11 +89,11 @@ def test_a_figure_raising_a_value_error_fails_the_run_with_exit_1_naming_the_fig
 
 def test_the_figures_after_a_failed_one_are_drawn_and_every_failure_named(scene, tmp_path, monkeypatch, capsys):
     """A figure that fails does not keep the later ones from being drawn (a run used to stop
-    at the first): here the second of three is drawn and recorded, and the line names both
-    failures in the order met."""
-    def bad(message):
+    at the first): here the second of four is drawn and recorded, and the line names the
+    three failures in the order met."""
+    def bad(message, kind=ValueError):
         def draw(ctx):
-            raise ValueError(message)
+            raise kind(message)
         return draw
 
     def good(ctx):
@@ -101,11 +102,16 @@ def test_the_figures_after_a_failed_one_are_drawn_and_every_failure_named(scene,
 
     figs = (Figure("first", lambda s: ("first.png",), (), lambda s: ("scene.toml",), bad("no data to plot")),
             Figure("good", lambda s: ("good.png",), (), lambda s: ("scene.toml",), good),
-            Figure("third", lambda s: ("third.png",), (), lambda s: ("scene.toml",), bad("shapes (3,) and (4,)")))
+            # an input the figure finds unusable (a ROM without its recovery matrix): it used to
+            # end the run at once with exit 2, the figures after it undrawn
+            Figure("third", lambda s: ("third.png",), (), lambda s: ("scene.toml",),
+                   bad("rom.h5 has no recovery matrix", ArtifactError)),
+            Figure("fourth", lambda s: ("fourth.png",), (), lambda s: ("scene.toml",), bad("shapes (3,) and (4,)")))
     mesh_stage(monkeypatch, compute=lambda ctx, outputs: None, figures=figs)
     assert run(scene, tmp_path) == 1
     assert one_line(capsys.readouterr().err) == ("bladerub: error: figure first failed: no data to plot; "
-                                                 "figure third failed: shapes (3,) and (4,); kept: mesh.h5")
+                                                 "figure third failed: rom.h5 has no recovery matrix; "
+                                                 "figure fourth failed: shapes (3,) and (4,); kept: mesh.h5")
     assert (tmp_path / "figures" / "good.png").read_bytes() == b"drawn"
     manifest = json.loads((tmp_path / "figures" / "manifest.json").read_text())
     assert set(manifest) == {"good"}  # the failed ones are drawn again by the next run
