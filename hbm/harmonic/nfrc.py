@@ -65,7 +65,8 @@ class NfrcResult:
     status: why the branch stopped (hbm.continuation.arclength STATUS_*). wall_time, s.
     n_factorizations: LU factorisations of the Jacobian. unknowns: x of every point in
     the residual's scaled unknowns (m, n_u), to restart or expand (residual.expand_harmonics).
-    start: how the start point was found (solve_start's note; "resumed" for a resume).
+    start: how the start point was found (solve_start's note; "resumed" for a resume), or
+      why it was not, at either end of the range.
     With stability (see compute_nfrc; None otherwise): stable (m,) bool; n_unstable (m,)
     int, Floquet multipliers of the minimal period outside the unit circle (-1: unknown,
     the failed last point); stability_note (m,) object array of str, why n_unstable is -1
@@ -287,6 +288,8 @@ def compute_nfrc(rom, casing: CasingOptions = CasingOptions(), contact: ContactO
                 if _solves(res, x1, w1, opts):
                     opts, w0, x0 = replace(opts, direction=-opts.direction), w1, x1
                     start_note = f"no start at the first end ({start_note}); {note1} at the other end"
+                else:  # the continuation corrects x0 once more and fails: why at either end
+                    start_note = f"at omega={w0:.6g}: {start_note}; at omega={w1:.6g}: {note1}"
             branch = continue_branch(res, x0, w0, opts, on_point=record, solver=fac)
         if monitor is not None:
             t = time.perf_counter()

@@ -105,10 +105,15 @@ def _run_method(ctx: Context, rom, output: Output, say: Reporter) -> None:
     tables = {"modes": {"frequencies": (mode_frequencies, "rad/s")}}
     if scene.hbm.stability:  # the bifurcations located along the branch
         tables["bifurcations"] = bifurcation_arrays(result.bifurcations)
-    BranchStore.reopen(part).finalize(result.status, tables=tables)
     ok = int(result.converged.sum())
+    # no point at all: what each start strategy gave at either end (the status holds only the
+    # continuation's last Newton), in the file's detail and the log
+    detail = "" if ok else f"no start point: {result.start}"
+    BranchStore.reopen(part).finalize(result.status, detail=detail, tables=tables)
     say.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
             f"status: {result.status}")
+    if detail:
+        say.warn(f"the {method} NFRC has {detail}")
 
 
 def _content_of(rom, scene, method: str):

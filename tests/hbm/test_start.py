@@ -130,7 +130,8 @@ def test_start_from_the_other_end(monkeypatch):
 def test_no_start_at_either_end_is_reported_at_the_scene_s_end(monkeypatch):
     """No start converges at either end: the NFRC is the failed start at the end the scene
     names (omega_max here), with its reason; it does not move to the other end, where
-    nothing converged either."""
+    nothing converged either, and its start note gives each end's reason (it gave the
+    first end's alone)."""
     dist = lambda tau: np.full((len(tau), 1), t.D)  # noqa: E731
     hbm = replace(HBM, omega_min=0.45, omega_max=0.55)
     cont = replace(default_continuation(hbm), omega_scale=0.1, ds_max=0.2)
@@ -142,7 +143,7 @@ def test_no_start_at_either_end_is_reported_at_the_scene_s_end(monkeypatch):
     monkeypatch.setattr(nfrc_module, "solve_start", fail)
     r = compute_nfrc(rom, residual=_residual("dlft", 4.0, dist, hbm), hbm=hbm, method="dlft", continuation=cont,
                      solver=DirectSolver())
-    assert r.start == "made to fail at 0.55"
+    assert r.start == "at omega=0.55: made to fail at 0.55; at omega=0.45: made to fail at 0.45"
     assert r.omega.tolist() == [pytest.approx(hbm.omega_max)] and not r.converged.any()
     assert r.status.startswith("start point did not converge") and r.reason[0] == r.status
 

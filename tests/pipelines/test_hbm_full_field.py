@@ -1,5 +1,6 @@
 """The hbm stage's ParaView instants of one NFRC point span the basis period 2 pi nu / Omega
 (nu = [hbm] subharmonic), and each is the recovery matrix applied to the ROM dof there."""
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -55,34 +56,39 @@ def test_the_point_written_is_a_converged_one():
 
 
 
-def test_an_nfrc_that_never_starts_fails_its_paraview_figure_alone(coarse_nfrc, tmp_path, monkeypatch, capsys):
-    """An NFRC whose start point converges at neither end of the range holds that one failed
-    point (on the coarse scene, N_h = 40 and mu = 0.25 do that; here the stored NFRC reads
-    so). The ParaView instants of "an NFRC point" cannot be written: the run used to end
-    there with exit 2 ("nothing was computed") and the bare "the NFRC has no converged point
-    to write", the figures after it undrawn. Now that figure alone fails, named with the
-    NFRC's status and the scene's way out, exit 1, and the way out ends the run."""
-    import dataclasses
+
+def test_an_nfrc_that_never_starts_fails_its_paraview_figure_alone(coarse_nfrc, tmp_path, capsys):
+    """mu = 0.25, past the coarse blade's friction lock (the scene warns of it), at N_h = 40:
+    no start strategy converges at either end of [400, 2000] rad/s (were one to, any setting
+    without a start point would do here). The NFRC file holds the one failed point, its
+    status, and in its detail each end's strategies and why they failed, which the run's
+    warning repeats (the status alone gave the continuation's last Newton). The ParaView
+    instants of "an NFRC point" cannot be written: the run used to end there with exit 2
+    ("nothing was computed") and the bare "the NFRC has no converged point to write", the
+    figures after it undrawn. Now that figure alone fails, named with the NFRC's status and
+    the scene's way out, exit 1, and the way out ends the run."""
+    import h5py
 
     from coarse_runs import clone
-    from pipelines import branch_store
+    from pipelines.branch_store import load_branch
     from pipelines.cli import main
-
-    real = branch_store.load_branch
-    status = "start point did not converge: no convergence in 12 iterations at omega=2000 (||R||=1.1e+01 > 1.0e-08)"
-
-    def never_started(path, **kw):
-        s = real(path, **kw)
-        return s._replace(branch=dataclasses.replace(s.branch, converged=np.zeros_like(s.branch.converged),
-                                                     status=status))
 
     out = tmp_path / "out"
     scene = clone(coarse_nfrc[1], out)
-    monkeypatch.setattr(branch_store, "load_branch", never_started)
-    run = ["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", "--set", "render.hbm_omega=1950"]
-    assert main(run) == 1  # hbm current: only the ParaView instants (a new hbm_omega) are drawn
-    err = [line for line in capsys.readouterr().err.splitlines() if line.startswith("bladerub: error: ")]
-    assert err == [f"bladerub: error: figure hbm_vtu failed: nfrc_dlft.h5: the NFRC has no converged point to write "
-                   f"(its status: {status}); or write no NFRC point for ParaView in runs: [render] hbm_instants = 0; "
-                   f"kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5, nfrc_rl.h5"]
+    run = ["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", "--set", "contact.mu=0.25",
+           "--set", "hbm.n_harmonics=40", "--set", "hbm.n_time=1024", "--set", "hbm.omega_min=400",
+           "--set", 'hbm.methods=["dlft"]', "--set", "render.n_modes=0"]
+    assert main(run) == 1
+    branch = load_branch(out / "nfrc_dlft.h5").branch
+    assert not branch.converged.any() and branch.status.startswith("start point did not converge: ")
+    with h5py.File(out / "nfrc_dlft.h5", "r") as h5:
+        detail = h5.attrs["detail"]
+    assert re.fullmatch(r"no start point: at omega=2000: no start found: damped Newton .+; obstacle homotopy: .+; "
+                        r"at omega=400: no start found: damped Newton .+; obstacle homotopy: .+", detail), detail
+    err = capsys.readouterr().err.splitlines()
+    assert f"bladerub: warning: the dlft NFRC has {detail}" in err
+    assert [line for line in err if line.startswith("bladerub: error: ")] == [
+        f"bladerub: error: figure hbm_vtu failed: nfrc_dlft.h5: the NFRC has no converged point to write (its status: "
+        f"{branch.status}); or write no NFRC point for ParaView in runs: [render] hbm_instants = 0; "
+        f"kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5"]
     assert main(run + ["--set", "render.hbm_instants=0"]) == 0
