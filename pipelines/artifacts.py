@@ -169,14 +169,24 @@ def open_in_place(path: Path | str, mode: str) -> h5py.File:
     hard link, or `cp -as`, a symbolic one): "w" removes the old file first (h5py would
     truncate it in place), "r+" and "a" replace a symbolic link, or a file with other hard
     links, by a copy of its content first (what it holds is resumed from, its target left
-    as it was); a broken symbolic link is removed (else "a" would create its target)."""
+    as it was); a broken symbolic link is removed (else "a" would create its target). A file
+    another program holds open (a viewer: HDF5's lock refuses "r+" and "a") is replaced by a
+    copy of its content too, which the run appends to; the other program reads on what it
+    had (else the stage would start over and lose the points on disk)."""
     path = Path(path)
     if mode == "w" or (path.is_symlink() and not path.exists()):
         path.unlink(missing_ok=True)
     elif path.is_file() and (path.is_symlink() or os.stat(path).st_nlink > 1):
         with atomic_output(path) as tmp:
             shutil.copyfile(path, tmp)
-    return h5py.File(path, mode)
+    try:
+        return h5py.File(path, mode)
+    except BlockingIOError:  # "unable to lock file": the lock is on the inode, a copy has none
+        if mode not in ("r+", "a") or not path.is_file():
+            raise
+        with atomic_output(path) as tmp:
+            shutil.copyfile(path, tmp)
+        return h5py.File(path, mode)
 
 
 # --- checksums ------------------------------------------------------------------------

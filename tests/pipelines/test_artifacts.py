@@ -156,3 +156,37 @@ def test_a_file_started_over_in_place_leaves_its_hard_links_alone(tmp_path):
     assert (tmp_path / "a" / "nfrc.partial.h5").read_bytes() == kept
     with h5py.File(tmp_path / "b" / "nfrc.partial.h5", "r") as h5:
         assert h5["omega"].shape == (2,)
+
+
+@pytest.mark.parametrize("mode", ["a", "r+"])
+def test_a_partial_file_another_program_holds_open_is_appended_to_in_a_copy(tmp_path, mode):
+    """A partial file open in another program (a viewer reading the points so far: HDF5 locks
+    the file, and h5py then refuses "a" and "r+" with 'unable to lock file'): the run goes on
+    in a copy of its content, which replaced it, where the stage used to say it could not be
+    read and start over, its points lost. The other program reads on what it had."""
+    import subprocess
+    import sys
+
+    import h5py
+
+    path = tmp_path / "nfrc_dlft.partial.h5"
+    with h5py.File(path, "w") as h5:
+        h5.create_dataset("omega", data=np.arange(5.0), maxshape=(None,))
+    viewer = subprocess.Popen([sys.executable, "-c", (
+        "import sys, h5py; h5 = h5py.File(sys.argv[1], 'r'); print('open', flush=True); sys.stdin.readline(); "
+        "print(h5['omega'].shape[0], flush=True)"), str(path)], stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert viewer.stdout.readline() == "open\n"
+        with pytest.raises(BlockingIOError):  # the lock this is about
+            h5py.File(path, mode)
+        with art.open_in_place(path, mode) as h5:
+            h5["omega"].resize((7,))
+            h5["omega"][5:] = [5.0, 6.0]
+        viewer.stdin.write("\n")
+        viewer.stdin.flush()
+        assert viewer.stdout.readline() == "5\n"  # its own file, as it was
+    finally:
+        viewer.kill()
+        viewer.wait()
+    with h5py.File(path, "r") as h5:
+        np.testing.assert_array_equal(h5["omega"][()], np.arange(7.0))
