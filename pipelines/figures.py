@@ -137,7 +137,9 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
 
     curves: {label: (omega (m,) rad/s, amplitude (m,) m, converged (m,) bool or None)}, one
     line per method, drawn in the order of the points (a continuation path); points not
-    converged break the line and are marked with a small grey cross. Labels containing
+    converged break the line and are marked with a small grey cross where they fall inside
+    the axes the others set (a failed point's amplitude is a diverged iterate's); a curve
+    without a converged point is labelled so. Labels containing
     "isola" are dashed. ti_points: optional (omega (p,) rad/s, amplitude (p,) m, classes (p,)
     int, PeriodClass codes[, flagged (p,) bool]) drawn as markers shaped by class; as in the
     paper, all but the casing-periodic ones (ω = n_l Ω) are grey unless fade_other_classes is
@@ -156,11 +158,17 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
         ok = np.ones(omega.shape, bool) if len(curve) < 3 or curve[2] is None else np.asarray(curve[2], bool)
         style = "--" if "isola" in label.lower() else "-"
         colour = colours[i % len(colours)]
+        if not ok.any():  # e.g. a start point that converged at neither end of the range
+            label = f"{label} (no converged point)"
         (line,) = ax.plot(omega, np.where(ok, amplitude, np.nan), style, color=colour, lw=1.4, label=label)
         handles.append(line)
         if not ok.all():
             any_failed = True
-            ax.plot(omega[~ok], amplitude[~ok], "x", color="0.55", ms=3, zorder=2)
+            # a failed point's amplitude is that of the iterate Newton gave up on (120 mm for a
+            # start that did not converge, mu = 0.25): marked where it falls inside the range
+            # of the rest, never stretching the axes over it
+            # (add_artist, unlike plot, leaves the data limits that autoscaling reads alone)
+            ax.add_artist(Line2D(omega[~ok], amplitude[~ok], ls="none", marker="x", color="0.55", ms=3, zorder=2))
     if any_failed:
         handles.append(Line2D([], [], ls="none", marker="x", color="0.55", label="not converged"))
     if ti_points is not None:
@@ -277,11 +285,13 @@ def plot_solution_set(curves: dict, out_png, ti_points=None, *, omega_range=(400
             conv = np.asarray(conv, bool)
             faded = len(rest) > 1 and bool(rest[1])
             seen_faded = seen_faded or faded
-            for a, b, state in _stability_runs(stable, conv, rest[0] if rest else None):
+            runs = _stability_runs(stable, conv, rest[0] if rest else None)
+            for a, b, state in runs:
                 ax.plot(omega[a:b], amp[a:b], STABILITY_STYLES[state], color=colour, lw=1.3,
                         alpha=TRUNCATED_ALPHA if faded else 1.0)
                 seen_styles.add(state)
-            handles.append(Line2D([], [], color=colour, lw=1.3, label=f"{label} {kind}"))
+            if runs:  # a branch without a converged point (an NFRC that never started) draws nothing
+                handles.append(Line2D([], [], color=colour, lw=1.3, label=f"{label} {kind}"))
         for kind, w, a, *guessed in marks:
             if np.isfinite(a):
                 grey = bool(guessed and guessed[0])

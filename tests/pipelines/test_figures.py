@@ -307,3 +307,28 @@ def test_a_long_legend_goes_into_columns_and_stays_on_the_page(tmp_path, monkeyp
     legend, ax, page, n = boxes[0]
     assert n == 40
     assert legend.y0 >= page.y0 - 0.5 and legend.x1 <= page.x1 + 0.5 and legend.x0 >= ax.x1
+
+
+def test_an_nfrc_without_a_converged_point_neither_scales_the_axes_nor_reads_as_a_curve(tmp_path, monkeypatch,
+                                                                                     sweep):
+    """An NFRC that never started (coarse scene, mu = 0.25) holds one failed point, the 120 mm
+    amplitude of the iterate Newton gave up on: its cross stretched Fig. 6's axis to 125 mm and
+    pressed the sweep's 2 mm points onto the floor, and its name stood in the legend as a
+    curve. Now the axes are the sweep's, the legend says the NFRC has no converged point, and
+    Fig. 8 names no branch it does not draw."""
+    tops, legends = [], []
+    _on_save(monkeypatch, lambda fig: (tops.append(fig.axes[0].get_ylim()[1]),
+                                       legends.append([t.get_text() for t in fig.axes[0].get_legend().get_texts()])))
+    failed = (np.array([2000.0]), np.array([0.120]), np.array([False]))
+    _check(figures.plot_nfrc({"DLFT-HBM": failed}, tmp_path / "nfrc.png", ti_points=sweep), wide=True)
+    assert 2.4 < tops[0] < 3.0  # mm: the sweep's largest, 2.4 mm, and a margin
+    assert legends[0][:2] == ["DLFT-HBM (no converged point)", "not converged"]
+    omega = np.linspace(400.0, 2000.0, 50)
+    ok = np.ones(50, bool)
+    ok[-1] = False  # a branch ending in a failure: its converged points set the axes
+    _check(figures.plot_nfrc({"RL-HBM": (omega, np.r_[np.full(49, 1e-3), 0.5], ok)}, tmp_path / "end.png"), wide=True)
+    assert 1.0 < tops[1] < 1.2 and legends[1] == ["RL-HBM", "not converged"]
+    isola = (omega, np.full(50, 1e-3), ok, None)
+    _check(figures.plot_solution_set({"DLFT": ([("primary",) + failed + (None,), ("isola",) + isola], [])},
+                                     tmp_path / "set.png"), wide=True)
+    assert "DLFT primary" not in legends[2] and "DLFT isola" in legends[2]
