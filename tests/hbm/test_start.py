@@ -164,3 +164,49 @@ def test_static_forcing_against_the_obstacle(method):
     exact = (F + t.KAPPA * t.D) / (t.K + t.KAPPA) if method == "rl" else t.D
     assert x[0] == pytest.approx(exact, rel=1e-9)
     assert np.abs(x[1:]).max() < 1e-9
+
+
+def test_past_the_friction_lock_the_start_is_followed_from_the_frictionless_one():
+    """The coarse rotor 67 ROM at 2000 rad/s, N_h = 40, mu = 0.25 (past its friction lock,
+    mu_set = 0.123): damped Newton, the obstacle homotopy and Newton from the frictionless
+    solution all fail there (the solutions fold in mu: climbing to 0.19, back to 0.14, on to
+    0.25), and the NFRC had no start at either end of its range. The arc length in mu from
+    mu = 0 reaches a solution: the residual of the scene's mu, built afresh, vanishes there,
+    it is the one the isola search finds by another road, and the residual the homotopy was
+    handed is left at the scene's mu."""
+    from hbm.harmonic.solver import HbmSolver
+    from support import coarse_rom
+
+    rom = coarse_rom()
+    hbm = HbmOptions(n_harmonics=40, n_time=1024)
+    contact = ContactOptions(mu=0.25)
+    opts = default_continuation(hbm)
+    solver = HbmSolver(atol=0.1 * opts.newton.tol_residual)
+    res = build_residual(rom, CasingOptions(), contact, hbm, method="dlft")
+    u, note = solve_start(res, 2000.0, opts, solver)  # the other strategies first, as the NFRC does
+    assert note.startswith("friction homotopy from mu = 0 (damped Newton from the contact-free solution; "), note
+    assert res.contact == contact
+    fresh = build_residual(rom, CasingOptions(), contact, hbm, method="dlft")
+    assert np.linalg.norm(fresh(u, 2000.0, jacobian=False)) <= opts.newton.tol_residual
+    # the solution the isola search reaches from its own seeds (`bladerub run
+    # scenes/rotor67_coarse.toml --set contact.mu=0.25`: DLFT's detached branch over 1979-2000
+    # rad/s, 0.9018315 mm at 2000 rad/s); the fold's other solution there has 0.9091 mm
+    assert nfrc_extras(fresh, u)["le_amplitude"] == pytest.approx(0.9018315e-3, rel=1e-6)
+
+
+def test_a_friction_homotopy_that_finds_no_frictionless_start_says_so_and_leaves_mu_alone():
+    """With a tolerance no iterate meets, the frictionless start fails too: the friction
+    homotopy's reason says so, after the other strategies' reasons, and the residual is left
+    at the scene's mu (not at the mu = 0 the homotopy started from)."""
+    from hbm.harmonic.solver import HbmSolver
+    from support import coarse_rom
+
+    hbm = HbmOptions(n_harmonics=3, n_time=32)
+    contact = ContactOptions(mu=0.25)
+    opts = default_continuation(hbm)
+    opts = replace(opts, newton=replace(opts.newton, tol_residual=1e-300))
+    res = build_residual(coarse_rom(), CasingOptions(), contact, hbm, method="dlft")
+    u, note = solve_start(res, 2000.0, opts, HbmSolver(atol=1e-12))
+    assert note.startswith("no start found: damped Newton from the contact-free solution: ") and \
+        "; obstacle homotopy: " in note and "; friction homotopy: no start at mu = 0 (no start found: " in note, note
+    assert res.contact == contact
