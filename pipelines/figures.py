@@ -164,10 +164,10 @@ def plot_nfrc(curves: dict, out_png, ti_points=None, *, omega_range=(400.0, 2000
         handles.append(line)
         if not ok.all():
             any_failed = True
-            # a failed point's amplitude is that of the iterate Newton gave up on (120 mm for a
-            # start that did not converge, mu = 0.25): marked where it falls inside the range
-            # of the rest, never stretching the axes over it
-            # (add_artist, unlike plot, leaves the data limits that autoscaling reads alone)
+            # a failed point's amplitude is that of the iterate Newton gave up on (a start that
+            # did not converge gave 120 mm): marked where it falls inside the range of the rest,
+            # never stretching the axes over it (add_artist, unlike plot, leaves the data
+            # limits that autoscaling reads alone)
             ax.add_artist(Line2D(omega[~ok], amplitude[~ok], ls="none", marker="x", color="0.55", ms=3, zorder=2))
     if any_failed:
         handles.append(Line2D([], [], ls="none", marker="x", color="0.55", label="not converged"))

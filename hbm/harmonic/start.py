@@ -92,11 +92,12 @@ def obstacle_homotopy(res: HarmonicBalanceResidual, omega: float, opts: Continua
 def friction_homotopy(res: HarmonicBalanceResidual, omega: float, opts: ContinuationOptions,
                       solver: LinearSolver) -> tuple[np.ndarray | None, str]:
     """The solution at the scene's mu followed from the frictionless one (mu = 0, started by
-    solve_start) by an arc length in mu. Past the friction lock the solutions fold in mu, so
-    no jump reaches them: on the coarse rotor 67 ROM at 2000 rad/s and N_h = 40, Newton from
-    the solutions at mu = 0, 0.1, 0.15 or 0.2 fails at mu = 0.25, where the branch in mu
-    climbs to 0.19, folds back to 0.14 and climbs again, reaching 0.25 in about 480 points
-    (DLFT and RL alike). Returns (u, note), u None when it does not reach the scene's mu."""
+    solve_start) by an arc length in mu. Past the friction lock the solutions can fold in mu,
+    out of a jump's reach: on the coarse rotor 67 ROM at 2000 rad/s and N_h = 40, damped
+    Newton from the solutions at mu = 0, 0.1 or 0.15 fails at mu = 0.25 (at 0.2 no other
+    strategy starts), while the branch in mu climbs to 0.19, folds back to 0.14 and climbs
+    again, reaching 0.25 in about 480 points (DLFT and RL alike). Returns (u, note), u None
+    when it does not reach the scene's mu."""
     c = res.contact
     try:
         res.contact = replace(c, mu=0.0)  # res.friction stays on: the friction terms vanish

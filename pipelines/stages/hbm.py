@@ -232,7 +232,7 @@ def write_hbm_vtu(ctx: Context) -> None:
     stored = load_branch(out / nfrc_output(method).file)
     try:
         i = chosen_point(stored, scene.render.hbm_omega)
-    except ValueError as exc:  # the run's way out: a scene whose NFRC never starts (a friction lock)
+    except ValueError as exc:  # the run's way out: a scene whose NFRC never starts
         raise ValueError(f"{nfrc_output(method).file}: {exc}; or write no NFRC point for ParaView in runs: "
                          "[render] hbm_instants = 0") from None
     u, omega = stored.branch.x[i], float(stored.branch.omega[i])

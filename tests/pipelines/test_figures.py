@@ -311,8 +311,9 @@ def test_a_long_legend_goes_into_columns_and_stays_on_the_page(tmp_path, monkeyp
 
 def test_an_nfrc_without_a_converged_point_neither_scales_the_axes_nor_reads_as_a_curve(tmp_path, monkeypatch,
                                                                                      sweep):
-    """An NFRC that never started (coarse scene, mu = 0.25) holds one failed point, the 120 mm
-    amplitude of the iterate Newton gave up on: its cross stretched Fig. 6's axis to 125 mm and
+    """An NFRC that never started (the coarse scene's at mu = 0.25 did, before the arc length in
+    mu among the start strategies) holds one failed point, the 120 mm amplitude of the iterate
+    Newton gave up on: its cross stretched Fig. 6's axis to 125 mm and
     pressed the sweep's 2 mm points onto the floor, and its name stood in the legend as a
     curve. Now the axes are the sweep's, the legend says the NFRC has no converged point, and
     Fig. 8 names no branch it does not draw."""
