@@ -174,18 +174,21 @@ def open_in_place(path: Path | str, mode: str) -> h5py.File:
     copy of its content too, which the run appends to; the other program reads on what it
     had (else the stage would start over and lose the points on disk)."""
     path = Path(path)
+
+    def own_copy():  # its content in a file (inode) of its own, under its name
+        with atomic_output(path) as tmp:
+            shutil.copyfile(path, tmp)
+
     if mode == "w" or (path.is_symlink() and not path.exists()):
         path.unlink(missing_ok=True)
     elif path.is_file() and (path.is_symlink() or os.stat(path).st_nlink > 1):
-        with atomic_output(path) as tmp:
-            shutil.copyfile(path, tmp)
+        own_copy()
     try:
         return h5py.File(path, mode)
     except BlockingIOError:  # "unable to lock file": the lock is on the inode, a copy has none
         if mode not in ("r+", "a") or not path.is_file():
             raise
-        with atomic_output(path) as tmp:
-            shutil.copyfile(path, tmp)
+        own_copy()
         return h5py.File(path, mode)
 
 

@@ -26,6 +26,30 @@ def damped_newton(res, u0: np.ndarray, omega: float, opts: NewtonOptions, solver
     return newton_solve(res, u0, omega, replace(opts, line_search=True, max_iter=max_iter), solver=solver)
 
 
+def _in_parameter(res, omega: float, set_value, h: float, *, forward: bool = False, reset=None):
+    """residual(u, p, jacobian=True) -> (R, dR/du, dR/dp) of an arc length in a parameter p
+    that set_value(p) puts into res (at fixed omega, rad/s): dR/dp by a central difference
+    of step h, or a forward one (a parameter that may not go below its start); reset(), when
+    given, runs after every call. jacobian False: R alone (a line search's merit). The
+    derivative is a start-up aid only: the continuation's corrector checks the answer."""
+    def residual(u, p, jacobian=True):
+        try:
+            set_value(p)
+            if not jacobian:
+                return res(u, omega, jacobian=False)
+            R, J, _ = res(u, omega)
+            set_value(p + h)
+            Rp = res(u, omega, jacobian=False)
+            if forward:
+                return R, J, (Rp - R) / h
+            set_value(p - h)
+            return R, J, (Rp - res(u, omega, jacobian=False)) / (2 * h)
+        finally:
+            if reset is not None:
+                reset()
+    return residual
+
+
 def penalty_homotopy(res: HarmonicBalanceResidual, u_soft: np.ndarray, omega: float, opts: ContinuationOptions,
                      solver: LinearSolver, kappa_start: float) -> tuple[np.ndarray | None, str]:
     """RL's solution at the scene's kappa, followed from u_soft, a solution (or a close guess,
@@ -41,18 +65,8 @@ def penalty_homotopy(res: HarmonicBalanceResidual, u_soft: np.ndarray, omega: fl
         sol = newton_solve(rk, u_soft, omega, opts.newton, solver=solver)
         return (sol.x, "Newton at kappa") if sol.converged else (None, f"Newton at kappa: {sol.reason}")
 
-    def penalty(u, q, jacobian=True):  # q = log10 kappa; dR/dq by central difference
-        rk.contact = replace(c, kappa=float(10.0 ** q))
-        if not jacobian:  # a line search's merit: R alone
-            return rk(u, omega, jacobian=False)
-        R, J, _ = rk(u, omega)
-        h = 1e-5
-        rk.contact = replace(c, kappa=float(10.0 ** (q + h)))
-        Rp = rk(u, omega, jacobian=False)
-        rk.contact = replace(c, kappa=float(10.0 ** (q - h)))
-        Rm = rk(u, omega, jacobian=False)
-        return R, J, (Rp - Rm) / (2 * h)
-
+    # q = log10 kappa
+    penalty = _in_parameter(rk, omega, lambda q: setattr(rk, "contact", replace(c, kappa=float(10.0 ** q))), 1e-5)
     kopt = replace(opts, omega_min=min(lo, hi), omega_max=max(lo, hi), omega_scale=0.5, ds=0.05, ds_max=0.5,
                    closed_loop_tol=None, direction=1 if hi > lo else -1, max_points=300)
     br = continue_branch(penalty, u_soft, lo, kopt, solver=solver)
@@ -67,21 +81,7 @@ def obstacle_homotopy(res: HarmonicBalanceResidual, omega: float, opts: Continua
     a round casing at the clearance (s = 0: the contact-free solution solves it) to the real
     casing (s = 1). Returns (u, note): u the last point, a solution only if the note says
     the homotopy reached s = 1 ("reached omega_max")."""
-    def homotopy(u, s, jacobian=True):
-        res.set_obstacle_scale(s)
-        try:
-            if not jacobian:  # a line search's merit: R alone
-                return res(u, omega, jacobian=False)
-            R, J, _ = res(u, omega)
-            h = 1e-6
-            res.set_obstacle_scale(s + h)
-            Rp = res(u, omega, jacobian=False)
-            res.set_obstacle_scale(s - h)
-            Rm = res(u, omega, jacobian=False)
-        finally:
-            res.set_obstacle_scale(1.0)
-        return R, J, (Rp - Rm) / (2 * h)  # dR/ds by central difference: a start-up aid only
-
+    homotopy = _in_parameter(res, omega, res.set_obstacle_scale, 1e-6, reset=lambda: res.set_obstacle_scale(1.0))
     hopt = replace(opts, omega_min=0.0, omega_max=1.0, omega_scale=0.2, ds=0.05, ds_max=0.5,
                    closed_loop_tol=None, direction=1, max_points=200)
     br = continue_branch(homotopy, res.linear_solution(omega), 0.0, hopt, solver=solver)
@@ -105,17 +105,10 @@ def friction_homotopy(res: HarmonicBalanceResidual, omega: float, opts: Continua
         if not note0 or note0.startswith("no start found"):
             return None, f"friction homotopy: no start at mu = 0 ({note0})"
 
-        def friction(u, mu, jacobian=True):  # dR/dmu by a forward difference (mu >= 0)
-            mu = max(float(mu), 0.0)  # a predictor past mu = 0 (a fold back): ContactOptions refuses mu < 0
-            res.contact = replace(c, mu=mu)
-            if not jacobian:  # a line search's merit: R alone
-                return res(u, omega, jacobian=False)
-            R, J, _ = res(u, omega)
-            h = 1e-6
-            res.contact = replace(c, mu=mu + h)
-            Rp = res(u, omega, jacobian=False)
-            res.contact = replace(c, mu=mu)
-            return R, J, (Rp - R) / h
+        in_mu = _in_parameter(res, omega, lambda mu: setattr(res, "contact", replace(c, mu=mu)), 1e-6, forward=True)
+
+        def friction(u, mu, jacobian=True):  # a predictor past mu = 0 (a fold back): ContactOptions refuses mu < 0
+            return in_mu(u, max(float(mu), 0.0), jacobian)
 
         mopt = replace(opts, omega_min=0.0, omega_max=c.mu, omega_scale=0.05, ds=0.05, ds_max=0.5,
                        closed_loop_tol=None, direction=1, max_points=1000)
