@@ -15,6 +15,7 @@ from __future__ import annotations
 import dataclasses
 import datetime
 import errno
+import functools
 import hashlib
 import json
 import os
@@ -38,8 +39,10 @@ class ArtifactError(RuntimeError):
     """An artifact that is missing, incomplete or unreadable."""
 
 
+@functools.lru_cache(maxsize=None)
 def code_version() -> str:
-    """Package version plus the git commit (with '-dirty' if the tree has changes)."""
+    """Package version plus the git commit (with '-dirty' if the tree has changes), once a
+    process: every file a run writes, and its check of the files it reuses, read it."""
     from importlib import metadata
 
     try:

@@ -228,6 +228,25 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
     return "made by an earlier version, which read other scene keys" if regrouped else "made from other inputs"
 
 
+def made_by_other_code(out: Path, outputs) -> str:
+    """"" when every output in `out` was written by this code version (or records none), else
+    a note for the log of a stage found up to date: the versions that wrote them and how to
+    recompute. A stage is current by its inputs, not by the code that computed it: an upgrade
+    keeps the hours of results it finds, and this note is where the user learns that they
+    come from another version."""
+    now = art.code_version()
+    old = set()
+    for o in outputs:
+        path = out / o.file
+        v = str(art.read_attrs(path).get("code_version", "")) if path.is_file() else ""
+        if v and v != now:
+            old.add(v)
+    if not old:
+        return ""
+    return (f"; made by bladerub {', '.join(sorted(old))}, not this {now}: delete the file or pass --force "
+            "to recompute with this version")
+
+
 def _same_value(key: str, recorded, scene) -> bool:
     """Whether `key` has the same value in the recorded scene and the run's (False where the
     recorded scene's version has no such key)."""
@@ -471,7 +490,8 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
             with progress.stage(s.stage.name) as record:
                 if not s.todo:
                     record.action, record.why = "reused", "up to date"
-                    progress.log(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})")
+                    progress.log(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})"
+                                 + made_by_other_code(out, s.outputs))
                     continue
                 record.why = s.why
                 if s.stage.name in ahead:

@@ -680,3 +680,22 @@ def test_each_reason_to_recompute_an_artifact_is_its_own(tmp_path):
 
     comp, h = expected_inputs(made, ("isolas",))["isolas.h5"]
     assert why_stale(link, comp, h, verify=False, scene=made) == "broken link"
+
+
+def test_a_stage_reused_from_another_code_version_says_which_and_how_to_recompute(tiny, tmp_path, capsys,
+                                                                                 monkeypatch):
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    made_by = art.read_attrs(out / "rom.h5")["code_version"]
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
+    printed = capsys.readouterr().out
+    assert "[rom] up to date (rom.h5)\n" in printed and "made by bladerub" not in printed, printed
+    # the same files, read by an upgraded code: still current (by their inputs), and the log says by whom
+    monkeypatch.setattr(art, "code_version", lambda: "9.9.9+upgraded")
+    before = (out / "rom.h5").read_bytes()
+    assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
+    printed = capsys.readouterr().out
+    assert (f"[rom] up to date (rom.h5); made by bladerub {made_by}, not this 9.9.9+upgraded: delete the file "
+            "or pass --force to recompute with this version") in printed, printed
+    assert (out / "rom.h5").read_bytes() == before
