@@ -108,12 +108,31 @@ def _run_method(ctx: Context, rom, output: Output, say: Reporter) -> None:
     ok = int(result.converged.sum())
     # no point at all: what each start strategy gave at either end (the status holds only the
     # continuation's last Newton), in the file's detail and the log
-    detail = "" if ok else f"no start point: {result.start}"
+    detail = f"no start point: {result.start}" if not ok else turned_back(result, scene.hbm)
     BranchStore.reopen(part).finalize(result.status, detail=detail, tables=tables)
     say.log(f"  {method}: {len(result.omega)} points ({ok} converged), {time.perf_counter() - t0:.1f} s, "
             f"status: {result.status}")
     if detail:
-        say.warn(f"the {method} NFRC has {detail}")
+        say.warn(f"the {method} NFRC {'has ' if not ok else ''}{detail}")
+
+
+def turned_back(result, hbm) -> str:
+    """"" unless the NFRC ended at the end of the range it started from (e.g. past the
+    friction lock, where the branch from 2000 rad/s turns back after a few rad/s): then which
+    stretch of [omega_min, omega_max] holds none of its points, for the file's detail and the
+    log. result: hbm.harmonic.nfrc.NfrcResult; hbm: the scene's HbmOptions."""
+    from hbm.continuation.branch import STATUS_OMEGA_MAX, STATUS_OMEGA_MIN
+
+    w = result.omega[np.asarray(result.converged, dtype=bool)]
+    if result.status not in (STATUS_OMEGA_MAX, STATUS_OMEGA_MIN) or not len(w):
+        return ""
+    end = hbm.omega_max if result.status == STATUS_OMEGA_MAX else hbm.omega_min
+    if not np.isclose(w[0], end, rtol=0, atol=1e-9 * end):
+        return ""
+    low, high = (hbm.omega_min, w.min()) if end == hbm.omega_max else (w.max(), hbm.omega_max)
+    return (f"turned back at {w.min() if end == hbm.omega_max else w.max():.1f} rad/s and ended where it started "
+            f"({end:g} rad/s): {low:.1f}-{high:.1f} rad/s holds none of its points (the isola search, "
+            "--until isolas, looks there for other branches)")
 
 
 def _content_of(rom, scene, method: str):

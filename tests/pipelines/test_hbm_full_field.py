@@ -95,3 +95,35 @@ def test_an_nfrc_that_never_starts_fails_its_paraview_figure_alone(coarse_nfrc, 
         f"{branch.status}); or write no NFRC point for ParaView in runs: [render] hbm_instants = 0; "
         f"kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5"]
     assert main(run + ["--set", "render.hbm_instants=0"]) == 0
+
+
+def test_an_nfrc_that_ends_where_it_started_says_which_stretch_it_leaves_empty(coarse_nfrc, tmp_path, capsys):
+    """Past the friction lock (mu = 0.25 > mu_set = 0.123 on the coarse ROM) RL's branch at
+    N_h = 10 starts at 2000 rad/s by the friction homotopy, turns back near 1964 rad/s and
+    leaves the range at 2000 rad/s again (measured: 54 points). Its status alone, "reached
+    omega_max", reads as a complete NFRC; the file's detail and the run's warning say which
+    stretch of the range holds none of its points. DLFT, which crosses the range, has none."""
+    import h5py
+
+    from coarse_runs import clone
+    from pipelines.branch_store import load_branch
+    from pipelines.cli import main
+
+    out = tmp_path / "out"
+    scene = clone(coarse_nfrc[1], out)
+    run = ["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", "--set", "contact.mu=0.25",
+           "--set", "hbm.n_harmonics=10", "--set", "hbm.n_time=128", "--set", "render.n_modes=0",
+           "--set", "render.hbm_instants=0"]
+    assert main(run) == 0
+    err = capsys.readouterr().err
+    rl = load_branch(out / "nfrc_rl.h5").branch
+    w = rl.omega[rl.converged]
+    assert rl.status == "reached omega_max" and w[0] == 2000.0 and 1950.0 < w.min() < 1990.0
+    with h5py.File(out / "nfrc_rl.h5", "r") as h5:
+        detail = h5.attrs["detail"]
+    assert detail == (f"turned back at {w.min():.1f} rad/s and ended where it started (2000 rad/s): "
+                      f"1900.0-{w.min():.1f} rad/s holds none of its points (the isola search, --until isolas, "
+                      "looks there for other branches)")
+    assert f"bladerub: warning: the rl NFRC {detail}" in err
+    dlft = load_branch(out / "nfrc_dlft.h5").branch
+    assert dlft.status == "reached omega_min" and dlft.detail == "" and "the dlft NFRC" not in err
