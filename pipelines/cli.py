@@ -1,5 +1,5 @@
 """Command line: `bladerub run SCENE.toml --out DIR [--until STAGE] [--force] [--yes] [--quiet]
-[--set SECTION.KEY=VALUE ...]`, `bladerub show SCENE.toml [--set ...]` (the resolved scene,
+[--dry-run] [--set SECTION.KEY=VALUE ...]`, `bladerub show SCENE.toml [--set ...]` (the resolved scene,
 every default written out), `bladerub render SCENE.toml --out DIR [--modes N] [--set ...]`.
 
 Every failure is one line on standard error, and the exit code says which kind:
@@ -77,6 +77,12 @@ def _cmd_run(args) -> int:
     progress = Progress(quiet=args.quiet or not root)
     for text in [*_repeated_sets(args.set), *scene_warnings(scene)] if root else ():  # under mpirun, once
         progress.warn(text)
+    if args.dry_run:
+        from pipelines.runner import dry_run
+
+        for line in dry_run(scene, Path(args.out), until=args.until, force=args.force) if root else ():
+            print(line)
+        return 0
     extra = ([] if args.until == STAGES[-1] else ["--until", args.until]) + (["--yes"] if args.yes else [])
     try:
         # a run refused before computing leaves no folder behind (rank 0 makes it)
@@ -283,6 +289,8 @@ def main(argv: list[str] | None = None) -> int:
     run.add_argument("--yes", action="store_true",
                      help="run even what the size guard or the free-space check refuses")
     run.add_argument("--quiet", action="store_true", help="print errors and warnings only (no live line, no summary)")
+    run.add_argument("-n", "--dry-run", action="store_true",
+                     help="say what a run would compute and why, and its estimates; compute and write nothing")
     run.set_defaults(func=_cmd_run)
     ren = sub.add_parser("render", help="render mode shapes off-screen to PNG (needs a current fem.h5 in --out)")
     ren.add_argument("scene", type=scene_file, help="scene file (TOML)")

@@ -243,8 +243,8 @@ def made_by_other_code(out: Path, outputs) -> str:
             old.add(v)
     if not old:
         return ""
-    return (f"; made by bladerub {', '.join(sorted(old))}, not this {now}: delete the file or pass --force "
-            "to recompute with this version")
+    return (f"; made by bladerub {', '.join(sorted(old))}, not this {now}: delete the "
+            f"file{'s' if len(outputs) > 1 else ''} or pass --force to recompute with this version")
 
 
 def _same_value(key: str, recorded, scene) -> bool:
@@ -315,15 +315,85 @@ def _kept(out: Path, steps, done: set, expected: dict, since: float, detailed: b
                 if not detailed:
                     kept.append(f"the {_PARTS.get(o.file, 'points')} of {names}")
                     continue
-                # only those of these inputs: the stage starts over from a partial file of others
-                counts = {f: art.read_attrs(f) for f in files}
-                counts = {f: a for f, a in counts.items() if a.get("inputs_hash") == expected[o.file][1]}
-                for what in ("points", "branches", "speeds"):
-                    n = sum(int(a.get(f"n_{what}", 0)) for a in counts.values())
-                    if n:
-                        kept.append(f"{n} {what} of {', '.join(f.name for f in counts)}")
-                        break
+                held = _resumable(files, expected[o.file][1])
+                if held:
+                    kept.append(held)
     return ", ".join(kept) if kept else "nothing new"
+
+
+def _resumable(files, h: str) -> str:
+    """What partial files of inputs hash h hold, "N points of NAME" (or branches, speeds);
+    "" when none does: a stage starts over from a partial file of other inputs."""
+    counts = {f: art.read_attrs(f) for f in files}
+    counts = {f: a for f, a in counts.items() if a.get("inputs_hash") == h}
+    for what in ("points", "branches", "speeds"):
+        n = sum(int(a.get(f"n_{what}", 0)) for a in counts.values())
+        if n:
+            return f"{n} {what} of {', '.join(f.name for f in counts)}"
+    return ""
+
+
+def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> list[str]:
+    """What `bladerub run` would do in `out`, as lines, computing and writing nothing.
+
+    Per stage: up to date (naming the code version that wrote it where another one did), or
+    the outputs it would compute and why, what it would resume from (the partial files of
+    these inputs) and its size estimate (pipelines.guard), with the refusal a run would meet;
+    then the figures it would draw. The folder is neither created, locked nor cleaned."""
+    from pipelines import guard
+    from pipelines.branch_store import partial_files
+    from pipelines.errors import RunError
+
+    if until not in STAGES:
+        raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
+    names = STAGES[: STAGES.index(until) + 1]
+    expected = expected_inputs(scene, names)
+    steps = plan(scene, out, names, force, expected) if out.is_dir() else [
+        Step(REGISTRY[n], REGISTRY[n].outputs(scene), REGISTRY[n].outputs(scene), "no artifact") for n in names]
+    lines, computed = [], set()
+    for s in steps:
+        if not s.todo:
+            lines.append(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})"
+                         + made_by_other_code(out, s.outputs))
+            continue
+        computed.update(o.file for o in s.todo)
+        resumed = [r for o in s.todo if o.file.endswith(".h5")
+                   if (r := _resumable(partial_files(out / o.file), expected[o.file][1]))]
+        lines.append(f"[{s.stage.name}] would compute {', '.join(o.file for o in s.todo)} ({s.why})"
+                     + (f", resuming from {', '.join(resumed)}" if resumed else ""))
+        try:
+            est = s.stage.estimate(scene, out, s.todo)
+        except (OSError, ValueError, KeyError, art.ArtifactError):
+            est = None  # counted from upstream files a run would compute first
+        if est is not None:
+            lines.append(f"  estimate: {est.size}; memory ~{guard.gb(est.memory)}, time ~{guard.duration(est.seconds)}, "
+                         f"files ~{guard.gb(est.disk)}")
+    try:
+        guard.check_run(scene, out, steps, Progress(quiet=True))
+    except RunError as exc:
+        lines.append(f"a run would be refused: {exc}")
+    except (OSError, ValueError, KeyError, art.ArtifactError):
+        pass  # the free space of a folder not made yet (the memory is checked before it)
+    drawn = []
+    folder_ = out / "figures"
+    try:
+        manifest = json.loads((folder_ / MANIFEST).read_text())
+        manifest = manifest if isinstance(manifest, dict) else {}
+    except (OSError, ValueError):
+        manifest = {}
+    for s in steps:
+        for fig in s.stage.figures:
+            files, inputs = fig.files(scene), fig.inputs(scene)
+            if not files:
+                continue
+            if computed & set(inputs):
+                drawn.append(f"{fig.name} (after {', '.join(sorted(computed & set(inputs)))})")
+            elif any((out / name).is_file() for name in inputs):
+                why = _figure_why(manifest.get(fig.name), figure_components(scene, out, fig), folder_, files)
+                if why:
+                    drawn.append(f"{fig.name} ({why})")
+    lines.append(f"[figures] would draw: {', '.join(drawn)}" if drawn else "[figures] up to date")
+    return lines
 
 
 #: What an interruption now would say (set while a run executes; pipelines.cli reads it).
@@ -593,6 +663,21 @@ def _figure_current(entry, h: str, folder_: Path, files) -> bool:
     return all((folder_ / f).is_file() and sums.get(f) == file_hash(folder_ / f) for f in files)
 
 
+def _figure_why(entry, comp: dict, folder_: Path, files) -> str:
+    """Why a figure with manifest entry `entry` and components `comp` (figure_components) is
+    drawn: "missing", "inputs changed: ...", "file missing or damaged"; "" when current."""
+    h = _digest(comp)
+    if _figure_current(entry, h, folder_, files):
+        return ""
+    if entry is None:
+        return "missing"
+    if not isinstance(entry, dict) or entry.get("inputs") != h:
+        recorded = entry.get("components") if isinstance(entry, dict) else None
+        named = _figure_changes(recorded, comp) if isinstance(recorded, dict) else ""
+        return f"inputs changed: {named}" if named else "inputs changed"
+    return "file missing or damaged"
+
+
 def _remove_recorded(folder_: Path, entry: dict, keep) -> None:
     """Remove the files a manifest entry recorded (names the figure declared when it was
     drawn) that are not in `keep`, and the subfolders this leaves empty. A name that is not a
@@ -641,17 +726,11 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
             comp = figure_components(scene, out, fig)
             h = _digest(comp)
             entry = manifest.get(fig.name)
-            if _figure_current(entry, h, folder_, files):
+            why = _figure_why(entry, comp, folder_, files)
+            if not why:
                 continue
             with progress.stage(f"figure {fig.name}") as record:
-                if entry is None:
-                    record.why = "missing"
-                elif not isinstance(entry, dict) or entry.get("inputs") != h:
-                    recorded = entry.get("components") if isinstance(entry, dict) else None
-                    named = _figure_changes(recorded, comp) if isinstance(recorded, dict) else ""
-                    record.why = f"inputs changed: {named}" if named else "inputs changed"
-                else:
-                    record.why = "file missing or damaged"
+                record.why = why
                 try:
                     fig.draw(Context(scene, out, progress))
                 except (ValueError, RenderError, art.ArtifactError) as exc:

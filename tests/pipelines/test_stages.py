@@ -699,3 +699,52 @@ def test_a_stage_reused_from_another_code_version_says_which_and_how_to_recomput
     assert (f"[rom] up to date (rom.h5); made by bladerub {made_by}, not this 9.9.9+upgraded: delete the file "
             "or pass --force to recompute with this version") in printed, printed
     assert (out / "rom.h5").read_bytes() == before
+
+
+def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_path, capsys):
+    # another friction, with the DLFT NFRC of it finished and then left as an interrupted
+    # run's partial file: the dry run must name the stages, the resume and the figures that
+    # the real run then computes, resumes and draws, and touch nothing (not even the lock)
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    sets = ["--set", "contact.mu=0.1"]
+    assert main(["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", *sets]) == 0
+    (out / "nfrc_dlft.h5").rename(out / "nfrc_dlft.partial.h5")
+    with h5py.File(out / "nfrc_dlft.partial.h5", "a") as h5:  # started by another run than the figures' NFRC
+        h5.attrs["created"] = "2026-01-01T00:00:00+00:00"
+    n = int(art.read_attrs(out / "nfrc_dlft.partial.h5")["n_points"])
+    assert n > 1
+
+    def state():
+        return {p: (p.stat().st_mtime_ns, p.stat().st_size) for p in out.rglob("*")}
+
+    before = state()
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--dry-run", *sets]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert state() == before
+    assert said[:3] == [f"[{s}] up to date ({s}.h5)" for s in ("mesh", "fem", "rom")], said
+    assert (f"[hbm] would compute nfrc_dlft.h5 (nfrc_dlft.h5: no artifact), resuming from {n} points of nfrc_dlft.partial.h5"
+            in said), said[3]
+    assert any(line.startswith("  estimate: 1 NFRC(s) of ") for line in said), said
+    would = {re.match(r"\[(\w+)\] would compute ", line).group(1) for line in said if " would compute " in line}
+    figures = [line for line in said if line.startswith("[figures] would draw: ")]
+    assert len(figures) == 1, said
+    drawn_said = set(re.findall(r"(\w+) \(after ", figures[0]))
+    assert main(["run", str(scene), "--out", str(out), *sets]) == 0
+    printed = capsys.readouterr().out
+    assert set(re.findall(r"\[(\w+)\] running \(", printed)) == would == {"hbm", "ti", "isolas", "validation"}
+    assert f"dlft: resuming from {n} points on disk" in printed
+    drawn = re.search(r"\[figures\] drawn: (.*) -> ", printed).group(1).split(", ")
+    assert set(drawn) == drawn_said, (drawn, figures)
+    # and now nothing is left to do
+    assert main(["run", str(scene), "--out", str(out), "--dry-run", *sets]) == 0
+    said = capsys.readouterr().out.splitlines()
+    assert not any(" would " in line for line in said) and said[-1] == "[figures] up to date", said
+    # a run the size guard would refuse: the dry run says so, with the refusal the run then meets
+    small = [*sets, "--set", "hbm.n_harmonics=6", "--set", "limits.memory_gb=0.01"]
+    assert main(["run", str(scene), "--out", str(out), "--dry-run", *small]) == 0
+    refused = [line for line in capsys.readouterr().out.splitlines() if line.startswith("a run would be refused: ")]
+    assert len(refused) == 1 and "[hbm] " in refused[0], refused
+    assert main(["run", str(scene), "--out", str(out), "--quiet", *small]) == 2
+    assert capsys.readouterr().err.strip().endswith(refused[0][len("a run would be refused: "):])
