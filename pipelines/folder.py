@@ -102,6 +102,25 @@ def _holder(fd: int, wait_s: float = 1.0) -> str:
             f"started {info.get('started', '?')})")
 
 
+def holder(out: Path) -> str:
+    """Who holds the folder's lock now ("" when no run does), without touching it: read from
+    the kernel's table of flock locks (/proc/locks, Linux), not by trying the lock, which for
+    an instant would refuse a run starting then."""
+    path = Path(out) / LOCK
+    try:
+        st = os.stat(path)
+        table = Path("/proc/locks").read_text()
+    except OSError:
+        return ""
+    me = f"{os.major(st.st_dev):02x}:{os.minor(st.st_dev):02x}:{st.st_ino}"
+    for line in table.splitlines():
+        fields = line.split()
+        # "1: FLOCK  ADVISORY  WRITE 25458 fe:00:10412076 0 EOF" (blocked waiters read "->")
+        if len(fields) >= 6 and fields[1] == "FLOCK" and fields[5] == me:
+            return _holder_of(path)
+    return ""
+
+
 def _open_lock(path: Path) -> int:
     try:
         return os.open(path, os.O_RDWR | os.O_CREAT, 0o644)

@@ -339,7 +339,8 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
     Per stage: up to date (naming the code version that wrote it where another one did), or
     the outputs it would compute and why, what it would resume from (the partial files of
     these inputs) and its size estimate (pipelines.guard), with the refusal a run would meet;
-    then the figures it would draw. The folder is neither created, locked nor cleaned."""
+    then the figures it would draw; first, the run that holds the folder now, if one does.
+    The folder is neither created, locked nor cleaned."""
     from pipelines import guard
     from pipelines.branch_store import partial_files
     from pipelines.errors import RunError
@@ -350,7 +351,9 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
     expected = expected_inputs(scene, names)
     steps = plan(scene, out, names, force, expected) if out.is_dir() else [
         Step(REGISTRY[n], REGISTRY[n].outputs(scene), REGISTRY[n].outputs(scene), "no artifact") for n in names]
-    lines, computed = [], set()
+    busy = folder.holder(out)
+    lines, computed = ([f"a run holds this folder: {busy}; what it is computing reads as to compute"]
+                       if busy else []), set()
     for s in steps:
         if not s.todo:
             lines.append(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})"

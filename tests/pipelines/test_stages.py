@@ -748,3 +748,16 @@ def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_
     assert len(refused) == 1 and "[hbm] " in refused[0], refused
     assert main(["run", str(scene), "--out", str(out), "--quiet", *small]) == 2
     assert capsys.readouterr().err.strip().endswith(refused[0][len("a run would be refused: "):])
+    # while a run holds the folder, the dry run names it first (read from the kernel's lock
+    # table: trying the lock would refuse, for an instant, a run starting then)
+    from pipelines import folder
+
+    with folder.hold(out, "bladerub run the-other-one"):
+        assert main(["run", str(scene), "--out", str(out), "--dry-run", *sets]) == 0
+        said = capsys.readouterr().out.splitlines()
+        with pytest.raises(folder.FolderBusy):  # and the lock is still held, by that run alone
+            with folder.hold(out, "a third"):
+                pass
+    assert said[0].startswith(f"a run holds this folder: pid {os.getpid()} on ") and "the-other-one" in said[0], said
+    assert main(["run", str(scene), "--out", str(out), "--dry-run", *sets]) == 0
+    assert not capsys.readouterr().out.startswith("a run holds")
