@@ -83,11 +83,20 @@ class Progress:
         self.console = Console(highlight=False, force_terminal=None if _stdout_is_terminal() else False)
         self.live = (not quiet) and (self.console.is_terminal if live is None else live)
         self.records: list[StageRecord] = []
+        self._said: set[str] = set()
 
     def log(self, text: str) -> None:
         """A line of the run's log (suppressed by --quiet)."""
         if not self.quiet:
             print(text, flush=True)
+
+    def log_once(self, text: str) -> None:
+        """log(text) unless this run logged it already through log_once: a fact several stages
+        depend on (the ROM's friction lock for the scene's mu) is said by the first of them
+        the run computes, and by a later one only when that one was reused."""
+        if text not in self._said:
+            self._said.add(text)
+            self.log(text)
 
     def warn(self, text: str) -> None:
         """A warning: on standard error, --quiet or not (a valid run that may be pointless)."""

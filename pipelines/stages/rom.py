@@ -24,10 +24,10 @@ def read_rom(out, with_recovery: bool = False):
 
 def warn_friction_lock(ctx: Context, rom) -> None:
     """Log the friction-lock warnings of the ROM's table for the scene's mu (the stages that
-    use mu call this: the table in rom.h5 does not depend on mu)."""
+    use mu call this: the table in rom.h5 does not depend on mu), once a run."""
     if rom.friction_lock is not None:
         for line in rom.friction_lock.warnings(ctx.scene.contact.mu):
-            ctx.log("  WARNING: " + line)
+            ctx.progress.log_once("  WARNING: " + line)
 
 
 def past_friction_lock(mu: float, rom) -> bool:
@@ -52,7 +52,7 @@ def _compute(ctx: Context, outputs) -> None:
     how = "(le-leads: the LE leads)" if scene.blade.rotation == "le-leads" else "(stated in the scene)"
     ctx.log(f"  rotation: s = {rom.rotation:+d} {how}")
     # the table in rom.h5 does not depend on mu (changing mu must not rerun the ROM); the
-    # verdict for the scene's mu is printed here and again by the stages that use mu
+    # verdict for the scene's mu is printed here, and by the stages that use mu when the ROM was reused
     for line in rom.friction_lock.report(scene.contact.mu):
         ctx.log("  " + line)
     warn_friction_lock(ctx, rom)

@@ -761,3 +761,22 @@ def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_
     assert said[0].startswith(f"a run holds this folder: pid {os.getpid()} on ") and "the-other-one" in said[0], said
     assert main(["run", str(scene), "--out", str(out), "--dry-run", *sets]) == 0
     assert not capsys.readouterr().out.startswith("a run holds")
+
+
+def test_the_friction_lock_warning_is_said_once_a_run_by_the_first_stage_that_computes(tiny, tmp_path, capsys):
+    # mu = 0.15 drags the coarse ROM's node 6 into the casing: the rom, hbm and ti stages each
+    # used to print the warning; a run says it once, and a stage after a reused ROM says it
+    scene, base = tiny
+    out = fresh_copy(base, tmp_path / "out")
+    for name in ("rom.h5", "nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5"):
+        (out / name).unlink()
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--until", "ti"]) == 0
+    printed = capsys.readouterr().out
+    said = [line for line in printed.splitlines() if "WARNING: friction mu = 0.15 drags contact node(s) 6" in line]
+    assert len(said) == 1 and printed.index(said[0]) < printed.index("[rom] done"), said
+    assert "[hbm] running" in printed and "[ti] " in printed
+    assert main(["run", str(scene), "--out", str(out), "--until", "ti", "--set", "contact.mu=0.149"]) == 0
+    printed = capsys.readouterr().out
+    said = [line for line in printed.splitlines() if "WARNING: friction mu = 0.149 drags contact node(s) 6" in line]
+    assert "[rom] up to date" in printed and len(said) == 1, printed
