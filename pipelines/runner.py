@@ -360,10 +360,14 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
                          + made_by_other_code(out, s.outputs))
             continue
         computed.update(o.file for o in s.todo)
-        resumed = [r for o in s.todo if o.file.endswith(".h5")
-                   if (r := _resumable(partial_files(out / o.file), expected[o.file][1]))]
+        parts = {o: partial_files(out / o.file) if o.file.endswith(".h5") else [] for o in s.todo}
+        resumed = [r for o, files in parts.items() if (r := _resumable(files, expected[o.file][1]))]
+        # the partial files a run starts over from: of another scene, or unreadable (the stage says which)
+        dropped = [f.name for o, files in parts.items() for f in files
+                   if art.read_attrs(f).get("inputs_hash") != expected[o.file][1]]
         lines.append(f"[{s.stage.name}] would compute {', '.join(o.file for o in s.todo)} ({s.why})"
-                     + (f", resuming from {', '.join(resumed)}" if resumed else ""))
+                     + (f", resuming from {', '.join(resumed)}" if resumed else "")
+                     + (f", starting over from {', '.join(dropped)} (other inputs, or unreadable)" if dropped else ""))
         try:
             est = s.stage.estimate(scene, out, s.todo)
         except (OSError, ValueError, KeyError, art.ArtifactError):

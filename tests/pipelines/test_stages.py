@@ -727,6 +727,12 @@ def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_
     assert (f"[hbm] would compute nfrc_dlft.h5 (nfrc_dlft.h5: no artifact), resuming from {n} points of nfrc_dlft.partial.h5"
             in said), said[3]
     assert any(line.startswith("  estimate: 1 NFRC(s) of ") for line in said), said
+    # of another friction, the same partial file is one a run starts over from
+    assert main(["run", str(scene), "--out", str(out), "--dry-run", "--set", "contact.mu=0.11"]) == 0
+    other = capsys.readouterr().out.splitlines()
+    assert other[3] == ("[hbm] would compute nfrc_dlft.h5, nfrc_rl.h5 (nfrc_dlft.h5: no artifact; nfrc_rl.h5: inputs "
+                        "changed: contact.mu 0.1 -> 0.11), starting over from nfrc_dlft.partial.h5 (other inputs, "
+                        "or unreadable)"), other[3]
     would = {re.match(r"\[(\w+)\] would compute ", line).group(1) for line in said if " would compute " in line}
     figures = [line for line in said if line.startswith("[figures] would draw: ")]
     assert len(figures) == 1, said
