@@ -590,7 +590,12 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
     except KeyboardInterrupt:
         raise Interrupted(describe()) from None
     except _FigureFailed as exc:  # after the stages: not "nothing was computed" (a ValueError's exit 2)
-        said = "; ".join(f"figure {name} failed: {art.first_line(why)}" for name, why in exc.failures)
+        def left(stale):  # a ParaView series is a .pvd and one file per instant: the first few
+            return ", ".join(stale) if len(stale) <= 3 else f"{', '.join(stale[:2])} and {len(stale) - 2} more"
+
+        said = "; ".join(f"figure {name} failed: {art.first_line(why)}"
+                         + (f" (its last drawing stays, from other inputs: {left(stale)})" if stale else "")
+                         for name, why, stale in exc.failures)
         raise StageFailed(f"{said}; kept: {kept()}") from exc.failures[0][1]
     except ChildDied as exc:  # a stage's own process that ended without a word (killed): a rerun resumes
         raise StageFailed(f"{where} failed: {exc}; {resumable()}") from exc
@@ -619,10 +624,11 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
 
 
 class _FigureFailed(ValueError):
-    """Figures whose drawing failed (update_figures); failures: [(name, the exception)]."""
+    """Figures whose drawing failed (update_figures); failures: [(name, the exception, the
+    files under figures/ its last drawing left, which now stand for other inputs)]."""
 
     def __init__(self, failures: list):
-        super().__init__(f"figure(s) {', '.join(name for name, _ in failures)} failed")
+        super().__init__(f"figure(s) {', '.join(name for name, *_ in failures)} failed")
         self.failures = failures
 
 
@@ -706,7 +712,7 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
 
     A figure whose drawing fails on its data (ValueError: an NFRC without a converged point),
     on an input it finds unusable (ArtifactError: a ROM without its recovery matrix) or on the
-    machine (no off-screen OpenGL for the mode pictures: RenderError) keeps its previous files
+    machine (no off-screen OpenGL for the mode pictures: RenderError) keeps its previous files (named in the error)
     and no manifest entry of this drawing; the others are drawn all the same (the NFRC plots
     need no OpenGL), and _FigureFailed names every failed one at the end."""
     from pipelines.render import RenderError
@@ -742,7 +748,9 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
                     fig.draw(Context(scene, out, progress))
                 except (ValueError, RenderError, art.ArtifactError) as exc:
                     record.action = "failed"
-                    failed.append((fig.name, exc))
+                    recorded = entry.get("files", {}) if isinstance(entry, dict) else {}
+                    stale = sorted(f"figures/{f}" for f in recorded if isinstance(f, str) and (folder_ / f).is_file())
+                    failed.append((fig.name, exc, stale))
                     continue
             if isinstance(entry, dict):  # e.g. another stem (the first of hbm.methods changed)
                 _remove_recorded(folder_, entry, files)

@@ -79,6 +79,9 @@ def test_an_nfrc_that_never_starts_fails_its_paraview_figure_alone(coarse_nfrc, 
     monkeypatch.setattr(nfrc_module, "solve_start", nowhere)  # one treatment: computed in this process
     out = tmp_path / "out"
     scene = clone(coarse_nfrc[1], out)
+    # the clone's ParaView series of a converged point: the figure's last drawing, which stays
+    n_left = 1 + len(list((out / "figures" / "hbm_dlft").glob("hbm_dlft_*.vtu")))
+    assert n_left > 3
     run = ["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", "--set", 'hbm.methods=["dlft"]',
            "--set", "hbm.max_points=3999", "--set", "render.n_modes=0"]
     assert main(run) == 1
@@ -92,7 +95,8 @@ def test_an_nfrc_that_never_starts_fails_its_paraview_figure_alone(coarse_nfrc, 
     assert f"bladerub: warning: the dlft NFRC has {detail}" in err
     assert [line for line in err if line.startswith("bladerub: error: ")] == [
         f"bladerub: error: figure hbm_vtu failed: nfrc_dlft.h5: the NFRC has no converged point to write (its status: "
-        f"{branch.status}); or write no NFRC point for ParaView in runs: [render] hbm_instants = 0; "
+        f"{branch.status}); or write no NFRC point for ParaView in runs: [render] hbm_instants = 0 (its last drawing "
+        f"stays, from other inputs: figures/hbm_dlft.pvd, figures/hbm_dlft/hbm_dlft_000.vtu and {n_left - 2} more); "
         f"kept: mesh.h5, fem.h5, rom.h5, nfrc_dlft.h5"]
     assert main(run + ["--set", "render.hbm_instants=0"]) == 0
 

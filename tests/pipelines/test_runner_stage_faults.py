@@ -117,6 +117,35 @@ def test_the_figures_after_a_failed_one_are_drawn_and_every_failure_named(scene,
     assert set(manifest) == {"good"}  # the failed ones are drawn again by the next run
 
 
+def test_a_failed_figure_names_the_files_its_last_drawing_left(scene, tmp_path, monkeypatch, capsys):
+    """A figure that fails keeps its last drawing's files (a failed run overwrites nothing),
+    which now stand for other inputs: after a run at mu = 0.25, figures/hbm_dlft.pvd still
+    held the mu = 0.15 point, and nothing said so. The line names them."""
+    def good(ctx):
+        (ctx.out / "figures" / "sub").mkdir(parents=True, exist_ok=True)
+        (ctx.out / "figures" / "pic.png").write_bytes(b"drawn")
+        (ctx.out / "figures" / "sub" / "pic.vtu").write_bytes(b"drawn")
+
+    def bad(ctx):
+        raise ValueError("the NFRC has no converged point to write")
+
+    def figure(draw):
+        return (Figure("pic", lambda s: ("pic.png", "sub/pic.vtu", "gone.vtu"), (), lambda s: ("scene.toml",), draw),)
+
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: None, figures=figure(good))
+    assert run(scene, tmp_path) == 0
+    path = tmp_path / "figures" / "manifest.json"
+    manifest = json.loads(path.read_text())
+    manifest["pic"]["inputs"] = "the hash of other inputs"
+    path.write_text(json.dumps(manifest))
+    mesh_stage(monkeypatch, compute=lambda ctx, outputs: None, figures=figure(bad))
+    assert run(scene, tmp_path) == 1
+    assert one_line(capsys.readouterr().err) == (
+        "bladerub: error: figure pic failed: the NFRC has no converged point to write (its last drawing stays, "
+        "from other inputs: figures/pic.png, figures/sub/pic.vtu); kept: mesh.h5")
+    assert (tmp_path / "figures" / "pic.png").read_bytes() == b"drawn"
+
+
 def test_a_partial_file_of_other_inputs_is_not_said_kept(scene, tmp_path, monkeypatch, capsys):
     # rank 0's partial file left by a run of other inputs (the stage starts over from it), rank 1's
     # of these inputs; before: "kept: 17 points of mesh.partial.h5, mesh.r1.partial.h5"
