@@ -36,6 +36,7 @@ import os
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from types import SimpleNamespace
 
 from hbm.processes import WorkerDied
 from pipelines import artifacts as art
@@ -349,8 +350,17 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
         raise ValueError(f"unknown stage '{until}'; stages: {', '.join(STAGES)}")
     names = STAGES[: STAGES.index(until) + 1]
     expected = expected_inputs(scene, names)
-    steps = plan(scene, out, names, force, expected) if out.is_dir() else [
-        Step(REGISTRY[n], REGISTRY[n].outputs(scene), REGISTRY[n].outputs(scene), "no artifact") for n in names]
+    steps = plan(scene, out, names, force, expected)  # a folder not made yet: "no artifact" throughout
+    # the size guard's own estimate lines, "[stage] estimate: ...", of every stage (yes: past
+    # one a run would be refused at), then the refusal a run would meet
+    said, refused = [], ""
+    for yes, log in ((True, said.append), (False, lambda text: None)):
+        try:
+            guard.check_run(scene, out, steps, SimpleNamespace(log=log), yes=yes)
+        except RunError as exc:
+            refused = f"a run would be refused: {exc}"
+        except OSError:
+            pass  # the free space of a folder not made yet (the memory is checked before it)
     busy = folder.holder(out)
     lines, computed = ([f"a run holds this folder: {busy}; what it is computing reads as to compute"]
                        if busy else []), set()
@@ -368,26 +378,13 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
         lines.append(f"[{s.stage.name}] would compute {', '.join(o.file for o in s.todo)} ({s.why})"
                      + (f", resuming from {', '.join(resumed)}" if resumed else "")
                      + (f", starting over from {', '.join(dropped)} (other inputs, or unreadable)" if dropped else ""))
-        try:
-            est = s.stage.estimate(scene, out, s.todo)
-        except (OSError, ValueError, KeyError, art.ArtifactError):
-            est = None  # counted from upstream files a run would compute first
-        if est is not None:
-            lines.append(f"  estimate: {est.size}; memory ~{guard.gb(est.memory)}, time ~{guard.duration(est.seconds)}, "
-                         f"files ~{guard.gb(est.disk)}")
-    try:
-        guard.check_run(scene, out, steps, Progress(quiet=True))
-    except RunError as exc:
-        lines.append(f"a run would be refused: {exc}")
-    except (OSError, ValueError, KeyError, art.ArtifactError):
-        pass  # the free space of a folder not made yet (the memory is checked before it)
+        head = f"[{s.stage.name}] estimate: "
+        lines.extend("  estimate: " + line[len(head):] for line in said if line.startswith(head))
+    if refused:
+        lines.append(refused)
     drawn = []
     folder_ = out / "figures"
-    try:
-        manifest = json.loads((folder_ / MANIFEST).read_text())
-        manifest = manifest if isinstance(manifest, dict) else {}
-    except (OSError, ValueError):
-        manifest = {}
+    manifest = _read_manifest(folder_)
     for s in steps:
         for fig in s.stage.figures:
             files, inputs = fig.files(scene), fig.inputs(scene)
@@ -396,7 +393,8 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
             if computed & set(inputs):
                 drawn.append(f"{fig.name} (after {', '.join(sorted(computed & set(inputs)))})")
             elif any((out / name).is_file() for name in inputs):
-                why = _figure_why(manifest.get(fig.name), figure_components(scene, out, fig), folder_, files)
+                comp = figure_components(scene, out, fig)
+                why = _figure_why(manifest.get(fig.name), comp, _digest(comp), folder_, files)
                 if why:
                     drawn.append(f"{fig.name} ({why})")
     lines.append(f"[figures] would draw: {', '.join(drawn)}" if drawn else "[figures] up to date")
@@ -676,10 +674,19 @@ def _figure_current(entry, h: str, folder_: Path, files) -> bool:
     return all((folder_ / f).is_file() and sums.get(f) == file_hash(folder_ / f) for f in files)
 
 
-def _figure_why(entry, comp: dict, folder_: Path, files) -> str:
-    """Why a figure with manifest entry `entry` and components `comp` (figure_components) is
-    drawn: "missing", "inputs changed: ...", "file missing or damaged"; "" when current."""
-    h = _digest(comp)
+def _read_manifest(folder_: Path) -> dict:
+    """figures/manifest.json as a dict ({} when missing or unreadable: every figure is drawn)."""
+    try:
+        manifest = json.loads((folder_ / MANIFEST).read_text())
+    except (OSError, ValueError):
+        return {}
+    return manifest if isinstance(manifest, dict) else {}
+
+
+def _figure_why(entry, comp: dict, h: str, folder_: Path, files) -> str:
+    """Why a figure with manifest entry `entry`, components `comp` (figure_components) and
+    their digest h is drawn: "missing", "inputs changed: ...", "file missing or damaged"; ""
+    when current."""
     if _figure_current(entry, h, folder_, files):
         return ""
     if entry is None:
@@ -719,11 +726,7 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
 
     folder_ = out / "figures"
     path = folder_ / MANIFEST
-    try:
-        manifest = json.loads(path.read_text())
-        manifest = manifest if isinstance(manifest, dict) else {}
-    except (OSError, ValueError):
-        manifest = {}
+    manifest = _read_manifest(folder_)
     drawn, failed = [], []
     for stage in stages:
         for fig in stage.figures:
@@ -739,7 +742,7 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
             comp = figure_components(scene, out, fig)
             h = _digest(comp)
             entry = manifest.get(fig.name)
-            why = _figure_why(entry, comp, folder_, files)
+            why = _figure_why(entry, comp, h, folder_, files)
             if not why:
                 continue
             with progress.stage(f"figure {fig.name}") as record:
