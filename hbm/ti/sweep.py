@@ -101,7 +101,9 @@ class SweepResult:
     transient_bound: bound on the transient left in the window, relative to each node's range
         (hbm.ti.settle), (n_omega,), -; <= settle_rtol where the march stopped early, inf where
         no period was found.
-    cpu_time: wall time of each point in its worker, (n_omega,), s.
+    cpu_time: CPU time of each point, of the process that marched it (one thread: BLAS on one
+        thread in the workers), (n_omega,), s; the first point a process marches includes
+        numba's compilation where its cache was cold.
     boundary: every boundary dof (r, theta, z of each contact node, node-major, the HBM's
         order) over the last BOUNDARY_REVOLUTIONS revolutions of the window, samples_per_revolution
         samples a revolution from a whole revolution (Omega t = 0 mod 2 pi),
@@ -151,7 +153,8 @@ def simulate(system: ModalSystem, casing: CasingOptions, mu: float, omega: float
              options: TimeIntegrationOptions) -> SpeedResponse:
     """One point of the sweep: from rest at rotation speed omega (rad/s) until settled or
     n_revolutions. system: the full ModalSystem (or the scheme's, see scheme_system)."""
-    t_start = time.perf_counter()
+    t_start = time.process_time()  # CPU, not wall: a speed marched beside the NFRCs' processes
+    # shares the cores with them, and its wall time would say how busy the machine was
     system = scheme_system(system, options.scheme, options.massless_cutoff)
     n_l, spr, n_keep = casing.n_lobes, options.samples_per_revolution, options.n_keep
     if n_keep * n_l < 2:  # checked before the march, not after its first n_keep + 1 revolutions
@@ -218,7 +221,7 @@ def _response(marcher: Marcher, verdict, revs: int, n_rev: int, spr: int, n_l: i
         times=m.times[samples], displacement=m.displacement[samples][:, [0, 3 * (nb - 1)]],
         normal_force=m.normal_force[samples][:, [0, -1]],
         sections=sections, contact_fraction=m.contact_steps / (revs * n_rev), max_penetration=m.max_penetration,
-        revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.perf_counter() - t_start,
+        revolutions=int(revs), transient_bound=float(verdict.bound), cpu_time=time.process_time() - t_start,
         boundary=np.array(m.displacement[last]), active_set_failures=int(m.active_set_failures),
         explicit_direction_steps=int(m.explicit_direction_steps))
 

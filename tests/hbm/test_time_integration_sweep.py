@@ -14,6 +14,7 @@ import math
 import os
 import subprocess
 import sys
+import time
 from dataclasses import fields, replace
 from pathlib import Path
 
@@ -115,6 +116,27 @@ def test_sweep_from_rest_locks_onto_the_casing():
     # block means of the force keep the impulse: mean force over the window = mean lam
     coeffs, lam, _ = exact_orbit(100.0)
     assert res.normal_force[0, :, 0].mean() == pytest.approx(lam.mean(), rel=1e-3)
+
+
+def test_a_speeds_time_is_its_cpu_time_not_the_time_it_waited(monkeypatch):
+    """A speed marched while its process waits (beside the NFRCs' processes, on shared cores)
+    records the CPU it used: a 1 s sleep inside the march adds nothing to cpu_time."""
+    import hbm.ti.sweep as sweep_module
+
+    *_, system = following_system()
+    opts = TimeIntegrationOptions(dt=2e-6, n_revolutions=10, n_keep=4, samples_per_revolution=256)
+    quick = sweep(system, CAS, ContactOptions(mu=MU), opts, omegas=np.array([100.0]), workers=1)
+    steps = sweep_module.steps_per_revolution  # called once per speed, inside its march
+
+    def waiting(*args, **kwargs):
+        time.sleep(1.0)
+        return steps(*args, **kwargs)
+
+    monkeypatch.setattr(sweep_module, "steps_per_revolution", waiting)
+    slow = sweep(system, CAS, ContactOptions(mu=MU), opts, omegas=np.array([100.0]), workers=1)
+    # the march alone takes ~0.1 s of CPU (its compilation went to the first sweep)
+    assert 0 < slow.cpu_time[0] < 0.7
+    assert slow.amplitude[0] == quick.amplitude[0]
 
 
 def test_amplitude_is_half_the_peak_to_peak_of_the_le_radial_displacement():
