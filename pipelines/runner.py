@@ -229,12 +229,14 @@ def why_stale(path: Path, inputs: dict, h: str, verify: bool = True, scene=None)
     return "made by an earlier version, which read other scene keys" if regrouped else "made from other inputs"
 
 
-def made_by_other_code(out: Path, outputs) -> str:
+def made_by_other_code(out: Path, outputs, noted: set | None = None) -> str:
     """"" when every output in `out` was written by this code version (or records none), else
     a note for the log of a stage found up to date: the versions that wrote them and how to
     recompute. A stage is current by its inputs, not by the code that computed it: an upgrade
     keeps the hours of results it finds, and this note is where the user learns that they
-    come from another version."""
+    come from another version. noted: the versions a run has already named with the advice
+    (updated here): a later stage of theirs only says "made by bladerub X too", so a folder
+    made by one earlier version gives one line of advice, not one per stage."""
     now = art.code_version()
     old = set()
     for o in outputs:
@@ -244,6 +246,10 @@ def made_by_other_code(out: Path, outputs) -> str:
             old.add(v)
     if not old:
         return ""
+    if noted is not None and old <= noted:
+        return f"; made by bladerub {', '.join(sorted(old))} too"
+    if noted is not None:
+        noted.update(old)
     return (f"; made by bladerub {', '.join(sorted(old))}, not this {now}: delete the "
             f"file{'s' if len(outputs) > 1 else ''} or pass --force to recompute with this version")
 
@@ -364,10 +370,11 @@ def dry_run(scene, out: Path, until: str = STAGES[-1], force: bool = False) -> l
     busy = folder.holder(out)
     lines, computed = ([f"a run holds this folder: {busy}; what it is computing reads as to compute"]
                        if busy else []), set()
+    versions = set()  # named with the advice already (made_by_other_code)
     for s in steps:
         if not s.todo:
             lines.append(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})"
-                         + made_by_other_code(out, s.outputs))
+                         + made_by_other_code(out, s.outputs, versions))
             continue
         computed.update(o.file for o in s.todo)
         parts = {o: partial_files(out / o.file) if o.file.endswith(".h5") else [] for o in s.todo}
@@ -558,6 +565,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
         return any(f.is_file() and f.stat().st_mtime >= since for f in files)
 
     _describe = describe
+    versions = set()  # named with the advice already (made_by_other_code)
     try:
         for i, s in enumerate(steps):
             where = f"stage {s.stage.name}"
@@ -566,7 +574,7 @@ def _execute(scene, out: Path, steps, expected: dict, progress: Progress, comman
                 if not s.todo:
                     record.action, record.why = "reused", "up to date"
                     progress.log(f"[{s.stage.name}] up to date ({', '.join(o.file for o in s.outputs) or '-'})"
-                                 + made_by_other_code(out, s.outputs))
+                                 + made_by_other_code(out, s.outputs, versions))
                     continue
                 record.why = s.why
                 if s.stage.name in ahead:

@@ -696,9 +696,23 @@ def test_a_stage_reused_from_another_code_version_says_which_and_how_to_recomput
     before = (out / "rom.h5").read_bytes()
     assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
     printed = capsys.readouterr().out
-    assert (f"[rom] up to date (rom.h5); made by bladerub {made_by}, not this 9.9.9+upgraded: delete the file "
+    # the advice once, on the first stage; the later ones of that version name it only
+    assert (f"[mesh] up to date (mesh.h5); made by bladerub {made_by}, not this 9.9.9+upgraded: delete the file "
             "or pass --force to recompute with this version") in printed, printed
+    assert f"[fem] up to date (fem.h5); made by bladerub {made_by} too\n" in printed, printed
+    assert f"[rom] up to date (rom.h5); made by bladerub {made_by} too\n" in printed, printed
+    assert printed.count("--force") == 1, printed
     assert (out / "rom.h5").read_bytes() == before
+    # a stage of another version than those named gets the advice again
+    (out / "rom.h5").unlink()
+    monkeypatch.setattr(art, "code_version", lambda: "0.0.1+older")
+    assert main(["run", str(scene), "--out", str(out), "--until", "rom", "--quiet"]) == 0
+    monkeypatch.setattr(art, "code_version", lambda: "9.9.9+upgraded")
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--until", "rom"]) == 0
+    printed = capsys.readouterr().out
+    assert ("[rom] up to date (rom.h5); made by bladerub 0.0.1+older, not this 9.9.9+upgraded: delete the file "
+            "or pass --force to recompute with this version") in printed, printed
 
 
 def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_path, capsys):
