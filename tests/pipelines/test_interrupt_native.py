@@ -21,7 +21,20 @@ from pipelines.cli import main
 from pipelines.errors import after_ctrl_c, deferred_ctrl_c
 
 
-def test_ctrl_c_inside_the_block_is_answered_after_it():
+@pytest.fixture
+def fresh_sigint():
+    """SIGINT as an interactive run has it: Python's default handler, not blocked in this
+    thread; restored after. A test suite started as a background job of a non-interactive
+    shell (`cmd &` in a script) inherits SIGINT ignored, and Python then installs no handler
+    of its own: the first test here failed on "DID NOT RAISE" there and nowhere else."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    mask = signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    yield
+    signal.pthread_sigmask(signal.SIG_SETMASK, mask)
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_inside_the_block_is_answered_after_it(fresh_sigint):
     done = []
     with pytest.raises(KeyboardInterrupt):  # the test process's handler: Python's default
         with deferred_ctrl_c():
@@ -32,7 +45,7 @@ def test_ctrl_c_inside_the_block_is_answered_after_it():
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
 
 
-def test_the_handler_in_place_answers_it_once():
+def test_the_handler_in_place_answers_it_once(fresh_sigint):
     """The run's own handler (pipelines.cli._stop_children: end the workers, then
     KeyboardInterrupt) is the one called, once, after the block."""
     calls = []
