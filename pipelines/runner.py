@@ -727,9 +727,9 @@ def update_figures(scene, out: Path, stages, progress: Progress) -> list[str]:
 
     A figure whose drawing fails on its data (ValueError: an NFRC without a converged point),
     on an input it finds unusable (ArtifactError: a ROM without its recovery matrix) or on the
-    machine (no off-screen OpenGL for the mode pictures: RenderError) keeps its previous files (named in the error)
-    and no manifest entry of this drawing; the others are drawn all the same (the NFRC plots
-    need no OpenGL), and _FigureFailed names every failed one at the end."""
+    machine (no off-screen OpenGL for the mode pictures: RenderError) keeps its previous files
+    (named in the error) and no manifest entry of this drawing; the others are drawn all the
+    same (the NFRC plots need no OpenGL), and _FigureFailed names every failed one at the end."""
     from pipelines.render import RenderError
 
     folder_ = out / "figures"
