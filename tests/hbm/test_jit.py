@@ -98,6 +98,7 @@ def test_a_cpu_name_set_in_numbas_config_is_kept(tmp_path):
 
 _KERNEL_SIZE = """
 import sys
+import time
 sys.path.insert(0, {tests!r})
 from support import standin_rom
 from hbm.options import CasingOptions, TimeIntegrationOptions
@@ -105,19 +106,22 @@ from hbm.ti import kernel
 from hbm.ti.march import rom_modal_system
 from hbm.ti.sweep import simulate
 
-simulate(rom_modal_system(standin_rom()), CasingOptions(), 0.15, 2000.0,
-         TimeIntegrationOptions(n_revolutions=2, n_keep=1))
+point = simulate(rom_modal_system(standin_rom()), CasingOptions(), 0.15, 2000.0,
+                 TimeIntegrationOptions(n_revolutions=2, n_keep=1))
 asm = "".join(kernel.run_steps.inspect_asm().values())
 print(sum(1 for line in asm.splitlines()
-          if line.startswith("\\t") and not line.lstrip().startswith((".", "#"))), asm.count("%zmm"))
+          if line.startswith("\\t") and not line.lstrip().startswith((".", "#"))), asm.count("%zmm"),
+      point.cpu_time, time.process_time())
 """
 
 
 @pytest.fixture(scope="module")
 def kernel_code(tmp_path_factory):
     """kernel_code(cpu, features=None) -> (instructions, mentions of a 512-bit register) of
-    the step loop compiled for the model `cpu` (and these features; None: hbm's rule), each
-    compiled once per module (a compile takes ~10 s)."""
+    the step loop compiled for the model `cpu` (and these features; None: hbm's rule), then
+    the cpu_time the sweep stored for the short march that compiled it and the process's CPU
+    time, s; each compiled once per module, in a process of its own on an empty numba cache
+    (a compile takes 10 to 16 s)."""
     root, done = tmp_path_factory.mktemp("kernel_code"), {}
 
     def code(cpu, features=None):
@@ -128,7 +132,8 @@ def kernel_code(tmp_path_factory):
                 env["NUMBA_CPU_FEATURES"] = features
             out = subprocess.run([sys.executable, "-c", _KERNEL_SIZE.format(tests=str(ROOT / "tests"))],
                                  env=env, capture_output=True, text=True, timeout=300, check=True)
-            done[cpu, features] = tuple(int(v) for v in out.stdout.split()[-2:])
+            words = out.stdout.split()[-4:]
+            done[cpu, features] = (int(words[0]), int(words[1]), float(words[2]), float(words[3]))
         return done[cpu, features]
 
     return code
@@ -142,6 +147,18 @@ def test_llvm_still_unrolls_the_step_loop_for_zen3(kernel_code):
     later LLVM stops unrolling it, this fails, and the retuning can go."""
     sizes = {cpu: kernel_code(cpu)[0] for cpu in ("znver3", "znver2")}
     assert sizes["znver3"] > 2.0 * sizes["znver2"], sizes
+
+
+@pytest.mark.skipif(platform.machine() != "x86_64", reason="the fixture compiles for znver2, an x86-64 model")
+def test_a_speeds_cpu_time_leaves_out_the_compile_of_the_step_loop(kernel_code):
+    """The first speed a process marches on a cold numba cache: the process spends seconds
+    compiling the step loop (the fixture's process, its cache folder empty), the speed's
+    cpu_time in ti.h5 only its march (two revolutions of the stand-in ROM, well under a
+    second). Charged to the speed, the compile (15.5 s on a Zen 3 host) would be two to three
+    times the march of the sweep's slowest speed there."""
+    *_, speed, process = kernel_code("znver2")
+    assert process > 2.0, (speed, process)
+    assert 0.0 < speed < 0.25 * process, (speed, process)
 
 
 @pytest.mark.skipif(platform.machine() != "x86_64" or "+avx512f" not in _host_features().split(","),
