@@ -363,7 +363,10 @@ def _sliding_direction(dtj, dzj, vscale, rj, om):
     return nrm, 0.0, 0.0
 
 
-@njit(cache=True, fastmath=_FAST, _nrt=False)
+# inlined by numba, not left to LLVM: called, this helper ran otherwise from numba's cache
+# than as compiled in the process (another rounding: 3.8e-6 of an LE amplitude after 20
+# revolutions, tests/hbm/test_jit.py), so a sweep's speeds depended on which workers compiled
+@njit(cache=True, fastmath=_FAST, _nrt=False, inline="always")
 def _redirect(inc, qn, qb, pt, pz, lam, idx, m, rho, om, vscale, st, sz, mu, rows, mats, u, ang, tol):
     """One update of the active nodes' unit sliding directions (st, sz) towards the fixed point
     s = u(s), u the direction of the step's centred velocity with its contact forces lam
