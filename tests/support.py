@@ -4,6 +4,7 @@ from __future__ import annotations
 import os
 import shutil
 
+import dataclasses
 import functools
 
 import numpy as np
@@ -43,6 +44,18 @@ def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0, rotation:
                     frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios,
                     rotation=rotation)
 
+
+
+def mirrored_rom(rom: RomModel) -> tuple[RomModel, np.ndarray]:
+    """(the mirror image of rom through a meridian plane turning the other way, p): each
+    contact node's theta_j -> -theta_j and its tangential dof -> its negative (K, M, C ->
+    P K P, ..., P = diag(p)), rotation -> -rotation; p: (n_dof,), +-1, maps a state of one
+    onto the other. The same physical problem seen in a mirror (tests of the sense)."""
+    p = np.ones(rom.n_dof)
+    p[1:3 * rom.n_boundary:3] = -1.0
+    P = np.diag(p)
+    return dataclasses.replace(rom, K=P @ rom.K @ P, M=P @ rom.M @ P, C=P @ rom.C @ P, theta=-rom.theta,
+                               rotation=-rom.rotation), p
 
 # The shared data folder beside the repository (CI clones main with ../shared beside it):
 # the one way tests find it.

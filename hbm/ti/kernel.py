@@ -384,8 +384,8 @@ def _redirect(inc, qn, qb, pt, pz, lam, idx, m, rho, om, vscale, st, sz, mu, row
     casing past its lock) the plain update alternates and grows, which the secant does not.
     Angles are taken only from the second move on, as differences (one atan2 of a cross
     and a dot product, the first move's when the second comes): with absolute angles every
-    move cost two atan2, a cosine and a sine, 8 % of a contact-heavy march's samples (perf;
-    timed, the march takes 0.85 to 1.02 of its time without, on a noisy host). Each moved node's three rows follow (mats: the
+    move cost two atan2, a cosine and a sine (8 % of a contact-heavy march's samples, perf;
+    benchmarks/README.md, *Time integration*). Each moved node's three rows follow (mats: the
     (r, theta, z) x (r, theta, z) compliance blocks, transposed). A node sliding at under
     1e-12 m/s keeps its direction. u: (2, n_b) work; ang: (3, n_b) state between moves,
     row 2 = 0 before a node's first move in the step (the caller's reset), then +-1 with

@@ -15,22 +15,13 @@ import pytest
 
 from hbm.harmonic.residual import build_residual
 from hbm.options import CasingOptions, ContactOptions, HbmOptions
-from support import standin_rom
-
-
-def _mirror(rom):
-    n = rom.n_dof
-    p = np.ones(n)
-    p[1:3 * rom.n_boundary:3] = -1.0
-    P = np.diag(p)
-    return dataclasses.replace(rom, K=P @ rom.K @ P, M=P @ rom.M @ P, C=P @ rom.C @ P, theta=-rom.theta,
-                               rotation=-rom.rotation), p
+from support import mirrored_rom, standin_rom
 
 
 @pytest.mark.parametrize("method", ["dlft", "rl"])
 def test_mirror_image_turning_the_other_way(method):
     rom = standin_rom(rotation=-1)
-    mirrored, p = _mirror(rom)
+    mirrored, p = mirrored_rom(rom)
     opts = (CasingOptions(), ContactOptions(mu=0.3), HbmOptions(n_harmonics=5, n_time=64))
     res = build_residual(rom, *opts, method=method)
     res_m = build_residual(mirrored, *opts, method=method)

@@ -31,7 +31,7 @@ import scipy.linalg
 from hbm.options import CasingOptions
 from hbm.ti import march as ti_march
 from hbm.ti.march import Marcher, Recording, rom_modal_system
-from support import standin_rom
+from support import mirrored_rom, standin_rom
 
 MU = 0.3
 THETA = 0.5 * math.pi + np.array([-0.05, 0.0, 0.05])  # rad: around a lobe centre (pi / 2 mod pi)
@@ -265,11 +265,7 @@ def test_the_mirror_image_turning_the_other_way_is_the_mirrored_march(case):
     seed, omega, v_scale, casing, period_steps, n = CASES[case]
     rom = pressed_standin(seed, -1)
     x0, v0 = pressed_start(rom, casing, v_scale)
-    p = np.ones(rom.n_dof)
-    p[1:3 * rom.n_boundary:3] = -1.0
-    P = np.diag(p)
-    mirrored = dataclasses.replace(rom, K=P @ rom.K @ P, M=P @ rom.M @ P, C=P @ rom.C @ P, theta=-rom.theta,
-                                   rotation=1)
+    mirrored, p = mirrored_rom(rom)
     dt = 2.0 * math.pi / (casing.n_lobes * omega * period_steps)
     rec = Recording(start=1, stride=1, n_samples=n, dofs=np.arange(rom.n_dof), force_nodes=np.arange(3))
     a = Marcher(rom_modal_system(rom), casing, MU, omega, x0, v0, dt, n, rec).advance(n).result()

@@ -16,19 +16,11 @@ import pytest
 
 from hbm.options import CasingOptions
 from hbm.ti.march import Recording, march, massless_system, rom_modal_system
-from support import standin_rom
+from support import mirrored_rom, standin_rom
 
 CASING = CasingOptions()
 MU = 0.3
 OMEGA = 1300.0  # rad/s: the stand-in's tip rubs on both lobes, with impacts and sliding
-
-
-def _mirror(rom):
-    p = np.ones(rom.n_dof)
-    p[1:3 * rom.n_boundary:3] = -1.0
-    P = np.diag(p)
-    return dataclasses.replace(rom, K=P @ rom.K @ P, M=P @ rom.M @ P, C=P @ rom.C @ P, theta=-rom.theta,
-                               rotation=-rom.rotation), p
 
 
 def _run(rom, scheme, n_rev=4):
@@ -52,7 +44,7 @@ def _run(rom, scheme, n_rev=4):
 @pytest.mark.parametrize("scheme", ["carpenter", "massless"])
 def test_mirror_image_turning_the_other_way_in_time(scheme):
     rom = standin_rom(rotation=-1)
-    mirrored, _ = _mirror(rom)
+    mirrored, _ = mirrored_rom(rom)
     a = _run(rom, scheme)
     b = _run(mirrored, scheme)
     assert a.contact_steps > 0.05 * a.n_steps and a.active_set_failures == 0
