@@ -235,7 +235,9 @@ def recurrence(system: ModalSystem, dt: float, exponential: bool = False):
                          "(phi^T C phi diagonal); this system's damping couples its modes: use scheme = carpenter")
     wd = np.sqrt((w * w - sig * sig).astype(complex))  # imaginary past critical damping: cos -> cosh
     decay = np.exp(-sig * dt)
-    c1 = (2.0 * decay * np.cos(wd * dt)).real
+    # a copy: .real is a strided view, and a non-contiguous c1 is another type to numba, so
+    # the step loop would be compiled twice in a process that runs both schemes
+    c1 = np.ascontiguousarray((2.0 * decay * np.cos(wd * dt)).real)
     # 1 - c1 + c2 without its cancellation at small w dt: (1 - e)^2 + 4 e sin^2(w_d dt / 2)
     gain = (np.expm1(-sig * dt) ** 2 + 4.0 * decay * np.sin(0.5 * wd * dt) ** 2).real
     return c1, decay * decay, gain / (w * w)
