@@ -1,11 +1,10 @@
 """Test support: small models with the layout of the real artifacts."""
 from __future__ import annotations
 
-import os
-import shutil
-
 import dataclasses
 import functools
+import os
+import shutil
 
 import numpy as np
 import pytest
@@ -43,7 +42,6 @@ def standin_rom(n_boundary: int = 9, n_modes: int = 12, seed: int = 0, rotation:
                     node_index=np.arange(n_boundary), fixed_interface_frequencies=w[3 * n_boundary:],
                     frequencies=wr, full_frequencies=wr[:6], damping_ratios=ratios,
                     rotation=rotation)
-
 
 
 def mirrored_rom(rom: RomModel) -> tuple[RomModel, np.ndarray]:
