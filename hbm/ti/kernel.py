@@ -491,7 +491,10 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
     par = (mu, Omega, dt, has_coff, massless, step0, n_steps, direction_tol): direction_tol,
         the sliding direction's tolerance (DIRECTION_TOL).
     state = (q, qm, lam_prev, st_prev, sz_prev, idx_prev, m_prev): q_{step0}, q_{step0-1} (n,)
-        and the massless scheme's pending forces; all updated in place (m_prev: (1,) int).
+        and the last step's contact: its m_prev active nodes idx_prev[:m_prev] (m_prev: (1,)
+        int), their unit sliding directions (st_prev, sz_prev) and (massless scheme: the
+        forces pending for the next step) lam_prev, (n_b,) each; all updated in place, so
+        that a march run in chunks is the march run in one call, to the bit.
     rec = (start, stride, n_samples, section_stride, extreme_stride): see hbm.ti.march.Recording.
     rec_rows (n_x, n): recorded dof in modal coordinates; rec_frows (n_x, 3 n_b): their static
     response to the boundary forces (massless scheme). fnodes (n_f,): recorded force nodes.
@@ -600,11 +603,21 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
             mats[2, 0, j, i] = a_zr[i, j]
             mats[2, 1, j, i] = a_zt[i, j]
             mats[2, 2, j, i] = a_zz[i, j]
-    # the massless scheme's pending forces (a march run in chunks: the last call ended on a
-    # contact step) act on rh through their compliance columns, which are work, not state
+    # a march run in chunks: the last call's last step was in contact on nodes idx_prev[:m_prev]
+    # with directions (st_prev, sz_prev); they start this call's first step as they would have
+    # started it in one call (its active set's first guess, its sliding directions' start, and
+    # their compliance rows, which are work). Started afresh instead, a chunked march left the
+    # one-call march within a few revolutions at 1e-6 s. The massless scheme's pending forces
+    # act on rh through their compliance columns, work as well.
     for b in range(m_prev[0]):
         j = idx_prev[b]
-        _compliance_row(Acol_prev, a_rrT, a_rtT, a_rzT, j, mu * st_prev[j], mu * sz_prev[j])
+        was_active[j] = True
+        st[j] = st_prev[j]
+        sz[j] = sz_prev[j]
+        if massless:
+            _compliance_row(Acol_prev, a_rrT, a_rtT, a_rzT, j, mu * st_prev[j], mu * sz_prev[j])
+        elif mu != 0.0:
+            _friction_rows(rows, mats, j, mu * st[j], mu * sz[j])
     n_prof = profile.shape[0]
     kp = (step0 + 1) % n_prof if n_prof else 0  # the profile's row of the step being computed
     if n_prof:
@@ -875,3 +888,12 @@ def run_steps(lin, bnd, comp, geo, cas, profile, par, state, rec, rec_rows, rec_
     for k in range(n):
         q_state[k] = q[k]
         qm_state[k] = qm[k]
+    if not massless:  # (the massless scheme's pending forces are these already)
+        mm = 0
+        for j in range(nb):
+            if was_active[j]:
+                idx_prev[mm] = j
+                st_prev[j] = st[j]
+                sz_prev[j] = sz[j]
+                mm += 1
+        m_prev[0] = mm

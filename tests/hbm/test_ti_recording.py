@@ -92,6 +92,34 @@ def test_a_massless_march_split_at_any_contact_step_is_one_march():
             assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
 
 
+@pytest.mark.parametrize("exponential", [False, True], ids=["carpenter", "exponential"])
+def test_a_march_with_friction_split_at_any_contact_step_is_one_march(exponential):
+    """A contact step's sliding directions and active set start the next step (its first
+    guess): a call that ends on one must hand them over, or the next call's first step starts
+    from the prediction's direction and the march moves off (at 1e-6 s on rotor 67 a sweep's
+    chunked march then left the one-call march within a few revolutions, with hundreds of
+    steps whose direction did not settle). Every contact step followed by another is tried as
+    the split, bit for bit."""
+    x0, v0 = start_state()
+    rec = Recording(start=1, stride=1, n_samples=N, dofs=np.array([0, 24]), force_nodes=np.arange(9),
+                    section_stride=4, extreme_stride=50)
+
+    def make():
+        return Marcher(rom_modal_system(standin_rom()), CasingOptions(), MU, OMEGA, x0, v0, DT, N, rec,
+                       exponential=exponential)
+
+    one = make().advance(N).result()
+    in_contact = (one.normal_force > 0).any(axis=1)  # sample k: step k + 1 (Carpenter: lam_{k+1} acts at k + 2)
+    splits = np.nonzero(in_contact[:-1] & in_contact[1:])[0] + 1
+    assert len(splits) > 30 and np.abs(one.friction_force).max() > 0.0
+    for split in splits[splits < N]:
+        m = make()
+        m.advance(int(split))
+        chunked = m.advance(N - int(split)).result()
+        for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
+            assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
+
+
 @pytest.mark.parametrize("field, value, message", [
     ("force_nodes", [9], r"force node \[9\] outside the 9 contact nodes 0 .. 8"),
     ("force_nodes", [0, -1], r"force node \[-1\] outside"),
