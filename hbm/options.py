@@ -249,15 +249,16 @@ class TimeIntegrationOptions:
     with central differences: dt below 2 / w_max) or "massless" (modes above
     massless_cutoff replaced by their static response: a massless boundary, a static contact
     projection and a step set by the kept modes; a different model, see
-    hbm.ti.march.massless_system). Default "exponential" with dt = 2.5e-7 s: on the default
-    rotor 67 sweep it agrees with Carpenter at dt = 5e-8 as Carpenter at 1e-7 does (158 and
-    157 of 161 classes, the periodic LE amplitudes to a median 4e-5 and 3e-5, 95 % of them
-    to 3e-4) for 0.54 times Carpenter's CPU time at 1e-7; at 4e-7 and 1e-6 it moves more
-    classes (155, 146: the tip's constraint modes, up to 2.9e6 rad/s, are then stepped over).
-    Carpenter is the reference; the massless model's static projection wedges the tip into
-    the casing with friction (mu = 0.15, at the contact set's friction-lock limit: contact
-    at every step, amplitude growing as dt shrinks: 2 to 10 times Carpenter's at dt =
-    1e-6); without friction it agrees with Carpenter to 1 to 20 % at 30 times fewer steps.
+    hbm.ti.march.massless_system). Default "exponential" with dt = 1e-6 s: on the default
+    rotor 67 sweep it keeps more of Carpenter-at-5e-8's classes than Carpenter at 1e-7 does
+    (158 and 156 of 161), the periodic LE amplitudes within 0.33 % (median 1.7e-4), for 0.15
+    of Carpenter's per-speed CPU time at 1e-7; the step is half the period of the ROM's highest
+    mode at most (hbm.ti.march.EXPONENTIAL_STEP_FRACTION: 1.07e-6 s there; at 2e-6 s 155
+    classes and amplitudes to 4.7 %). Carpenter is the reference; the massless model's
+    static projection wedges the tip into the casing with friction (mu = 0.15, at the
+    contact set's friction-lock limit: contact at every step, amplitude growing as dt
+    shrinks: 2 to 10 times Carpenter's at dt = 1e-6); without friction it agrees with
+    Carpenter to 1 to 20 % at 30 times fewer steps.
     dt: time step, s (shrunk so that revolutions, casing periods and samples fall on steps).
     massless_cutoff: highest ROM eigenfrequency kept by the massless scheme, rad/s. Default
     9e4: above what the HBM resolves at N_h = 40 (40 Omega_max = 8e4 rad/s), below the
@@ -283,7 +284,7 @@ class TimeIntegrationOptions:
     """
 
     scheme: str = "exponential"
-    dt: float = 2.5e-7
+    dt: float = 1e-6
     massless_cutoff: float = 9.0e4
     n_revolutions: int = 200
     n_keep: int = 20

@@ -260,16 +260,15 @@ def step_compliance(system: ModalSystem, dt: float, exponential: bool = False) -
     return prs @ pr.T, prs @ pt.T
 
 
-#: The exponential scheme has no stability limit, but its accuracy has one, set by the same
-#: highest modes (the boundary's constraint modes, which a contact impulse excites): whole
-#: sweeps against Carpenter at 5e-8 s kept the classes Carpenter at 1e-7 s keeps (to one
-#: speed) with a step up to this fraction of the central-difference limit 2 / w_max: rotor 67
-#: 2.5e-7 s (0.37 of 6.8e-7), rotor 37's coarse ROM 1.5e-7 (0.36 of 4.1e-7) and its default
-#: 1.25e-7 (0.35 of 3.6e-7); 3 to 23 more speeds change class at 0.41 to 0.69 of it (README,
-#: *Rotor 37* and *Time integration*). The ti stage warns above it: 0.38, not 0.37, so that
-#: the default scene's step (0.367 of its ROM's limit) does not warn on a ROM a mesh option
-#: made a few per cent stiffer (0.38 leaves 3.5 %).
-EXPONENTIAL_STEP_FRACTION = 0.38
+#: The exponential scheme has no stability limit, but its accuracy has one, set by the
+#: highest modes (the boundary's constraint modes, which a contact impulse excites): a step
+#: of at most half the period of the highest mode, pi / w_max, this fraction of the
+#: central-difference limit 2 / w_max, samples every mode's response to a step's impulse at
+#: least twice a period (beyond, the modes that turn by more than pi in a step fold back onto
+#: slower ones). Whole sweeps against Carpenter at 5e-8 s (README, *Time integration*):
+#: rotor 67's default ROM at 1e-6 s (0.93 of pi / w_max) keeps more classes than Carpenter at
+#: 1e-7 s, at 2e-6 s (1.87) fewer, with amplitudes 4.7 % off. The ti stage warns above it.
+EXPONENTIAL_STEP_FRACTION = 0.5 * math.pi
 
 
 def critical_time_step(system: ModalSystem, mu: float = 0.0, exponential: bool = False) -> float:

@@ -41,23 +41,23 @@ def step_lock_warning(scheme: str, mu: float, lock) -> str | None:
 
 
 def exponential_step_warning(scheme: str, dt: float, system) -> str | None:
-    """The warning for an exponential sweep whose step dt (s) exceeds the fraction of the
-    central-difference limit 2 / w_max of the ROM's modal system (hbm.ti.march.ModalSystem)
+    """The warning for an exponential sweep whose step dt (s) exceeds half the period of the
+    ROM's highest mode, pi / w_max of its modal system (hbm.ti.march.ModalSystem): the step
     within which that scheme was measured as accurate as Carpenter at 1e-7 s
-    (hbm.ti.march.EXPONENTIAL_STEP_FRACTION), else None. The scheme is stable at any step,
-    so nothing else would tell a user whose blade is stiffer than rotor 67 that the default
-    step (2.5e-7 s) is too coarse for it."""
+    (hbm.ti.march.EXPONENTIAL_STEP_FRACTION times the central-difference limit 2 / w_max),
+    else None. The scheme is stable at any step, so nothing else would tell a user whose
+    blade is stiffer than rotor 67 that the default step (1e-6 s) is too coarse for it."""
     from hbm.ti.march import EXPONENTIAL_STEP_FRACTION, critical_time_step
 
     if scheme != "exponential":
         return None
-    limit = critical_time_step(system)
-    if dt <= EXPONENTIAL_STEP_FRACTION * limit:
+    limit = EXPONENTIAL_STEP_FRACTION * critical_time_step(system)
+    if dt <= limit:
         return None
-    return (f"the exponential scheme's step dt = {dt:g} s is {dt / limit:.2f} of this ROM's central-difference "
-            f"limit 2 / w_max = {limit:.3g} s; its sweeps were as accurate as Carpenter at 1e-7 s only up to "
-            f"{EXPONENTIAL_STEP_FRACTION:g} of it (rotor 67 and 37, README): above, contact-heavy speeds can change "
-            f"class; [ti] dt <= {EXPONENTIAL_STEP_FRACTION * limit:.3g} s keeps within it")
+    return (f"the exponential scheme's step dt = {dt:g} s is {dt / limit:.2f} times half the period of this ROM's "
+            f"highest mode, pi / w_max = {limit:.3g} s; its sweeps were as accurate as Carpenter at 1e-7 s only "
+            f"within it (README, *Time integration*): above, contact-heavy speeds can change class; "
+            f"[ti] dt <= {limit:.3g} s keeps within it")
 
 
 class SweepPartial:
