@@ -222,6 +222,14 @@ def _compare_schemes(new, ref, labels):
         diff = f"{np.median(rel):.1e}, {rel.max():.1e}" if same.any() else "-"
         print(f"| {code.label(**labels)} | {int(sel.sum())} | {int(same.sum())} | {diff} | "
               f"{np.median(new.revolutions[sel]):.0f}, {np.median(ref.revolutions[sel]):.0f} |")
+    # the LE's mean normal force over the kept window, at the periodic speeds of the same class
+    per = (new.period_class == ref.period_class) & (ref.period_class != PeriodClass.NONE)
+    f_new, f_ref = new.normal_force[:, :, 0].mean(axis=1), ref.normal_force[:, :, 0].mean(axis=1)
+    sel = per & (f_ref > 0)
+    if sel.any():
+        rel = np.abs(f_new[sel] / f_ref[sel] - 1.0)
+        print(f"\nLE mean contact force, periodic speeds of the same class ({int(sel.sum())}): difference median "
+              f"{np.median(rel):.1e}, 95 % {np.quantile(rel, 0.95):.1e}, max {rel.max():.1e}")
     moved = np.flatnonzero(new.period_class != ref.period_class)
     print("\nclass changed at " + (", ".join(f"{new.omega[i]:.0f} ({ref.period_class[i]} -> "
                                               f"{new.period_class[i]})" for i in moved) or "no speed"))
