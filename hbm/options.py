@@ -251,10 +251,11 @@ class TimeIntegrationOptions:
     projection and a step set by the kept modes; a different model, see
     hbm.ti.march.massless_system). Default "exponential" with dt = 1e-6 s: on the default
     rotor 67 sweep it keeps more of Carpenter-at-5e-8's classes than Carpenter at 1e-7 does
-    (158 and 156 of 161), the periodic LE amplitudes within 0.33 % (median 1.7e-4), for 0.15
-    of Carpenter's per-speed CPU time at 1e-7; the step is half the period of the ROM's highest
-    mode at most (hbm.ti.march.EXPONENTIAL_STEP_FRACTION: 1.07e-6 s there; at 2e-6 s 155
-    classes and amplitudes to 4.7 %). Carpenter is the reference; the massless model's
+    (158 and 156 of 161), the periodic LE amplitudes within 0.33 % (median 1.7e-4), for about
+    a sixth of Carpenter's per-speed CPU time at 1e-7 (0.15 and 0.18, one sweep each); a
+    step should not exceed half the period of the ROM's highest mode
+    (hbm.ti.march.EXPONENTIAL_STEP_FRACTION: 1.07e-6 s there; at 2e-6 s 155 classes and
+    amplitudes to 4.7 %). Carpenter is the reference; the massless model's
     static projection wedges the tip into the casing with friction (mu = 0.15, at the
     contact set's friction-lock limit: contact at every step, amplitude growing as dt
     shrinks: 2 to 10 times Carpenter's at dt = 1e-6); without friction it agrees with
