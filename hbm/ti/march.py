@@ -264,8 +264,9 @@ def step_compliance(system: ModalSystem, dt: float, exponential: bool = False) -
 #: highest modes (the boundary's constraint modes, which a contact impulse excites): a step
 #: of at most half the period of the highest mode, pi / w_max, this fraction of the
 #: central-difference limit 2 / w_max, samples every mode's response to a step's impulse at
-#: least twice a period (beyond, the modes that turn by more than pi in a step fold back onto
-#: slower ones). Whole sweeps against Carpenter at 5e-8 s (README, *Time integration*):
+#: least twice a period (beyond, a mode that turns by more than pi in a step answers the
+#: impulse as a slower one would: the likely reason, not shown). Whole sweeps against
+#: Carpenter at 5e-8 s (README, *Time integration*):
 #: rotor 67's default ROM at 1e-6 s (0.93 of pi / w_max) keeps more classes than Carpenter at
 #: 1e-7 s, at 2e-6 s (1.87) fewer, with amplitudes 4.7 % off. The ti stage warns above it.
 EXPONENTIAL_STEP_FRACTION = 0.5 * math.pi
