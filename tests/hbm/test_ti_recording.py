@@ -65,6 +65,22 @@ def test_a_march_in_uneven_chunks_records_exactly_what_one_call_records():
         assert np.array_equal(getattr(chunked, name), getattr(one, name)), name
 
 
+#: every step's sample, so that a split anywhere is compared on what follows it
+EVERY_STEP = Recording(start=1, stride=1, n_samples=N, dofs=np.array([0, 24]), force_nodes=np.arange(9),
+                       section_stride=4, extreme_stride=50)
+
+
+def _assert_every_split_is_one_march(make, one, splits):
+    """A march from make() advanced to each split, then to N, records what `one` (the march in
+    one call) records, bit for bit."""
+    for split in splits[splits < N]:
+        m = make()
+        m.advance(int(split))
+        chunked = m.advance(N - int(split)).result()
+        for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
+            assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
+
+
 def test_a_massless_march_split_at_any_contact_step_is_one_march():
     """The massless scheme carries the forces of a contact step into the next step: a call
     that ends on one must hand them over whole (their compliance columns included, or the next
@@ -75,21 +91,14 @@ def test_a_massless_march_split_at_any_contact_step_is_one_march():
     system = massless_system(full, cutoff=np.sort(full.omega)[len(full.omega) // 2])
     dt = min(DT, 0.5 * critical_time_step(system, MU))
     x0, v0 = start_state()
-    rec = Recording(start=1, stride=1, n_samples=N, dofs=np.array([0, 24]), force_nodes=np.arange(9),
-                    section_stride=4, extreme_stride=50)
 
     def make():
-        return Marcher(system, CasingOptions(), MU, OMEGA, x0, v0, dt, N, rec)
+        return Marcher(system, CasingOptions(), MU, OMEGA, x0, v0, dt, N, EVERY_STEP)
 
     one = make().advance(N).result()
     contact = np.nonzero((one.normal_force > 0).any(axis=1))[0] + 1  # massless: sample k is lam at step k + 1
     assert len(contact) > 50
-    for split in contact[contact < N]:
-        m = make()
-        m.advance(int(split))
-        chunked = m.advance(N - int(split)).result()
-        for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
-            assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
+    _assert_every_split_is_one_march(make, one, contact)
 
 
 @pytest.mark.parametrize("exponential", [False, True], ids=["carpenter", "exponential"])
@@ -101,23 +110,16 @@ def test_a_march_with_friction_split_at_any_contact_step_is_one_march(exponentia
     steps whose direction did not settle). Every contact step followed by another is tried as
     the split, bit for bit."""
     x0, v0 = start_state()
-    rec = Recording(start=1, stride=1, n_samples=N, dofs=np.array([0, 24]), force_nodes=np.arange(9),
-                    section_stride=4, extreme_stride=50)
 
     def make():
-        return Marcher(rom_modal_system(standin_rom()), CasingOptions(), MU, OMEGA, x0, v0, DT, N, rec,
+        return Marcher(rom_modal_system(standin_rom()), CasingOptions(), MU, OMEGA, x0, v0, DT, N, EVERY_STEP,
                        exponential=exponential)
 
     one = make().advance(N).result()
     in_contact = (one.normal_force > 0).any(axis=1)  # sample k: step k + 1 (Carpenter: lam_{k+1} acts at k + 2)
     splits = np.nonzero(in_contact[:-1] & in_contact[1:])[0] + 1
     assert len(splits) > 30 and np.abs(one.friction_force).max() > 0.0
-    for split in splits[splits < N]:
-        m = make()
-        m.advance(int(split))
-        chunked = m.advance(N - int(split)).result()
-        for name in ("displacement", "normal_force", "friction_force", "sections", "extremes", "x_final"):
-            assert np.array_equal(getattr(chunked, name), getattr(one, name)), (int(split), name)
+    _assert_every_split_is_one_march(make, one, splits)
 
 
 @pytest.mark.parametrize("field, value, message", [
