@@ -355,10 +355,14 @@ SWEEP_FIGURE = Figure("ti_sweep", files=lambda scene: ("ti_sweep.png",),
                       inputs=lambda scene: (TI.file,), draw=draw_sweep)
 
 def _estimate(scene, out, outputs) -> Estimate:
-    # central-difference steps over the grid (each speed from rest, 200 revolutions at most):
-    # ~110 ns per step without contact, about 2.5 times more in contact (README, bench_ti);
-    # over the default scene's whole sweep, early stops included, 110 ns per step of the full
-    # 200 revolutions, idle machine, spread over the cores
+    # steps over the grid (each speed from rest, n_revolutions at most), spread over the cores.
+    # CPU time = STEP_SECONDS per step plus REVOLUTION_SECONDS per revolution, both of the full
+    # n_revolutions (early stops included in the fit): a step costs more the longer it is (more
+    # passes per contact step), which the per-revolution term carries. Fitted to whole rotor 67
+    # sweeps on an AMD EPYC (Zen 3) host (default ROM, exponential 2.5e-7 to 4e-6 s, Carpenter
+    # 5e-8 and 1e-7 s): within 25 % of each, where one cost per step was off 4.5 times at
+    # 1e-6 s. Its speeds settle in ~70 % of the revolutions; rotor 37's coarse ROM settles in
+    # 36 % and its sweeps take half the estimate.
     # The grid itself is built only while it is small: n_omega is the user's (a scene may say
     # 1e12 or 2**63 - 1, which np.linspace cannot hold or index), and the estimate must name
     # it, not fail on it. Past GRID_SUM_MAX speeds, sum(1 / Omega) over the evenly spaced grid
@@ -379,9 +383,13 @@ def _estimate(scene, out, outputs) -> Estimate:
     # memory: ~0.3 GB per worker, and the sweep's result (hbm.ti.sweep.SweepResult, every
     # speed's kept signals, what ti.h5 holds) gathered in this process before ti.h5 is written
     return Estimate(size=f"{count(t.n_omega)} speeds, {steps:.3g} steps", memory=0.3e9 * min(cores, t.n_omega) + disk,
-                    seconds=110e-9 * steps / min(cores, t.n_omega), disk=disk,
+                    seconds=(STEP_SECONDS * steps + REVOLUTION_SECONDS * t.n_omega * t.n_revolutions)
+                    / min(cores, t.n_omega), disk=disk,
                     advice="lower [ti] n_omega or n_revolutions, or raise dt")
 
+
+#: The sweep's estimated CPU time per step (s) and per revolution (s), see _estimate.
+STEP_SECONDS, REVOLUTION_SECONDS = 290e-9, 0.8e-3
 
 #: Most speeds for which _estimate sums over the grid itself (an 8 MB array, ~ms).
 GRID_SUM_MAX = 1_000_000
