@@ -292,7 +292,8 @@ def _estimate(scene, out, outputs) -> Estimate:
     velocities, forces, the Jacobian's weights) add AFT_BYTES per sample and dof, and
     AFT_SECONDS per sample and dof for each residual and Jacobian of a point (a few Newton
     iterations: taken as 3); the time fitted above includes the AFT at the n_time it was
-    fitted with, so a point costs the larger of the two."""
+    fitted with, so a point costs the larger of the two. With [hbm] stability the time is
+    STABILITY_FACTOR times that."""
     h = scene.hbm
     n_c = 2 * h.n_harmonics + 1
     n_r = 3 * scene.n_contact_nodes
@@ -310,7 +311,8 @@ def _estimate(scene, out, outputs) -> Estimate:
         size = f"{len(outputs)} NFRC(s) of {count(n_u)} unknowns (N_h = {h.n_harmonics}, N_t = {count(h.n_time)})"
         advice = f"lower [hbm] n_time (now {h.n_time}; the reference is 1024)"
     return Estimate(size=size, memory=(0.2e9 + dense + aft) * at_once,
-                    seconds=-(-len(outputs) // at_once) * points * per_point,
+                    seconds=(-(-len(outputs) // at_once) * points * per_point
+                             * (STABILITY_FACTOR if h.stability else 1.0)),
                     disk=len(outputs) * h.max_points * (n_u + n_c * 3 * scene.n_contact_nodes + 16) * 8.0,
                     advice=advice)
 
@@ -322,6 +324,12 @@ def point_seconds(scene) -> float:
     return max((1.13e-3 * n_c + 1.56e-8 * n_c ** 3) * scene.n_contact_nodes / 9,
                3 * AFT_SECONDS * h.n_time * 3 * scene.n_contact_nodes)
 
+
+#: How many times longer an NFRC takes with [hbm] stability: RL, the slower treatment, 1.8 to
+#: 2.4 times on the coarse ROM and 2.3 on the default one (README, *Stability and
+#: bifurcations: what they cost*), 2.75 in the sum of its points' times on the default scene
+#: on a Zen 3 host; DLFT 2.5 to 3.0 times, from a shorter time.
+STABILITY_FACTOR = 2.5
 
 #: Bytes of the AFT's time signals per sample (n_time) and boundary dof (3 n_b), rounded up
 #: from 86 B: one residual with its Jacobian and a Jacobian product on the coarse rotor 67

@@ -53,7 +53,7 @@ import numpy as np
 from pipelines import artifacts as art
 from pipelines.branch_store import read_column, read_table, write_column, write_tables
 from pipelines.stages.base import Context, Estimate, Output, Stage
-from pipelines.stages.hbm import nfrc_output, point_seconds
+from pipelines.stages.hbm import STABILITY_FACTOR, nfrc_output, point_seconds
 from pipelines.stages.rom import past_friction_lock, read_rom
 
 ISOLAS = Output("isolas.h5")
@@ -759,7 +759,9 @@ def _estimate(scene, out, outputs) -> Estimate:
     Emerald Rapids host, the slowest hosts seen take twice as long), over the cores (with
     both treatments RL's seeds are DLFT's distinct solutions and points along its branches,
     a few hundred on rotor 67: left out); then, per treatment, a few branches of up to 2
-    max_points points."""
+    max_points points. With [hbm] stability (every branch analysed and its bifurcations
+    located) the stage took 1.9 (coarse) to 2.9 (default scene) times as long on one host,
+    about what the NFRCs take: STABILITY_FACTOR times."""
     import os
 
     iso, h = scene.isolas, scene.hbm
@@ -771,6 +773,8 @@ def _estimate(scene, out, outputs) -> Estimate:
     n_seeds = iso.n_modes * n_kept * (len(iso.amplitudes) + len(iso.primary_amplitudes)) * iso.n_omega
     cores = len(os.sched_getaffinity(0)) if iso.workers is None else iso.workers
     seconds = n_seeds * per_point / cores + len(h.methods) * 5 * 2 * iso.max_points * per_point / 4
+    if h.stability:
+        seconds *= STABILITY_FACTOR
     # the memory (what the guard refuses on) is that of the worker processes, ~0.3 GB each,
     # whatever the seeds: one per core for the seeds, four for the branches (two halves, two
     # describing) with two workers or more; the advice names the key that sets their number
