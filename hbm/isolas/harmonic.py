@@ -56,18 +56,17 @@ class HbmProblem:
 
 
 def search_options(hbm: HbmOptions, iso: IsolaOptions) -> SearchOptions:
-    """The search's settings: the NFRC's continuation (hbm.harmonic.nfrc.default_continuation)
-    on the isolas' omega range, with max_points and crawl_points per half branch and
-    corners of a branch passed above the step floor (ContinuationOptions.corner_turns 2:
-    a branch that reaches a corner at the floor may crawl there, and a crawl ends a half;
-    the NFRC, never ended by a crawl, keeps the floor rule); the seeds' Newton with
+    """The search's settings: the NFRC's continuation (hbm.harmonic.nfrc.default_continuation,
+    which passes corners above the step floor: a branch that reached one at the floor could
+    crawl there, and a crawl ends a half) on the isolas' omega range, with max_points and
+    crawl_points per half branch; the seeds' Newton with
     backtracking and newton_iterations iterations, given up once three iterations in a row
     fail to lower the best ||R|| tenfold (hbm.continuation.newton stall_iterations: most
     seeds never converge; this makes them cost ~4 iterations); the seeds that are solutions
     of a model (Seed.of_model) get model_seed_iterations and no stall rule."""
     lo, hi = iso.omega_range(hbm)
     co = replace(default_continuation(hbm), omega_min=lo, omega_max=hi, max_points=iso.max_points,
-                 crawl_points=iso.crawl_points, corner_turns=2)
+                 crawl_points=iso.crawl_points)
     newton = NewtonOptions(tol_residual=hbm.tolerance, max_iter=iso.newton_iterations, line_search=True,
                            max_halvings=4, stall_iterations=3, stall_factor=0.1)
     model = replace(newton, max_iter=iso.model_seed_iterations, stall_iterations=None)

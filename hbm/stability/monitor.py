@@ -95,8 +95,8 @@ class StabilityOptions:
     the rule and with round-off; only max_gap = 1 finds them all.
     turn_tol: a change of direction in Omega is a turn (a fold) only when Omega moves by
     more than this fraction of itself on at least one side of the middle point. A branch
-    that crawls at the continuation's step floor (at a corner, where the NFRC keeps the
-    floor rule: ContinuationOptions.corner_turns) moves along x at an Omega fixed to the
+    that crawls at the continuation's step floor (at a corner the rule of
+    ContinuationOptions.corner_turns did not take) moves along x at an Omega fixed to the
     corrector's round-off, ~1e-9 of Omega, and that round-off changes sign every other
     point: a "fold" at every other point, and an analysis at each (22 on a crawl of rotor
     67's coarse DLFT doubled branch). One side is enough: the point after a real turn can

@@ -248,6 +248,24 @@ def test_a_corner_is_passed_above_the_step_floor():
     assert runs[2].x[-1, 0] > 2 * runs[None].x[-1, 0] > 0  # 60 points reach further
 
 
+def test_the_nfrcs_continuation_passes_a_corner_above_the_step_floor():
+    # The NFRC's settings (hbm.harmonic.nfrc.default_continuation), omega scaled as Vee's x:
+    # its 84 deg corner is passed at a step far above the floor (1e-5), where without the
+    # corner rule the branch crawled there (RL on the coarse rotor 37 ROM then ended at the
+    # floor on a turn over 90 deg, 185 rad/s short of its range)
+    from dataclasses import replace
+
+    from hbm.harmonic.nfrc import default_continuation
+    from hbm.options import HbmOptions
+
+    o = replace(default_continuation(HbmOptions()), omega_min=0.0, omega_max=5.0, omega_scale=1.0, ds=0.02,
+                ds_max=DS_MAX, direction=-1, max_points=60, newton=NewtonOptions(tol_residual=TOL))
+    b = continue_branch(Vee(a=0.9), np.array([-0.5, 0.0]), 1.45, o)
+    assert np.all(b.converged) and np.all(np.diff(b.x[:, 0]) > 0)  # forwards through the corner
+    np.testing.assert_allclose(b.omega, 1.0 + 0.9 * np.hypot(b.x[:, 0], 1e-7), atol=TOL)  # on the branch
+    assert b.x[-1, 0] > 0.1 and gaps(b).min() >= DS_MAX / 16
+
+
 def test_a_turn_that_shrinks_with_the_step_is_no_corner():
     # On the circle of radius 0.5 a chord of ds = 0.6 turns by ~74 deg from the previous
     # secant, one of 0.3 by ~35: the turn halves with the step, the corner rule never fires,
