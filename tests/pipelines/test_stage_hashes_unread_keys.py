@@ -182,3 +182,36 @@ def test_another_factorisation_gives_the_same_fem_to_round_off(imported, options
             a, b = (m.reshape(len(m), -1).T for m in (a, b))
         a = a * np.sign(np.sum(a * b, axis=0))  # an eigenvector's sign is arbitrary
         assert np.abs(a - b).max() <= 1e-9 * np.abs(b).max(), name
+
+
+def test_the_fem_stage_stores_the_ordering_applied_and_says_when_it_is_not_the_one_asked(imported, tmp_path, capsys):
+    """[fem] ordering, with [fem] solver = "mumps": METIS is not in Debian's MUMPS, which
+    then takes its own choice: fem.h5 says which ran, and the log warns exactly when it
+    differs from the scene's (that AMD is applied as asked: tests/fem/test_assembly.py).
+    With the default solver (CHOLMOD, one process) an ordering asked for is noted as MUMPS's."""
+    from fem.cholesky import CHOLMOD_ORDERING
+    from pipelines import artifacts as art
+    from support import fresh_copy
+
+    scene_path, base, _ = imported
+    for solver, asked in (("mumps", "metis"), ("auto", "amd")):
+        out = fresh_copy(base, tmp_path / f"{solver}-{asked}")
+        (out / "fem.h5").unlink()  # the factorisation's keys leave a current fem.h5 current (runner.HOW_NOT_WHAT)
+        capsys.readouterr()
+        assert main(["run", str(out / scene_path.name), "--out", str(out), "--until", "fem",
+                     "--set", f"fem.ordering={asked}", "--set", f"fem.solver={solver}"]) == 0
+        printed = capsys.readouterr().out
+        attrs = art.read_attrs(out / "fem.h5")
+        applied = attrs["ordering"]
+        assert attrs["solver"] == ("cholmod" if solver == "auto" else solver)
+        if solver == "auto":
+            assert applied == CHOLMOD_ORDERING
+            assert f'[fem] ordering = "{asked}" is MUMPS\'s; CHOLMOD factorised K' in printed, printed
+            assert "WARNING" not in printed
+        else:
+            if asked == "amd":
+                assert applied == "amd"
+            warned = f'[fem] ordering = "{asked}" is not in this MUMPS build; it used {applied}' in printed
+            assert warned == (applied != asked), (asked, applied, printed)
+        with h5py.File(base / "fem.h5") as a, h5py.File(out / "fem.h5") as b:  # another order, the same modes
+            np.testing.assert_allclose(b["frequencies"][:6], a["frequencies"][:6], rtol=1e-9)

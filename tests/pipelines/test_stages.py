@@ -366,37 +366,6 @@ def test_set_young_modulus_reruns_from_the_fem_on(tiny, tmp_path):
     np.testing.assert_allclose(ratio, np.sqrt(110e9 / 108e9), rtol=1e-8)
 
 
-def test_the_fem_stage_stores_the_ordering_applied_and_says_when_it_is_not_the_one_asked(tiny, tmp_path, capsys):
-    """[fem] ordering, with [fem] solver = "mumps": METIS is not in Debian's MUMPS, which
-    then takes its own choice: fem.h5 says which ran, and the log warns exactly when it
-    differs from the scene's (that AMD is applied as asked: tests/fem/test_assembly.py).
-    With the default solver (CHOLMOD, one process) an ordering asked for is noted as MUMPS's."""
-    from fem.cholesky import CHOLMOD_ORDERING
-
-    scene, base = tiny
-    for solver, asked in (("mumps", "metis"), ("auto", "amd")):
-        out = fresh_copy(base, tmp_path / f"{solver}-{asked}")
-        (out / "fem.h5").unlink()  # the factorisation's keys leave a current fem.h5 current (runner.HOW_NOT_WHAT)
-        capsys.readouterr()
-        assert main(["run", str(scene), "--out", str(out), "--until", "fem", "--set", f"fem.ordering={asked}",
-                     "--set", f"fem.solver={solver}"]) == 0
-        printed = capsys.readouterr().out
-        attrs = art.read_attrs(out / "fem.h5")
-        applied = attrs["ordering"]
-        assert attrs["solver"] == ("cholmod" if solver == "auto" else solver)
-        if solver == "auto":
-            assert applied == CHOLMOD_ORDERING
-            assert f'[fem] ordering = "{asked}" is MUMPS\'s; CHOLMOD factorised K' in printed, printed
-            assert "WARNING" not in printed
-        else:
-            if asked == "amd":
-                assert applied == "amd"
-            warned = f'[fem] ordering = "{asked}" is not in this MUMPS build; it used {applied}' in printed
-            assert warned == (applied != asked), (asked, applied, printed)
-        with h5py.File(base / "fem.h5") as a, h5py.File(out / "fem.h5") as b:  # another order, the same modes
-            np.testing.assert_allclose(b["frequencies"][:6], a["frequencies"][:6], rtol=1e-9)
-
-
 def _records_with(scene_path, out, overrides, **kw):
     progress = Progress(quiet=True)
     run_scene(load_scene(scene_path, overrides), out, progress=progress, **kw)
