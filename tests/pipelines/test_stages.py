@@ -308,26 +308,6 @@ def test_a_missing_field_is_a_clear_error(tiny, tmp_path):
 
 # -- overrides from the command line (--set) and the resolved scene (show) -------------------
 
-def test_friction_set_on_the_command_line_reruns_both_treatments_and_the_sweep(tiny, tmp_path, capsys):
-    scene, base = tiny
-    out = fresh_copy(base, tmp_path / "out")
-    before = {p.name: p.read_bytes() for p in out.glob("*.h5")}
-    capsys.readouterr()
-    assert main(["run", str(scene), "--out", str(out), "--set", "contact.mu=0.1"]) == 0
-    printed = capsys.readouterr().out
-    after = {p.name: p.read_bytes() for p in out.glob("*.h5")}
-    assert {k for k in before if before[k] != after[k]} == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "isolas.h5",
-                                                           "validation.h5"}
-    for s in ("mesh", "fem", "rom"):
-        assert f"[{s}] up to date" in printed, printed
-    for s in ("hbm", "ti", "isolas", "validation"):  # isolas, validation: the whole [contact] section
-        assert f"[{s}] running (" in printed and "contact" in printed.split(f"[{s}] running (")[1].split("\n")[0]
-    # the artifacts made by this run carry the resolved scene with the override
-    text = art.read_attrs(out / "nfrc_dlft.h5")["scene"]
-    assert "--set contact.mu=0.1" in text and parse_scene(text).contact.mu == 0.1
-    assert "--set" not in art.read_attrs(out / "rom.h5")["scene"]  # reused, not rewritten
-
-
 def test_a_massless_sweep_past_the_friction_lock_is_warned_about(tiny, tmp_path, capsys):
     """Above the ROM's mu_set a massless node kept in contact locks and the sweep's amplitude
     follows the step (README); the coarse ROM's mu_set is 0.123, the scene's mu 0.15."""
@@ -684,14 +664,29 @@ def test_a_stage_reused_from_another_code_version_says_which_and_how_to_recomput
             "or pass --force to recompute with this version") in printed, printed
 
 
-def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_path, capsys):
-    # another friction, with the DLFT NFRC of it finished and then left as an interrupted
-    # run's partial file: the dry run must name the stages, the resume and the figures that
-    # the real run then computes, resumes and draws, and touch nothing (not even the lock)
+def _running_because(printed: str, stage: str) -> str:
+    """The reason the log gives for running `stage` ("" when it did not run)."""
+    head = f"[{stage}] running ("
+    return printed.split(head)[1].split("\n")[0] if head in printed else ""
+
+
+def test_friction_set_on_the_command_line_reruns_what_reads_it_and_a_dry_run_says_so_first(tiny, tmp_path, capsys):
+    # another friction set on the command line reruns both treatments, the sweep, the search
+    # and the validation and reuses the mesh, FEM and ROM; with the DLFT NFRC of it finished
+    # and then left as an interrupted run's partial file, the dry run must name the stages,
+    # the resume and the figures that the real run then computes, resumes and draws, and
+    # touch nothing (not even the lock). One run of each, the stages' work being most of
+    # the time.
     scene, base = tiny
     out = fresh_copy(base, tmp_path / "out")
+    made = {p.name: p.read_bytes() for p in out.glob("*.h5")}
     sets = ["--set", "contact.mu=0.1"]
-    assert main(["run", str(scene), "--out", str(out), "--until", "hbm", "--quiet", *sets]) == 0
+    capsys.readouterr()
+    assert main(["run", str(scene), "--out", str(out), "--until", "hbm", *sets]) == 0
+    printed = capsys.readouterr().out
+    for s in ("mesh", "fem", "rom"):
+        assert f"[{s}] up to date" in printed, printed
+    assert "contact" in _running_because(printed, "hbm"), printed
     (out / "nfrc_dlft.h5").rename(out / "nfrc_dlft.partial.h5")
     with h5py.File(out / "nfrc_dlft.partial.h5", "a") as h5:  # started by another run than the figures' NFRC
         h5.attrs["created"] = "2026-01-01T00:00:00+00:00"
@@ -723,7 +718,16 @@ def test_a_dry_run_says_what_the_run_then_computes_and_writes_nothing(tiny, tmp_
     assert main(["run", str(scene), "--out", str(out), *sets]) == 0
     printed = capsys.readouterr().out
     assert set(re.findall(r"\[(\w+)\] running \(", printed)) == would == {"hbm", "ti", "isolas", "validation"}
+    for s in ("ti", "isolas", "validation"):  # isolas, validation: the whole [contact] section
+        assert "contact" in _running_because(printed, s), (s, printed)
     assert f"dlft: resuming from {n} points on disk" in printed
+    remade = {p.name: p.read_bytes() for p in out.glob("*.h5")}
+    assert {k for k in made if made[k] != remade[k]} == {"nfrc_dlft.h5", "nfrc_rl.h5", "ti.h5", "isolas.h5",
+                                                         "validation.h5"}
+    # the artifacts made by this run carry the resolved scene with the override
+    text = art.read_attrs(out / "nfrc_dlft.h5")["scene"]
+    assert "--set contact.mu=0.1" in text and parse_scene(text).contact.mu == 0.1
+    assert "--set" not in art.read_attrs(out / "rom.h5")["scene"]  # reused, not rewritten
     drawn = re.search(r"\[figures\] drawn: (.*) -> ", printed).group(1).split(", ")
     assert set(drawn) == drawn_said, (drawn, figures)
     # and now nothing is left to do
