@@ -128,8 +128,9 @@ def default_continuation(hbm: HbmOptions) -> ContinuationOptions:
     ROM (its scene then at N_t = 1024) ended at 635.6 rad/s instead of 450: a step of ds_max
     cut across a bend of the branch (a node's contact splitting into more intervals),
     every correction from the new point turned 48-62 deg from that chord whatever the step
-    (2.5 down to 0.005), the branch crawled at the floor and ended there on a 97 deg turn; with the rule it goes on at ds = 0.078. The coarse rotor 67 NFRCs keep
-    their points and peaks but RL's corners (985 -> 972 points, peak within 0.03 %).
+    (2.5 down to 0.005), the branch crawled at the floor and ended there on a 97 deg turn;
+    with the rule it goes on at ds = 0.078. The coarse rotor 67 NFRCs keep their points and
+    peaks but RL's corners (985 -> 972 points, peak within 0.03 %).
     """
     return ContinuationOptions(omega_min=hbm.omega_min, omega_max=hbm.omega_max, ds=0.05, ds_min=1e-5,
                                ds_max=hbm.ds_max, direction=-1 if hbm.start == "omega_max" else 1,
