@@ -377,13 +377,16 @@ def _check_combinations(scene: Scene) -> None:
     if scene.ti.n_keep * scene.casing.n_lobes < 2:
         raise SceneError(f"[ti] n_keep = {scene.ti.n_keep} with [casing] n_lobes = {scene.casing.n_lobes}: the "
                          "periodicity class needs at least 3 Poincare sections (n_keep n_lobes + 1)")
-    if scene.hbm.n_time % scene.casing.n_lobes:
-        n = scene.casing.n_lobes
-        up = -(-scene.hbm.n_time // n) * n
-        raise SceneError(f"[hbm] n_time = {scene.hbm.n_time} is not a multiple of [casing] n_lobes = {n}: the AFT's "
+    # The casing repeats every T / n_l; the AFT grid spans nu T (the basis period), so the
+    # turn is N_t / (nu n_l) samples: a whole number or the residual loses the symmetry.
+    n, nu = scene.casing.n_lobes, scene.hbm.subharmonic
+    if scene.hbm.n_time % (nu * n):
+        up = -(-scene.hbm.n_time // (nu * n)) * nu * n
+        what = f"[casing] n_lobes = {n}" if nu == 1 else f"[hbm] subharmonic x [casing] n_lobes = {nu} x {n}"
+        raise SceneError(f"[hbm] n_time = {scene.hbm.n_time} is not a multiple of {what}: the AFT's "
                          f"time grid would not map onto itself under the casing's symmetry (a turn of 1/{n} of a "
                          f"revolution), so the NFRC's branch points become imperfect ones and the branch wanders "
-                         f"onto orbits of broken symmetry; take a multiple of {n}, e.g. {up}")
+                         f"onto orbits of broken symmetry; take a multiple of {nu * n}, e.g. {up}")
     lo, hi = scene.isolas.omega_range(scene.hbm)
     if not lo < hi:  # one of the two set in [isolas], the other taken from [hbm]
         def where(key):

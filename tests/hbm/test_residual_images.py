@@ -75,3 +75,31 @@ def test_an_aft_grid_of_a_multiple_of_the_lobes_keeps_a_symmetric_orbit_symmetri
         assert (len(res.images(res.to_unknowns(xr))) == 2) == (n_time % 3 == 0)
     assert broken[1026] < 1e-12 and broken[1152] < 1e-12, broken
     assert broken[1024] > 1e-6, broken  # measured 4.5e-5 (DLFT) and 8.4e-5 (RL) on this state
+
+
+@pytest.mark.parametrize("method", ["dlft", "rl"])
+def test_in_the_basis_of_half_omega_the_grid_needs_a_multiple_of_twice_the_lobes(rom, method):
+    """With [hbm] subharmonic = 2 the AFT grid spans two revolutions, so the casing's turn by
+    1/3 of a revolution (three lobes) is N_t / 6 samples: the residual commutes with that turn
+    (harmonic k of Omega / 2 turned by k 2 pi / 6, done here by hand) on N_t = 1032 and not on
+    1029, a multiple of 3 only; the scene asks for a multiple of nu n_l (pipelines.scene)."""
+    nh = 20
+    k = np.r_[0, np.repeat(np.arange(1, nh + 1), 2)][:, None]
+    c, s = np.cos(k[1::2] * 2.0 * np.pi / 6), np.sin(k[1::2] * 2.0 * np.pi / 6)
+    defect = {}
+    for n_time in (1029, 1032):
+        res = build_residual(rom, CasingOptions(n_lobes=3), ContactOptions(),
+                             HbmOptions(n_harmonics=nh, n_time=n_time, subharmonic=2), method=method)
+
+        def turn(u):
+            xr = res.to_coefficients(u)
+            y = xr.copy()
+            y[1::2], y[2::2] = c * xr[1::2] + s * xr[2::2], c * xr[2::2] - s * xr[1::2]
+            return res.to_unknowns(y)
+
+        u = 0.3 * np.random.default_rng(5).standard_normal(res.size)
+        R = res(u, 1500.0, jacobian=False)
+        defect[n_time] = np.linalg.norm(res(turn(u), 1500.0, jacobian=False) - turn(R)) / np.linalg.norm(R)
+        assert (len(res.images(u)) == 5) == (n_time % 6 == 0)
+    assert defect[1032] < 1e-12, defect
+    assert defect[1029] > 1e-6, defect  # measured 1.6e-4 (DLFT) and 4.1e-4 (RL) on this state

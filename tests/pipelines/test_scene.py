@@ -138,6 +138,9 @@ def test_non_finite_number_is_refused_at_load(section, key, kind, value, tmp_pat
      r"\[ti\] n_keep = 1 with \[casing\] n_lobes = 1: the periodicity class needs at least 3 Poincare sections"),
     ("[casing]\nn_lobes = 3\n", r"^\[hbm\] n_time = 1024 is not a multiple of \[casing\] n_lobes = 3: the AFT's time grid "
                                   r"would not map onto itself .* take a multiple of 3, e\.g\. 1026$"),
+    ("[casing]\nn_lobes = 3\n[hbm]\nsubharmonic = 2\nn_time = 1029\n",
+     r"^\[hbm\] n_time = 1029 is not a multiple of \[hbm\] subharmonic x \[casing\] n_lobes = 2 x 3: the AFT's "
+     r"time grid .* take a multiple of 6, e\.g\. 1032$"),
     ("[limits]\nmemory_gb = -1\n", r"memory_gb must be >= 0 GB"),
     ("[hbm]\nstability_max_gap = 0\n", r"stability_max_gap must be >= 1 \(1: every point analysed\)"),
     ("[hbm]\nrefine_bifurcations = -1\n", r"refine_bifurcations must be >= 0 \(0: no refinement\), got -1"),
