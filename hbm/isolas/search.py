@@ -1009,8 +1009,37 @@ def _at_bound(status: str) -> bool:
     return status.startswith(STATUS_OMEGA_MIN) or status.startswith(STATUS_OMEGA_MAX)
 
 
+#: the non-symmetric part (relative 2-norm, the residual's unknowns) above which an orbit breaks
+#: the residual's symmetry: the symmetric orbits of the NFRCs keep theirs at 1e-8 and below,
+#: those without it at percents (hbm.stability.hill.harmonic_period's threshold)
+BROKEN_RTOL = 1e-4
+
+#: the note a branch's status gets when it merges into the primary without its symmetry
+LEAVES_SYMMETRY = "bifurcated: it leaves the symmetry of the primary it merges into"
+
+
+def asymmetry(residual, x: np.ndarray) -> float:
+    """The largest non-symmetric part over the orbits x ((m, n) in the residual's unknowns):
+    max over them of |x - P x| / |x|, P x the mean of x and all its images (the projection on
+    the orbits every symmetry of the residual leaves unchanged), -; 0 without images."""
+    worst = 0.0
+    for xi in np.atleast_2d(x):
+        xi_images = images(residual, xi)
+        if not xi_images:
+            return 0.0
+        full = _symmetric_parts(xi, xi_images)[0]  # d = 1: the whole group
+        worst = max(worst, float(np.linalg.norm(xi - full) / max(np.linalg.norm(xi), 1e-300)))
+    return worst
+
+
+def _merges_into_primary(halves, primaries: int) -> bool:
+    """Whether a half ended running along a primary NFRC (its join is a merge, known index
+    -1 - k for k < primaries)."""
+    return any(j is not None and -1 - primaries < j[1] < 0 and j[2] for _, j in halves)
+
+
 def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, primaries: int, residual=None,
-              back=None):
+              back=None, broken: float = 0.0):
     """(kind, closed) of a merged branch from its halves [(Branch, joined)]; the known
     branches of index < primaries are the primary NFRC(s). back: per half, whether its
     "closed loop" came back onto its start (_back_at_start) or met the other half
@@ -1022,13 +1051,19 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
     cannot leave the range). Otherwise the branch is not closed, and detached unless it
     meets another branch or both its ends lie inside the range. A branch through a located
     bifurcation point, or through one of its images (residual's `images`: the image of a
-    bifurcation is one of the image branch, which is the same branch), is bifurcated."""
+    bifurcation is one of the image branch, which is the same branch), is bifurcated.
+    broken: the branch's asymmetry (its converged points'). A branch merging into the
+    primary is a piece of it only when it keeps its symmetry (broken <= BROKEN_RTOL): one
+    whose orbits break it left the primary at a branch point, or comes within the
+    tolerance of it, and ran onto it by a corrector landing on the symmetric orbits (where
+    the part without the symmetry is zero at a point, _symmetric_crossing sees nothing turn
+    over): bifurcated."""
     back = [True] * len(halves) if back is None else back
     closed = any(br.status.startswith(STATUS_CLOSED_LOOP) and ok for (br, _), ok in zip(halves, back)) \
         and not any(_at_bound(br.status) for br, _ in halves)
     joined = [j for _, j in halves if j is not None]
-    if any(-1 - primaries < j[1] < 0 and j[2] for j in joined):  # merges into the primary
-        return "primary", closed
+    if _merges_into_primary(halves, primaries):
+        return ("primary" if broken <= BROKEN_RTOL else "bifurcated"), closed
     if any(not j[2] or j[1] < 0 for j in joined):  # crosses a branch, or merges into a known non-primary one
         return "bifurcated", closed
     if bifurcation_points is not None and len(bifurcation_points.omega) and len(omega) > 1:
@@ -1233,7 +1268,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
             n_pts += computed
             merged_into = [j[1] for _, j in halves if j is not None and j[1] >= 0 and j[2]]
             omega, x, conv = _merge(first, second)
-            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries, residual, back)
+            broken = asymmetry(residual, x[np.asarray(conv, bool)]) if _merges_into_primary(halves, primaries) else 0.0
+            kind, closed = _classify(halves, omega, x, bifurcation_points, options, primaries, residual, back, broken)
             for k in sorted({j[1] for _, j in halves if j is not None and j[1] >= 0 and not j[2]}):
                 # a crossing is a branch point of both branches: the one crossed is bifurcated
                 # too, whichever of the two was found first, and so are the pieces it is one
@@ -1277,6 +1313,8 @@ def search(factory, seeds, known, options: SearchOptions, *, comm=None, correcti
                     save(t)
                 continue
             status = "; ".join(f"{'+' if d > 0 else '-'}: {br.status}" for d, (br, _) in zip((1, -1), halves))
+            if broken > BROKEN_RTOL:
+                status += f"; {LEAVES_SYMMETRY} (its part without it up to {broken:.2g} of the orbit)"
             for d, (br, _), onto in zip((1, -1), halves, back):
                 if br.status.startswith(STATUS_CLOSED_LOOP) and not closed:
                     why = ([] if onto else ["it came back near its start, not onto it"]) + \

@@ -486,16 +486,20 @@ def _linked(parts) -> list[tuple[int, ...]]:
 def _born_at_doublings(result, res, pd_res, known, options, ctx=None):
     """The doubled search's result with each branch that passes through an orbit of a known
     branch of res's basis (hbm.isolas.harmonic.doubling_origin: the continuation's own join
-    test misses these crossings) made "bifurcated", the crossing named in its status."""
+    test misses these crossings) made "bifurcated", the crossing named in its status; also
+    sought for the branches the search called bifurcated only because they merge into the
+    primary without its symmetry (hbm.isolas.search.LEAVES_SYMMETRY): where they were born."""
     from dataclasses import replace
 
     from hbm.harmonic.solver import HbmSolver
     from hbm.isolas.harmonic import doubling_origin
+    from hbm.isolas.search import LEAVES_SYMMETRY
 
     solver = HbmSolver(atol=0.1 * res.options.tolerance)
     out = list(result.branches)
     for i, fb in enumerate(result.branches):
-        hit = doubling_origin(res, pd_res, solver, fb, known, options) if fb.kind != "bifurcated" else None
+        seek = fb.kind != "bifurcated" or LEAVES_SYMMETRY in fb.status
+        hit = doubling_origin(res, pd_res, solver, fb, known, options) if seek else None
         if hit is not None:
             k, w = hit
             out[i] = replace(fb, kind="bifurcated",

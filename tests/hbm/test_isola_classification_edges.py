@@ -256,6 +256,46 @@ def test_an_isola_touching_the_primary_within_the_tolerance_joins_it_and_beyond_
         assert b.x[:, 0].min() < 1.5 + 2e-3  # down to the touch, both ways
 
 
+class MirroredRing(Ring):
+    """The ring, with a third unknown x3 = 0 and the symmetry x3 -> -x3 (`images`): every
+    solution is symmetric. Picklable."""
+
+    def __call__(self, x, w, jacobian=True):
+        out = Ring.__call__(self, x[:2], w, jacobian)
+        R = np.append(out if not jacobian else out[0], x[2])
+        if not jacobian:
+            return R
+        J = np.zeros((3, 3))
+        J[:2, :2], J[2, 2] = out[1], 1.0
+        return R, J, np.append(out[2], 0.0)
+
+    def images(self, x):
+        return [np.array([x[0], x[1], -x[2]])]
+
+
+def mirrored_ring():
+    return MirroredRing(), DirectSolver()
+
+
+def test_a_symmetric_branch_merging_into_the_primary_stays_primary():
+    """The touching ring of the test above with a symmetry all its orbits keep: merging into
+    the primary within the tolerance it is still "primary" (only a branch whose orbits break
+    the symmetry is bifurcated for that, tests/hbm/test_isola_symmetric_crossings.py)."""
+    from hbm.isolas.membership import KnownBranch
+
+    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
+                             omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
+    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=1,
+                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    w = np.linspace(0.0, 3.0, 301)
+    prim = KnownBranch.of(w, np.column_stack([np.full_like(w, 1.5 - 0.95e-2), np.full_like(w, 0.5625),
+                                              np.zeros_like(w)]), "primary")
+    (b,) = search(mirrored_ring, [Seed(1.5, np.array([2.51, 1.5, 1e-3]), "top")], [prim], opts).branches
+    assert (b.kind, b.closed) == ("primary", False), b.status
+    assert "symmetry" not in b.status
+
+
 def test_a_loop_back_on_its_start_whose_other_half_reached_the_bound_is_not_closed():
     """The rule behind the coil's verdict, where the return test alone cannot decide: a half
     that truly came back onto its start (back = True) beside a half that reached omega_max.

@@ -198,3 +198,43 @@ def test_symmetric_parts_of_a_two_lobe_residual_keep_the_harmonics_of_each_subgr
     for part, m in zip(parts, kept):  # harmonics that are multiples of m
         expected = np.where((order % m == 0)[:, None], xr, 0.0)
         np.testing.assert_allclose(res.to_coefficients(part), expected, atol=1e-12 * np.abs(xr).max())
+
+
+def test_a_branch_merging_into_the_primary_without_its_symmetry_is_bifurcated(monkeypatch):
+    """Where the corrector lands exactly on a symmetric orbit past the pitchfork, the part
+    without the symmetry is zero at that point, nothing 'turns over' and the crossing goes
+    unseen (rotor 37's default DLFT search: a branch with up to 29 % of its energy outside
+    the harmonics 3k left the primary near 491 rad/s and was stored as a piece of it). The
+    crossing test switched off to make that happen here: the halves run onto the primary and
+    merge into it, and the branch, whose orbits break the symmetry, is still bifurcated, not
+    primary; with the rule's threshold out of reach it would be primary."""
+    import hbm.isolas.search as search_module
+
+    monkeypatch.setattr(search_module, "_symmetric_crossing", lambda *args: None)
+    seed = [Seed(0.5, np.array([0.0, A * 1.02]), "top")]
+    (b,) = search(pitchfork_loop, seed, [_symmetric_branch()], _options()).branches
+    assert b.status.count("met known branch 0 (primary)") == 2 and "symmetric solution" not in b.status
+    assert b.kind == "bifurcated" and search_module.LEAVES_SYMMETRY in b.status, b.status
+    monkeypatch.setattr(search_module, "BROKEN_RTOL", np.inf)
+    (b,) = search(pitchfork_loop, seed, [_symmetric_branch()], _options()).branches
+    assert b.kind == "primary", b.status
+
+
+def test_the_asymmetry_of_an_orbit_is_its_part_outside_the_symmetric_harmonics():
+    """On the HBM residual of a 2-lobe casing: an orbit with only even harmonics of Omega has
+    none; adding odd harmonics of relative size e gives e / sqrt(1 + e^2)."""
+    from hbm.harmonic.residual import build_residual
+    from hbm.isolas.search import asymmetry
+    from hbm.options import CasingOptions, ContactOptions, HbmOptions
+    from support import standin_rom
+
+    res = build_residual(standin_rom(), CasingOptions(), ContactOptions(), HbmOptions(n_harmonics=8, n_time=128),
+                         method="dlft")
+    rng = np.random.default_rng(6)
+    order = np.concatenate([[0], np.repeat(np.arange(1, 9), 2)])
+    even = np.where((order % 2 == 0)[:, None], rng.standard_normal((17, res.n_r)), 0.0)
+    odd = np.where((order % 2 == 1)[:, None], rng.standard_normal((17, res.n_r)), 0.0)
+    odd *= 0.3 * np.linalg.norm(even) / np.linalg.norm(odd)
+    assert asymmetry(res, res.to_unknowns(even)[None]) < 1e-14
+    both = np.stack([res.to_unknowns(even), res.to_unknowns(even + odd)])
+    assert asymmetry(res, both) == pytest.approx(0.3 / np.hypot(1.0, 0.3), rel=1e-12)

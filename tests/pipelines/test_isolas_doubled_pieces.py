@@ -43,6 +43,34 @@ def test_a_piece_linked_to_a_branch_born_at_a_doubling_is_bifurcated_too(monkeyp
                      "    branches by kind, the doublings above included: 1 bifurcated, 1 isola"]
 
 
+def test_a_branch_bifurcated_for_leaving_the_symmetry_still_gets_its_doubling_named(monkeypatch):
+    """A doubled branch the search called bifurcated because it merges into the primary without
+    its symmetry (hbm.isolas.search.LEAVES_SYMMETRY; before, such a branch was "primary") is
+    still tested for the doubling it was born at, and the status names it; one bifurcated by
+    a crossing is not tested again."""
+    from dataclasses import replace
+
+    from hbm.isolas.search import LEAVES_SYMMETRY
+
+    left = replace(_branch(f"+: met known branch 0 (primary); -: point cap; {LEAVES_SYMMETRY} (up to 0.3)", 200.0),
+                   kind="bifurcated")
+    crossed = replace(_branch("+: met known branch 1 (another); -: point cap", 300.0), kind="bifurcated")
+    asked = []
+
+    def origin(res, pd_res, solver, fb, known, options):
+        asked.append(fb.omega[0])
+        return 0, 205.0
+
+    monkeypatch.setattr(harmonic, "doubling_origin", origin)
+    res = SimpleNamespace(options=SimpleNamespace(tolerance=1e-2))
+    out = stage._born_at_doublings(_result([left, crossed]), res, None, [SimpleNamespace(label="the primary NFRC")],
+                                   None)
+    assert asked == [200.0]
+    assert [f.kind for f in out.branches] == ["bifurcated", "bifurcated"]
+    assert "born at a period doubling of the primary NFRC near 205.0 rad/s" in out.branches[0].status
+    assert "born at" not in out.branches[1].status
+
+
 def test_the_file_names_the_other_records_of_a_branch_in_its_own_numbering(tmp_path):
     """Statuses name linked pieces in their search's numbering, which the file shifts for
     the doubled search's branches (after the first search's three): `linked` holds the file's
