@@ -234,6 +234,15 @@ def ring():
     return Ring(), DirectSolver()
 
 
+def _ring_options():
+    """Steps of at most 0.05 round the ring (radius 0.5), the tolerance 1e-2."""
+    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
+                             omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
+                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
+    return SearchOptions(tolerance=1e-2, continuation=co, workers=1,
+                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+
+
 def test_an_isola_touching_the_primary_within_the_tolerance_joins_it_and_beyond_it_stays_closed():
     """A known primary, the line x1 = 1.5 - gap at the ring's lowest x2, touches the ring at
     Omega = 1.5 at the distance gap: below the tolerance (0.95 of it) the ring meets it
@@ -241,11 +250,7 @@ def test_an_isola_touching_the_primary_within_the_tolerance_joins_it_and_beyond_
     same solution"; above (1.05) it is a closed isola. Deliberate (module doc)."""
     from hbm.isolas.membership import KnownBranch
 
-    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
-                             omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    opts = _ring_options()
     w = np.linspace(0.0, 3.0, 301)
     for gap, kind, closed in ((0.95e-2, "primary", False), (1.05e-2, "isola", True)):
         prim = KnownBranch.of(w, np.column_stack([np.full_like(w, 1.5 - gap), np.full_like(w, 0.5625)]), "primary")
@@ -283,11 +288,7 @@ def test_a_symmetric_branch_merging_into_the_primary_stays_primary():
     the symmetry is bifurcated for that, tests/hbm/test_isola_symmetric_crossings.py)."""
     from hbm.isolas.membership import KnownBranch
 
-    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
-                             omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    opts = SearchOptions(tolerance=1e-2, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    opts = _ring_options()
     w = np.linspace(0.0, 3.0, 301)
     prim = KnownBranch.of(w, np.column_stack([np.full_like(w, 1.5 - 0.95e-2), np.full_like(w, 0.5625),
                                               np.zeros_like(w)]), "primary")
