@@ -141,15 +141,15 @@ def mpirun_command(root, n: int = 2) -> tuple[list, dict]:
 
 
 def unit_search_options(*, max_points: int, ds_max: float, newton_tol: float = 1e-12, seed_iterations: int = 30,
-                        tolerance: float = 1e-2):
-    """hbm.isolas.search.SearchOptions for the scalar test systems on omega in [0, 1], x ~ 1
-    (unit scales, one worker): continuation steps of 0.05 up to ds_max, max_points per
+                        tolerance: float = 1e-2, ds: float = 0.05, omega_max: float = 1.0):
+    """hbm.isolas.search.SearchOptions for the scalar test systems on omega in [0, omega_max],
+    x ~ 1 (unit scales, one worker): continuation steps of ds up to ds_max, max_points per
     direction, Newton to newton_tol (seeds with a line search, seed_iterations at most)."""
     from hbm.continuation.arclength import ContinuationOptions
     from hbm.continuation.newton import NewtonOptions
     from hbm.isolas.search import SearchOptions
 
-    co = ContinuationOptions(omega_min=0.0, omega_max=1.0, ds=0.05, ds_min=1e-6, ds_max=ds_max, x_scale=1.0,
+    co = ContinuationOptions(omega_min=0.0, omega_max=omega_max, ds=ds, ds_min=1e-6, ds_max=ds_max, x_scale=1.0,
                              omega_scale=1.0, max_points=max_points, closed_loop_tol=1e-3,
                              newton=NewtonOptions(tol_residual=newton_tol, max_iter=12))
     return SearchOptions(tolerance=tolerance, continuation=co, workers=1,

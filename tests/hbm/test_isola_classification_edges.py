@@ -235,12 +235,8 @@ def ring():
 
 
 def _ring_options():
-    """Steps of at most 0.05 round the ring (radius 0.5), the tolerance 1e-2."""
-    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
-                             omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    return SearchOptions(tolerance=1e-2, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    """Steps of at most 0.05 round the ring (radius 0.5) over Omega in [0, 3], the tolerance 1e-2."""
+    return unit_search_options(max_points=2000, ds_max=0.05, ds=0.02, omega_max=3.0)
 
 
 def test_an_isola_touching_the_primary_within_the_tolerance_joins_it_and_beyond_it_stays_closed():

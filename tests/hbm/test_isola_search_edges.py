@@ -15,6 +15,7 @@ from hbm.continuation.newton import NewtonOptions
 from hbm.isolas.membership import KnownBranch, polyline_distance
 from hbm.isolas.search import SearchOptions, Seed, search
 from hbm.linalg.dense import DirectSolver
+from support import unit_search_options
 from test_isola_classification_edges import BW, CX, RW, RX, WC, Coil, _seed, coil_options, line
 from test_isola_classification_edges import _options as line_options
 from test_isolas_meetings import _options as cross_options
@@ -209,11 +210,8 @@ def ring_and_line():
 
 
 def _ring_options():
-    co = ContinuationOptions(omega_min=0.0, omega_max=3.0, ds=0.02, ds_min=1e-6, ds_max=0.05, x_scale=1.0,
-                             omega_scale=1.0, max_points=2000, closed_loop_tol=1e-3,
-                             newton=NewtonOptions(tol_residual=1e-12, max_iter=12))
-    return SearchOptions(tolerance=1e-2, continuation=co, workers=1,
-                         newton=NewtonOptions(tol_residual=1e-12, max_iter=30, line_search=True))
+    """Steps of at most 0.05 round the ring (radius 0.5) over Omega in [0, 3], the tolerance 1e-2."""
+    return unit_search_options(max_points=2000, ds_max=0.05, ds=0.02, omega_max=3.0)
 
 
 RING_SEED = Seed(1.5, np.array([2.51, 0.0]), "ring's top")
