@@ -20,7 +20,8 @@ are they solutions on a grid that is, and are they the blade's?
    `--marches` points marched 100 periods with the validation stage's Carpenter step
    (hbm.ti.validation.march_from_hbm): the first period's deviation, where the march ends
    (broken share of its last period, its period ratio).
-Prints one line per step; the README's *Rotor 37* holds a run (about 12 min on one core).
+Prints one line per step; the README's *Rotor 37* holds a run (about 5.5 min on one core).
+With --from-branch FILE:GROUP only the closest approach, from a branch of an isolas.h5.
 """
 from __future__ import annotations
 
@@ -50,6 +51,29 @@ def broken_share(res, u: np.ndarray) -> float:
     return coefficient_share(res.to_coefficients(u), res.nu * int(res.casing.n_lobes))
 
 
+def closest_approach(res, solver, x0: np.ndarray, w0: float, options, n_points: int = 80):
+    """From the orbit x0 at w0 (rad/s), continuation with steps of at most 0.1 (options: the
+    search's ContinuationOptions otherwise), n_points each way -> (Omega (m,), broken share
+    (m,), the Omegas where Omega turns (folds)); the least broken point is where the branch
+    comes closest to the symmetric orbits (a branch point has the share fall to zero)."""
+    from dataclasses import replace
+
+    from hbm.continuation.arclength import continue_branch
+
+    w, sh, folds = [], [], []
+    for d in (1, -1):
+        pts = []
+        co = replace(options, ds=0.025, ds_max=0.1, max_points=n_points, direction=d)
+        continue_branch(res, x0, w0, co, solver=solver,
+                        on_point=lambda p: pts.append((p.omega, broken_share(res, p.x))) if p.converged else None)
+        om = np.array([p[0] for p in pts])
+        turn = np.flatnonzero(np.diff(np.sign(np.diff(om))) != 0) + 1
+        folds += [float(om[t]) for t in turn]
+        w += [p[0] for p in pts]
+        sh += [p[1] for p in pts]
+    return np.array(w), np.array(sh), sorted({round(f, 2) for f in folds})  # a fold once, however often met
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rom", type=Path, required=True)
@@ -59,9 +83,11 @@ def main(argv=None) -> int:
     ap.add_argument("--omega", type=float, nargs=2, default=[671.0, 686.0])
     ap.add_argument("--checks", type=int, default=4)
     ap.add_argument("--marches", type=int, default=4)
+    ap.add_argument("--from-branch", metavar="FILE:GROUP",
+                    help="only the closest approach, from a branch of an isolas.h5 (e.g. out/r37/isolas.h5:dlft/000): "
+                         "from its least broken point that is not symmetric")
     a = ap.parse_args(argv)
 
-    from hbm.continuation.arclength import continue_branch
     from hbm.continuation.newton import NewtonOptions, newton_solve
     from hbm.harmonic.nfrc import compute_nfrc
     from hbm.harmonic.residual import build_residual
@@ -76,6 +102,25 @@ def main(argv=None) -> int:
     from rom.model import load_rom
 
     scene, rom = load_scene(a.scene), load_rom(a.rom)
+    if a.from_branch:
+        import h5py
+
+        path, group = a.from_branch.split(":")
+        res, solver = HbmProblem(rom, scene.casing, scene.contact, scene.hbm, a.method)()
+        with h5py.File(path, "r") as h5:
+            b = h5[f"{group.split('/')[0]}/branches/{group.split('/')[1]}"]
+            ok = b["converged"][()].astype(bool)
+            om, xs = b["omega"][()][ok], b["x"][()][ok]
+        sh = np.array([broken_share(res, u) for u in xs])
+        m = int(np.argmin(np.where(sh > 1e-12, sh, np.inf)))
+        w_f, s_f, folds = closest_approach(res, solver, xs[m], float(om[m]), search_options(scene.hbm, scene.isolas)
+                                           .continuation, n_points=200)
+        k = int(np.argmin(s_f))
+        print(f"{a.from_branch}: {len(om)} points, {(sh < 1e-12).sum()} on symmetric orbits; from {om[m]:.3f} rad/s "
+              f"(share {sh[m]:.2e}), steps of at most 0.1, {len(s_f)} points: share down to {s_f[k]:.2e} (its square "
+              f"root {np.sqrt(s_f[k]):.2e}) at {w_f[k]:.3f} rad/s, {(s_f < 1e-12).sum()} points on symmetric orbits, "
+              f"Omega turns at {', '.join(f'{f:.2f}' for f in folds) or 'none'} rad/s")
+        return 0
     lo, hi = a.omega
     bad_opts = replace(scene.hbm, n_time=a.bad_grid)
     t = time.process_time()
@@ -124,12 +169,7 @@ def main(argv=None) -> int:
     # the closest approach to the symmetric orbits, with short steps from the least broken of
     # the search's points not on them (its corrector may have landed on the primary)
     m = int(np.argmin(np.where(sh > 1e-12, sh, np.inf)))
-    fine_pts = []
-    for d in (1, -1):
-        co = replace(opts.continuation, ds=0.025, ds_max=0.1, max_points=80, direction=d)
-        continue_branch(res, xs[m], float(om[m]), co, solver=problem()[1],
-                        on_point=lambda p: fine_pts.append((p.omega, broken_share(res, p.x))) if p.converged else None)
-    w_f, s_f = np.array(fine_pts).T
+    w_f, s_f, _ = closest_approach(res, problem()[1], xs[m], float(om[m]), opts.continuation)
     k = int(np.argmin(s_f))
     print(f"   with steps of at most 0.1 from {om[m]:.3f} rad/s ({len(s_f)} points): broken share down to {s_f[k]:.2e} "
           f"(its square root {np.sqrt(s_f[k]):.2e}) at {w_f[k]:.3f} rad/s, {(s_f < 1e-12).sum()} points on symmetric "
