@@ -12,9 +12,10 @@ are they solutions on a grid that is, and are they the blade's?
 3. One of them (the largest share) continued with the isola search's settings against the
    scene's primary NFRC (computed here on the scene's grid): its kind, whether it closes, its
    Omega range, its status, the smallest broken share along it and where; then, from the
-   least broken of its points that are not symmetric, steps of at most 0.1 each way: how close the broken orbits come to the symmetric
-   ones (a branch point of the primary has the share fall to zero there), and the primary's
-   multipliers near the argument 2 pi / n_l at its points within 0.5 rad/s of there.
+   least broken of its points that are not symmetric, steps of at most 0.1 each way: how
+   close the broken orbits come to the symmetric ones (a branch point of the primary has the
+   share fall to zero there), and the primary's multipliers near the argument 2 pi / n_l at
+   its points within 0.5 rad/s of there.
 4. Along that branch: Hill's verdict every 12th point; `--checks` points solved again with
    2 N_h (hbm.stability.convergence.check_harmonics) and with the other contact law at N_h;
    `--marches` points marched 100 periods with the validation stage's Carpenter step
