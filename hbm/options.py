@@ -96,8 +96,8 @@ class HbmOptions:
       N_t every retained harmonic then lies below the Nyquist bin, which has no sine part; an
       odd N_t = 2 N_h + 1 would be exact for the AFT too, but the stability and content code
       is only exercised on even N_t, so the one bound stays). A scene also needs N_t to be a
-      multiple of the casing's lobes (pipelines.scene): on another grid the AFT breaks the
-      casing's symmetry and the primary branch's branch points become imperfect.
+      multiple of the casing's lobes times subharmonic (pipelines.scene): on another grid the
+      AFT breaks the casing's symmetry and the primary branch's branch points become imperfect.
     omega_min, omega_max: rotation speed range Omega, rad/s (omega = Omega).
     start: where the branch starts, "omega_max" (the default: at 2000 rad/s the contact-free
       solution is a good start for both treatments on rotor 67, while at 400 rad/s RL's stiff

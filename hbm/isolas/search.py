@@ -1027,7 +1027,7 @@ def asymmetry(residual, x: np.ndarray) -> float:
         xi_images = images(residual, xi)
         if not xi_images:
             return 0.0
-        full = _symmetric_parts(xi, xi_images)[0]  # d = 1: the whole group
+        full = (xi + sum(xi_images)) / (len(xi_images) + 1)  # the whole group's mean
         worst = max(worst, float(np.linalg.norm(xi - full) / max(np.linalg.norm(xi), 1e-300)))
     return worst
 
