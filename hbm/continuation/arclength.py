@@ -348,7 +348,8 @@ def _prediction(points, ds, tx, tw, sc: _Scaling, quadratic: bool):
 
 def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | None, options: ContinuationOptions,
                     *, on_point: Callable[[ContinuationPoint], None] | None = None,
-                    solver: LinearSolver | None = None, resume=None) -> Branch:
+                    solver: LinearSolver | None = None, resume=None,
+                    admit: Callable[[ContinuationPoint, np.ndarray, float], str | None] | None = None) -> Branch:
     """Follow the solution branch of residual(x, omega) = 0 through folds, from (x0, omega0).
 
     x0: initial guess (n,), corrected at fixed omega0 (rad/s) by Newton first.
@@ -362,6 +363,11 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
     last point's step and iterations, so that a resumed run gives the points of an
     uninterrupted one. The returned Branch holds the resumed points followed by the new
     ones; on_point is called for the new ones only.
+    admit(last, x, omega): the caller's own test of a converged correction from the point
+    `last` to (x (n,), omega rad/s), after the turn test: a reason (str) refuses it and
+    the step shrinks, as for a turn; None admits it. At the step floor every correction is
+    admitted: what the caller refuses there is a genuine feature of the branch (the isola
+    search refuses a landing on symmetric orbits from broken ones, hbm.isolas.search).
     Returns a Branch whose `status` says why it stopped; the run never raises on a
     correction that fails (only on errors of the caller's residual or on_point).
     """
@@ -460,7 +466,13 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
                 k = opt.corner_turns
                 corner = (k is not None and len(turns) >= k
                           and max(abs(t - turn) for t in turns[-k:]) <= opt.corner_tol_deg)
-                if d > 0 and (turn <= opt.max_turn_deg or ((floor or corner) and turn <= 90.0)):
+                refused = None
+                if d > 0 and admit is not None and not floor \
+                        and (turn <= opt.max_turn_deg or (corner and turn <= 90.0)):
+                    refused = admit(last, cx, cw)
+                if refused is not None:
+                    c = c._replace(converged=False, reason=f"{refused} near omega={cw:.6g}")
+                elif d > 0 and (turn <= opt.max_turn_deg or ((floor or corner) and turn <= 90.0)):
                     # A loop coming back to its start lands on its own first segment: the
                     # crossing test closes it there, before the rejoin test would refuse it.
                     if not opt.rejoin_check or closes(last, cx, cw) is not None:

@@ -666,7 +666,7 @@ def _half(residual, solver, x0, w0, direction: int, opts: ContinuationOptions, o
     try:
         try:
             br = continue_branch(residual, x0, w0, replace(opts, direction=direction), on_point=on_point,
-                                 solver=solver)
+                                 solver=solver, admit=_keeps_off_symmetric_orbits(residual))
             out = br, None
         except _Joined as j:
             out = Branch.from_points(points, len(x0), f"met {j.label}"), (j.label, j.index, j.merging)
@@ -1030,6 +1030,36 @@ def asymmetry(residual, x: np.ndarray) -> float:
         full = (xi + sum(xi_images)) / (len(xi_images) + 1)  # the whole group's mean
         worst = max(worst, float(np.linalg.norm(xi - full) / max(np.linalg.norm(xi), 1e-300)))
     return worst
+
+
+#: how much smaller than its last point's a correction's non-symmetric part must be for the
+#: correction to be a landing on the symmetric orbits (_keeps_off_symmetric_orbits): along a
+#: branch that runs into a pitchfork the part falls as the square root of the distance, a
+#: hundredth of it over one step only when the step is 10^4 times the distance left
+_LANDING_FALL = 1e-2
+
+
+def _keeps_off_symmetric_orbits(residual):
+    """continue_branch's `admit` for the search's halves: refuses a correction from an orbit
+    that breaks the residual's symmetry (asymmetry over BROKEN_RTOL) onto one that keeps it
+    (asymmetry at most BROKEN_RTOL and _LANDING_FALL times the last point's). A branch reaches
+    the symmetric orbits only at a pitchfork, where its non-symmetric part goes to zero
+    continuously; a corrector that lands on them from a point clearly off them has crossed a
+    gap narrower than its step (rotor 37's default DLFT search: a broken branch folding 3.3 %
+    of the orbit short of the primary ran onto it and was taken for one of its pitchforks).
+    The refusal halves the step; at the step floor the landing is admitted."""
+
+    def admit(last, x, omega):
+        before = asymmetry(residual, last.x)
+        if not before > BROKEN_RTOL:
+            return None
+        after = asymmetry(residual, x)
+        if after <= BROKEN_RTOL and after <= _LANDING_FALL * before:
+            return (f"correction landed on an orbit with the symmetry (non-symmetric part {after:.1e}) "
+                    f"from one without it ({before:.1e})")
+        return None
+
+    return admit
 
 
 def _merges_into_primary(halves, primaries: int) -> bool:

@@ -105,6 +105,29 @@ def test_slow_corrections_are_refused_above_the_step_floor(duffing):
         opts(0.5, 2.5, iter_reject=0)
 
 
+def test_a_refusal_by_the_caller_halves_the_step_and_the_floor_admits(duffing):
+    """admit refuses every correction that ends above Omega = 1.2: the step halves down to the
+    floor, where the correction is admitted (a refusal never ends the branch), so the branch
+    creeps past 1.2 at steps under twice ds_min, every point still the exact branch's. The
+    refusals are the caller's: each carries the last point and the corrected (x, omega)."""
+    seen = []
+
+    def admit(last, x, omega):
+        seen.append((last.omega, omega))
+        return "above 1.2" if omega > 1.2 else None
+
+    b = continue_branch(duffing, np.zeros(2), 0.5, opts(0.5, 2.5, ds_min=1e-4, max_points=400), admit=admit)
+    assert b.status == STATUS_MAX_POINTS and b.converged.all()
+    above = b.omega > 1.2
+    assert above.sum() > 100 and b.omega.max() < 1.25
+    assert (b.step[1:][above[1:]] < 2e-4).all()  # every step that ended above 1.2 taken at the floor
+    assert (b.step[1:][~above[1:]] > 2e-4).any()
+    A = np.hypot(b.x[:, 0], b.x[:, 1])
+    assert np.all(np.abs(duffing.relation(A, b.omega)) <= 1.01 * (2 * duffing.force * b.residual_norm
+                                                                 + b.residual_norm ** 2) + 1e-15)
+    assert any(w_new > 1.2 and w_last <= 1.2 for w_last, w_new in seen)
+
+
 def test_unknown_predictor_is_refused():
     with pytest.raises(ValueError, match="predictor"):
         opts(0.5, 2.5, predictor="tangent")

@@ -207,10 +207,14 @@ def test_a_branch_merging_into_the_primary_without_its_symmetry_is_bifurcated(mo
     the harmonics 3k left the primary near 491 rad/s and was stored as a piece of it). The
     crossing test switched off to make that happen here: the halves run onto the primary and
     merge into it, and the branch, whose orbits break the symmetry, is still bifurcated, not
-    primary; with the rule's threshold out of reach it would be primary."""
+    primary; with the rule's threshold out of reach it would be primary. The search's refusal
+    of such landings (_keeps_off_symmetric_orbits) is switched off too: with it the halves go
+    on through the pitchforks (onto the mirror image, here a closed loop), and only a landing
+    at the step floor gets past it."""
     import hbm.isolas.search as search_module
 
     monkeypatch.setattr(search_module, "_symmetric_crossing", lambda *args: None)
+    monkeypatch.setattr(search_module, "_keeps_off_symmetric_orbits", lambda residual: None)
     seed = [Seed(0.5, np.array([0.0, A * 1.02]), "top")]
     (b,) = search(pitchfork_loop, seed, [_symmetric_branch()], _options()).branches
     assert b.status.count("met known branch 0 (primary)") == 2 and "symmetric solution" not in b.status
@@ -218,6 +222,57 @@ def test_a_branch_merging_into_the_primary_without_its_symmetry_is_bifurcated(mo
     monkeypatch.setattr(search_module, "BROKEN_RTOL", np.inf)
     (b,) = search(pitchfork_loop, seed, [_symmetric_branch()], _options()).branches
     assert b.kind == "primary", b.status
+
+
+GAP, TILT, LONG, SHORT = 0.1, 0.1, 20.0, 1.0  # scaled units: the tilted loops' gap, tilt (rad), half axes
+
+
+def _tilted_ellipse(y, v):
+    """E(y, v) of the ellipse of half axes LONG, SHORT tilted by TILT, in the scaled (v, y) =
+    ((w - 1/2) / OMEGA_SCALE, x2 / X_SCALE) plane, whose lowest point is GAP above y = 0 and
+    whose end (a fold in Omega) is next to it: (E, dE/dy, dE/dv)."""
+    yc = GAP + np.hypot(LONG * np.sin(TILT), SHORT * np.cos(TILT))
+    c, s = np.cos(TILT), np.sin(TILT)
+    p, q = v * c + (y - yc) * s, -v * s + (y - yc) * c
+    return (p / LONG) ** 2 + (q / SHORT) ** 2 - 1.0, 2 * (p * s / LONG**2 + q * c / SHORT**2), \
+        2 * (p * c / LONG**2 - q * s / SHORT**2)
+
+
+class TiltedLoops(PitchforkLoop):
+    """The same symmetric branch, and a long thin loop tilted so that its end, where it folds
+    in Omega (at Omega ~ 0.3), lies GAP = 0.1 scaled units (0.005 in x2) above the symmetric
+    branch, with its mirror image: g = E(x2) E(-x2), never zero at x2 = 0."""
+
+    def g(self, x2, w):
+        y, v = x2 / X_SCALE, (w - 0.5) / OMEGA_SCALE
+        (e1, e1y, e1v), (e2, e2y, e2v) = _tilted_ellipse(y, v), _tilted_ellipse(-y, v)
+        return e1 * e2, (e1y * e2 - e1 * e2y) / X_SCALE, (e1v * e2 + e1 * e2v) / OMEGA_SCALE
+
+
+def tilted_loops():
+    return TiltedLoops(), DirectSolver()
+
+
+def test_a_loop_folding_next_to_the_symmetric_branch_stays_a_closed_isola(monkeypatch):
+    """Rotor 37's default DLFT search had a broken branch fold 3.3 % of the orbit short of the
+    primary: its corrector, steps longer than the gap, landed on the primary's symmetric orbits
+    and the branch was stored as leaving it. Here the loop's fold is a tenth of the longest
+    step (ds_max = 1) from the symmetric branch: the search refuses the landing (the step halves) and closes the loop,
+    its points all GAP or more off the symmetric branch. Without the refusal it lands and the
+    loop is taken for a branch leaving the primary."""
+    import hbm.isolas.search as search_module
+
+    yc = GAP + np.hypot(LONG * np.sin(TILT), SHORT * np.cos(TILT))
+    seed = [Seed(0.5, np.array([0.0, (yc + 0.9 * SHORT) * X_SCALE]), "top")]
+    (b,) = search(tilted_loops, seed, [_symmetric_branch()], _options()).branches
+    assert b.kind == "isola" and b.closed, b.status
+    x2 = b.x[np.asarray(b.converged, bool), 1]
+    assert x2.min() > 0.99 * GAP * X_SCALE and x2.min() < 1.1 * GAP * X_SCALE  # round its lowest point
+    reach = OMEGA_SCALE * np.hypot(LONG * np.cos(TILT), SHORT * np.sin(TILT))  # the folds' distance from 1/2
+    np.testing.assert_allclose([b.omega.min(), b.omega.max()], [0.5 - reach, 0.5 + reach], atol=2e-3)
+    monkeypatch.setattr(search_module, "_keeps_off_symmetric_orbits", lambda residual: None)
+    (b,) = search(tilted_loops, seed, [_symmetric_branch()], _options()).branches
+    assert b.kind == "bifurcated" and not b.closed and search_module.LEAVES_SYMMETRY in b.status, b.status
 
 
 def test_the_asymmetry_of_an_orbit_is_its_part_outside_the_symmetric_harmonics():
