@@ -1085,9 +1085,10 @@ def _classify(halves, omega, x, bifurcation_points, options: SearchOptions, prim
     broken: the branch's asymmetry (its converged points'). A branch merging into the
     primary is a piece of it only when it keeps its symmetry (broken <= BROKEN_RTOL): one
     whose orbits break it ran onto the primary by a corrector landing on the symmetric
-    orbits, past a branch point or across a gap narrower than its step (the part without the
-    symmetry is then zero at a point, and _symmetric_crossing sees nothing turn over):
-    bifurcated, the kind the search can tell from its points."""
+    orbits (the part without the symmetry is then zero at a point, and _symmetric_crossing
+    sees nothing turn over), which _keeps_off_symmetric_orbits lets through only from a
+    point already near them or at the step floor: bifurcated, the kind the search can tell
+    from its points."""
     back = [True] * len(halves) if back is None else back
     closed = any(br.status.startswith(STATUS_CLOSED_LOOP) and ok for (br, _), ok in zip(halves, back)) \
         and not any(_at_bound(br.status) for br, _ in halves)
