@@ -275,6 +275,28 @@ def test_a_loop_folding_next_to_the_symmetric_branch_stays_a_closed_isola(monkey
     assert b.kind == "bifurcated" and not b.closed and search_module.LEAVES_SYMMETRY in b.status, b.status
 
 
+@pytest.mark.parametrize("before, after, refused", [(2e-4, 5e-5, False), (2e-4, 1e-6, True), (0.3, 1e-3, False),
+                                                     (0.3, 9e-5, True), (5e-5, 0.0, False)])
+def test_a_landing_is_refused_only_from_a_broken_point_onto_a_hundred_times_smaller_part(before, after, refused):
+    """On the pitchfork loop the non-symmetric part of (x1, x2) is |x2| / |x| (the mean with the
+    mirror image is (x1, 0)). A correction is refused only when the last point's part is over
+    1e-4 and the new one's is at most 1e-4 and a hundredth of it: a point running into a
+    pitchfork may step from 2e-4 to 5e-5 (a fourfold fall: the square root of a sixteenfold
+    one in distance)."""
+    from types import SimpleNamespace
+
+    from hbm.isolas.search import _keeps_off_symmetric_orbits
+
+    def point(part):  # |x2| / |x| = part with x1 = 1
+        return np.array([1.0, part / np.sqrt(1.0 - part * part)])
+
+    admit = _keeps_off_symmetric_orbits(PitchforkLoop())
+    why = admit(SimpleNamespace(x=point(before), omega=0.4), point(after), 0.41)
+    assert (why is not None) == refused, why
+    if refused:
+        assert "landed on an orbit with the symmetry" in why
+
+
 def test_the_asymmetry_of_an_orbit_is_its_part_outside_the_symmetric_harmonics():
     """On the HBM residual of a 2-lobe casing: an orbit with only even harmonics of Omega has
     none; adding odd harmonics of relative size e gives e / sqrt(1 + e^2)."""
