@@ -22,7 +22,8 @@ are they solutions on a grid that is, and are they the blade's?
    (hbm.ti.validation.march_from_hbm): the first period's deviation, where the march ends
    (broken share of its last period, its period ratio).
 Prints one line per step; the README's *Rotor 37* holds a run (about 5.5 min on one core).
-With --from-branch FILE:GROUP only the closest approach, from a branch of an isolas.h5.
+With --from-branch FILE:GROUP only the closest approach, from a branch of an isolas.h5 (and,
+with --along, step 4 along that branch).
 """
 from __future__ import annotations
 
@@ -75,6 +76,48 @@ def closest_approach(res, solver, x0: np.ndarray, w0: float, options, n_points: 
     return np.array(w), np.array(sh), sorted({round(f, 2) for f in folds})  # a fold once, however often met
 
 
+def along_branch(res, om, xs, sh, scene, rom, a, label: str = "4. along it") -> None:
+    """Step 4 on a branch's points (Omega (m,) rad/s, orbits (m, n), broken shares (m,)): Hill's
+    verdict every 12th point, then a.checks of the broken ones (the stable first) solved again
+    with 2 N_h and with the other contact law, and a.marches of them marched 100 periods."""
+    from hbm.continuation.newton import NewtonOptions, newton_solve
+    from hbm.harmonic.residual import build_residual
+    from hbm.stability.convergence import check_harmonics
+    from hbm.stability.spectrum import orbit_spectrum
+    from hbm.ti.march import rom_modal_system
+    from hbm.ti.validation import confirm_orbit, march_from_hbm
+
+    other = build_residual(rom, scene.casing, scene.contact, scene.hbm, method="dlft" if a.method == "rl" else "rl")
+    fine = res.refined(2)
+    system = rom_modal_system(rom)
+    print(f"{label}:", flush=True)
+    verdicts = {}
+    for i in range(0, len(om), 12):
+        spec, g = orbit_spectrum(res, xs[i], float(om[i]), min_ceiling=1.0)
+        verdicts[i] = spec.stable
+        print(f"   {om[i]:.3f} rad/s, share {sh[i]:.3f}: stable {spec.stable}, largest |mu| "
+              f"{spec.largest_modulus:.3f} (period T/{g})", flush=True)
+    broken = [i for i in verdicts if sh[i] > 0.05]
+    chosen = sorted(broken, key=lambda i: (not verdicts[i], -sh[i]))
+    for i in chosen[: a.checks]:
+        c = check_harmonics(res, xs[i], float(om[i]), fine=fine)
+        s2 = broken_share(fine, c.u) if len(c.u) else float("nan")
+        o = newton_solve(other, other.to_unknowns(res.to_coefficients(xs[i])), float(om[i]), NewtonOptions(max_iter=60))
+        so = broken_share(other, o.x) if o.converged else float("nan")
+        print(f"   {om[i]:.3f} rad/s (stable {verdicts[i]}): 2 N_h: {c.reason}, its share {s2:.2e}; "
+              f"{other.method} at N_h: converged {o.converged}, share {so:.2e}", flush=True)
+    for i in chosen[: a.marches]:
+        ti = march_from_hbm(system, scene.casing, scene.contact.mu, res.expand_harmonics(xs[i], float(om[i])),
+                            float(om[i]), n_periods=100, dt=scene.validation.dt, record_all=True)
+        ti = confirm_orbit(res, ti, xs[i], float(om[i]))
+        r = ti.reached
+        last = coefficient_share(ti.last_harmonics, res.nu * int(res.casing.n_lobes))
+        print(f"   {om[i]:.3f} rad/s (stable {verdicts[i]}): time integration stays {ti.stays}, first period's "
+              f"deviation (LE, TE) {np.round(ti.deviation[0], 3)}, last period's broken share {last:.3f}; Newton "
+              f"from it: converged {r.converged}, period T/{r.period_ratio} (the orbit's T/{r.orbit_period_ratio}), "
+              f"{r.solution_distance:.3f} from the orbit", flush=True)
+
+
 def main(argv=None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--rom", type=Path, required=True)
@@ -87,6 +130,8 @@ def main(argv=None) -> int:
     ap.add_argument("--from-branch", metavar="FILE:GROUP",
                     help="only the closest approach, from a branch of an isolas.h5 (e.g. out/r37/isolas.h5:dlft/000): "
                          "from its least broken point that is not symmetric")
+    ap.add_argument("--along", action="store_true",
+                    help="with --from-branch: also step 4 along that branch (Hill's verdicts, --checks, --marches)")
     a = ap.parse_args(argv)
 
     from hbm.continuation.newton import NewtonOptions, newton_solve
@@ -95,10 +140,7 @@ def main(argv=None) -> int:
     from hbm.isolas.harmonic import HbmProblem, search_options
     from hbm.isolas.membership import KnownBranch
     from hbm.isolas.search import Seed, search
-    from hbm.stability.convergence import check_harmonics
     from hbm.stability.spectrum import orbit_spectrum
-    from hbm.ti.march import rom_modal_system
-    from hbm.ti.validation import confirm_orbit, march_from_hbm
     from pipelines.scene import load_scene
     from rom.model import load_rom
 
@@ -121,6 +163,8 @@ def main(argv=None) -> int:
               f"(share {sh[m]:.2e}), steps of at most 0.1, {len(s_f)} points: share down to {s_f[k]:.2e} (its square "
               f"root {np.sqrt(s_f[k]):.2e}) at {w_f[k]:.3f} rad/s, {(s_f < 1e-12).sum()} points on symmetric orbits, "
               f"Omega turns at {', '.join(f'{f:.2f}' for f in folds) or 'none'} rad/s")
+        if a.along:
+            along_branch(res, om, xs, sh, scene, rom, a, label=f"along {a.from_branch}")
         return 0
     lo, hi = a.omega
     bad_opts = replace(scene.hbm, n_time=a.bad_grid)
@@ -186,35 +230,7 @@ def main(argv=None) -> int:
         print(f"   primary at {primary.omega[q]:.3f} rad/s (period T/{g}): multipliers within 30 deg of {arg:.0f} deg: "
               + (", ".join(f"|mu| {abs(z):.3f} at {np.degrees(np.angle(z)):.1f} deg" for z in mu) or "none"),
               flush=True)
-    other = build_residual(rom, scene.casing, scene.contact, scene.hbm, method="dlft" if a.method == "rl" else "rl")
-    fine = res.refined(2)
-    system = rom_modal_system(rom)
-    print("4. along it:", flush=True)
-    verdicts = {}
-    for i in range(0, len(om), 12):
-        spec, g = orbit_spectrum(res, xs[i], float(om[i]), min_ceiling=1.0)
-        verdicts[i] = spec.stable
-        print(f"   {om[i]:.3f} rad/s, share {sh[i]:.3f}: stable {spec.stable}, largest |mu| "
-              f"{spec.largest_modulus:.3f} (period T/{g})", flush=True)
-    broken = [i for i in verdicts if sh[i] > 0.05]
-    chosen = sorted(broken, key=lambda i: (not verdicts[i], -sh[i]))
-    for i in chosen[: a.checks]:
-        c = check_harmonics(res, xs[i], float(om[i]), fine=fine)
-        s2 = broken_share(fine, c.u) if len(c.u) else float("nan")
-        o = newton_solve(other, other.to_unknowns(res.to_coefficients(xs[i])), float(om[i]), NewtonOptions(max_iter=60))
-        so = broken_share(other, o.x) if o.converged else float("nan")
-        print(f"   {om[i]:.3f} rad/s (stable {verdicts[i]}): 2 N_h: {c.reason}, its share {s2:.2e}; "
-              f"{other.method} at N_h: converged {o.converged}, share {so:.2e}", flush=True)
-    for i in chosen[: a.marches]:
-        ti = march_from_hbm(system, scene.casing, scene.contact.mu, res.expand_harmonics(xs[i], float(om[i])),
-                            float(om[i]), n_periods=100, dt=scene.validation.dt, record_all=True)
-        ti = confirm_orbit(res, ti, xs[i], float(om[i]))
-        r = ti.reached
-        last = coefficient_share(ti.last_harmonics, res.nu * int(res.casing.n_lobes))
-        print(f"   {om[i]:.3f} rad/s (stable {verdicts[i]}): time integration stays {ti.stays}, first period's "
-              f"deviation (LE, TE) {np.round(ti.deviation[0], 3)}, last period's broken share {last:.3f}; Newton "
-              f"from it: converged {r.converged}, period T/{r.period_ratio} (the orbit's T/{r.orbit_period_ratio}), "
-              f"{r.solution_distance:.3f} from the orbit", flush=True)
+    along_branch(res, om, xs, sh, scene, rom, a)
     return 0
 
 
