@@ -1045,9 +1045,9 @@ def _keeps_off_symmetric_orbits(residual):
     (asymmetry at most BROKEN_RTOL and _LANDING_FALL times the last point's). A branch reaches
     the symmetric orbits only at a pitchfork, where its non-symmetric part goes to zero
     continuously; a corrector that lands on them from a point clearly off them has crossed a
-    gap narrower than its step (rotor 37's default DLFT search: a broken branch folding 3.3 %
-    of the orbit short of the primary ran onto it and was taken for one of its pitchforks).
-    The refusal halves the step; at the step floor the landing is admitted."""
+    gap narrower than its step (a broken branch folding a few percent of the orbit short of
+    the primary would run onto it and be taken for one of its pitchforks). The refusal halves
+    the step; at the step floor the landing is admitted."""
 
     def admit(last, x, omega):
         before = asymmetry(residual, last.x)
