@@ -229,8 +229,8 @@ GAP, TILT, LONG, SHORT = 0.1, 0.1, 20.0, 1.0  # scaled units: the tilted loops' 
 
 def _tilted_ellipse(y, v):
     """E(y, v) of the ellipse of half axes LONG, SHORT tilted by TILT, in the scaled (v, y) =
-    ((w - 1/2) / OMEGA_SCALE, x2 / X_SCALE) plane, whose lowest point is GAP above y = 0 and
-    whose end (a fold in Omega) is next to it: (E, dE/dy, dE/dv)."""
+    ((w - 1/2) / OMEGA_SCALE, x2 / X_SCALE) plane, whose lowest point is GAP above y = 0, two
+    units of v from its end (its fold in Omega, 0.34 above y = 0): (E, dE/dy, dE/dv)."""
     yc = GAP + np.hypot(LONG * np.sin(TILT), SHORT * np.cos(TILT))
     c, s = np.cos(TILT), np.sin(TILT)
     p, q = v * c + (y - yc) * s, -v * s + (y - yc) * c
@@ -239,9 +239,10 @@ def _tilted_ellipse(y, v):
 
 
 class TiltedLoops(PitchforkLoop):
-    """The same symmetric branch, and a long thin loop tilted so that its end, where it folds
-    in Omega (at Omega ~ 0.3), lies GAP = 0.1 scaled units (0.005 in x2) above the symmetric
-    branch, with its mirror image: g = E(x2) E(-x2), never zero at x2 = 0."""
+    """The same symmetric branch, and a long thin loop tilted so that its lowest point, GAP =
+    0.1 scaled units (0.005 in x2) above the symmetric branch, lies next to its end, where it
+    folds in Omega (at Omega ~ 0.3), with its mirror image: g = E(x2) E(-x2), never zero at
+    x2 = 0."""
 
     def g(self, x2, w):
         y, v = x2 / X_SCALE, (w - 0.5) / OMEGA_SCALE
@@ -256,10 +257,11 @@ def tilted_loops():
 def test_a_loop_folding_next_to_the_symmetric_branch_stays_a_closed_isola(monkeypatch):
     """Rotor 37's default DLFT search had a broken branch fold 3.3 % of the orbit short of the
     primary: its corrector, steps longer than the gap, landed on the primary's symmetric orbits
-    and the branch was stored as leaving it. Here the loop's fold is a tenth of the longest
-    step (ds_max = 1) from the symmetric branch: the search refuses the landing (the step halves) and closes the loop,
-    its points all GAP or more off the symmetric branch. Without the refusal it lands and the
-    loop is taken for a branch leaving the primary."""
+    and the branch was stored as leaving it. Here the loop comes within a tenth of the longest
+    step (ds_max = 1) of the symmetric branch next to its fold: the search refuses the landing
+    (the step halves) and closes the loop, its points all GAP or more off the symmetric
+    branch. Without the refusal it lands and the loop is taken for a branch leaving the
+    primary."""
     import hbm.isolas.search as search_module
 
     yc = GAP + np.hypot(LONG * np.sin(TILT), SHORT * np.cos(TILT))
