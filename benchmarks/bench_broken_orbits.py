@@ -48,9 +48,13 @@ def coefficient_share(xr: np.ndarray, period: int) -> float:
 
 
 def broken_share(res, u: np.ndarray) -> float:
-    """coefficient_share of the orbit u (the residual's unknowns) outside the harmonics of
-    the casing's lobes, -."""
-    return coefficient_share(res.to_coefficients(u), res.nu * int(res.casing.n_lobes))
+    """Share of the energy of the orbit u (the residual's unknowns) outside the harmonics of
+    the casing's lobes, -: the square of the search's asymmetry (the part outside the mean
+    over the casing's images, relative), which coefficient_share gives for a signal's
+    harmonics."""
+    from hbm.isolas.search import asymmetry
+
+    return asymmetry(res, u) ** 2
 
 
 def closest_approach(res, solver, x0: np.ndarray, w0: float, options, n_points: int = 80):

@@ -466,13 +466,11 @@ def continue_branch(residual: Residual, x0: np.ndarray | None, omega0: float | N
                 k = opt.corner_turns
                 corner = (k is not None and len(turns) >= k
                           and max(abs(t - turn) for t in turns[-k:]) <= opt.corner_tol_deg)
-                refused = None
-                if d > 0 and admit is not None and not floor \
-                        and (turn <= opt.max_turn_deg or (corner and turn <= 90.0)):
-                    refused = admit(last, cx, cw)
+                turn_ok = d > 0 and (turn <= opt.max_turn_deg or ((floor or corner) and turn <= 90.0))
+                refused = admit(last, cx, cw) if turn_ok and admit is not None and not floor else None
                 if refused is not None:
                     c = c._replace(converged=False, reason=f"{refused} near omega={cw:.6g}")
-                elif d > 0 and (turn <= opt.max_turn_deg or ((floor or corner) and turn <= 90.0)):
+                elif turn_ok:
                     # A loop coming back to its start lands on its own first segment: the
                     # crossing test closes it there, before the rejoin test would refuse it.
                     if not opt.rejoin_check or closes(last, cx, cw) is not None:
